@@ -1,0 +1,129 @@
+"""Observations: what a star tracker hands to an identification algorithm.
+
+An :class:`Observation` is one image's detections as arrays; a :class:`TrialSet` is many
+images stored flat with offsets (struct of arrays), which is what the simulator produces and
+the harness consumes.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .camera import Camera
+from .errors import ObservationError
+
+
+@dataclass(frozen=True, eq=False)
+class Observation:
+    """Detections of one image.
+
+    Attributes
+    ----------
+    x_px, y_px : float64 (n,) centroids, pixel (0, 0) = top-left corner, x right, y down.
+    mag : float64 (n,) measured (noisy) magnitudes.
+    camera : the camera that took the image.
+    truth_hip : int64 (n,) true catalog id of each detection (-1 = false star), or ``None``
+        when unknown. Algorithms must not read it; only the harness does.
+    """
+
+    x_px: np.ndarray
+    y_px: np.ndarray
+    mag: np.ndarray
+    camera: Camera = field(default_factory=Camera)
+    truth_hip: np.ndarray | None = None
+
+    def __post_init__(self):
+        arrays = {}
+        for name in ("x_px", "y_px", "mag"):
+            value = getattr(self, name)
+            try:
+                arr = np.ascontiguousarray(value, dtype=np.float64)
+            except (TypeError, ValueError):
+                raise ObservationError(f"observation {name} must be numeric") from None
+            if arr.ndim != 1:
+                raise ObservationError(f"observation {name} must be 1-D, got shape {arr.shape}")
+            arrays[name] = arr
+        n = arrays["x_px"].size
+        for name, arr in arrays.items():
+            if arr.size != n:
+                raise ObservationError(f"observation arrays differ in length: x_px has {n}, {name} has {arr.size}")
+            bad = np.flatnonzero(~np.isfinite(arr))
+            if bad.size:
+                raise ObservationError(f"observation {name} has a non-finite value at star {bad[0]}")
+            object.__setattr__(self, name, arr)
+        off = np.flatnonzero(~self.camera.in_image(arrays["x_px"], arrays["y_px"]))
+        if off.size:
+            i = off[0]
+            raise ObservationError(
+                f"star {i} at ({arrays['x_px'][i]:.3f}, {arrays['y_px'][i]:.3f}) px lies outside the "
+                f"{self.camera.width_px}x{self.camera.height_px} image")
+        if self.truth_hip is not None:
+            truth = np.ascontiguousarray(self.truth_hip, dtype=np.int64)
+            if truth.shape != (n,):
+                raise ObservationError(f"truth_hip must have shape ({n},), got {truth.shape}")
+            object.__setattr__(self, "truth_hip", truth)
+
+    def __len__(self) -> int:
+        return int(self.x_px.size)
+
+    def unit_cam(self) -> np.ndarray:
+        """Camera-frame unit vectors ``(n, 3)`` of the detections."""
+        return self.camera.backproject(self.x_px, self.y_px)
+
+    def permuted(self, order: np.ndarray) -> "Observation":
+        """The same detections in another order."""
+        return Observation(self.x_px[order], self.y_px[order], self.mag[order], self.camera,
+                           None if self.truth_hip is None else self.truth_hip[order])
+
+
+@dataclass(frozen=True, eq=False)
+class TrialSet:
+    """Many simulated images, stored flat: star ``j`` of trial ``i`` is row ``offsets[i] + j``.
+
+    Attributes
+    ----------
+    trial : int64 (t,) trial indices (reproducible from ``(seed, trial)`` alone).
+    offsets : int64 (t + 1,) row offsets into the star arrays.
+    x_px, y_px, mag, truth_hip : per-star arrays (see :class:`Observation`).
+    attitude : float64 (t, 3, 3) true attitudes (ICRS -> camera).
+    n_redraws : int64 (t,) attitudes rejected by the ``min_stars`` filter before this trial.
+    camera : the camera.
+    seed : the seed of the simulator that made them.
+    config : the simulator parameters, as a plain dict.
+    """
+
+    trial: np.ndarray
+    offsets: np.ndarray
+    x_px: np.ndarray
+    y_px: np.ndarray
+    mag: np.ndarray
+    truth_hip: np.ndarray
+    attitude: np.ndarray
+    n_redraws: np.ndarray
+    camera: Camera
+    seed: int
+    config: dict
+
+    def __len__(self) -> int:
+        return int(self.trial.size)
+
+    def n_stars(self) -> np.ndarray:
+        return np.diff(self.offsets)
+
+    def observation(self, i: int) -> Observation:
+        """The ``i``-th image of the set (position ``i``, not trial index)."""
+        a, b = self.offsets[i], self.offsets[i + 1]
+        return Observation(self.x_px[a:b], self.y_px[a:b], self.mag[a:b], self.camera, self.truth_hip[a:b])
+
+    def select(self, positions: np.ndarray) -> "TrialSet":
+        """A subset of the images, by position."""
+        positions = np.asarray(positions, dtype=np.int64)
+        counts = np.diff(self.offsets)[positions]
+        rows = np.concatenate([np.arange(self.offsets[p], self.offsets[p + 1]) for p in positions]) \
+            if positions.size else np.zeros(0, dtype=np.int64)
+        offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+        return TrialSet(self.trial[positions], offsets, self.x_px[rows], self.y_px[rows], self.mag[rows],
+                        self.truth_hip[rows], self.attitude[positions], self.n_redraws[positions],
+                        self.camera, self.seed, self.config)

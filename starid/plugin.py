@@ -1,0 +1,121 @@
+"""The plugin API every star-identification algorithm implements.
+
+An algorithm is a small class (a frozen dataclass is the easy way) that
+
+* has a class attribute ``name`` (its registered name = its folder in ``algorithms/``) and a
+  docstring whose first line is a one-line summary and which cites its reference;
+* stores only parameters in ``__init__`` (every parameter has a default, so the class is
+  default-constructible);
+* ``build(catalog, camera)`` returns a :class:`Database` (a frozen dataclass of numpy arrays
+  whose ``nbytes`` is the memory the identify step reads);
+* ``identify(database, observation)`` returns an :class:`Identification`: per observed star a
+  catalog id or -1, and optionally an attitude.
+
+The harness, not the plugin, decides whether an identification is correct. Plugins register
+through the entry-point group ``starid.algorithms`` (see ``pyproject.toml``), or in process
+with :func:`starid.register`.
+"""
+
+from __future__ import annotations
+
+import abc
+import dataclasses
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+
+from .camera import Camera
+from .catalog import Catalog
+from .errors import PluginError
+from .observation import Observation
+
+
+def _nbytes(value) -> int:
+    if isinstance(value, np.ndarray):
+        return int(value.nbytes)
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return sum(_nbytes(getattr(value, f.name)) for f in dataclasses.fields(value))
+    if isinstance(value, (tuple, list)):
+        return sum(_nbytes(v) for v in value)
+    return 0
+
+
+@dataclass(frozen=True, eq=False)
+class Database:
+    """Base class of algorithm databases: subclass it as a frozen dataclass of numpy arrays.
+
+    ``nbytes`` sums the ``nbytes`` of every array field (nested dataclasses included). Fields
+    that identify does not read (e.g. build diagnostics) should not be arrays.
+    """
+
+    @property
+    def nbytes(self) -> int:
+        return _nbytes(self)
+
+
+@dataclass(frozen=True, eq=False)
+class Identification:
+    """What ``identify`` returns.
+
+    hip : int64 (n,) catalog id per observed star, in input order, -1 where unidentified.
+    attitude : optional 3x3 ICRS -> camera rotation the algorithm estimated.
+    """
+
+    hip: np.ndarray
+    attitude: np.ndarray | None = None
+
+    @classmethod
+    def none(cls, n: int) -> "Identification":
+        """No star identified."""
+        return cls(np.full(n, -1, dtype=np.int64))
+
+
+class Algorithm(abc.ABC):
+    """Abstract base of every star-identification plugin (see the module docstring)."""
+
+    name: ClassVar[str] = ""
+
+    def params(self) -> dict:
+        """The parameters of this instance, as a plain dict (for result rows)."""
+        if dataclasses.is_dataclass(self):
+            return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+        return {k: v for k, v in vars(self).items() if not k.startswith("_")}
+
+    @abc.abstractmethod
+    def build(self, catalog: Catalog, camera: Camera) -> Database:
+        """Build the database from the full catalog (choose the guide stars inside)."""
+
+    @abc.abstractmethod
+    def identify(self, database: Database, observation: Observation) -> Identification:
+        """Identify the observed stars; must not read ``observation.truth_hip``."""
+
+    @classmethod
+    def summary(cls) -> str:
+        """First line of the docstring."""
+        doc = (cls.__doc__ or "").strip()
+        return doc.splitlines()[0].strip() if doc else ""
+
+
+def check_identification(result, n_stars: int, catalog_hip: np.ndarray) -> Identification:
+    """Validate what a plugin returned; raise :class:`PluginError` saying what is wrong."""
+    if not isinstance(result, Identification):
+        raise PluginError(f"identify must return an Identification, got {type(result).__name__}")
+    hip = np.asarray(result.hip)
+    if hip.shape != (n_stars,):
+        raise PluginError(f"identify returned {hip.shape} ids for {n_stars} stars")
+    if not np.issubdtype(hip.dtype, np.integer):
+        raise PluginError(f"identify returned ids of dtype {hip.dtype}, expected integers")
+    reported = hip[hip != -1]
+    if reported.size:
+        pos = np.searchsorted(catalog_hip, reported)
+        pos = np.minimum(pos, catalog_hip.size - 1)
+        bad = reported[catalog_hip[pos] != reported]
+        if bad.size:
+            raise PluginError(f"identify returned id {int(bad[0])}, which is neither -1 nor in the catalog")
+        uniq, counts = np.unique(reported, return_counts=True)
+        if np.any(counts > 1):
+            raise PluginError(f"identify gave id {int(uniq[counts > 1][0])} to more than one star")
+    if result.attitude is not None and np.asarray(result.attitude).shape != (3, 3):
+        raise PluginError(f"identify returned an attitude of shape {np.asarray(result.attitude).shape}")
+    return result
