@@ -157,3 +157,49 @@ def kvector_range(sorted_values, k, m, q, lo, hi):
     if stop < start:
         stop = start
     return start, stop
+
+
+@njit(cache=True)
+def verify_pairwise(v_cam, cand_row, cat_unit, tol_chord, min_support):
+    """Pairwise angular-consistency verification (algorithm notes 1.5, geometric-voting style).
+
+    ``cand_row[i]`` is the catalog row proposed for observed star ``i`` (-1 = none). Two
+    proposals agree when their observed chord and catalog chord differ by at most
+    ``tol_chord``. The proposal with the least agreement is dropped, repeatedly, until every
+    remaining one agrees with at least ``min_support`` others; stars left sharing a catalog row
+    are dropped too. Returns a boolean mask of the accepted proposals.
+    """
+    n = v_cam.shape[0]
+    active = cand_row >= 0
+    support = np.zeros(n, dtype=np.int64)
+    while True:
+        worst = -1
+        worst_support = 1 << 30
+        for i in range(n):
+            if not active[i]:
+                continue
+            s = 0
+            for j in range(n):
+                if j == i or not active[j]:
+                    continue
+                if cand_row[i] == cand_row[j]:
+                    continue
+                d_obs = chord(v_cam[i], v_cam[j])
+                d_cat = chord(cat_unit[cand_row[i]], cat_unit[cand_row[j]])
+                if abs(d_obs - d_cat) <= tol_chord:
+                    s += 1
+            support[i] = s
+            if s < worst_support:
+                worst_support = s
+                worst = i
+        if worst < 0 or worst_support >= min_support:
+            break
+        active[worst] = False
+    for i in range(n):
+        if not active[i]:
+            continue
+        for j in range(i + 1, n):
+            if active[j] and cand_row[i] == cand_row[j]:
+                active[i] = False
+                active[j] = False
+    return active

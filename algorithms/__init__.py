@@ -1,0 +1,1 @@
+"""Built-in algorithm plugins of starid (installed as ``starid_algorithms``), one folder each."""

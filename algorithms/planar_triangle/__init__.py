@@ -1,0 +1,1 @@
+"""planar_triangle plugin (being written)."""

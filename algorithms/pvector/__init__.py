@@ -1,0 +1,1 @@
+"""pvector plugin (being written)."""

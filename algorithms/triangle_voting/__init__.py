@@ -1,0 +1,1 @@
+"""triangle_voting plugin (being written)."""
