@@ -160,14 +160,16 @@ def kvector_range(sorted_values, k, m, q, lo, hi):
 
 
 @njit(cache=True)
-def verify_pairwise(v_cam, cand_row, cat_unit, tol_chord, min_support):
+def verify_pairwise(v_cam, cand_row, cat_unit, tol_chord, min_support, min_fraction=0.0):
     """Pairwise angular-consistency verification (algorithm notes 1.5, geometric-voting style).
 
     ``cand_row[i]`` is the catalog row proposed for observed star ``i`` (-1 = none). Two
     proposals agree when their observed chord and catalog chord differ by at most
     ``tol_chord``. The proposal with the least agreement is dropped, repeatedly, until every
-    remaining one agrees with at least ``min_support`` others; stars left sharing a catalog row
-    are dropped too. Returns a boolean mask of the accepted proposals.
+    remaining one agrees with at least ``max(min_support, ceil(min_fraction * (k - 1)))`` of
+    the ``k - 1`` others (``min_fraction = 0.5``: a majority, so a small self-consistent cluster
+    of wrong proposals loses to a larger true one; ``1.0``: a clique). Stars left sharing a
+    catalog row are dropped too. Returns a boolean mask of the accepted proposals.
     """
     n = v_cam.shape[0]
     active = cand_row >= 0
@@ -192,7 +194,12 @@ def verify_pairwise(v_cam, cand_row, cat_unit, tol_chord, min_support):
             if s < worst_support:
                 worst_support = s
                 worst = i
-        if worst < 0 or worst_support >= min_support:
+        n_active = 0
+        for i in range(n):
+            if active[i]:
+                n_active += 1
+        need = max(min_support, int(math.ceil(min_fraction * (n_active - 1))))
+        if worst < 0 or worst_support >= need:
             break
         active[worst] = False
     for i in range(n):

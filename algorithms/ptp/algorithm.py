@@ -1,0 +1,198 @@
+"""PTP: planar-triangle principal-component star identification (Zhou & Ye 2015)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from starid.camera import Camera
+from starid.catalog import Catalog
+from starid.errors import ConfigError
+from starid.kernels import kvector_build, rad_to_chord
+from starid.observation import Observation
+from starid.plugin import Algorithm, Database, Identification
+
+from .kernels import build_triangles, identify_kernel
+
+#: Sides and D_ms are chords of unit vectors times this (section 2.1: 5 deg -> 872.8).
+CHORD_SCALE = 10000.0
+
+
+@dataclass(frozen=True, eq=False)
+class PTPDatabase(Database):
+    """The pattern database of section 2.1 (Table 1) plus its k-vector (Table 2).
+
+    proj : float32 (t,) projections p_r (eq. 3), ascending.
+    kvec : uint16/int32 (t,) k-vector over ``proj``; ``km``, ``kq`` its line (eq. 16).
+    ids : uint16/int32 (t, 3) guide-star rows of (r1, r2, r3) = (master, nearer slave, farther slave).
+    sides : float32 (t, 3) scaled sides (a, b, c) of eq. 1.
+    mean : float64 (3,) mean side vector; axis : float64 (3,) the projection axis u_max.
+    guide_hip : int32 (g,) catalog id of each guide row.
+    guide_ra_rad, guide_dec_rad : float32 (g,) guide positions for the verification step
+        (two float32 angles: smaller than three unit-vector components, 0.1 arcsec precision).
+    """
+
+    proj: np.ndarray
+    kvec: np.ndarray
+    ids: np.ndarray
+    sides: np.ndarray
+    mean: np.ndarray
+    axis: np.ndarray
+    guide_hip: np.ndarray
+    guide_ra_rad: np.ndarray
+    guide_dec_rad: np.ndarray
+    km: float
+    kq: float
+    explained_variance: float
+
+
+def _index_dtype(n: int):
+    return np.uint16 if n <= np.iinfo(np.uint16).max else np.int32
+
+
+@dataclass(frozen=True)
+class PTP(Algorithm):
+    """PTP: planar triangles projected on their first principal axis, k-vector search and sharing-star validation.
+
+    Zhou F., Ye T., "Lost-in-space star identification using planar triangle principal component
+    analysis algorithm", Mathematical Problems in Engineering 2015, 982420. Section numbers and
+    equations below are the paper's.
+
+    Database (section 2.1): every guide star (V <= ``mag_limit``) is a master; its
+    ``n_slaves`` nearest stars with ``d_min_deg <= angle <= d_max_deg`` (8.728 <= D_ms <= 872.8 in
+    the paper's units: chord x 10000) are slaves s1..s4, nearest first; the 6 triangles
+    (m, s_i, s_j), i < j, have sides a = |r1-r2|, b = |r2-r3|, c = |r1-r3| (eq. 1) with
+    r1 = m, r2 = s_i, r3 = s_j. PCA over all triangles gives the projection axis u_max; each
+    triangle is stored by its projection p_r = u_max^T (Delta - mean) (eq. 3), sorted, with a
+    k-vector (eqs. 15-16).
+
+    Identification (section 2.2): every observed star is a master with the same slave rule; each
+    triangle's projection (eq. 5) is searched in ``[p_r - beta sigma_p, p_r + beta sigma_p]``
+    with sigma_p from eqs. 6-14 and sigma = ``sigma_px`` / f_px; candidates must pass the
+    three-side check. Validation (section 2.3, Table 3): see :func:`identify_kernel`.
+
+    Choices the paper leaves open (notes "PTP" 1-6), each a parameter:
+
+    * double stars: the paper's lower limit d_min = 0.05 deg is there "to avoid double star
+      interference". Two guide stars closer than that have near-identical triangles and cannot
+      be told apart at 1 px noise, so (``exclude_doubles``, reconstruction) both are dropped from
+      the guide list, and image stars closer than d_min to another detection are left
+      unidentified;
+    * vertex order r1 = master, r2 = nearer slave, r3 = farther (paper's listing of s1..s4);
+      when the two slaves' distances differ by less than the side tolerance, the swapped order is
+      also tried (``swap_slaves``, reconstruction);
+    * the three-side check uses the same ``side_beta`` = 3 sigma bound propagated to each side,
+      sigma_side = sigma sqrt(2 - side^2 / 2) ~ sqrt(2) sigma (eq. 11) (reconstruction);
+    * sharing-star validation accepts a matched triangle when ``min_shared`` = 1 of its star
+      pairings is also proposed by another observed triangle, which is how Table 3 validates
+      triangle 1 (it shares only star 11 with triangle 3);
+    * conflicting pairings: the paper declares a star whose triangles disagree a failure. At a
+      3-sigma window, near-congruent triangles (an isosceles triangle with its two equal sides'
+      roles swapped, a neighbouring look-alike) are matched too and would wipe out true stars, so
+      by default the pairing proposed by more distinct observed triangles wins (``majority``,
+      reconstruction); ``majority=False`` drops every conflicting star;
+    * ``sigma_px`` is the centroid noise the tolerances assume (1 px in Table 6);
+    * ``verify`` (starid's extension, on by default): the paper stops after the sharing-star
+      validation and computes the attitude "from the correctly identified stars"; starid checks
+      the pairings' mutual angular distances first, because under the harness's rule one wrong
+      id makes the whole image wrong, and at 1 px noise the sharing-star rule alone validates
+      clusters of spurious triangles (``verify=False`` gives the paper-literal algorithm).
+    """
+
+    name: ClassVar[str] = "ptp"
+
+    mag_limit: float = 6.0
+    sigma_px: float = 1.0
+    n_slaves: int = 4
+    d_min_deg: float = 0.05
+    d_max_deg: float = 5.0
+    beta: float = 3.0
+    side_beta: float = 3.0
+    exclude_doubles: bool = True
+    swap_slaves: bool = True
+    min_shared: int = 1
+    majority: bool = True
+    verify: bool = True
+    verify_min_fraction: float = 0.5
+
+    def __post_init__(self):
+        if not (math.isfinite(self.sigma_px) and self.sigma_px > 0):
+            raise ConfigError(f"ptp: sigma_px must be > 0 (it sets the search windows), got {self.sigma_px!r}")
+        if int(self.n_slaves) != self.n_slaves or self.n_slaves < 2:
+            raise ConfigError(f"ptp: n_slaves must be a whole number >= 2, got {self.n_slaves!r}")
+        if not (0 <= self.d_min_deg < self.d_max_deg < 90):
+            raise ConfigError(f"ptp: need 0 <= d_min_deg < d_max_deg < 90, got {self.d_min_deg!r}, {self.d_max_deg!r}")
+        for name in ("beta", "side_beta"):
+            if not (math.isfinite(getattr(self, name)) and getattr(self, name) > 0):
+                raise ConfigError(f"ptp: {name} must be > 0, got {getattr(self, name)!r}")
+        if int(self.min_shared) != self.min_shared or not 0 <= self.min_shared <= 3:
+            raise ConfigError(f"ptp: min_shared must be 0, 1, 2 or 3, got {self.min_shared!r}")
+        if not 0.0 <= self.verify_min_fraction <= 1.0:
+            raise ConfigError(f"ptp: verify_min_fraction must lie in [0, 1], got {self.verify_min_fraction!r}")
+        if not math.isfinite(self.mag_limit):
+            raise ConfigError(f"ptp: mag_limit must be finite, got {self.mag_limit!r}")
+
+    @property
+    def _d_min(self) -> float:
+        return CHORD_SCALE * rad_to_chord(math.radians(self.d_min_deg))
+
+    @property
+    def _d_max(self) -> float:
+        return CHORD_SCALE * rad_to_chord(math.radians(self.d_max_deg))
+
+    def build(self, catalog: Catalog, camera: Camera) -> PTPDatabase:
+        guide = catalog.brighter_than(self.mag_limit)
+        if self.exclude_doubles:
+            pairs = cKDTree(guide.unit_icrs).query_pairs(self._d_min / CHORD_SCALE, output_type="ndarray")
+            double = np.zeros(len(guide), dtype=bool)
+            double[pairs.ravel()] = True
+            guide = guide.subset(~double)
+        if len(guide) < 3:
+            raise ConfigError(f"ptp: only {len(guide)} catalog stars have V <= {self.mag_limit}")
+        unit = guide.unit_icrs
+        tree = cKDTree(unit)
+        lists = tree.query_ball_point(unit, self._d_max / CHORD_SCALE)
+        neighbours, offsets = [], [0]
+        for i, js in enumerate(lists):
+            js = np.asarray(js, dtype=np.int64)
+            d = CHORD_SCALE * np.linalg.norm(unit[js] - unit[i], axis=1)
+            ok = (js != i) & (d >= self._d_min) & (d <= self._d_max)
+            js, d = js[ok], d[ok]
+            neighbours.append(js[np.argsort(d, kind="stable")])
+            offsets.append(offsets[-1] + js.size)
+        ids, sides = build_triangles(unit, np.concatenate(neighbours), np.asarray(offsets, dtype=np.int64),
+                                     self._d_min, self._d_max, int(self.n_slaves), CHORD_SCALE)
+        if len(ids) < 2:
+            raise ConfigError("ptp: the catalog yields fewer than two feature triangles")
+        mean = sides.mean(axis=0)
+        q = sides - mean
+        eigval, eigvec = np.linalg.eigh(q.T @ q)         # C = Q Q^T (section 2.1, step 2)
+        axis = eigvec[:, -1] * np.sign(eigvec[:, -1].sum())
+        proj = q @ axis                                   # eq. 3
+        order = np.argsort(proj, kind="stable")
+        proj32 = proj[order].astype(np.float32)
+        kvec, km, kq = kvector_build(proj32.astype(np.float64))
+        return PTPDatabase(proj=proj32, kvec=kvec.astype(_index_dtype(len(order))),
+                           ids=ids[order].astype(_index_dtype(len(guide))),
+                           sides=sides[order].astype(np.float32), mean=mean, axis=axis,
+                           guide_hip=guide.hip.astype(np.int32),
+                           guide_ra_rad=np.radians(guide.ra_deg).astype(np.float32),
+                           guide_dec_rad=np.radians(guide.dec_deg).astype(np.float32), km=km, kq=kq,
+                           explained_variance=float(eigval[-1] / eigval.sum()))
+
+    def identify(self, database: PTPDatabase, observation: Observation) -> Identification:
+        cam = observation.camera
+        rows = identify_kernel(observation.x_px, observation.y_px, cam.f_px, cam.cx_px, cam.cy_px,
+                               database.proj, database.kvec, database.km, database.kq, database.ids,
+                               database.sides, database.mean, database.axis, database.guide_ra_rad,
+                               database.guide_dec_rad, self.sigma_px / cam.f_px, CHORD_SCALE,
+                               self._d_min, self._d_max, int(self.n_slaves), self.beta, self.side_beta,
+                               bool(self.exclude_doubles), bool(self.swap_slaves), int(self.min_shared), bool(self.majority),
+                               bool(self.verify),
+                               float(self.verify_min_fraction))
+        hip = np.where(rows >= 0, database.guide_hip[np.maximum(rows, 0)], -1).astype(np.int64)
+        return Identification(hip)

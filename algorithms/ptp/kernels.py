@@ -1,0 +1,326 @@
+"""numba kernels of the PTP algorithm (Zhou & Ye 2015). Equation numbers refer to that paper."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from starid.kernels import backproject_px, chord, kvector_range, verify_pairwise
+
+
+@njit(cache=True)
+def _before(dist, unit, i, j):
+    """Strict order of candidate slaves: by distance, exact ties by the unit vector (input-order free)."""
+    if dist[i] != dist[j]:
+        return dist[i] < dist[j]
+    if unit[i, 0] != unit[j, 0]:
+        return unit[i, 0] < unit[j, 0]
+    return unit[i, 1] < unit[j, 1]
+
+
+@njit(cache=True)
+def nearest_slaves(dist_row, unit, usable, master, d_min, d_max, n_slaves):
+    """The ``n_slaves`` usable stars nearest ``master`` with ``d_min <= D_ms <= d_max`` (eq. 2), nearest first.
+
+    ``dist_row[j]`` is the scaled chord ``D_ms`` from the master to star ``j``.
+    """
+    n = dist_row.shape[0]
+    taken = np.zeros(n, dtype=np.bool_)
+    out = np.empty(n_slaves, dtype=np.int64)
+    m = 0
+    while m < n_slaves:
+        pick = -1
+        for j in range(n):
+            if j == master or taken[j] or not usable[j] or not (d_min <= dist_row[j] <= d_max):
+                continue
+            if pick < 0 or _before(dist_row, unit, j, pick):
+                pick = j
+        if pick < 0:
+            break
+        taken[pick] = True
+        out[m] = pick
+        m += 1
+    return out[:m]
+
+
+@njit(cache=True)
+def build_triangles(unit, neighbours, neighbour_offsets, d_min, d_max, n_slaves, scale):
+    """Feature triangles of every master star (section 2.1, step 1).
+
+    ``neighbours[neighbour_offsets[i]:neighbour_offsets[i+1]]`` are the candidate slaves of
+    master ``i``, already sorted by distance and cut to ``d_min <= D_ms <= d_max``. Each master
+    keeps its ``n_slaves`` nearest slaves s1..s4 and forms the triangles (m, s_i, s_j), i < j, with
+    r1 = m, r2 = s_i (nearer), r3 = s_j; sides from eq. 1: a = |r1-r2|, b = |r2-r3|, c = |r1-r3|.
+    Returns ``(ids (t, 3), sides (t, 3))``.
+    """
+    n = unit.shape[0]
+    count = 0
+    for i in range(n):
+        k = min(n_slaves, neighbour_offsets[i + 1] - neighbour_offsets[i])
+        count += k * (k - 1) // 2
+    ids = np.empty((count, 3), dtype=np.int64)
+    sides = np.empty((count, 3))
+    t = 0
+    for i in range(n):
+        start = neighbour_offsets[i]
+        k = min(n_slaves, neighbour_offsets[i + 1] - start)
+        for a in range(k):
+            for b in range(a + 1, k):
+                s1 = neighbours[start + a]
+                s2 = neighbours[start + b]
+                ids[t, 0] = i
+                ids[t, 1] = s1
+                ids[t, 2] = s2
+                sides[t, 0] = scale * chord(unit[i], unit[s1])
+                sides[t, 1] = scale * chord(unit[s1], unit[s2])
+                sides[t, 2] = scale * chord(unit[i], unit[s2])
+                t += 1
+    return ids, sides
+
+
+@njit(cache=True)
+def _grad_var(g, t, sigma2):
+    """``g R g^T`` with the QUEST covariance ``R = sigma^2 (I - t t^T)`` (eqs. 11-12)."""
+    gg = g[0] * g[0] + g[1] * g[1] + g[2] * g[2]
+    gt = g[0] * t[0] + g[1] * t[1] + g[2] * t[2]
+    return sigma2 * (gg - gt * gt)
+
+
+@njit(cache=True)
+def projection_sigma(t1, t2, t3, a, b, c, w, sigma, scale):
+    """Analytic standard deviation of the projection, eqs. 6-14.
+
+    ``a, b, c`` are the scaled sides; ``w`` the projection axis ``u_max``; ``sigma`` the
+    per-axis angular noise in radians. The partials of eq. 9 are of the unscaled chords, so the
+    result is multiplied by ``scale``.
+    """
+    g1 = np.empty(3)
+    g2 = np.empty(3)
+    g3 = np.empty(3)
+    for k in range(3):
+        da = scale * (t1[k] - t2[k]) / a   # d a / d t1 (eq. 9), unscaled direction
+        db = scale * (t2[k] - t3[k]) / b   # d b / d t2
+        dc = scale * (t1[k] - t3[k]) / c   # d c / d t1
+        g1[k] = w[0] * da + w[2] * dc      # T1 (eq. 7)
+        g2[k] = -w[0] * da + w[1] * db     # T2
+        g3[k] = -w[1] * db - w[2] * dc     # T3
+    s2 = sigma * sigma
+    var = _grad_var(g1, t1, s2) + _grad_var(g2, t2, s2) + _grad_var(g3, t3, s2)
+    return scale * math.sqrt(max(var, 0.0))
+
+
+@njit(cache=True)
+def side_sigma(side, sigma):
+    """Standard deviation of one unscaled chord side under eq. 11: ``sigma sqrt(2 - side^2/2)``."""
+    return sigma * math.sqrt(max(2.0 - 0.5 * side * side, 0.0))
+
+
+@njit(cache=True)
+def _match_triangle(t1, t2, t3, sides, proj, kvec, km, kq, db_sides, mean, w, sigma, scale,
+                    beta, side_beta, out_cand, n_out):
+    """Candidates of one observed triangle: k-vector window then the three-side check."""
+    a = scale * chord(t1, t2)
+    b = scale * chord(t2, t3)
+    c = scale * chord(t1, t3)
+    sides[0] = a
+    sides[1] = b
+    sides[2] = c
+    p = w[0] * (a - mean[0]) + w[1] * (b - mean[1]) + w[2] * (c - mean[2])   # eq. 5
+    xi = beta * projection_sigma(t1, t2, t3, a, b, c, w, sigma, scale)      # xi = 3 sigma_p
+    start, stop = kvector_range(proj, kvec, km, kq, p - xi, p + xi)         # eqs. 15-19
+    ta = side_beta * scale * side_sigma(a / scale, sigma)
+    tb = side_beta * scale * side_sigma(b / scale, sigma)
+    tc = side_beta * scale * side_sigma(c / scale, sigma)
+    for k in range(start, stop):
+        if (abs(db_sides[k, 0] - a) <= ta and abs(db_sides[k, 1] - b) <= tb
+                and abs(db_sides[k, 2] - c) <= tc):
+            if n_out < out_cand.shape[0]:
+                out_cand[n_out] = k
+            n_out += 1
+    return n_out
+
+
+@njit(cache=True)
+def _triple_key(i, j, k, n):
+    """Order-free key of a set of three image stars."""
+    a, b, c = min(i, j, k), max(min(i, j), min(max(i, j), k)), max(i, j, k)
+    return (a * n + b) * n + c
+
+
+@njit(cache=True)
+def identify_kernel(x_px, y_px, f_px, cx_px, cy_px, proj, kvec, km, kq, db_ids, db_sides, mean, w,
+                    guide_ra_rad, guide_dec_rad, sigma, scale, d_min, d_max, n_slaves, beta, side_beta,
+                    exclude_doubles, swap_slaves, min_shared, majority, verify, verify_min_fraction):
+    """PTP identification of one image (sections 2.2-2.3). Returns the guide index per star (-1 = none).
+
+    1. Every star is a master; its slaves are the ``n_slaves`` nearest stars in
+       ``[d_min, d_max]`` (same rule as the database); triangles (m, s_i, s_j), i < j. With
+       ``exclude_doubles``, stars closer than ``d_min`` to another detection are neither masters
+       nor slaves and stay unidentified (the database drops such guide pairs likewise).
+    2. Each triangle's projection (eq. 5) and its 3-sigma window (eqs. 6-14) select database
+       triangles through the k-vector (eqs. 15-19); the three sides must each agree within
+       ``side_beta`` standard deviations. When the two slaves are at distances closer than the
+       side tolerance, the swapped vertex order is tried too (``swap_slaves``).
+    3. Sharing-star validation (section 2.3, Table 3): a matched triangle is validated when at
+       least ``min_shared`` of its (image star -> catalog star) pairings also come from another
+       observed triangle, i.e. another *set* of three image stars (the same three stars reached
+       from two masters are one triangle, not independent evidence). The pairings of validated
+       triangles are accepted. An image star offered two catalog stars keeps the one proposed by
+       more observed triangles (``majority``; a tie drops it), and so does a catalog star offered
+       to two image stars; with ``majority=False`` every such conflict is dropped (the paper's
+       "otherwise it will be determined as a failure").
+    4. (``verify``, starid's extension) the surviving pairings must agree pairwise in angular
+       distance (``verify_pairwise`` with a ``side_beta`` sqrt(2) sigma chord tolerance, each
+       agreeing with at least two others and ``verify_min_fraction`` of them).
+    """
+    n_guide = guide_ra_rad.shape[0]
+    n = x_px.shape[0]
+    result = np.full(n, -1, dtype=np.int64)
+    if n < 3:
+        return result
+    unit = backproject_px(x_px, y_px, f_px, cx_px, cy_px)
+    dist = np.empty((n, n))
+    usable = np.ones(n, dtype=np.bool_)
+    for i in range(n):
+        dist[i, i] = 0.0
+        for j in range(i + 1, n):
+            d = scale * chord(unit[i], unit[j])
+            dist[i, j] = d
+            dist[j, i] = d
+            if d < d_min and exclude_doubles:
+                usable[i] = False
+                usable[j] = False
+    cap = 64
+    cand = np.empty(cap, dtype=np.int64)
+    # match records: image triangle id, image stars (3), guide stars (3)
+    m_cap = 256
+    m_tri = np.empty(m_cap, dtype=np.int64)
+    m_img = np.empty((m_cap, 3), dtype=np.int64)
+    m_cat = np.empty((m_cap, 3), dtype=np.int64)
+    n_match = 0
+    sides = np.empty(3)
+    order_img = np.empty(3, dtype=np.int64)
+    for master in range(n):
+        if not usable[master]:
+            continue
+        slaves = nearest_slaves(dist[master], unit, usable, master, d_min, d_max, n_slaves)
+        k = slaves.shape[0]
+        for ia in range(k):
+            for ib in range(ia + 1, k):
+                s1 = slaves[ia]
+                s2 = slaves[ib]
+                d1 = dist[master, s1]
+                d2 = dist[master, s2]
+                tol = side_beta * scale * side_sigma(max(d1, d2) / scale, sigma)
+                n_orders = 2 if (swap_slaves and abs(d2 - d1) <= tol) else 1
+                for o in range(n_orders):
+                    order_img[0] = master
+                    order_img[1] = s1 if o == 0 else s2
+                    order_img[2] = s2 if o == 0 else s1
+                    nc = _match_triangle(unit[order_img[0]], unit[order_img[1]], unit[order_img[2]],
+                                         sides, proj, kvec, km, kq, db_sides, mean, w, sigma, scale,
+                                         beta, side_beta, cand, 0)
+                    if nc > cap:
+                        cap = 2 * nc
+                        cand = np.empty(cap, dtype=np.int64)
+                        nc = _match_triangle(unit[order_img[0]], unit[order_img[1]], unit[order_img[2]],
+                                             sides, proj, kvec, km, kq, db_sides, mean, w, sigma, scale,
+                                             beta, side_beta, cand, 0)
+                    for c in range(nc):
+                        if n_match == m_cap:
+                            m_cap *= 2
+                            new_tri = np.empty(m_cap, dtype=np.int64)
+                            new_img = np.empty((m_cap, 3), dtype=np.int64)
+                            new_cat = np.empty((m_cap, 3), dtype=np.int64)
+                            new_tri[:n_match] = m_tri[:n_match]
+                            new_img[:n_match] = m_img[:n_match]
+                            new_cat[:n_match] = m_cat[:n_match]
+                            m_tri, m_img, m_cat = new_tri, new_img, new_cat
+                        m_tri[n_match] = _triple_key(master, s1, s2, n)
+                        for v in range(3):
+                            m_img[n_match, v] = order_img[v]
+                            m_cat[n_match, v] = db_ids[cand[c], v]
+                        n_match += 1
+    if n_match == 0:
+        return result
+    # Support of each pairing = number of distinct observed triangles that propose it.
+    n_pair = 3 * n_match
+    key = np.empty(n_pair, dtype=np.int64)
+    tri = np.empty(n_pair, dtype=np.int64)
+    for mi in range(n_match):
+        for v in range(3):
+            key[3 * mi + v] = m_img[mi, v] * n_guide + m_cat[mi, v]
+            tri[3 * mi + v] = m_tri[mi]
+    n_tri = n * n * n
+    combined = np.empty(n_pair, dtype=np.int64)
+    for t in range(n_pair):
+        combined[t] = key[t] * n_tri + tri[t]
+    order = np.argsort(combined, kind="mergesort")
+    support = np.zeros(n_pair, dtype=np.int64)
+    i = 0
+    while i < n_pair:
+        j = i
+        distinct = 0
+        while j < n_pair and key[order[j]] == key[order[i]]:
+            if j == i or tri[order[j]] != tri[order[j - 1]]:
+                distinct += 1
+            j += 1
+        for t in range(i, j):
+            support[order[t]] = distinct
+        i = j
+    # Validated matches contribute their pairings; conflicts are settled by support.
+    best = np.full(n, -1, dtype=np.int64)
+    best_support = np.zeros(n, dtype=np.int64)
+    tie = np.zeros(n, dtype=np.bool_)
+    for mi in range(n_match):
+        shared = 0
+        for v in range(3):
+            if support[3 * mi + v] >= 2:
+                shared += 1
+        if shared < min_shared:
+            continue
+        for v in range(3):
+            s = m_img[mi, v]
+            g = m_cat[mi, v]
+            sup = support[3 * mi + v]
+            if not majority:
+                sup = 1
+            if best[s] == -1 or sup > best_support[s]:
+                best[s] = g
+                best_support[s] = sup
+                tie[s] = False
+            elif sup == best_support[s] and g != best[s]:
+                tie[s] = True
+    for s in range(n):
+        if tie[s]:
+            best[s] = -1
+    # A catalog star proposed for several image stars goes to the best supported one, if unique.
+    for s in range(n):
+        if best[s] < 0:
+            continue
+        win = True
+        for t in range(n):
+            if t != s and best[t] == best[s] and (best_support[t] >= best_support[s] or not majority):
+                win = False
+        if win:
+            result[s] = best[s]
+    if verify:
+        cat_vec = np.zeros((n, 3))
+        local = np.full(n, -1, dtype=np.int64)
+        for s in range(n):
+            g = result[s]
+            if g >= 0:
+                ra = np.float64(guide_ra_rad[g])
+                dec = np.float64(guide_dec_rad[g])
+                cat_vec[s, 0] = math.cos(dec) * math.cos(ra)
+                cat_vec[s, 1] = math.cos(dec) * math.sin(ra)
+                cat_vec[s, 2] = math.sin(dec)
+                local[s] = s
+        tol = side_beta * math.sqrt(2.0) * sigma
+        keep = verify_pairwise(unit, local, cat_vec, tol, 2, verify_min_fraction)
+        for s in range(n):
+            if not keep[s]:
+                result[s] = -1
+    return result
