@@ -13,7 +13,9 @@ Choices, all documented here so the numbers can be checked:
 * **Magnitude.** hip2 gives Hp and B-V, not Johnson V. V is
   ``V = Hp + 0.02994 (B-V)^3 + 0.08731 (B-V)^2 - 0.27173 (B-V) - 0.00509``, fitted against the
   Hipparcos main catalogue's V for 42,212 stars (residual std 0.04 mag). With it 5,022 stars
-  have V <= 6.0 (Zhou & Ye had 5,103 from SAO).
+  have V <= 6.0 (Zhou & Ye had 5,103 from SAO). The fit does not hold for the few stars with
+  V < 0.5, whose Hp photometry saturates (Sirius comes out at V = -1.10 instead of -1.46); they
+  stay far brighter than any detection limit.
 * **Missing colour.** hip2 marks a missing B-V as ``B-V = 0`` with ``e_B-V = 0`` (1,143 stars,
   66 of them with Hp <= 8.5). For those we take B-V = 0, i.e. ``V = Hp - 0.00509``; the error
   is at most a few tenths of a magnitude for very red stars.

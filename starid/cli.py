@@ -1,0 +1,300 @@
+"""The ``starid`` command line: ``list``, ``run``, ``identify`` (see ``starid --help``)."""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from .camera import Camera
+from .catalog import Catalog, load_csv, load_hipparcos
+from .errors import ConfigError, ObservationError, StarIDError
+from .harness import SuccessRule, run, score_trial, summarize
+from .io import atomic_write_text, write_frame
+from .observation import Observation
+from .plugin import Algorithm, check_identification
+from .registry import available_algorithms, get_algorithm
+from .simulate import SimConfig, Simulator
+
+SHOWN_COLUMNS = ["algorithm", "trials", "id_rate", "id_rate_lo", "id_rate_hi", "misid_rate", "no_result_rate",
+                 "star_recall", "star_precision", "time_median_us", "time_mean_us", "time_p95_us", "db_mb",
+                 "build_s", "compile_s"]
+
+
+def _parse_value(text: str):
+    low = text.strip().lower()
+    if low in ("true", "false"):
+        return low == "true"
+    if low in ("none", "null"):
+        return None
+    for cast in (int, float):
+        try:
+            return cast(text)
+        except ValueError:
+            pass
+    return text
+
+
+def parse_overrides(items: list[str], names: list[str]) -> dict[str, dict]:
+    """``ALGO.KEY=VALUE`` strings -> ``{algo: {key: value}}`` (values parsed as bool/None/int/float/str)."""
+    out: dict[str, dict] = {name: {} for name in names}
+    for item in items:
+        head, sep, value = item.partition("=")
+        algo, dot, key = head.partition(".")
+        if not (sep and dot and key):
+            raise ConfigError(f"--set expects ALGO.KEY=VALUE, got {item!r}")
+        if algo not in out:
+            raise ConfigError(f"--set names {algo!r}, which is not among the algorithms run ({', '.join(names)})")
+        out[algo][key] = _parse_value(value)
+    return out
+
+
+def make_algorithm(name: str, params: dict) -> Algorithm:
+    cls = get_algorithm(name)
+    try:
+        return cls(**params)
+    except TypeError as exc:
+        raise ConfigError(f"{name}: {exc}") from None
+
+
+def _catalog(path: str | None) -> Catalog:
+    return load_csv(path) if path else load_hipparcos()
+
+
+def _camera(args) -> Camera:
+    res = args.resolution
+    if args.fov_deg is not None:
+        if args.focal_mm is not None:
+            raise ConfigError("give either --fov-deg or --focal-mm, not both")
+        return Camera.from_fov(args.fov_deg, res or 1024, args.pixel_um or 12.0)
+    if res is None and args.focal_mm is None and args.pixel_um is None:
+        return Camera()
+    base = Camera()
+    return Camera(width_px=res or base.width_px, height_px=res or base.height_px,
+                  pixel_um=args.pixel_um or base.pixel_um, focal_mm=args.focal_mm or base.focal_mm)
+
+
+def _progress(args) -> bool:
+    return not args.quiet and sys.stderr.isatty()
+
+
+def format_summary(summary: pd.DataFrame) -> str:
+    """A fixed-width text table of the summary columns."""
+    shown = summary[[c for c in SHOWN_COLUMNS if c in summary.columns]].copy()
+    return shown.to_string(index=False, float_format=lambda v: f"{v:.4g}")
+
+
+def cmd_list(args) -> int:
+    infos = available_algorithms()
+    if not infos:
+        print("no algorithms registered")
+        return 0
+    width = max(len(i.name) for i in infos)
+    for info in infos:
+        text = info.summary if info.status == "ok" else info.error
+        print(f"{info.name:<{width}}  {info.status:<6}  {text}")
+    return 0
+
+
+def add_sim_arguments(p: argparse.ArgumentParser, trials_default: int, seed_default: int,
+                      pos_default: float = 0.0, mag_default: float = 0.0) -> None:
+    p.add_argument("--trials", type=int, default=trials_default, help=f"number of images (default {trials_default})")
+    p.add_argument("--seed", type=int, default=seed_default, help=f"simulator seed (default {seed_default})")
+    p.add_argument("--pos-noise-px", type=float, default=pos_default, help="centroid noise sigma in px")
+    p.add_argument("--mag-noise", type=float, default=mag_default, help="magnitude noise sigma in mag")
+    p.add_argument("--false-stars", type=int, default=0, help="false stars added per image")
+    p.add_argument("--lost-stars", type=int, default=0, help="detections removed per image")
+    p.add_argument("--min-stars", type=int, default=6, help="redraw images with fewer true stars (default 6)")
+    p.add_argument("--mag-limit", type=float, default=6.0, help="sensor detection limit in mag (default 6.0)")
+    p.add_argument("--merge-radius-px", type=float, default=2.0, help="stars closer merge (default 2 px)")
+    p.add_argument("--sky-mag-limit", type=float, default=None,
+                   help="simulate only catalog stars with V <= this (default: the whole catalog, V <= 8; "
+                        "6.0 reproduces the papers' convention of imaging the guide list only)")
+    p.add_argument("--catalog", help="CSV catalog (hip,ra_deg,dec_deg,vmag) instead of the embedded Hipparcos")
+    p.add_argument("--out", type=Path, help="write trials.csv and summary.csv (and .parquet) here")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def simulator_from_args(args, catalog: Catalog, camera: Camera | None = None) -> Simulator:
+    config = SimConfig(sigma_px=args.pos_noise_px, sigma_mag=args.mag_noise, mag_limit=args.mag_limit,
+                       false_stars=args.false_stars, lost_stars=args.lost_stars, min_stars=args.min_stars,
+                       merge_radius_px=args.merge_radius_px)
+    sky = catalog if args.sky_mag_limit is None else catalog.brighter_than(args.sky_mag_limit)
+    return Simulator(sky, camera or Camera(), config, seed=args.seed)
+
+
+def cmd_run(args) -> int:
+    catalog = _catalog(args.catalog)
+    overrides = parse_overrides(args.set or [], args.algorithms)
+    algorithms = [make_algorithm(name, overrides[name]) for name in args.algorithms]
+    if args.trials < 1:
+        raise ConfigError(f"--trials must be >= 1, got {args.trials}")
+    sim = simulator_from_args(args, catalog)
+    t0 = time.perf_counter()
+    trials = sim.generate(args.trials)
+    sim_s = time.perf_counter() - t0
+    df = run(algorithms, trials, catalog, sim, SuccessRule(), progress=_progress(args))
+    summary = summarize(df)
+    print(f"{len(trials)} trials, seed {args.seed}, {args.pos_noise_px:g} px / {args.mag_noise:g} mag noise, "
+          f"{args.false_stars} false / {args.lost_stars} lost stars; simulated in {sim_s:.2f} s "
+          f"({int(trials.n_redraws.sum())} attitudes redrawn for < {args.min_stars} stars)")
+    print(format_summary(summary))
+    if args.out:
+        write_frame(df, args.out / "trials.csv")
+        write_frame(summary, args.out / "summary.csv")
+        print(f"wrote {args.out / 'trials.csv'} and {args.out / 'summary.csv'}")
+    return 0
+
+
+OBS_REQUIRED = ("trial", "x_px", "y_px", "mag")
+
+
+def read_observations(path: Path, camera: Camera) -> tuple[list[int], list[Observation], bool]:
+    """Read OBS.csv (``trial, x_px, y_px, mag[, truth_hip]``); every problem names its line."""
+    try:
+        fh = path.open(newline="")
+    except OSError as exc:
+        raise ObservationError(f"cannot read {path}: {exc.strerror}") from None
+    with fh:
+        reader = csv.reader(fh)
+        try:
+            header = [h.strip() for h in next(reader)]
+        except StopIteration:
+            raise ObservationError(f"{path}: empty file, expected a header line") from None
+        missing = [c for c in OBS_REQUIRED if c not in header]
+        if missing:
+            raise ObservationError(f"{path}, line 1: missing column(s) {', '.join(missing)}; header is {header}")
+        has_truth = "truth_hip" in header
+        cols = {c: header.index(c) for c in (*OBS_REQUIRED, *(("truth_hip",) if has_truth else ()))}
+        groups: dict[int, list[tuple[float, float, float, int]]] = {}
+        for lineno, row in enumerate(reader, start=2):
+            if not row or all(not cell.strip() for cell in row):
+                continue
+            if len(row) != len(header):
+                raise ObservationError(f"{path}, line {lineno}: expected {len(header)} fields, got {len(row)}")
+            try:
+                trial_f = float(row[cols["trial"]])
+                x, y, m = (float(row[cols[c]]) for c in ("x_px", "y_px", "mag"))
+                truth_f = float(row[cols["truth_hip"]]) if has_truth else -1.0
+            except ValueError:
+                raise ObservationError(f"{path}, line {lineno}: non-numeric value in {row}") from None
+            values = (trial_f, x, y, m, truth_f)
+            if not all(np.isfinite(values)):
+                raise ObservationError(f"{path}, line {lineno}: NaN or infinite value in {row}")
+            if trial_f != int(trial_f) or truth_f != int(truth_f):
+                raise ObservationError(f"{path}, line {lineno}: trial and truth_hip must be whole numbers")
+            if not camera.in_image(np.array(x), np.array(y)):
+                raise ObservationError(f"{path}, line {lineno}: ({x}, {y}) px lies outside the "
+                                       f"{camera.width_px}x{camera.height_px} image")
+            groups.setdefault(int(trial_f), []).append((x, y, m, int(truth_f)))
+    if not groups:
+        raise ObservationError(f"{path}: no observations")
+    trials = sorted(groups)
+    observations = []
+    for t in trials:
+        arr = groups[t]
+        observations.append(Observation(np.array([r[0] for r in arr]), np.array([r[1] for r in arr]),
+                                        np.array([r[2] for r in arr]), camera,
+                                        np.array([r[3] for r in arr], dtype=np.int64) if has_truth else None))
+    return trials, observations, has_truth
+
+
+def cmd_identify(args) -> int:
+    camera = _camera(args)
+    trials, observations, has_truth = read_observations(args.obs, camera)
+    catalog = _catalog(args.catalog)
+    algorithm = make_algorithm(args.algorithm, parse_overrides(args.set or [], [args.algorithm])[args.algorithm])
+    t0 = time.perf_counter()
+    db = algorithm.build(catalog, camera)
+    build_s = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    try:  # warm the JIT up outside the timed calls
+        algorithm.identify(db, observations[0])
+    except Exception:
+        pass
+    compile_s = time.perf_counter() - t0
+    id_rows, trial_rows, scored = [], [], []
+    rule = SuccessRule()
+    for t, obs in zip(trials, observations):
+        t_start = time.perf_counter_ns()
+        try:
+            result = algorithm.identify(db, obs)
+            elapsed = time.perf_counter_ns() - t_start
+            hip = np.asarray(check_identification(result, len(obs), catalog.hip).hip, dtype=np.int64)
+            error = ""
+        except Exception as exc:
+            elapsed = time.perf_counter_ns() - t_start
+            hip, error = np.full(len(obs), -1, dtype=np.int64), f"{type(exc).__name__}: {exc}"
+        n_id = int((hip != -1).sum())
+        if error:
+            status = "error"
+        elif has_truth:
+            status = score_trial(hip, obs.truth_hip, rule)["status"]
+        else:
+            status = "identified" if n_id >= rule.min_correct else "no_result"
+        id_rows += [{"trial": t, "star": j, "hip": int(h)} for j, h in enumerate(hip)]
+        trial_rows.append({"trial": t, "status": status, "n_identified": n_id, "time_us": elapsed / 1e3,
+                           "error": error})
+        if has_truth:
+            s = score_trial(hip, obs.truth_hip, rule)
+            scored.append({"algorithm": algorithm.name, "trial": t,
+                           "n_true_stars": int((obs.truth_hip >= 0).sum()), "time_us": elapsed / 1e3,
+                           "db_mb": db.nbytes / 1e6, "build_s": build_s, "compile_s": compile_s,
+                           "attitude_err_arcsec": float("nan"), **s, "status": status})
+    args.out.mkdir(parents=True, exist_ok=True)
+    write_frame(pd.DataFrame(id_rows, columns=["trial", "star", "hip"]), args.out / "identifications.csv")
+    write_frame(pd.DataFrame(trial_rows, columns=["trial", "status", "n_identified", "time_us", "error"]),
+                args.out / "trials.csv")
+    n_ok = sum(r["status"] in ("identified", "correct") for r in trial_rows)
+    print(f"{algorithm.name}: {len(trials)} images, {n_ok} identified; wrote {args.out}")
+    if has_truth:
+        summary = summarize(pd.DataFrame(scored))
+        write_frame(summary, args.out / "summary.csv")
+        print(format_summary(summary))
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="starid", description="Compare lost-in-space star-identification "
+                                     "algorithms on one catalog, one simulator and one scoring harness.")
+    sub = parser.add_subparsers(dest="command", required=True)
+    sub.add_parser("list", help="list registered algorithms").set_defaults(func=cmd_list)
+
+    p = sub.add_parser("run", help="score algorithms on simulated images")
+    p.add_argument("algorithms", nargs="+", metavar="ALGO")
+    add_sim_arguments(p, trials_default=1000, seed_default=0)
+    p.add_argument("--set", action="append", metavar="ALGO.KEY=VALUE", help="override an algorithm parameter")
+    p.set_defaults(func=cmd_run)
+
+    p = sub.add_parser("identify", help="identify your own centroids (OBS.csv: trial,x_px,y_px,mag[,truth_hip])")
+    p.add_argument("algorithm", metavar="ALGO")
+    p.add_argument("obs", type=Path, metavar="OBS.csv")
+    p.add_argument("--out", type=Path, required=True)
+    p.add_argument("--fov-deg", type=float, help="square field of view across the image width")
+    p.add_argument("--resolution", type=int, help="image width = height in px (default 1024)")
+    p.add_argument("--focal-mm", type=float, help="focal length in mm (default 70.2262)")
+    p.add_argument("--pixel-um", type=float, help="pixel pitch in um (default 12)")
+    p.add_argument("--catalog", help="CSV catalog instead of the embedded Hipparcos")
+    p.add_argument("--set", action="append", metavar="ALGO.KEY=VALUE", help="override an algorithm parameter")
+    p.set_defaults(func=cmd_identify)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return args.func(args)
+    except StarIDError as exc:
+        print(f"starid: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,13 @@
+import pytest
+
+from starid import Camera, load_hipparcos
+
+
+@pytest.fixture(scope="session")
+def catalog():
+    return load_hipparcos()
+
+
+@pytest.fixture(scope="session")
+def camera():
+    return Camera()

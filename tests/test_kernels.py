@@ -1,0 +1,85 @@
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from starid.kernels import (angular_distance_rad, chord, kvector_build, kvector_range, pairwise_chords,
+                            rad_to_chord, triangle_sides, verify_pairwise)
+
+values = st.lists(st.floats(-1e3, 1e3, allow_nan=False), min_size=0, max_size=60)
+
+
+@settings(max_examples=300, deadline=None)
+@given(values, st.floats(-1.2e3, 1.2e3), st.floats(0, 500))
+def test_kvector_matches_searchsorted(vals, lo, width):
+    s = np.sort(np.asarray(vals, dtype=np.float64))
+    k, m, q = kvector_build(s)
+    hi = lo + width
+    start, stop = kvector_range(s, k, m, q, lo, hi)
+    assert (start, stop) == (np.searchsorted(s, lo, "left"), np.searchsorted(s, hi, "right"))
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.lists(st.integers(-5, 5), min_size=2, max_size=40), st.integers(-6, 6))
+def test_kvector_with_many_ties(vals, lo):
+    s = np.sort(np.asarray(vals, dtype=np.float64))
+    k, m, q = kvector_build(s)
+    start, stop = kvector_range(s, k, m, q, float(lo), float(lo))
+    assert stop - start == int(np.sum(s == lo))
+
+
+def test_kvector_float32_values():
+    s = np.sort(np.random.default_rng(0).normal(size=1000)).astype(np.float32)
+    k, m, q = kvector_build(s.astype(np.float64))
+    for lo in np.linspace(-3, 3, 41):
+        start, stop = kvector_range(s, k, m, q, lo, lo + 0.1)
+        assert (start, stop) == (np.searchsorted(s, lo, "left"), np.searchsorted(s, lo + 0.1, "right"))
+
+
+def test_kvector_rejects_unsorted():
+    with pytest.raises(ValueError):
+        kvector_build(np.array([2.0, 1.0]))
+
+
+def test_distances():
+    u = np.array([1.0, 0.0, 0.0])
+    v = np.array([math.cos(0.3), math.sin(0.3), 0.0])
+    assert angular_distance_rad(u, v) == pytest.approx(0.3)
+    assert chord(u, v) == pytest.approx(rad_to_chord(0.3))
+    assert triangle_sides(u, v, -u) == pytest.approx((chord(u, v), chord(v, -u), 2.0))
+    pc = pairwise_chords(np.stack([u, v, -u]))
+    assert pc[0, 2] == pytest.approx(2.0) and pc[2, 0] == pc[0, 2] and pc[1, 1] == 0
+
+
+def _sky(n, seed):
+    rng = np.random.default_rng(seed)
+    v = rng.normal(size=(n, 3)) * [0.03, 0.03, 0] + [0, 0, 1]
+    return v / np.linalg.norm(v, axis=1, keepdims=True)
+
+
+def test_verify_pairwise_rejects_outlier_and_duplicates():
+    cat = _sky(8, 1)
+    obs = cat.copy()                     # camera frame = catalog frame
+    rows = np.arange(8)
+    assert verify_pairwise(obs, rows, cat, 1e-6, 2).all()
+    wrong = rows.copy()
+    wrong[3] = 7                         # star 3 proposed as catalog 7: inconsistent and a duplicate
+    keep = verify_pairwise(obs, wrong, cat, 1e-6, 2)
+    assert not keep[3] and keep[[0, 1, 2, 4, 5, 6]].all()
+
+
+def test_verify_pairwise_majority_beats_small_wrong_cluster():
+    cat = _sky(10, 2)
+    obs = cat[:10].copy()
+    rows = np.arange(10)
+    # a self-consistent wrong cluster of 3: stars 7, 8, 9 proposed as a rotated copy of themselves
+    c, s = np.cos(1.0), np.sin(1.0)
+    rotation = np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
+    cat2 = np.vstack([cat, obs[7:] @ rotation.T])
+    rows[7:] = [10, 11, 12]
+    keep_weak = verify_pairwise(obs, rows, cat2, 1e-6, 2)
+    keep_majority = verify_pairwise(obs, rows, cat2, 1e-6, 2, 0.5)
+    assert keep_weak[7:].all()           # pairwise support alone keeps both clusters
+    assert keep_majority[:7].all() and not keep_majority[7:].any()

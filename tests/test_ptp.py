@@ -1,0 +1,86 @@
+import numpy as np
+import pytest
+
+from starid import ConfigError, SimConfig, Simulator
+from starid.harness import run, summarize
+from starid_algorithms.ptp import PTP
+from starid_algorithms.ptp.algorithm import CHORD_SCALE
+from starid_algorithms.ptp.kernels import nearest_slaves, projection_sigma
+
+
+@pytest.fixture(scope="module")
+def db(catalog, camera):
+    return PTP().build(catalog, camera)
+
+
+def test_database_layout(db, catalog):
+    n_guide = db.guide_hip.size
+    assert 4_900 <= n_guide <= 5_100                       # V <= 6 minus close doubles
+    assert 5.5 * n_guide < db.proj.size <= 6 * n_guide       # six triangles for (almost) every master
+    assert np.all(np.diff(db.proj) >= 0)
+    assert db.ids.dtype == np.uint16 and db.kvec.dtype == np.uint16 and db.sides.dtype == np.float32
+    assert db.nbytes / 1e6 <= 0.784                        # the paper's Table 6 memory
+    assert np.linalg.norm(db.axis) == pytest.approx(1.0) and db.axis.sum() > 0
+    # recompute one triangle from the catalog
+    guide = catalog.subset(catalog.index_of(db.guide_hip))
+    r = guide.unit_icrs[db.ids[123].astype(int)]
+    a, b, c = (CHORD_SCALE * np.linalg.norm(r[i] - r[j]) for i, j in ((0, 1), (1, 2), (0, 2)))
+    assert np.allclose(db.sides[123], [a, b, c], rtol=1e-6)
+    assert db.proj[123] == pytest.approx(db.axis @ (np.array([a, b, c]) - db.mean), abs=1e-3)
+    assert a <= c                                          # r2 is the nearer slave
+    assert 8.728 - 1e-6 <= min(a, c) and max(a, c) <= 872.8 + 1e-6
+
+
+def test_projection_sigma_matches_monte_carlo():
+    rng = np.random.default_rng(0)
+    t = np.array([[0.0, 0.0, 1.0], [0.02, 0.01, 1.0], [-0.01, 0.03, 1.0]])
+    t /= np.linalg.norm(t, axis=1, keepdims=True)
+    w = np.array([0.33, 0.86, 0.40])
+    w /= np.linalg.norm(w)
+    sigma = 1e-4
+
+    def proj(v):
+        a, b, c = (CHORD_SCALE * np.linalg.norm(v[i] - v[j]) for i, j in ((0, 1), (1, 2), (0, 2)))
+        return w @ [a, b, c], (a, b, c)
+
+    p0, (a, b, c) = proj(t)
+    samples = []
+    for _ in range(4000):
+        noise = rng.normal(0, sigma, (3, 3))
+        noise -= np.sum(noise * t, axis=1, keepdims=True) * t        # tangent-plane noise, eq. 10
+        v = t + noise
+        samples.append(proj(v / np.linalg.norm(v, axis=1, keepdims=True))[0])
+    analytic = projection_sigma(t[0], t[1], t[2], a, b, c, w, sigma, CHORD_SCALE)
+    assert np.std(samples) == pytest.approx(analytic, rel=0.05)
+
+
+def test_nearest_slaves_respects_limits():
+    unit = np.array([[0, 0, 1.0], [1e-5, 0, 1], [0.01, 0, 1], [0.02, 0, 1], [0, 0.03, 1], [0.2, 0, 1]])
+    unit /= np.linalg.norm(unit, axis=1, keepdims=True)
+    dist = CHORD_SCALE * np.linalg.norm(unit[:, None] - unit[None], axis=2)
+    usable = np.ones(6, dtype=bool)
+    got = nearest_slaves(dist[0], unit, usable, 0, 8.728, 872.8, 4)
+    assert got.tolist() == [2, 3, 4]        # star 1 is closer than d_min, star 5 farther than d_max
+    usable[3] = False
+    assert nearest_slaves(dist[0], unit, usable, 0, 8.728, 872.8, 2).tolist() == [2, 4]
+
+
+def test_noise_free_identification(catalog, camera):
+    sim = Simulator(catalog, camera, SimConfig(), seed=99)
+    s = summarize(run([PTP()], sim.generate(300), catalog, sim)).iloc[0]
+    assert s["id_rate"] >= 0.96 and s["misid_rate"] <= 0.01
+
+
+def test_paper_literal_variant_runs(catalog, camera, db):
+    sim = Simulator(catalog, camera, SimConfig(sigma_px=1.0), seed=5)
+    obs = sim.observation(0)
+    literal = PTP(verify=False, majority=False, exclude_doubles=False, swap_slaves=False)
+    hip = literal.identify(literal.build(catalog, camera), obs).hip
+    assert hip.shape == (len(obs),)
+
+
+@pytest.mark.parametrize("kwargs", [{"sigma_px": 0}, {"n_slaves": 1}, {"d_min_deg": 6.0}, {"min_shared": 4},
+                                    {"beta": -1}, {"verify_min_fraction": 2}])
+def test_invalid_parameters(kwargs):
+    with pytest.raises(ConfigError):
+        PTP(**kwargs)
