@@ -53,6 +53,19 @@ def chord(u, v):
 
 
 @njit(cache=True)
+def chord_rows(a, i, b, j):
+    """Chord between row ``i`` of ``a`` and row ``j`` of ``b`` (unit vectors, float64 result).
+
+    The same value as ``chord(a[i], b[j])``, without creating array views: inside hot numba
+    loops the views' reference counting costs several times the arithmetic.
+    """
+    dx = float(a[i, 0]) - float(b[j, 0])
+    dy = float(a[i, 1]) - float(b[j, 1])
+    dz = float(a[i, 2]) - float(b[j, 2])
+    return math.sqrt(dx * dx + dy * dy + dz * dz)
+
+
+@njit(cache=True)
 def angular_distance_rad(u, v):
     """Angle between two unit 3-vectors in radians, accurate at small angles (via the chord)."""
     c = chord(u, v)
@@ -168,36 +181,35 @@ def verify_pairwise(v_cam, cand_row, cat_unit, tol_chord, min_support, min_fract
     ``tol_chord``. The proposal with the least agreement is dropped, repeatedly, until every
     remaining one agrees with at least ``max(min_support, ceil(min_fraction * (k - 1)))`` of
     the ``k - 1`` others (``min_fraction = 0.5``: a majority, so a small self-consistent cluster
-    of wrong proposals loses to a larger true one; ``1.0``: a clique). Stars left sharing a
-    catalog row are dropped too. Returns a boolean mask of the accepted proposals.
+    of wrong proposals loses to a larger true one; ``1.0``: every pair must agree). Among equally
+    supported proposals the one with the larger sum of chord residuals goes first. Stars left
+    sharing a catalog row are dropped too. Returns a boolean mask of the accepted proposals.
     """
     n = v_cam.shape[0]
     active = cand_row >= 0
-    support = np.zeros(n, dtype=np.int64)
     while True:
         worst = -1
         worst_support = 1 << 30
+        worst_residual = 0.0
+        n_active = 0
         for i in range(n):
             if not active[i]:
                 continue
-            s = 0
+            n_active += 1
+            support = 0
+            residual = 0.0
             for j in range(n):
-                if j == i or not active[j]:
+                if j == i or not active[j] or cand_row[i] == cand_row[j]:
                     continue
-                if cand_row[i] == cand_row[j]:
-                    continue
-                d_obs = chord(v_cam[i], v_cam[j])
-                d_cat = chord(cat_unit[cand_row[i]], cat_unit[cand_row[j]])
-                if abs(d_obs - d_cat) <= tol_chord:
-                    s += 1
-            support[i] = s
-            if s < worst_support:
-                worst_support = s
+                r = abs(chord_rows(v_cam, i, v_cam, j) - chord_rows(cat_unit, cand_row[i], cat_unit, cand_row[j]))
+                residual += r
+                if r <= tol_chord:
+                    support += 1
+            # the least supported goes first; among equals, the one with the larger residual sum
+            if support < worst_support or (support == worst_support and residual > worst_residual):
+                worst_support = support
+                worst_residual = residual
                 worst = i
-        n_active = 0
-        for i in range(n):
-            if active[i]:
-                n_active += 1
         need = max(min_support, int(math.ceil(min_fraction * (n_active - 1))))
         if worst < 0 or worst_support >= need:
             break

@@ -1,0 +1,445 @@
+"""Numba kernels of the P-vector plugin: triangle selection, k-vector candidate search, verification.
+
+Everything identify does happens in :func:`identify_rows` (one call per image). Conventions:
+observed stars are camera-frame unit vectors, guide stars ICRS unit vectors stored float32 and
+sorted by their z component (so a declination band is a binary search); triangle sides are
+angles in radians, other comparisons use chords (``|d chord| <= |d angle|``, so a chord test
+with an angular tolerance is at least as loose as the angular test).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from starid.kernels import backproject_px, chord_rows, chord_to_rad, kvector_range, verify_pairwise
+
+# The six vertex correspondences (observed vertex j -> database vertex PERMS[p, j]).
+PERMS = np.array([[0, 1, 2], [1, 2, 0], [2, 0, 1], [0, 2, 1], [2, 1, 0], [1, 0, 2]], dtype=np.int64)
+
+# Indices of ``params`` (a float64 array packed once by the algorithm class).
+P_MAG_LIMIT = 0      # guide-star magnitude limit applied to the observed (noisy) magnitudes
+P_CHORD_RMIN = 1     # chord of r_min
+P_CHORD_R = 2        # chord of the pattern radius R
+P_R_RAD = 3          # pattern radius R in radians (for the disc-inside test)
+P_SIGMA_PX = 4       # assumed centroid noise (px)
+P_BETA = 5           # tolerance factor: eps_d = beta * sqrt(2) * sigma_px / f_px
+P_K_MIN = 6          # confirmations needed beyond the three triangle stars
+P_SORTED = 7         # 1: sides sorted ascending; 0: sides in role order (S-N1, S-N2, N1-N2)
+P_BRIGHTEST = 8      # 1: two brightest neighbours; 0: two nearest
+P_CENTRE = 9         # 1: main stars ordered by distance to the image edge; 0: by brightness
+P_INSIDE_ONLY = 10   # 1: only main stars whose R-disc lies inside the image
+N_PARAMS = 11
+
+
+@njit(cache=True)
+def _precedes(a_key, a_x, a_y, b_key, b_x, b_y):
+    """Lexicographic (key, x, y) comparison, the geometric tie-break used everywhere."""
+    if a_key != b_key:
+        return a_key < b_key
+    if a_x != b_x:
+        return a_x < b_x
+    return a_y < b_y
+
+
+@njit(cache=True)
+def _ranks_before(x_px, y_px, a, ka, da, b, kb, db):
+    """Neighbour ``a`` (rank key ``ka``, chord ``da``) ranks before ``b``: key, then chord, then position."""
+    if ka != kb:
+        return ka < kb
+    if da != db:
+        return da < db
+    return _precedes(x_px[a], y_px[a], 0.0, x_px[b], y_px[b], 0.0)
+
+
+@njit(cache=True)
+def _sort_by(key, x_px, y_px):
+    """Order of the stars by ``key``, ties broken on position (insertion sort; images are small)."""
+    n = key.shape[0]
+    order = np.arange(n)
+    for i in range(1, n):
+        j = i
+        while j > 0 and _precedes(key[order[j]], x_px[order[j]], y_px[order[j]],
+                                  key[order[j - 1]], x_px[order[j - 1]], y_px[order[j - 1]]):
+            t = order[j]
+            order[j] = order[j - 1]
+            order[j - 1] = t
+            j -= 1
+    return order
+
+
+@njit(cache=True)
+def select_neighbours(v, mag, eligible, centre, c_rmin, c_r, brightest, x_px, y_px):
+    """The two neighbours of star ``centre`` that form its triangle, or (-1, -1).
+
+    Candidates: ``eligible`` stars whose chord to the centre lies in ``[c_rmin, c_r]``. Ranked by
+    magnitude (``brightest``) or by distance, ties broken by distance, then position. The
+    brighter/nearer one is N1.
+    """
+    best1 = -1
+    best2 = -1
+    k1 = 0.0
+    d1 = 0.0
+    k2 = 0.0
+    d2 = 0.0
+    for j in range(v.shape[0]):
+        if j == centre or not eligible[j]:
+            continue
+        d = chord_rows(v, centre, v, j)
+        if d < c_rmin or d > c_r:
+            continue
+        k = mag[j] if brightest else d
+        if best1 < 0 or _ranks_before(x_px, y_px, j, k, d, best1, k1, d1):
+            best2, k2, d2 = best1, k1, d1
+            best1, k1, d1 = j, k, d
+        elif best2 < 0 or _ranks_before(x_px, y_px, j, k, d, best2, k2, d2):
+            best2, k2, d2 = j, k, d
+    return best1, best2
+
+
+@njit(cache=True)
+def triangle_feature(s_len01, s_len02, s_len12, sorted_sides):
+    """Feature vector of a triangle from its role-ordered sides (S-N1, S-N2, N1-N2)."""
+    d = np.empty(3)
+    d[0] = s_len01
+    d[1] = s_len02
+    d[2] = s_len12
+    if sorted_sides:
+        d.sort()
+    return d
+
+
+@njit(cache=True)
+def _bound_z(unit, z, upper):
+    """First row whose z is >= z (``upper``: > z); the rows are sorted by z."""
+    lo = 0
+    hi = unit.shape[0]
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if unit[mid, 2] < z or (upper and unit[mid, 2] == z):
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
+
+
+@njit(cache=True)
+def band_rows(unit, z_centre, c_radius):
+    """Rows ``[start, stop)`` of the z-sorted guide stars in the declination band that holds every
+    star within chord ``c_radius`` of a direction whose z component is ``z_centre``."""
+    half = 2.0 * math.asin(min(1.0, 0.5 * c_radius))
+    dec0 = math.asin(max(-1.0, min(1.0, float(z_centre))))
+    z_lo = math.sin(max(-0.5 * math.pi, dec0 - half))
+    z_hi = math.sin(min(0.5 * math.pi, dec0 + half))
+    return _bound_z(unit, z_lo, False), _bound_z(unit, z_hi, True)
+
+
+@njit(cache=True)
+def _triple(a, b, c):
+    """a . (b x c)."""
+    return (a[0] * (b[1] * c[2] - b[2] * c[1]) + a[1] * (b[2] * c[0] - b[0] * c[2])
+            + a[2] * (b[0] * c[1] - b[1] * c[0]))
+
+
+@njit(cache=True)
+def match_extras(oc, tri_obs, cat_rows, unit, eps, c_band, out_row):
+    """Identify the non-triangle observed stars by their chords to the three triangle stars.
+
+    ``oc[i, j]`` is the chord from observed star ``i`` to observed vertex ``tri_obs[j]``, whose
+    catalog row is ``cat_rows[j]``. A guide star G within chord ``c_band`` of ``cat_rows[0]``
+    matches observed star i when all three chords agree within ``eps``. Only one-to-one matches
+    count (a guide star matching two observed stars, or an observed star matched by two guide
+    stars, is left out). Fills ``out_row`` (-1 elsewhere) and returns the number of matches.
+    """
+    n = oc.shape[0]
+    n_match = np.zeros(n, dtype=np.int64)
+    for i in range(n):
+        out_row[i] = -1
+    r0 = cat_rows[0]
+    r1 = cat_rows[1]
+    r2 = cat_rows[2]
+    g, g_stop = band_rows(unit, unit[r0, 2], c_band)
+    while g < g_stop:
+        if g != r0 and g != r1 and g != r2:
+            c0 = chord_rows(unit, g, unit, r0)
+            if c0 <= c_band:
+                c1 = chord_rows(unit, g, unit, r1)
+                c2 = chord_rows(unit, g, unit, r2)
+                found = -1
+                n_found = 0
+                for i in range(n):
+                    if i == tri_obs[0] or i == tri_obs[1] or i == tri_obs[2]:
+                        continue
+                    if abs(oc[i, 0] - c0) <= eps and abs(oc[i, 1] - c1) <= eps and abs(oc[i, 2] - c2) <= eps:
+                        n_found += 1
+                        found = i
+                if n_found == 1:
+                    n_match[found] += 1
+                    out_row[found] = g
+                elif n_found > 1:  # one guide star fits several observed stars: none of them counts
+                    for i in range(n):
+                        if i == tri_obs[0] or i == tri_obs[1] or i == tri_obs[2]:
+                            continue
+                        if abs(oc[i, 0] - c0) <= eps and abs(oc[i, 1] - c1) <= eps and abs(oc[i, 2] - c2) <= eps:
+                            n_match[i] += 2
+        g += 1
+    count = 0
+    for i in range(n):
+        if n_match[i] == 1:
+            count += 1
+        else:
+            out_row[i] = -1
+    return count
+
+
+@njit(cache=True)
+def _det3(M):
+    return (M[0, 0] * (M[1, 1] * M[2, 2] - M[1, 2] * M[2, 1])
+            - M[0, 1] * (M[1, 0] * M[2, 2] - M[1, 2] * M[2, 0])
+            + M[0, 2] * (M[1, 0] * M[2, 1] - M[1, 1] * M[2, 0]))
+
+
+@njit(cache=True)
+def wahba_attitude(v, rows, unit):
+    """ICRS -> camera rotation from the stars with ``rows >= 0`` (Wahba's problem, equal weights).
+
+    The optimum is the orthogonal polar factor of ``B = sum b r^T`` when ``det B > 0`` (the SVD
+    solution of Markley 1988 without the sign flip); it is found by Newton's iteration
+    ``X <- (X + X^-T) / 2`` (quadratic convergence, a few 3x3 steps, much cheaper than a LAPACK
+    SVD call). When ``det B <= 0`` (degenerate or mirrored data) the SVD solution is used.
+    """
+    B = np.zeros((3, 3))
+    for i in range(v.shape[0]):
+        if rows[i] < 0:
+            continue
+        for a in range(3):
+            for b in range(3):
+                B[a, b] += v[i, a] * float(unit[rows[i], b])
+    det = _det3(B)
+    if not det > 1e-12 * (np.abs(B).max() ** 3 + 1e-300):
+        U, _, Vt = np.linalg.svd(B)
+        d = np.linalg.det(U) * np.linalg.det(Vt)
+        for a in range(3):
+            U[a, 2] *= d
+        return U @ Vt
+    X = B / abs(det) ** (1.0 / 3.0)
+    for _ in range(50):
+        d = _det3(X)
+        # inverse transpose = cofactor matrix / det
+        C = np.empty((3, 3))
+        C[0, 0] = X[1, 1] * X[2, 2] - X[1, 2] * X[2, 1]
+        C[0, 1] = X[1, 2] * X[2, 0] - X[1, 0] * X[2, 2]
+        C[0, 2] = X[1, 0] * X[2, 1] - X[1, 1] * X[2, 0]
+        C[1, 0] = X[0, 2] * X[2, 1] - X[0, 1] * X[2, 2]
+        C[1, 1] = X[0, 0] * X[2, 2] - X[0, 2] * X[2, 0]
+        C[1, 2] = X[0, 1] * X[2, 0] - X[0, 0] * X[2, 1]
+        C[2, 0] = X[0, 1] * X[1, 2] - X[0, 2] * X[1, 1]
+        C[2, 1] = X[0, 2] * X[1, 0] - X[0, 0] * X[1, 2]
+        C[2, 2] = X[0, 0] * X[1, 1] - X[0, 1] * X[1, 0]
+        change = 0.0
+        for a in range(3):
+            for b in range(3):
+                new = 0.5 * (X[a, b] + C[a, b] / d)
+                change = max(change, abs(new - X[a, b]))
+                X[a, b] = new
+        if change < 1e-14:
+            break
+    return X
+
+
+@njit(cache=True)
+def assign_by_attitude(A, v, unit, c_fov, eps, out_row):
+    """Give each observed star the guide star predicted (``A r``) within chord ``eps`` of it.
+
+    Guide stars within chord ``c_fov`` of the boresight are predicted; only one-to-one pairs are
+    kept. Fills ``out_row`` (-1 elsewhere) and returns the number of assigned stars.
+    """
+    n = v.shape[0]
+    n_match = np.zeros(n, dtype=np.int64)
+    for i in range(n):
+        out_row[i] = -1
+    bore = np.empty((1, 3))  # boresight in ICRS: A^T (0, 0, 1)
+    for a in range(3):
+        bore[0, a] = A[2, a]
+    b = np.empty((1, 3))
+    g, g_stop = band_rows(unit, bore[0, 2], c_fov)
+    for g in range(g, g_stop):
+        if chord_rows(unit, g, bore, 0) > c_fov:
+            continue
+        for a in range(3):
+            b[0, a] = A[a, 0] * unit[g, 0] + A[a, 1] * unit[g, 1] + A[a, 2] * unit[g, 2]
+        found = -1
+        n_found = 0
+        for i in range(n):
+            if chord_rows(v, i, b, 0) <= eps:
+                n_found += 1
+                found = i
+        if n_found == 1:
+            n_match[found] += 1
+            out_row[found] = g
+        elif n_found > 1:
+            for i in range(n):
+                if chord_rows(v, i, b, 0) <= eps:
+                    n_match[i] += 2
+    count = 0
+    for i in range(n):
+        if n_match[i] == 1:
+            count += 1
+        else:
+            out_row[i] = -1
+    return count
+
+
+@njit(cache=True)
+def identify_rows(x_px, y_px, mag, f_px, cx_px, cy_px, width_px, height_px,
+                  p_axis, key, kv_k, kv_m, kv_q, tri_sides, tri_rows, unit, hip, params):
+    """``(hip, attitude, ok)``: catalog id per observed star (-1 = unidentified, input order),
+    the ICRS -> camera attitude and whether the image was identified.
+
+    Steps (the docstring of :class:`starid_algorithms.pvector.PVector` maps them to the paper):
+    canonical star order; main stars in preference order; per main star its triangle, the
+    k-vector window on P, the per-side check, the vertex correspondences (side + chirality
+    check) and the confirmations of each; the first main star with exactly one confirmed
+    correspondence is verified (mutual consistency, attitude, re-identification from the
+    attitude) and reported.
+    """
+    n = x_px.shape[0]
+    out = np.full(n, -1, dtype=np.int64)
+    if n < 3:
+        return out, np.eye(3), False
+    # canonical order: the answer cannot depend on the input order
+    canon = _sort_by(x_px, x_px, y_px)
+    xs = x_px[canon]
+    ys = y_px[canon]
+    ms = mag[canon]
+    v = backproject_px(xs, ys, f_px, cx_px, cy_px)
+
+    mag_limit = params[P_MAG_LIMIT]
+    c_rmin = params[P_CHORD_RMIN]
+    c_r = params[P_CHORD_R]
+    # per-side tolerance: angle noise sqrt(2) sigma (notes 1.3); key tolerance ||p||_1 eps_d
+    eps = params[P_BETA] * math.sqrt(2.0) * params[P_SIGMA_PX] / f_px
+    eps_key = (abs(p_axis[0]) + abs(p_axis[1]) + abs(p_axis[2])) * eps
+    k_min = int(params[P_K_MIN])
+    sorted_sides = params[P_SORTED] != 0.0
+    brightest = params[P_BRIGHTEST] != 0.0
+    centre_first = params[P_CENTRE] != 0.0
+    inside_only = params[P_INSIDE_ONLY] != 0.0
+    r_px = f_px * math.tan(params[P_R_RAD])
+    # chord from the boresight to the farthest image corner, plus the tolerance
+    corners = backproject_px(np.array([0.0, width_px, 0.0, width_px]), np.array([0.0, 0.0, height_px, height_px]),
+                             f_px, cx_px, cy_px)
+    c_fov = 0.0
+    for i in range(4):
+        c_fov = max(c_fov, math.sqrt(corners[i, 0] ** 2 + corners[i, 1] ** 2 + (corners[i, 2] - 1.0) ** 2))
+    c_fov += eps
+
+    eligible = ms <= mag_limit
+    # main-star preference: largest distance to the image edge first (R-disc inside), or brightest
+    pref = np.empty(n)
+    for i in range(n):
+        edge = min(min(xs[i], width_px - xs[i]), min(ys[i], height_px - ys[i]))
+        pref[i] = -edge if centre_first else ms[i]
+    order = _sort_by(pref, xs, ys)
+
+    oc = np.empty((n, 3))
+    tri_obs = np.empty(3, dtype=np.int64)
+    cat_rows = np.empty(3, dtype=np.int64)
+    rows_try = np.empty(n, dtype=np.int64)
+    rows_best = np.empty(n, dtype=np.int64)
+    best_map = np.empty(3, dtype=np.int64)
+    n_perm = 6 if sorted_sides else 1
+
+    for oi in range(n):
+        s = order[oi]
+        if not eligible[s]:
+            continue
+        if inside_only:
+            edge = min(min(xs[s], width_px - xs[s]), min(ys[s], height_px - ys[s]))
+            if edge < r_px:
+                continue
+        n1, n2 = select_neighbours(v, ms, eligible, s, c_rmin, c_r, brightest, xs, ys)
+        if n2 < 0:
+            continue
+        tri_obs[0] = s
+        tri_obs[1] = n1
+        tri_obs[2] = n2
+        c01 = chord_rows(v, s, v, n1)
+        c02 = chord_rows(v, s, v, n2)
+        c12 = chord_rows(v, n1, v, n2)
+        d_obs = triangle_feature(chord_to_rad(c01), chord_to_rad(c02), chord_to_rad(c12), sorted_sides)
+        p_obs = p_axis[0] * d_obs[0] + p_axis[1] * d_obs[1] + p_axis[2] * d_obs[2]
+        start, stop = kvector_range(key, kv_k, kv_m, kv_q, p_obs - eps_key, p_obs + eps_key)
+        if stop <= start:
+            continue
+        trip_obs = _triple(v[s], v[n1], v[n2])
+        chir_significant = abs(trip_obs) > eps * max(c01, max(c02, c12))
+        for i in range(n):
+            for j in range(3):
+                oc[i, j] = chord_rows(v, i, v, tri_obs[j])
+        c_band = 0.0
+        for i in range(n):
+            c_band = max(c_band, oc[i, 0])
+        c_band += eps
+        n_found = 0
+        ambiguous = False
+        for t in range(start, stop):
+            if (abs(tri_sides[t, 0] - d_obs[0]) > eps or abs(tri_sides[t, 1] - d_obs[1]) > eps
+                    or abs(tri_sides[t, 2] - d_obs[2]) > eps):
+                continue
+            for p in range(n_perm):
+                for j in range(3):
+                    cat_rows[j] = tri_rows[t, PERMS[p, j]]
+                if sorted_sides:
+                    if (abs(chord_rows(unit, cat_rows[0], unit, cat_rows[1]) - c01) > eps
+                            or abs(chord_rows(unit, cat_rows[0], unit, cat_rows[2]) - c02) > eps
+                            or abs(chord_rows(unit, cat_rows[1], unit, cat_rows[2]) - c12) > eps):
+                        continue
+                if chir_significant:
+                    trip_cat = _triple(unit[cat_rows[0]], unit[cat_rows[1]], unit[cat_rows[2]])
+                    if (trip_cat > 0) != (trip_obs > 0):
+                        continue
+                if n_found > 0 and cat_rows[0] == best_map[0] and cat_rows[1] == best_map[1] \
+                        and cat_rows[2] == best_map[2]:
+                    continue  # the same correspondence reached through another database entry
+                confirmed = match_extras(oc, tri_obs, cat_rows, unit, eps, c_band, rows_try)
+                if confirmed < k_min:
+                    continue
+                if n_found == 0:
+                    n_found = 1
+                    for j in range(3):
+                        best_map[j] = cat_rows[j]
+                    for i in range(n):
+                        rows_best[i] = rows_try[i]
+                else:
+                    ambiguous = True
+        if n_found == 0 or ambiguous:
+            continue
+        for j in range(3):
+            rows_best[tri_obs[j]] = best_map[j]
+        keep = verify_pairwise(v, rows_best, unit, eps, 0, 1.0)   # every pair must agree
+        n_keep = 0
+        for i in range(n):
+            if keep[i]:
+                n_keep += 1
+            else:
+                rows_best[i] = -1
+        if n_keep < 3 + k_min:
+            continue
+        # attitude from the consistent stars, then every star re-identified from it (twice, the
+        # second attitude using the larger, better spread set)
+        n_assigned = 0
+        for _ in range(2):
+            attitude = wahba_attitude(v, rows_best, unit)
+            n_assigned = assign_by_attitude(attitude, v, unit, c_fov, eps, rows_try)
+            for i in range(n):
+                rows_best[i] = rows_try[i]
+        if n_assigned < 3 + k_min:
+            continue
+        for i in range(n):
+            if rows_best[i] >= 0:
+                out[canon[i]] = hip[rows_best[i]]
+        return out, wahba_attitude(v, rows_best, unit), True
+    return out, np.eye(3), False

@@ -1,0 +1,188 @@
+"""Tests of the P-vector plugin (algorithms/pvector)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from starid import Camera, Catalog, ConfigError, Observation, SimConfig, Simulator, load_hipparcos
+from starid.harness import run, summarize
+from starid.plugin import check_identification
+from starid.registry import get_algorithm
+from starid_algorithms.pvector import PVector, PVectorDatabase
+
+
+@pytest.fixture(scope="module")
+def catalog():
+    return load_hipparcos()
+
+
+@pytest.fixture(scope="module")
+def camera():
+    return Camera()
+
+
+@pytest.fixture(scope="module")
+def algo():
+    return PVector()
+
+
+@pytest.fixture(scope="module")
+def db(algo, catalog, camera):
+    return algo.build(catalog, camera)
+
+
+def _angle(a, b):
+    return 2.0 * np.arcsin(np.minimum(1.0, 0.5 * np.linalg.norm(a - b, axis=-1)))
+
+
+# ----------------------------------------------------------------------------- plugin basics
+def test_registered_and_default_constructible():
+    assert get_algorithm("pvector") is PVector
+    algo = PVector()
+    assert algo.name == "pvector"
+    assert "Yang" in PVector.summary() and "2007" in PVector.summary()
+    assert algo.params()["mag_limit"] == 6.0 and algo.params()["sigma_px"] == 1.0
+
+
+@pytest.mark.parametrize("kwargs", [
+    dict(mag_limit=float("nan")), dict(mag_limit="6"), dict(sigma_px=0.0), dict(sigma_px=-1.0),
+    dict(sigma_px=float("inf")), dict(pattern_radius_deg=0.0), dict(pattern_radius_deg=95.0),
+    dict(min_sep_deg=-0.1), dict(min_sep_deg=5.0, pattern_radius_deg=4.0), dict(beta=0.0),
+    dict(k_min=-1), dict(k_min=1.5), dict(k_min=True), dict(side_order="perimeter"),
+    dict(neighbour_rule="faintest"), dict(main_order="random"), dict(disc_inside_only=1),
+])
+def test_parameter_validation(kwargs):
+    with pytest.raises(ConfigError):
+        PVector(**kwargs)
+
+
+# ------------------------------------------------------------------------------- database
+def test_database_invariants(algo, db, catalog):
+    assert isinstance(db, PVectorDatabase)
+    m = db.key.size
+    guide = catalog.brighter_than(algo.mag_limit)
+    n = len(guide)
+    assert db.unit_icrs.shape == (n, 3) and db.unit_icrs.dtype == np.float32
+    assert np.all(np.diff(db.unit_icrs[:, 2]) >= 0)  # z-sorted (declination bands)
+    assert np.array_equal(np.sort(db.hip.astype(np.int64)), guide.hip)
+    assert 0.95 * n < m <= n  # one triangle per guide star with two neighbours
+    assert db.key.dtype == np.float32 and np.all(np.diff(db.key) >= 0)
+    assert db.kv_k.dtype == np.int32 and db.kv_k.shape == (m,)
+    assert db.tri_rows.dtype == np.int16 and db.tri_rows.shape == (m, 3)
+    assert db.tri_sides.dtype == np.float32 and db.tri_sides.shape == (m, 3)
+    assert abs(np.linalg.norm(db.p_axis) - 1.0) < 1e-12 and db.p_axis.sum() > 0
+    assert 0.5 < db.explained_variance <= 1.0
+    # each main star appears once; the three stars of a triangle differ
+    rows = db.tri_rows.astype(np.int64)
+    assert np.unique(rows[:, 0]).size == m
+    assert np.all((rows[:, 0] != rows[:, 1]) & (rows[:, 0] != rows[:, 2]) & (rows[:, 1] != rows[:, 2]))
+    # the sides are the sorted angular distances, and the key is p . sides
+    u = db.unit_icrs.astype(np.float64)
+    s, n1, n2 = u[rows[:, 0]], u[rows[:, 1]], u[rows[:, 2]]
+    sides = np.sort(np.stack([_angle(s, n1), _angle(s, n2), _angle(n1, n2)], axis=1), axis=1)
+    assert np.allclose(db.tri_sides, sides, atol=2e-6)
+    assert np.allclose(db.key, db.tri_sides.astype(np.float64) @ db.p_axis, atol=2e-6)
+    # neighbours lie between r_min and R
+    r_min, r_max = math.radians(algo.min_sep_deg), math.radians(algo.pattern_radius_deg)
+    for d in (_angle(s, n1), _angle(s, n2)):
+        assert np.all((d >= r_min - 1e-6) & (d <= r_max + 1e-6))
+    # compact: well under the PTP paper's 0.784 MB
+    assert db.nbytes < 0.3e6
+
+
+def test_neighbours_are_the_two_brightest(algo, db, catalog):
+    mag = dict(zip(catalog.hip.tolist(), catalog.v_mag.tolist()))
+    u = db.unit_icrs.astype(np.float64)
+    v_mag = np.array([mag[int(h)] for h in db.hip])
+    r_min, r_max = math.radians(algo.min_sep_deg), math.radians(algo.pattern_radius_deg)
+    for t in range(0, db.key.size, 97):
+        S, N1, N2 = (int(x) for x in db.tri_rows[t])
+        d = _angle(u, u[S])
+        nb = np.flatnonzero((d >= r_min) & (d <= r_max))
+        nb = nb[nb != S]
+        brightest = nb[np.lexsort((d[nb], v_mag[nb]))][:2]
+        assert [N1, N2] == brightest.tolist()
+
+
+# ------------------------------------------------------------------------ hand-made sky
+def _small_sky():
+    """A 40-star catalog around (ra, dec) = (40, 30) deg with distinct magnitudes."""
+    rng = np.random.default_rng(7)
+    ra = 40.0 + rng.uniform(-6, 6, 40) / math.cos(math.radians(30))
+    dec = 30.0 + rng.uniform(-6, 6, 40)
+    mag = np.linspace(2.0, 5.9, 40)
+    return Catalog.from_arrays(np.arange(1, 41) * 10, ra, dec, mag, name="small")
+
+
+def test_hand_made_sky_identified_exactly(camera):
+    cat = _small_sky()
+    algo = PVector()
+    db = algo.build(cat, camera)
+    # attitude: boresight at (40, 30) deg, some roll
+    ra, dec, roll = map(math.radians, (40.0, 30.0, 25.0))
+    z = np.array([math.cos(dec) * math.cos(ra), math.cos(dec) * math.sin(ra), math.sin(dec)])
+    east = np.array([-math.sin(ra), math.cos(ra), 0.0])
+    north = np.cross(z, east)
+    x_axis = math.cos(roll) * east + math.sin(roll) * north
+    A = np.stack([x_axis, np.cross(z, x_axis), z])
+    v_cam = cat.unit_icrs @ A.T
+    x, y = camera.project(v_cam)
+    inside = camera.in_image(x, y) & (v_cam[:, 2] > 0)
+    assert inside.sum() >= 8
+    obs = Observation(x[inside], y[inside], cat.v_mag[inside], camera, cat.hip[inside])
+    res = algo.identify(db, obs)
+    assert np.array_equal(res.hip, cat.hip[inside])
+    assert res.attitude is not None and np.allclose(res.attitude, A, atol=1e-9)
+    # a mirrored sky (x -> width - x) is not a rotation of the catalog: nothing is identified
+    mirrored = Observation(camera.width_px - x[inside], y[inside], cat.v_mag[inside], camera)
+    assert np.all(algo.identify(db, mirrored).hip == -1)
+
+
+# ------------------------------------------------------------------------- contract
+@pytest.mark.parametrize("n", [0, 1, 2, 3])
+def test_few_stars(algo, db, camera, n):
+    rng = np.random.default_rng(n)
+    obs = Observation(rng.uniform(0, 1024, n), rng.uniform(0, 1024, n), rng.uniform(2, 6, n), camera)
+    res = algo.identify(db, obs)
+    assert res.hip.shape == (n,) and res.hip.dtype == np.int64 and np.all(res.hip == -1)
+
+
+def test_order_invariance_determinism_unique_ids(algo, db, catalog, camera):
+    sim = Simulator(catalog, camera, SimConfig(sigma_px=1.0, sigma_mag=0.5, false_stars=1), seed=3)
+    trials = sim.generate(60)
+    rng = np.random.default_rng(0)
+    n_identified = 0
+    for i in range(len(trials)):
+        obs = trials.observation(i)
+        first = check_identification(algo.identify(db, obs), len(obs), catalog.hip)
+        again = algo.identify(db, obs)
+        assert np.array_equal(first.hip, again.hip)
+        perm = rng.permutation(len(obs))
+        permuted = algo.identify(db, obs.permuted(perm))
+        assert np.array_equal(permuted.hip, first.hip[perm])
+        n_identified += int(np.any(first.hip >= 0))
+    assert n_identified > 30
+
+
+# --------------------------------------------------------------------- identification rate
+def test_noise_free_rate(algo, catalog):
+    sim = Simulator(catalog, Camera(), SimConfig(), seed=11)
+    summary = summarize(run([algo], sim.generate(300), catalog, sim)).iloc[0]
+    assert summary.id_rate >= 0.93  # 2,000 trials (seed 1): 0.961
+    assert summary.misid_rate == 0.0
+    assert summary.error_rate == 0.0
+
+
+def test_magnitude_noise_hurts_as_in_the_paper(catalog):
+    """The triangle is chosen by brightness, so magnitude noise costs far more than position noise."""
+    algo = PVector()
+    rates = {}
+    for label, cfg in (("pos", SimConfig(sigma_px=1.0)), ("mag", SimConfig(sigma_mag=0.5))):
+        sim = Simulator(catalog, Camera(), cfg, seed=12)
+        rates[label] = summarize(run([algo], sim.generate(300), catalog, sim)).iloc[0]
+    assert rates["pos"].id_rate >= 0.92
+    assert rates["mag"].id_rate < rates["pos"].id_rate - 0.05
+    assert rates["mag"].misid_rate <= 0.01
