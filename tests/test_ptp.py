@@ -25,7 +25,7 @@ def test_database_layout(db, catalog):
     guide = catalog.subset(catalog.index_of(db.guide_hip))
     r = guide.unit_icrs[db.ids[123].astype(int)]
     a, b, c = (CHORD_SCALE * np.linalg.norm(r[i] - r[j]) for i, j in ((0, 1), (1, 2), (0, 2)))
-    assert np.allclose(db.sides[123], [a, b, c], rtol=1e-6)
+    assert np.allclose(db.sides[:, 123], [a, b, c], rtol=1e-6)
     assert db.proj[123] == pytest.approx(db.axis @ (np.array([a, b, c]) - db.mean), abs=1e-3)
     assert a <= c                                          # r2 is the nearer slave
     assert 8.728 - 1e-6 <= min(a, c) and max(a, c) <= 872.8 + 1e-6
@@ -50,7 +50,7 @@ def test_projection_sigma_matches_monte_carlo():
         noise -= np.sum(noise * t, axis=1, keepdims=True) * t        # tangent-plane noise, eq. 10
         v = t + noise
         samples.append(proj(v / np.linalg.norm(v, axis=1, keepdims=True))[0])
-    analytic = projection_sigma(t[0], t[1], t[2], a, b, c, w, sigma, CHORD_SCALE)
+    analytic = projection_sigma(t, 0, 1, 2, a, b, c, w, sigma, CHORD_SCALE)
     assert np.std(samples) == pytest.approx(analytic, rel=0.05)
 
 
@@ -59,10 +59,12 @@ def test_nearest_slaves_respects_limits():
     unit /= np.linalg.norm(unit, axis=1, keepdims=True)
     dist = CHORD_SCALE * np.linalg.norm(unit[:, None] - unit[None], axis=2)
     usable = np.ones(6, dtype=bool)
-    got = nearest_slaves(dist[0], unit, usable, 0, 8.728, 872.8, 4)
-    assert got.tolist() == [2, 3, 4]        # star 1 is closer than d_min, star 5 farther than d_max
+    out = np.empty(4, dtype=np.int64)
+    k = nearest_slaves(dist[0], unit, usable, 0, 8.728, 872.8, 4, out)
+    assert out[:k].tolist() == [2, 3, 4]    # star 1 is closer than d_min, star 5 farther than d_max
     usable[3] = False
-    assert nearest_slaves(dist[0], unit, usable, 0, 8.728, 872.8, 2).tolist() == [2, 4]
+    k = nearest_slaves(dist[0], unit, usable, 0, 8.728, 872.8, 2, out)
+    assert out[:k].tolist() == [2, 4]
 
 
 def test_noise_free_identification(catalog, camera):

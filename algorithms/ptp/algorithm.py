@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 from typing import ClassVar
 
 import numpy as np
@@ -12,7 +13,7 @@ from scipy.spatial import cKDTree
 from starid.camera import Camera
 from starid.catalog import Catalog
 from starid.errors import ConfigError
-from starid.kernels import kvector_build, rad_to_chord
+from starid.kernels import kvector_build
 from starid.observation import Observation
 from starid.plugin import Algorithm, Database, Identification
 
@@ -29,7 +30,8 @@ class PTPDatabase(Database):
     proj : float32 (t,) projections p_r (eq. 3), ascending.
     kvec : uint16/int32 (t,) k-vector over ``proj``; ``km``, ``kq`` its line (eq. 16).
     ids : uint16/int32 (t, 3) guide-star rows of (r1, r2, r3) = (master, nearer slave, farther slave).
-    sides : float32 (t, 3) scaled sides (a, b, c) of eq. 1.
+    sides : float32 (3, t) scaled sides a, b, c of eq. 1, one row per side (contiguous for the
+        vectorised three-side check).
     mean : float64 (3,) mean side vector; axis : float64 (3,) the projection axis u_max.
     guide_hip : int32 (g,) catalog id of each guide row.
     guide_ra_rad, guide_dec_rad : float32 (g,) guide positions for the verification step
@@ -136,13 +138,15 @@ class PTP(Algorithm):
         if not math.isfinite(self.mag_limit):
             raise ConfigError(f"ptp: mag_limit must be finite, got {self.mag_limit!r}")
 
-    @property
+    @cached_property
     def _d_min(self) -> float:
-        return CHORD_SCALE * rad_to_chord(math.radians(self.d_min_deg))
+        """d_min as a scaled chord (8.728 for 0.05 deg)."""
+        return CHORD_SCALE * 2.0 * math.sin(math.radians(self.d_min_deg) / 2.0)
 
-    @property
+    @cached_property
     def _d_max(self) -> float:
-        return CHORD_SCALE * rad_to_chord(math.radians(self.d_max_deg))
+        """d_max as a scaled chord (872.8 for 5 deg)."""
+        return CHORD_SCALE * 2.0 * math.sin(math.radians(self.d_max_deg) / 2.0)
 
     def build(self, catalog: Catalog, camera: Camera) -> PTPDatabase:
         guide = catalog.brighter_than(self.mag_limit)
@@ -178,7 +182,7 @@ class PTP(Algorithm):
         kvec, km, kq = kvector_build(proj32.astype(np.float64))
         return PTPDatabase(proj=proj32, kvec=kvec.astype(_index_dtype(len(order))),
                            ids=ids[order].astype(_index_dtype(len(guide))),
-                           sides=sides[order].astype(np.float32), mean=mean, axis=axis,
+                           sides=np.ascontiguousarray(sides[order].T, dtype=np.float32), mean=mean, axis=axis,
                            guide_hip=guide.hip.astype(np.int32),
                            guide_ra_rad=np.radians(guide.ra_deg).astype(np.float32),
                            guide_dec_rad=np.radians(guide.dec_deg).astype(np.float32), km=km, kq=kq,

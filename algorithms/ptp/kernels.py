@@ -7,7 +7,7 @@ import math
 import numpy as np
 from numba import njit
 
-from starid.kernels import backproject_px, chord, kvector_range, verify_pairwise
+from starid.kernels import backproject_px, chord_rows, kvector_range, verify_pairwise
 
 
 @njit(cache=True)
@@ -21,28 +21,32 @@ def _before(dist, unit, i, j):
 
 
 @njit(cache=True)
-def nearest_slaves(dist_row, unit, usable, master, d_min, d_max, n_slaves):
+def nearest_slaves(dist_row, unit, usable, master, d_min, d_max, n_slaves, out):
     """The ``n_slaves`` usable stars nearest ``master`` with ``d_min <= D_ms <= d_max`` (eq. 2), nearest first.
 
-    ``dist_row[j]`` is the scaled chord ``D_ms`` from the master to star ``j``.
+    ``dist_row[j]`` is the scaled chord ``D_ms`` from the master to star ``j``. Writes them to
+    ``out`` and returns how many there are.
     """
     n = dist_row.shape[0]
-    taken = np.zeros(n, dtype=np.bool_)
-    out = np.empty(n_slaves, dtype=np.int64)
     m = 0
     while m < n_slaves:
         pick = -1
         for j in range(n):
-            if j == master or taken[j] or not usable[j] or not (d_min <= dist_row[j] <= d_max):
+            if j == master or not usable[j] or not (d_min <= dist_row[j] <= d_max):
+                continue
+            taken = False
+            for t in range(m):
+                if out[t] == j:
+                    taken = True
+            if taken:
                 continue
             if pick < 0 or _before(dist_row, unit, j, pick):
                 pick = j
         if pick < 0:
             break
-        taken[pick] = True
         out[m] = pick
         m += 1
-    return out[:m]
+    return m
 
 
 @njit(cache=True)
@@ -73,42 +77,43 @@ def build_triangles(unit, neighbours, neighbour_offsets, d_min, d_max, n_slaves,
                 ids[t, 0] = i
                 ids[t, 1] = s1
                 ids[t, 2] = s2
-                sides[t, 0] = scale * chord(unit[i], unit[s1])
-                sides[t, 1] = scale * chord(unit[s1], unit[s2])
-                sides[t, 2] = scale * chord(unit[i], unit[s2])
+                sides[t, 0] = scale * chord_rows(unit, i, unit, s1)
+                sides[t, 1] = scale * chord_rows(unit, s1, unit, s2)
+                sides[t, 2] = scale * chord_rows(unit, i, unit, s2)
                 t += 1
     return ids, sides
 
 
 @njit(cache=True)
-def _grad_var(g, t, sigma2):
-    """``g R g^T`` with the QUEST covariance ``R = sigma^2 (I - t t^T)`` (eqs. 11-12)."""
-    gg = g[0] * g[0] + g[1] * g[1] + g[2] * g[2]
-    gt = g[0] * t[0] + g[1] * t[1] + g[2] * t[2]
-    return sigma2 * (gg - gt * gt)
+def _grad_var(g0, g1, g2, t, i):
+    """``g (I - t_i t_i^T) g^T`` for a gradient row ``g`` and unit vector ``t[i]`` (eqs. 11-12 without sigma^2)."""
+    gt = g0 * t[i, 0] + g1 * t[i, 1] + g2 * t[i, 2]
+    return g0 * g0 + g1 * g1 + g2 * g2 - gt * gt
 
 
 @njit(cache=True)
-def projection_sigma(t1, t2, t3, a, b, c, w, sigma, scale):
+def projection_sigma(t, i1, i2, i3, a, b, c, w, sigma, scale):
     """Analytic standard deviation of the projection, eqs. 6-14.
 
-    ``a, b, c`` are the scaled sides; ``w`` the projection axis ``u_max``; ``sigma`` the
-    per-axis angular noise in radians. The partials of eq. 9 are of the unscaled chords, so the
-    result is multiplied by ``scale``.
+    ``t1, t2, t3`` are rows ``i1, i2, i3`` of the unit vectors ``t``; ``a, b, c`` the scaled
+    sides; ``w`` the projection axis ``u_max``; ``sigma`` the per-axis angular noise in radians.
+    ``T1 = w1 da/dt1 + w3 dc/dt1``, ``T2 = -w1 da/dt1 + w2 db/dt2``, ``T3 = -w2 db/dt2 - w3 dc/dt1``
+    (eqs. 7-9, with da/dt1 = (t1 - t2)/a etc. of the unscaled chords) and
+    ``sigma_p^2 = sum_i T_i R_i T_i^T`` with ``R_i = sigma^2 (I - t_i t_i^T)`` (eqs. 12-14).
     """
-    g1 = np.empty(3)
-    g2 = np.empty(3)
-    g3 = np.empty(3)
-    for k in range(3):
-        da = scale * (t1[k] - t2[k]) / a   # d a / d t1 (eq. 9), unscaled direction
-        db = scale * (t2[k] - t3[k]) / b   # d b / d t2
-        dc = scale * (t1[k] - t3[k]) / c   # d c / d t1
-        g1[k] = w[0] * da + w[2] * dc      # T1 (eq. 7)
-        g2[k] = -w[0] * da + w[1] * db     # T2
-        g3[k] = -w[1] * db - w[2] * dc     # T3
-    s2 = sigma * sigma
-    var = _grad_var(g1, t1, s2) + _grad_var(g2, t2, s2) + _grad_var(g3, t3, s2)
-    return scale * math.sqrt(max(var, 0.0))
+    da0 = scale * (t[i1, 0] - t[i2, 0]) / a
+    da1 = scale * (t[i1, 1] - t[i2, 1]) / a
+    da2 = scale * (t[i1, 2] - t[i2, 2]) / a
+    db0 = scale * (t[i2, 0] - t[i3, 0]) / b
+    db1 = scale * (t[i2, 1] - t[i3, 1]) / b
+    db2 = scale * (t[i2, 2] - t[i3, 2]) / b
+    dc0 = scale * (t[i1, 0] - t[i3, 0]) / c
+    dc1 = scale * (t[i1, 1] - t[i3, 1]) / c
+    dc2 = scale * (t[i1, 2] - t[i3, 2]) / c
+    var = (_grad_var(w[0] * da0 + w[2] * dc0, w[0] * da1 + w[2] * dc1, w[0] * da2 + w[2] * dc2, t, i1)
+           + _grad_var(-w[0] * da0 + w[1] * db0, -w[0] * da1 + w[1] * db1, -w[0] * da2 + w[1] * db2, t, i2)
+           + _grad_var(-w[1] * db0 - w[2] * dc0, -w[1] * db1 - w[2] * dc1, -w[1] * db2 - w[2] * dc2, t, i3))
+    return scale * sigma * math.sqrt(max(var, 0.0))
 
 
 @njit(cache=True)
@@ -118,26 +123,52 @@ def side_sigma(side, sigma):
 
 
 @njit(cache=True)
-def _match_triangle(t1, t2, t3, sides, proj, kvec, km, kq, db_sides, mean, w, sigma, scale,
-                    beta, side_beta, out_cand, n_out):
-    """Candidates of one observed triangle: k-vector window then the three-side check."""
-    a = scale * chord(t1, t2)
-    b = scale * chord(t2, t3)
-    c = scale * chord(t1, t3)
+def _window(t, i1, i2, i3, sides, proj, kvec, km, kq, mean, w, sigma, scale, beta):
+    """Sides (eq. 4), projection (eq. 5) and k-vector window [p - xi, p + xi] (eqs. 13-19) of a triangle."""
+    a = scale * chord_rows(t, i1, t, i2)
+    b = scale * chord_rows(t, i2, t, i3)
+    c = scale * chord_rows(t, i1, t, i3)
     sides[0] = a
     sides[1] = b
     sides[2] = c
-    p = w[0] * (a - mean[0]) + w[1] * (b - mean[1]) + w[2] * (c - mean[2])   # eq. 5
-    xi = beta * projection_sigma(t1, t2, t3, a, b, c, w, sigma, scale)      # xi = 3 sigma_p
-    start, stop = kvector_range(proj, kvec, km, kq, p - xi, p + xi)         # eqs. 15-19
-    ta = side_beta * scale * side_sigma(a / scale, sigma)
-    tb = side_beta * scale * side_sigma(b / scale, sigma)
-    tc = side_beta * scale * side_sigma(c / scale, sigma)
-    for k in range(start, stop):
-        if (abs(db_sides[k, 0] - a) <= ta and abs(db_sides[k, 1] - b) <= tb
-                and abs(db_sides[k, 2] - c) <= tc):
-            if n_out < out_cand.shape[0]:
-                out_cand[n_out] = k
+    p = w[0] * (a - mean[0]) + w[1] * (b - mean[1]) + w[2] * (c - mean[2])
+    xi = beta * projection_sigma(t, i1, i2, i3, a, b, c, w, sigma, scale)
+    return kvector_range(proj, kvec, km, kq, p - xi, p + xi)
+
+
+@njit(cache=True)
+def _side_excess(sa, sb, sc, k, a, b, c, ta, tb, tc):
+    """Largest amount by which one of the three sides misses its tolerance (<= 0: all agree)."""
+    x = max(abs(sa[k] - a) - ta, abs(sb[k] - b) - tb)
+    return max(x, abs(sc[k] - c) - tc)
+
+
+@njit(cache=True)
+def _side_check(sides, start, stop, db_sides, sigma, scale, side_beta, out_cand):
+    """Database rows in ``[start, stop)`` whose three sides all agree with ``sides``; returns the count.
+
+    ``db_sides`` is (3, t) float32, one contiguous row per side. The comparison runs in float32;
+    a counting pass (a loop that vectorises) comes first, and the rows are collected only when
+    the window holds a match. ``out_cand`` must hold ``stop - start`` entries.
+    """
+    a = np.float32(sides[0])
+    b = np.float32(sides[1])
+    c = np.float32(sides[2])
+    ta = np.float32(side_beta * scale * side_sigma(sides[0] / scale, sigma))
+    tb = np.float32(side_beta * scale * side_sigma(sides[1] / scale, sigma))
+    tc = np.float32(side_beta * scale * side_sigma(sides[2] / scale, sigma))
+    sa = db_sides[0, start:stop]
+    sb = db_sides[1, start:stop]
+    sc = db_sides[2, start:stop]
+    n_out = 0
+    for k in range(sa.shape[0]):
+        n_out += _side_excess(sa, sb, sc, k, a, b, c, ta, tb, tc) <= 0
+    if n_out == 0:
+        return 0
+    n_out = 0
+    for k in range(sa.shape[0]):
+        if _side_excess(sa, sb, sc, k, a, b, c, ta, tb, tc) <= 0:
+            out_cand[n_out] = start + k
             n_out += 1
     return n_out
 
@@ -186,14 +217,14 @@ def identify_kernel(x_px, y_px, f_px, cx_px, cy_px, proj, kvec, km, kq, db_ids, 
     for i in range(n):
         dist[i, i] = 0.0
         for j in range(i + 1, n):
-            d = scale * chord(unit[i], unit[j])
+            d = scale * chord_rows(unit, i, unit, j)
             dist[i, j] = d
             dist[j, i] = d
             if d < d_min and exclude_doubles:
                 usable[i] = False
                 usable[j] = False
-    cap = 64
-    cand = np.empty(cap, dtype=np.int64)
+    cand = np.empty(1024, dtype=np.int64)
+    slaves = np.empty(n_slaves, dtype=np.int64)
     # match records: image triangle id, image stars (3), guide stars (3)
     m_cap = 256
     m_tri = np.empty(m_cap, dtype=np.int64)
@@ -205,8 +236,7 @@ def identify_kernel(x_px, y_px, f_px, cx_px, cy_px, proj, kvec, km, kq, db_ids, 
     for master in range(n):
         if not usable[master]:
             continue
-        slaves = nearest_slaves(dist[master], unit, usable, master, d_min, d_max, n_slaves)
-        k = slaves.shape[0]
+        k = nearest_slaves(dist[master], unit, usable, master, d_min, d_max, n_slaves, slaves)
         for ia in range(k):
             for ib in range(ia + 1, k):
                 s1 = slaves[ia]
@@ -219,15 +249,11 @@ def identify_kernel(x_px, y_px, f_px, cx_px, cy_px, proj, kvec, km, kq, db_ids, 
                     order_img[0] = master
                     order_img[1] = s1 if o == 0 else s2
                     order_img[2] = s2 if o == 0 else s1
-                    nc = _match_triangle(unit[order_img[0]], unit[order_img[1]], unit[order_img[2]],
-                                         sides, proj, kvec, km, kq, db_sides, mean, w, sigma, scale,
-                                         beta, side_beta, cand, 0)
-                    if nc > cap:
-                        cap = 2 * nc
-                        cand = np.empty(cap, dtype=np.int64)
-                        nc = _match_triangle(unit[order_img[0]], unit[order_img[1]], unit[order_img[2]],
-                                             sides, proj, kvec, km, kq, db_sides, mean, w, sigma, scale,
-                                             beta, side_beta, cand, 0)
+                    start, stop = _window(unit, order_img[0], order_img[1], order_img[2],
+                                          sides, proj, kvec, km, kq, mean, w, sigma, scale, beta)
+                    if stop - start > cand.shape[0]:
+                        cand = np.empty(2 * (stop - start), dtype=np.int64)
+                    nc = _side_check(sides, start, stop, db_sides, sigma, scale, side_beta, cand)
                     for c in range(nc):
                         if n_match == m_cap:
                             m_cap *= 2
@@ -257,7 +283,7 @@ def identify_kernel(x_px, y_px, f_px, cx_px, cy_px, proj, kvec, km, kq, db_ids, 
     combined = np.empty(n_pair, dtype=np.int64)
     for t in range(n_pair):
         combined[t] = key[t] * n_tri + tri[t]
-    order = np.argsort(combined, kind="mergesort")
+    order = np.argsort(combined)
     support = np.zeros(n_pair, dtype=np.int64)
     i = 0
     while i < n_pair:

@@ -1,0 +1,439 @@
+"""numba kernels of the triangle-voting plugin (Fan & Zhong 2018): features, database, voting.
+
+Feature convention (both sides, rotation invariant, no tangent-plane projection needed): the
+triangle of three unit vectors ``S`` (main star, the apex), ``A`` and ``B`` (two neighbours) is
+taken as a planar triangle in 3-D; ``base = |B - A|`` (chord) and ``height`` = the distance of
+``S`` from the line ``AB``, i.e. ``2 * area / base``. ``t`` is where the foot of that height
+falls on the line (``0`` at ``A``, ``1`` at ``B``); it only sets the height tolerance.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from starid.kernels import chord
+
+
+@njit(cache=True)
+def triangle_features(s, a, b):
+    """``(base, height, t)`` of the triangle with apex ``s`` over the base ``a``-``b`` (chord units)."""
+    abx = b[0] - a[0]
+    aby = b[1] - a[1]
+    abz = b[2] - a[2]
+    sax = s[0] - a[0]
+    say = s[1] - a[1]
+    saz = s[2] - a[2]
+    base2 = abx * abx + aby * aby + abz * abz
+    base = math.sqrt(base2)
+    cx = say * abz - saz * aby
+    cy = saz * abx - sax * abz
+    cz = sax * aby - say * abx
+    height = math.sqrt(cx * cx + cy * cy + cz * cz) / base
+    t = (sax * abx + say * aby + saz * abz) / base2
+    return base, height, t
+
+
+@njit(cache=True)
+def build_triangles(unit, rank, nbr_ptr, nbr_idx, lam, dmin_chord):
+    """Triangle records of every star: ``(base, height, main, n_i, n_j)``.
+
+    ``nbr_idx[nbr_ptr[s]:nbr_ptr[s+1]]`` are the stars within the pattern radius of star ``s``;
+    those closer than ``dmin_chord`` are skipped, the ``lam`` of lowest ``rank`` (brightest)
+    are kept, and every pair of them whose base is at least ``dmin_chord`` makes a triangle.
+    """
+    n = unit.shape[0]
+    cap = n * (lam * (lam - 1) // 2)
+    base = np.empty(cap)
+    height = np.empty(cap)
+    main = np.empty(cap, dtype=np.int64)
+    ni = np.empty(cap, dtype=np.int64)
+    nj = np.empty(cap, dtype=np.int64)
+    m = 0
+    for s in range(n):
+        cand = nbr_idx[nbr_ptr[s]:nbr_ptr[s + 1]]
+        keep = np.empty(cand.size, dtype=np.int64)
+        k = 0
+        for c in cand:
+            if c != s and chord(unit[s], unit[c]) >= dmin_chord:
+                keep[k] = c
+                k += 1
+        keep = keep[:k]
+        order = np.argsort(rank[keep])
+        top = keep[order[:lam]]
+        for i in range(top.size):
+            for j in range(i + 1, top.size):
+                b, h, _ = triangle_features(unit[s], unit[top[i]], unit[top[j]])
+                if b < dmin_chord:
+                    continue
+                base[m] = b
+                height[m] = h
+                main[m] = s
+                ni[m] = top[i]
+                nj[m] = top[j]
+                m += 1
+    return base[:m], height[:m], main[:m], ni[:m], nj[:m]
+
+
+@njit(cache=True)
+def _grow(arr):
+    """A copy of ``arr`` with twice the length (the new half uninitialised)."""
+    out = np.empty(2 * arr.size, dtype=arr.dtype)
+    out[:arr.size] = arr
+    return out
+
+
+@njit(cache=True)
+def vote(v_cam, base_db, height_db, main_db, ni_db, nj_db, cell_start, n_cells_b, n_cells_h, cell_b, cell_h,
+         n_guide, cat_unit, pr_chord, dmin_chord, n_nbr, sigma_chord, k_sigma, side_check, vote_neighbours,
+         v_min, n_cand):
+    """Triangle voting (Fan & Zhong's double feature constraint) over a 2-D grid index.
+
+    ``v_cam`` (n, 3) must be ordered brightest first (the neighbour ranking reads that order).
+    For each observed star, the ``n_nbr`` brightest other stars within ``[dmin, pr]`` (widened
+    by the base tolerance) form ``C(n_nbr, 2)`` triangles; every catalog triangle within
+    ``eps_b`` in base AND ``eps_h`` in height (and, with ``side_check``, whose two
+    main-to-neighbour sides match within ``eps_b``, in the better of the two vertex orders)
+    votes for its main star, and with ``vote_neighbours`` and matching sides also for its two
+    neighbour stars. ``eps_b = k_sigma sqrt(2) sigma``, ``eps_h = k_sigma sigma
+    sqrt(1 + t^2 + (1-t)^2)`` (first-order propagation of the per-axis noise ``sigma_chord``).
+
+    Returns ``cand`` (n, n_cand) / ``cand_votes``: per star the rows with the most votes (at
+    least ``v_min``, -1 / 0 pad), most votes first, ties by row; ``hyp`` (m, 6): every matched
+    record whose sides matched too, as ``(i, row_i, a, row_a, b, row_b)``, and ``score`` (m,):
+    the votes of its three assignments summed.
+    """
+    n = v_cam.shape[0]
+    eps_b = k_sigma * math.sqrt(2.0) * sigma_chord
+    lo_d = dmin_chord - eps_b
+    hi_d = pr_chord + eps_b
+    votes = np.zeros((n, n_guide), dtype=np.int32)
+    # per vertex of the current triangle (main, a, b): the last triangle that voted each row
+    mark = np.zeros((3, n_guide), dtype=np.int32)
+    obs = np.empty(3, dtype=np.int64)
+    row = np.empty(3, dtype=np.int64)
+    tri = 0
+    touched_o = np.empty(1024, dtype=np.int64)
+    touched_c = np.empty(1024, dtype=np.int64)
+    n_touched = 0
+    nbr = np.empty(n_nbr, dtype=np.int64)
+    hyp = np.empty((256, 6), dtype=np.int64)  # side-matched records: (i, c, a, c_a, b, c_b)
+    n_hyp = 0
+    for i in range(n):
+        k = 0
+        for j in range(n):
+            if k == n_nbr:
+                break
+            if j == i:
+                continue
+            d = chord(v_cam[i], v_cam[j])
+            if d >= lo_d and d <= hi_d:
+                nbr[k] = j
+                k += 1
+        for p in range(k):
+            a = nbr[p]
+            for q in range(p + 1, k):
+                b = nbr[q]
+                base, height, t = triangle_features(v_cam[i], v_cam[a], v_cam[b])
+                if base < lo_d:
+                    continue
+                eps_h = k_sigma * sigma_chord * math.sqrt(1.0 + (1.0 - t) * (1.0 - t) + t * t)
+                d_ia = chord(v_cam[i], v_cam[a])
+                d_ib = chord(v_cam[i], v_cam[b])
+                cb0 = max(int(math.floor((base - eps_b) / cell_b)), 0)
+                cb1 = min(int(math.floor((base + eps_b) / cell_b)), n_cells_b - 1)
+                ch0 = max(int(math.floor((height - eps_h) / cell_h)), 0)
+                ch1 = min(int(math.floor((height + eps_h) / cell_h)), n_cells_h - 1)
+                tri += 1
+                n_scan = 0
+                for cb in range(cb0, cb1 + 1):
+                    n_scan += cell_start[cb * n_cells_h + ch1 + 1] - cell_start[cb * n_cells_h + ch0]
+                while n_touched + 3 * n_scan > touched_o.size:  # room for every possible vote
+                    touched_o = _grow(touched_o)
+                    touched_c = _grow(touched_c)
+                while n_hyp + n_scan > hyp.shape[0]:
+                    grown = np.empty((2 * hyp.shape[0], 6), dtype=np.int64)
+                    grown[:n_hyp] = hyp[:n_hyp]
+                    hyp = grown
+                for cb in range(cb0, cb1 + 1):
+                    # the cells (cb, ch0..ch1) are contiguous in the record order
+                    for r in range(cell_start[cb * n_cells_h + ch0], cell_start[cb * n_cells_h + ch1 + 1]):
+                        if abs(base_db[r] - base) > eps_b or abs(height_db[r] - height) > eps_h:
+                            continue
+                        c = main_db[r]
+                        ci = ni_db[r]
+                        cj = nj_db[r]
+                        # the third degree of freedom: do the main-to-neighbour sides match too?
+                        d_ci = chord(cat_unit[c], cat_unit[ci])
+                        d_cj = chord(cat_unit[c], cat_unit[cj])
+                        e_straight = max(abs(d_ia - d_ci), abs(d_ib - d_cj))
+                        e_swapped = max(abs(d_ia - d_cj), abs(d_ib - d_ci))
+                        if e_swapped < e_straight:
+                            ci, cj = cj, ci
+                            e_straight = e_swapped
+                        sides_match = e_straight <= eps_b
+                        if side_check and not sides_match:
+                            continue
+                        n_votes = 3 if vote_neighbours and sides_match else 1
+                        if sides_match:
+                            hyp[n_hyp, 0] = i
+                            hyp[n_hyp, 1] = c
+                            hyp[n_hyp, 2] = a
+                            hyp[n_hyp, 3] = ci
+                            hyp[n_hyp, 4] = b
+                            hyp[n_hyp, 5] = cj
+                            n_hyp += 1
+                        obs[0] = i
+                        row[0] = c
+                        obs[1] = a
+                        row[1] = ci
+                        obs[2] = b
+                        row[2] = cj
+                        for u in range(n_votes):
+                            o = obs[u]
+                            c = row[u]
+                            if mark[u, c] == tri:  # at most one vote per observed triangle
+                                continue
+                            mark[u, c] = tri
+                            if votes[o, c] == 0:
+                                touched_o[n_touched] = o
+                                touched_c[n_touched] = c
+                                n_touched += 1
+                            votes[o, c] += 1
+    cand = np.full((n, n_cand), -1, dtype=np.int64)
+    cand_votes = np.zeros((n, n_cand), dtype=np.int64)
+    for e in range(n_touched):
+        o = touched_o[e]
+        c = touched_c[e]
+        w = votes[o, c]
+        # insertion into the top list of o: more votes first, ties by lower catalog row
+        pos = n_cand
+        while pos > 0 and (cand[o, pos - 1] < 0 or w > cand_votes[o, pos - 1]
+                           or (w == cand_votes[o, pos - 1] and c < cand[o, pos - 1])):
+            pos -= 1
+        if pos == n_cand:
+            continue
+        for s in range(n_cand - 1, pos, -1):
+            cand[o, s] = cand[o, s - 1]
+            cand_votes[o, s] = cand_votes[o, s - 1]
+        cand[o, pos] = c
+        cand_votes[o, pos] = w
+    for o in range(n):
+        for s in range(n_cand):
+            if cand_votes[o, s] < v_min:
+                cand[o, s] = -1
+                cand_votes[o, s] = 0
+    hyp = hyp[:n_hyp]
+    score = np.empty(n_hyp, dtype=np.int64)
+    for h in range(n_hyp):
+        score[h] = votes[hyp[h, 0], hyp[h, 1]] + votes[hyp[h, 2], hyp[h, 3]] + votes[hyp[h, 4], hyp[h, 5]]
+    return cand, cand_votes, hyp, score
+
+
+@njit(cache=True)
+def _agree(v_cam, cat_unit, i, ri, j, rj, tol_chord):
+    """Whether observed stars ``i``, ``j`` and catalog rows ``ri``, ``rj`` have the same separation."""
+    return ri != rj and abs(chord(v_cam[i], v_cam[j]) - chord(cat_unit[ri], cat_unit[rj])) <= tol_chord
+
+
+@njit(cache=True)
+def select_candidates(v_cam, cand, cand_votes, cat_unit, tol_chord):
+    """Per observed star, the vote candidate best supported by the other stars' candidates.
+
+    The support of row ``c`` for star ``i`` is the number of other stars ``j`` having some
+    candidate ``c'`` with the same separation (``|d_ij - d_cc'| <= tol_chord``). The chosen row
+    has the largest support, then the most votes, then the lowest row; -1 when no candidate
+    is supported. Returns the chosen rows and their votes.
+    """
+    n, k = cand.shape
+    chosen = np.full(n, -1, dtype=np.int64)
+    chosen_votes = np.zeros(n, dtype=np.int64)
+    for i in range(n):
+        best_support = 0
+        for s in range(k):
+            c = cand[i, s]
+            if c < 0:
+                break
+            support = 0
+            for j in range(n):
+                if j == i:
+                    continue
+                for s2 in range(k):
+                    c2 = cand[j, s2]
+                    if c2 < 0:
+                        break
+                    if _agree(v_cam, cat_unit, i, c, j, c2, tol_chord):
+                        support += 1
+                        break
+            if support > best_support or (support == best_support and support > 0 and (
+                    cand_votes[i, s] > chosen_votes[i]
+                    or (cand_votes[i, s] == chosen_votes[i] and c < chosen[i]))):
+                best_support = support
+                chosen[i] = c
+                chosen_votes[i] = cand_votes[i, s]
+    return chosen, chosen_votes
+
+
+@njit(cache=True)
+def sky_cell_of(u, n_axis):
+    """Cell of a unit vector in the uniform ``n_axis``^3 grid over the cube [-1, 1]^3."""
+    ix = min(int((u[0] + 1.0) * 0.5 * n_axis), n_axis - 1)
+    iy = min(int((u[1] + 1.0) * 0.5 * n_axis), n_axis - 1)
+    iz = min(int((u[2] + 1.0) * 0.5 * n_axis), n_axis - 1)
+    return (ix * n_axis + iy) * n_axis + iz
+
+
+@njit(cache=True)
+def _nearest_row(r, cat_unit, sky_start, n_axis, tol_chord):
+    """The only catalog row within ``tol_chord`` of unit vector ``r`` (-1 if none or several)."""
+    found = -1
+    w = 2.0 / n_axis
+    lo = np.empty(3, dtype=np.int64)
+    hi = np.empty(3, dtype=np.int64)
+    for d in range(3):
+        lo[d] = max(int((r[d] - tol_chord + 1.0) / w), 0)
+        hi[d] = min(int((r[d] + tol_chord + 1.0) / w), n_axis - 1)
+    for ix in range(lo[0], hi[0] + 1):
+        for iy in range(lo[1], hi[1] + 1):
+            for iz in range(lo[2], hi[2] + 1):
+                cell = (ix * n_axis + iy) * n_axis + iz
+                for c in range(sky_start[cell], sky_start[cell + 1]):
+                    if chord(r, cat_unit[c]) <= tol_chord:
+                        if found >= 0:
+                            return -1
+                        found = c
+    return found
+
+
+@njit(cache=True)
+def _extend(v_cam, row, cat_unit, sky_start, n_axis, tol_chord, radius_chord):
+    """Extend the consistent set ``row`` (-1 = not in it) by reprojection, in place; returns its size.
+
+    The attitude is solved from the set (SVD, notes 7.5); every other star takes the only
+    catalog star within ``radius_chord * sqrt(1 + 1 / set size)`` of its reprojected direction
+    (centroid noise plus the attitude's own error) (``cat_unit`` rows are
+    sorted by cell of the ``n_axis``^3 sky grid, ``sky_start`` delimiting the cells) when
+    that row also agrees in separation with every star of the set and no other star takes it.
+    """
+    n = v_cam.shape[0]
+    n_set = 0
+    B = np.zeros((3, 3))
+    for i in range(n):
+        if row[i] >= 0:
+            n_set += 1
+            for p in range(3):
+                for q in range(3):
+                    B[p, q] += v_cam[i, p] * cat_unit[row[i], q]
+    if n_set < 2:
+        return n_set
+    U, _, Vt = np.linalg.svd(B)
+    D = np.eye(3)
+    D[2, 2] = np.linalg.det(U) * np.linalg.det(Vt)
+    A = U @ D @ Vt  # ICRS -> camera
+    radius = radius_chord * math.sqrt(1.0 + 1.0 / n_set)
+    new = np.full(n, -1, dtype=np.int64)
+    r = np.empty(3)
+    for i in range(n):
+        if row[i] >= 0:
+            continue
+        for p in range(3):
+            r[p] = A[0, p] * v_cam[i, 0] + A[1, p] * v_cam[i, 1] + A[2, p] * v_cam[i, 2]
+        c = _nearest_row(r, cat_unit, sky_start, n_axis, radius)
+        if c < 0:
+            continue
+        ok = True
+        for j in range(n):
+            if row[j] >= 0 and not _agree(v_cam, cat_unit, i, c, j, row[j], tol_chord):
+                ok = False
+                break
+        if ok:
+            new[i] = c
+    for i in range(n):
+        if new[i] < 0:
+            continue
+        dup = False
+        for j in range(n):
+            if j != i and new[j] == new[i]:
+                dup = True
+                break
+        if not dup:
+            row[i] = new[i]
+            n_set += 1
+    return n_set
+
+
+@njit(cache=True)
+def confirm(v_cam, proposed, weight, cat_unit, sky_start, n_axis, tol_chord, radius_chord, min_stars):
+    """Make the verified proposals one consistent set, extend it by reprojection, keep it if large enough.
+
+    1. ``proposed`` (rows or -1, from :func:`starid.kernels.verify_pairwise`) is reduced to a
+       set whose every pair agrees in separation: the proposal disagreeing with the most others
+       is dropped (ties: lower ``weight``, i.e. fewer votes, then higher index) until none
+       disagrees.
+    2. The set is extended by reprojection (:func:`_extend`, notes 4.3 step 5).
+    3. Fewer than ``min_stars`` stars in the end: nothing is reported.
+    Returns the catalog row per observed star (-1 = none).
+    """
+    n = v_cam.shape[0]
+    row = proposed.copy()
+    while True:
+        worst = -1
+        worst_bad = 0
+        for i in range(n):
+            if row[i] < 0:
+                continue
+            bad = 0
+            for j in range(n):
+                if j != i and row[j] >= 0 and not _agree(v_cam, cat_unit, i, row[i], j, row[j], tol_chord):
+                    bad += 1
+            if bad > worst_bad or (bad == worst_bad and bad > 0 and weight[i] <= weight[worst]):
+                worst = i
+                worst_bad = bad
+        if worst < 0:
+            break
+        row[worst] = -1
+    if _extend(v_cam, row, cat_unit, sky_start, n_axis, tol_chord, radius_chord) < min_stars:
+        return np.full(n, -1, dtype=np.int64)
+    return row
+
+
+@njit(cache=True)
+def best_hypothesis(v_cam, hyp, score, cat_unit, sky_start, n_axis, tol_chord, radius_chord, min_stars,
+                    max_hypotheses):
+    """Fallback when voting and verification found no set: test single matched triangles.
+
+    The ``max_hypotheses`` matched triangles ``hyp`` with the highest ``score`` (ties: lower
+    index, i.e. geometric order) are each extended by reprojection (:func:`_extend`). The
+    largest result wins if it has at least ``min_stars`` stars and at least one star more than
+    every result that assigns differently; otherwise nothing is reported.
+    """
+    n = v_cam.shape[0]
+    order = np.argsort(-score, kind="mergesort")
+    best = np.full(n, -1, dtype=np.int64)
+    best_size = 0
+    rival_size = 0
+    row = np.empty(n, dtype=np.int64)
+    for h in order[:max_hypotheses]:
+        row[:] = -1
+        row[hyp[h, 0]] = hyp[h, 1]
+        row[hyp[h, 2]] = hyp[h, 3]
+        row[hyp[h, 4]] = hyp[h, 5]
+        size = _extend(v_cam, row, cat_unit, sky_start, n_axis, tol_chord, radius_chord)
+        same = True
+        for i in range(n):
+            if row[i] != best[i]:
+                same = False
+                break
+        if same:
+            continue
+        if size > best_size:
+            rival_size = best_size
+            best_size = size
+            best[:] = row
+        elif size > rival_size:
+            rival_size = size
+    if best_size < min_stars or best_size <= rival_size:
+        return np.full(n, -1, dtype=np.int64)
+    return best
