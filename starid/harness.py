@@ -2,7 +2,7 @@
 
 For each algorithm: build the database once (``build_s``), warm the JIT up on a separate
 trial that is not scored (``compile_s``), then time ``identify`` per trial with
-``time.perf_counter_ns`` around the call alone. An exception inside one trial is recorded as
+``time.perf_counter_ns`` around the call alone (:func:`prepare`, :func:`score`, :func:`run`). An exception inside one trial is recorded as
 that trial's failure (``status == "error"`` with the error text) and the run goes on.
 
 Success rule (:class:`SuccessRule`, defaults): a trial is **correct** when at least
@@ -15,9 +15,11 @@ from __future__ import annotations
 
 import json
 import math
+import multiprocessing as mp
 import platform
 import time
-from dataclasses import asdict, dataclass
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
 
 import numba
 import numpy as np
@@ -96,19 +98,21 @@ def warmup_observation(simulator: Simulator):
     return simulator.observation(2**62)
 
 
-def run_algorithm(algorithm: Algorithm, trials: TrialSet, catalog: Catalog, simulator: Simulator,
-                  rule: SuccessRule = SuccessRule(), progress: bool = False, database=None,
-                  build_s: float | None = None) -> pd.DataFrame:
-    """Score one algorithm on ``trials``; one row per trial.
+@dataclass(frozen=True, eq=False)
+class Prepared:
+    """An algorithm with its database built (``build_s``) and its JIT warmed up (``compile_s``)."""
 
-    ``database``/``build_s`` may be passed when the database was built elsewhere (e.g. once in
-    a parent process); otherwise it is built and timed here.
-    """
-    camera = trials.camera
-    if database is None:
-        t0 = time.perf_counter()
-        database = algorithm.build(catalog, camera)
-        build_s = time.perf_counter() - t0
+    algorithm: Algorithm
+    database: object
+    build_s: float
+    compile_s: float
+
+
+def prepare(algorithm: Algorithm, catalog: Catalog, simulator: Simulator) -> Prepared:
+    """Build the database once and warm the JIT up on a trial that is never scored."""
+    t0 = time.perf_counter()
+    database = algorithm.build(catalog, simulator.camera)
+    build_s = time.perf_counter() - t0
     t0 = time.perf_counter()
     warm = warmup_observation(simulator)
     try:
@@ -116,9 +120,19 @@ def run_algorithm(algorithm: Algorithm, trials: TrialSet, catalog: Catalog, simu
         algorithm.identify(database, warm.permuted(np.arange(len(warm))[::-1]))
     except Exception:  # a failing warm-up shows up again, per trial, in the scored runs
         pass
-    compile_s = time.perf_counter() - t0
-    db_mb = database.nbytes / 1e6
-    cat_hip = catalog.hip
+    return Prepared(algorithm, database, build_s, time.perf_counter() - t0)
+
+
+def _error_row(trial, obs, elapsed_ns, exc) -> dict:
+    return {"trial": trial, "n_stars": len(obs), "n_true_stars": int((obs.truth_hip >= 0).sum()),
+            "status": "error", "error": f"{type(exc).__name__}: {exc}", "n_identified": 0, "n_correct": 0,
+            "n_wrong": 0, "time_us": elapsed_ns / 1e3, "attitude_err_arcsec": float("nan")}
+
+
+def score(prepared: Prepared, trials: TrialSet, catalog: Catalog, simulator: Simulator,
+          rule: SuccessRule = SuccessRule(), progress: bool = False) -> pd.DataFrame:
+    """Time and score a prepared algorithm on ``trials``; one row per trial."""
+    algorithm, database = prepared.algorithm, prepared.database
     rows = []
     iterator = range(len(trials))
     if progress:
@@ -127,21 +141,17 @@ def run_algorithm(algorithm: Algorithm, trials: TrialSet, catalog: Catalog, simu
         iterator = tqdm(iterator, desc=algorithm.name, unit="img", leave=False)
     for i in iterator:
         obs = trials.observation(i)
-        n = len(obs)
+        trial = int(trials.trial[i])
         t0 = time.perf_counter_ns()
         try:
             result = algorithm.identify(database, obs)
             elapsed_ns = time.perf_counter_ns() - t0
-            check_identification(result, n, cat_hip)
+            check_identification(result, len(obs), catalog.hip)
         except Exception as exc:
-            elapsed_ns = time.perf_counter_ns() - t0
-            rows.append({"trial": int(trials.trial[i]), "n_stars": n,
-                         "n_true_stars": int((obs.truth_hip >= 0).sum()), "status": "error",
-                         "error": f"{type(exc).__name__}: {exc}", "n_identified": 0, "n_correct": 0,
-                         "n_wrong": 0, "time_us": elapsed_ns / 1e3, "attitude_err_arcsec": float("nan")})
+            rows.append(_error_row(trial, obs, time.perf_counter_ns() - t0, exc))
             continue
         hip = np.asarray(result.hip, dtype=np.int64)
-        row = {"trial": int(trials.trial[i]), "n_stars": n, "n_true_stars": int((obs.truth_hip >= 0).sum()),
+        row = {"trial": trial, "n_stars": len(obs), "n_true_stars": int((obs.truth_hip >= 0).sum()),
                "error": ""}
         row.update(score_trial(hip, obs.truth_hip, rule))
         row["time_us"] = elapsed_ns / 1e3
@@ -151,9 +161,9 @@ def run_algorithm(algorithm: Algorithm, trials: TrialSet, catalog: Catalog, simu
                                      "n_correct", "n_wrong", "time_us", "attitude_err_arcsec"])
     df.insert(0, "algorithm", algorithm.name)
     df["n_redraws"] = trials.n_redraws
-    df["db_mb"] = db_mb
-    df["build_s"] = build_s
-    df["compile_s"] = compile_s
+    df["db_mb"] = database.nbytes / 1e6
+    df["build_s"] = prepared.build_s
+    df["compile_s"] = prepared.compile_s
     df["algorithm_params"] = json.dumps(algorithm.params(), sort_keys=True, default=str)
     df["success_min_correct"] = rule.min_correct
     for key, value in {**simulator.params(), **versions()}.items():
@@ -161,10 +171,44 @@ def run_algorithm(algorithm: Algorithm, trials: TrialSet, catalog: Catalog, simu
     return df
 
 
+# State handed to forked worker processes (set just before the pool forks, read in the children).
+_FORKED: dict = {}
+
+
+def _score_chunk(positions: np.ndarray) -> list[pd.DataFrame]:
+    st = _FORKED
+    trials = st["trials"].select(positions)
+    return [score(p, trials, st["catalog"], st["simulator"], st["rule"]) for p in st["prepared"]]
+
+
 def run(algorithms: list[Algorithm], trials: TrialSet, catalog: Catalog, simulator: Simulator,
-        rule: SuccessRule = SuccessRule(), progress: bool = False) -> pd.DataFrame:
-    """Score every algorithm on the same trials; a tidy frame, one row per (algorithm, trial)."""
-    frames = [run_algorithm(a, trials, catalog, simulator, rule, progress) for a in algorithms]
+        rule: SuccessRule = SuccessRule(), progress: bool = False, jobs: int = 1) -> pd.DataFrame:
+    """Score every algorithm on the same trials; a tidy frame, one row per (algorithm, trial).
+
+    Databases are built and the JIT warmed up once, in this process. With ``jobs > 1`` the
+    trials are split into contiguous chunks scored by forked worker processes (each runs every
+    algorithm on its chunk, so all algorithms are timed under the same load); everything but
+    the measured times is identical for any ``jobs``.
+    """
+    prepared = [prepare(a, catalog, simulator) for a in algorithms]
+    jobs = max(1, min(int(jobs), len(trials)))
+    if jobs == 1 or "fork" not in mp.get_all_start_methods():
+        frames = [score(p, trials, catalog, simulator, rule, progress) for p in prepared]
+        return pd.concat(frames, ignore_index=True)
+    chunks = np.array_split(np.arange(len(trials)), 4 * jobs)
+    chunks = [c for c in chunks if c.size]
+    _FORKED.update(prepared=prepared, trials=trials, catalog=catalog, simulator=simulator, rule=rule)
+    try:
+        with ProcessPoolExecutor(max_workers=jobs, mp_context=mp.get_context("fork")) as pool:
+            results = pool.map(_score_chunk, chunks)
+            if progress:
+                from tqdm.auto import tqdm
+
+                results = tqdm(results, total=len(chunks), desc="chunks", leave=False)
+            per_chunk = list(results)
+    finally:
+        _FORKED.clear()
+    frames = [pd.concat([chunk[k] for chunk in per_chunk], ignore_index=True) for k in range(len(prepared))]
     return pd.concat(frames, ignore_index=True)
 
 

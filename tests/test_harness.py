@@ -104,3 +104,11 @@ def test_same_trials_for_every_algorithm(setup, catalog):
     a, b = (g.reset_index(drop=True) for _, g in df.groupby("algorithm_params", sort=False))
     pd.testing.assert_series_equal(a["trial"], b["trial"])
     pd.testing.assert_series_equal(a["n_stars"], b["n_stars"])
+
+
+def test_parallel_run_matches_serial(setup, catalog):
+    sim, trials = setup
+    serial = run([Oracle(), Oracle(mode="raise_on_odd")], trials, catalog, sim, jobs=1)
+    parallel = run([Oracle(), Oracle(mode="raise_on_odd")], trials, catalog, sim, jobs=2)
+    cols = [c for c in serial.columns if c not in ("time_us", "build_s", "compile_s")]
+    pd.testing.assert_frame_equal(serial[cols], parallel[cols])
