@@ -11,9 +11,12 @@ from .camera import Camera
 from .catalog import Catalog, load_csv, load_hipparcos
 from .errors import CatalogError, ConfigError, ObservationError, PluginError, StarIDError
 from .observation import Observation, TrialSet
+from .plugin import Algorithm, Database, Identification
+from .registry import available_algorithms, get_algorithm, register
 from .simulate import SimConfig, Simulator
 
 __all__ = [
-    "Camera", "Catalog", "CatalogError", "ConfigError", "Observation", "ObservationError",
-    "PluginError", "SimConfig", "Simulator", "StarIDError", "TrialSet", "load_csv", "load_hipparcos",
+    "Algorithm", "Camera", "Catalog", "CatalogError", "ConfigError", "Database", "Identification", "Observation",
+    "ObservationError", "PluginError", "SimConfig", "Simulator", "StarIDError", "TrialSet", "available_algorithms",
+    "get_algorithm", "load_csv", "load_hipparcos", "register",
 ]
