@@ -83,3 +83,22 @@ def test_verify_pairwise_majority_beats_small_wrong_cluster():
     keep_majority = verify_pairwise(obs, rows, cat2, 1e-6, 2, 0.5)
     assert keep_weak[7:].all()           # pairwise support alone keeps both clusters
     assert keep_majority[:7].all() and not keep_majority[7:].any()
+
+
+def test_wahba_rows_matches_svd_reference():
+    from starid.attitude import random_attitude, rotation_angle_rad, solve_wahba
+    from starid.kernels import wahba_rows
+
+    rng = np.random.default_rng(3)
+    for n in (2, 3, 8):
+        A = random_attitude(rng)
+        r = _sky(n, n)
+        b = r @ A.T + rng.normal(0, 1e-5, (n, 3))
+        b /= np.linalg.norm(b, axis=1, keepdims=True)
+        rows = np.arange(n)
+        fast = wahba_rows(b, rows, r)
+        assert np.allclose(fast @ fast.T, np.eye(3), atol=1e-12)
+        assert rotation_angle_rad(fast, solve_wahba(b, r)) < 1e-9
+    rows = np.array([0, -1, 2])                      # -1 rows are skipped
+    r = _sky(3, 9)
+    assert rotation_angle_rad(wahba_rows(r, rows, r), np.eye(3)) < 1e-9

@@ -14,7 +14,7 @@ import math
 import numpy as np
 from numba import njit
 
-from starid.kernels import backproject_px, chord_rows, chord_to_rad, kvector_range, verify_pairwise
+from starid.kernels import backproject_px, chord_rows, chord_to_rad, kvector_range, verify_pairwise, wahba_rows
 
 # The six vertex correspondences (observed vertex j -> database vertex PERMS[p, j]).
 PERMS = np.array([[0, 1, 2], [1, 2, 0], [2, 0, 1], [0, 2, 1], [2, 1, 0], [1, 0, 2]], dtype=np.int64)
@@ -192,61 +192,6 @@ def match_extras(oc, tri_obs, cat_rows, unit, eps, c_band, out_row):
         else:
             out_row[i] = -1
     return count
-
-
-@njit(cache=True)
-def _det3(M):
-    return (M[0, 0] * (M[1, 1] * M[2, 2] - M[1, 2] * M[2, 1])
-            - M[0, 1] * (M[1, 0] * M[2, 2] - M[1, 2] * M[2, 0])
-            + M[0, 2] * (M[1, 0] * M[2, 1] - M[1, 1] * M[2, 0]))
-
-
-@njit(cache=True)
-def wahba_attitude(v, rows, unit):
-    """ICRS -> camera rotation from the stars with ``rows >= 0`` (Wahba's problem, equal weights).
-
-    The optimum is the orthogonal polar factor of ``B = sum b r^T`` when ``det B > 0`` (the SVD
-    solution of Markley 1988 without the sign flip); it is found by Newton's iteration
-    ``X <- (X + X^-T) / 2`` (quadratic convergence, a few 3x3 steps, much cheaper than a LAPACK
-    SVD call). When ``det B <= 0`` (degenerate or mirrored data) the SVD solution is used.
-    """
-    B = np.zeros((3, 3))
-    for i in range(v.shape[0]):
-        if rows[i] < 0:
-            continue
-        for a in range(3):
-            for b in range(3):
-                B[a, b] += v[i, a] * float(unit[rows[i], b])
-    det = _det3(B)
-    if not det > 1e-12 * (np.abs(B).max() ** 3 + 1e-300):
-        U, _, Vt = np.linalg.svd(B)
-        d = np.linalg.det(U) * np.linalg.det(Vt)
-        for a in range(3):
-            U[a, 2] *= d
-        return U @ Vt
-    X = B / abs(det) ** (1.0 / 3.0)
-    for _ in range(50):
-        d = _det3(X)
-        # inverse transpose = cofactor matrix / det
-        C = np.empty((3, 3))
-        C[0, 0] = X[1, 1] * X[2, 2] - X[1, 2] * X[2, 1]
-        C[0, 1] = X[1, 2] * X[2, 0] - X[1, 0] * X[2, 2]
-        C[0, 2] = X[1, 0] * X[2, 1] - X[1, 1] * X[2, 0]
-        C[1, 0] = X[0, 2] * X[2, 1] - X[0, 1] * X[2, 2]
-        C[1, 1] = X[0, 0] * X[2, 2] - X[0, 2] * X[2, 0]
-        C[1, 2] = X[0, 1] * X[2, 0] - X[0, 0] * X[2, 1]
-        C[2, 0] = X[0, 1] * X[1, 2] - X[0, 2] * X[1, 1]
-        C[2, 1] = X[0, 2] * X[1, 0] - X[0, 0] * X[1, 2]
-        C[2, 2] = X[0, 0] * X[1, 1] - X[0, 1] * X[1, 0]
-        change = 0.0
-        for a in range(3):
-            for b in range(3):
-                new = 0.5 * (X[a, b] + C[a, b] / d)
-                change = max(change, abs(new - X[a, b]))
-                X[a, b] = new
-        if change < 1e-14:
-            break
-    return X
 
 
 @njit(cache=True)
@@ -432,7 +377,7 @@ def identify_rows(x_px, y_px, mag, f_px, cx_px, cy_px, width_px, height_px,
         # second attitude using the larger, better spread set)
         n_assigned = 0
         for _ in range(2):
-            attitude = wahba_attitude(v, rows_best, unit)
+            attitude = wahba_rows(v, rows_best, unit)
             n_assigned = assign_by_attitude(attitude, v, unit, c_fov, eps, rows_try)
             for i in range(n):
                 rows_best[i] = rows_try[i]
@@ -441,5 +386,5 @@ def identify_rows(x_px, y_px, mag, f_px, cx_px, cy_px, width_px, height_px,
         for i in range(n):
             if rows_best[i] >= 0:
                 out[canon[i]] = hip[rows_best[i]]
-        return out, wahba_attitude(v, rows_best, unit), True
+        return out, wahba_rows(v, rows_best, unit), True
     return out, np.eye(3), False

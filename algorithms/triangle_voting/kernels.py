@@ -14,7 +14,7 @@ import math
 import numpy as np
 from numba import njit
 
-from starid.kernels import chord
+from starid.kernels import chord, chord_rows, wahba_rows
 
 
 @njit(cache=True)
@@ -57,7 +57,7 @@ def build_triangles(unit, rank, nbr_ptr, nbr_idx, lam, dmin_chord):
         keep = np.empty(cand.size, dtype=np.int64)
         k = 0
         for c in cand:
-            if c != s and chord(unit[s], unit[c]) >= dmin_chord:
+            if c != s and chord_rows(unit, s, unit, c) >= dmin_chord:
                 keep[k] = c
                 k += 1
         keep = keep[:k]
@@ -128,7 +128,7 @@ def vote(v_cam, base_db, height_db, main_db, ni_db, nj_db, cell_start, n_cells_b
                 break
             if j == i:
                 continue
-            d = chord(v_cam[i], v_cam[j])
+            d = chord_rows(v_cam, i, v_cam, j)
             if d >= lo_d and d <= hi_d:
                 nbr[k] = j
                 k += 1
@@ -140,8 +140,8 @@ def vote(v_cam, base_db, height_db, main_db, ni_db, nj_db, cell_start, n_cells_b
                 if base < lo_d:
                     continue
                 eps_h = k_sigma * sigma_chord * math.sqrt(1.0 + (1.0 - t) * (1.0 - t) + t * t)
-                d_ia = chord(v_cam[i], v_cam[a])
-                d_ib = chord(v_cam[i], v_cam[b])
+                d_ia = chord_rows(v_cam, i, v_cam, a)
+                d_ib = chord_rows(v_cam, i, v_cam, b)
                 cb0 = max(int(math.floor((base - eps_b) / cell_b)), 0)
                 cb1 = min(int(math.floor((base + eps_b) / cell_b)), n_cells_b - 1)
                 ch0 = max(int(math.floor((height - eps_h) / cell_h)), 0)
@@ -166,8 +166,8 @@ def vote(v_cam, base_db, height_db, main_db, ni_db, nj_db, cell_start, n_cells_b
                         ci = ni_db[r]
                         cj = nj_db[r]
                         # the third degree of freedom: do the main-to-neighbour sides match too?
-                        d_ci = chord(cat_unit[c], cat_unit[ci])
-                        d_cj = chord(cat_unit[c], cat_unit[cj])
+                        d_ci = chord_rows(cat_unit, c, cat_unit, ci)
+                        d_cj = chord_rows(cat_unit, c, cat_unit, cj)
                         e_straight = max(abs(d_ia - d_ci), abs(d_ib - d_cj))
                         e_swapped = max(abs(d_ia - d_cj), abs(d_ib - d_ci))
                         if e_swapped < e_straight:
@@ -235,7 +235,7 @@ def vote(v_cam, base_db, height_db, main_db, ni_db, nj_db, cell_start, n_cells_b
 @njit(cache=True)
 def _agree(v_cam, cat_unit, i, ri, j, rj, tol_chord):
     """Whether observed stars ``i``, ``j`` and catalog rows ``ri``, ``rj`` have the same separation."""
-    return ri != rj and abs(chord(v_cam[i], v_cam[j]) - chord(cat_unit[ri], cat_unit[rj])) <= tol_chord
+    return ri != rj and abs(chord_rows(v_cam, i, v_cam, j) - chord_rows(cat_unit, ri, cat_unit, rj)) <= tol_chord
 
 
 @njit(cache=True)
@@ -319,19 +319,12 @@ def _extend(v_cam, row, cat_unit, sky_start, n_axis, tol_chord, radius_chord):
     """
     n = v_cam.shape[0]
     n_set = 0
-    B = np.zeros((3, 3))
     for i in range(n):
         if row[i] >= 0:
             n_set += 1
-            for p in range(3):
-                for q in range(3):
-                    B[p, q] += v_cam[i, p] * cat_unit[row[i], q]
     if n_set < 2:
         return n_set
-    U, _, Vt = np.linalg.svd(B)
-    D = np.eye(3)
-    D[2, 2] = np.linalg.det(U) * np.linalg.det(Vt)
-    A = U @ D @ Vt  # ICRS -> camera
+    A = wahba_rows(v_cam, row, cat_unit)  # ICRS -> camera
     radius = radius_chord * math.sqrt(1.0 + 1.0 / n_set)
     new = np.full(n, -1, dtype=np.int64)
     r = np.empty(3)
