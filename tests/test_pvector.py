@@ -7,21 +7,11 @@ import math
 import numpy as np
 import pytest
 
-from starid import Camera, Catalog, ConfigError, Observation, SimConfig, Simulator, load_hipparcos
+from starid import Camera, Catalog, ConfigError, Observation, SimConfig, Simulator
 from starid.harness import run, summarize
 from starid.plugin import check_identification
 from starid.registry import get_algorithm
 from starid_algorithms.pvector import PVector, PVectorDatabase
-
-
-@pytest.fixture(scope="module")
-def catalog():
-    return load_hipparcos()
-
-
-@pytest.fixture(scope="module")
-def camera():
-    return Camera()
 
 
 @pytest.fixture(scope="module")

@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from starid import Camera, Catalog, ConfigError, SimConfig, Simulator
+from starid import Catalog, ConfigError, SimConfig, Simulator
 
 
 def test_trial_reproducible_from_seed_and_index(catalog):

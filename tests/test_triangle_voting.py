@@ -8,23 +8,13 @@ from itertools import combinations
 import numpy as np
 import pytest
 
-from starid import Camera, ConfigError, Observation, SimConfig, Simulator, load_hipparcos
+from starid import ConfigError, Observation, SimConfig, Simulator
 from starid.harness import Prepared, run, score, summarize
 from starid.kernels import chord
 from starid.plugin import check_identification
 from starid.registry import get_algorithm
 from starid_algorithms.triangle_voting import TriangleVoting
 from starid_algorithms.triangle_voting.kernels import triangle_features
-
-
-@pytest.fixture(scope="module")
-def catalog():
-    return load_hipparcos()
-
-
-@pytest.fixture(scope="module")
-def camera():
-    return Camera()
 
 
 @pytest.fixture(scope="module")

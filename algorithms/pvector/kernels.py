@@ -144,6 +144,18 @@ def _triple(a, b, c):
 
 
 @njit(cache=True)
+def _keep_unique(n_match, out_row):
+    """Keep the rows of stars matched exactly once (others -1); returns how many are kept."""
+    count = 0
+    for i in range(n_match.shape[0]):
+        if n_match[i] == 1:
+            count += 1
+        else:
+            out_row[i] = -1
+    return count
+
+
+@njit(cache=True)
 def match_extras(oc, tri_obs, cat_rows, unit, eps, c_band, out_row):
     """Identify the non-triangle observed stars by their chords to the three triangle stars.
 
@@ -185,13 +197,7 @@ def match_extras(oc, tri_obs, cat_rows, unit, eps, c_band, out_row):
                         if abs(oc[i, 0] - c0) <= eps and abs(oc[i, 1] - c1) <= eps and abs(oc[i, 2] - c2) <= eps:
                             n_match[i] += 2
         g += 1
-    count = 0
-    for i in range(n):
-        if n_match[i] == 1:
-            count += 1
-        else:
-            out_row[i] = -1
-    return count
+    return _keep_unique(n_match, out_row)
 
 
 @njit(cache=True)
@@ -209,8 +215,8 @@ def assign_by_attitude(A, v, unit, c_fov, eps, out_row):
     for a in range(3):
         bore[0, a] = A[2, a]
     b = np.empty((1, 3))
-    g, g_stop = band_rows(unit, bore[0, 2], c_fov)
-    for g in range(g, g_stop):
+    g_start, g_stop = band_rows(unit, bore[0, 2], c_fov)
+    for g in range(g_start, g_stop):
         if chord_rows(unit, g, bore, 0) > c_fov:
             continue
         for a in range(3):
@@ -228,13 +234,7 @@ def assign_by_attitude(A, v, unit, c_fov, eps, out_row):
             for i in range(n):
                 if chord_rows(v, i, b, 0) <= eps:
                     n_match[i] += 2
-    count = 0
-    for i in range(n):
-        if n_match[i] == 1:
-            count += 1
-        else:
-            out_row[i] = -1
-    return count
+    return _keep_unique(n_match, out_row)
 
 
 @njit(cache=True)
