@@ -1,0 +1,567 @@
+"""Numba kernels of the planar-triangle algorithm (Cole & Crassidis 2006).
+
+Features of a triangle of unit vectors ``b1, b2, b3`` (chord space, notes 3.1 and 3.7.5):
+area ``A`` (Heron's formula; computed here as half the norm of the edge cross product, which
+is the same number and stays accurate for skinny triangles), polar moment about the centroid
+``J = A (a^2 + b^2 + c^2) / 36`` (paper eq. 16), and the angular diameter of the smallest
+enclosing circle (Cole's ``CalcFOV.m``). Variances follow paper eqs. 9-20 in the numerically
+stable cross-product form of notes 3.2.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from starid.kernels import chord, kvector_range, verify_pairwise
+
+KEY_BASE = 65536  # star indices are < 65536 (uint16), so a sorted pair packs into lo * 65536 + hi
+
+
+@njit(cache=True)
+def _cross(u0, u1, u2, w0, w1, w2):
+    return u1 * w2 - u2 * w1, u2 * w0 - u0 * w2, u0 * w1 - u1 * w0
+
+
+@njit(cache=True)
+def triangle_features(r1, r2, r3):
+    """``(area, moment, diameter_rad)`` of the chord triangle of three unit vectors.
+
+    area = Heron's area of the planar triangle with chord sides (paper's ``A``), computed as
+    ``|(r2 - r1) x (r3 - r1)| / 2``; moment = ``A (a^2 + b^2 + c^2) / 36`` (paper eq. 16);
+    diameter_rad = angular diameter of the smallest circle enclosing the three stars
+    (``CalcFOV.m``: circumcircle of an acute triangle, else the longest side as diameter).
+    """
+    e1x, e1y, e1z = r2[0] - r1[0], r2[1] - r1[1], r2[2] - r1[2]
+    e2x, e2y, e2z = r3[0] - r1[0], r3[1] - r1[1], r3[2] - r1[2]
+    nx, ny, nz = _cross(e1x, e1y, e1z, e2x, e2y, e2z)
+    area = 0.5 * math.sqrt(nx * nx + ny * ny + nz * nz)
+    a2 = e1x * e1x + e1y * e1y + e1z * e1z
+    c2 = e2x * e2x + e2y * e2y + e2z * e2z
+    dx, dy, dz = r3[0] - r2[0], r3[1] - r2[1], r3[2] - r2[2]
+    b2 = dx * dx + dy * dy + dz * dz
+    s2 = a2 + b2 + c2
+    moment = area * s2 / 36.0
+    big = max(a2, b2, c2)
+    if big < s2 - big and area > 0.0:  # acute: circumradius abc / (4A)
+        radius = math.sqrt(a2 * b2 * c2) / (4.0 * area)
+    else:
+        radius = 0.5 * math.sqrt(big)
+    if radius >= 1.0:
+        diameter = math.pi
+    else:
+        diameter = 2.0 * math.asin(radius)
+    return area, moment, diameter
+
+
+@njit(cache=True)
+def triangle_variances(r1, r2, r3, sigma_rad):
+    """``(var_area, var_moment)`` of the chord triangle under the QUEST noise model.
+
+    Paper eqs. 9-20 (``sigma_A^2 = H R H^T``, ``sigma_J^2 = Hbar R Hbar^T`` with
+    ``R_i = sigma^2 (I - b_i b_i^T)``), evaluated with the cross-product gradients of notes 3.2:
+    ``grad_1 A = (b2 - b3) x n_hat / 2`` (cyclic), ``grad_i J = (S grad_i A + A grad_i S) / 36``
+    with ``S = a^2 + b^2 + c^2``.
+    """
+    e1x, e1y, e1z = r2[0] - r1[0], r2[1] - r1[1], r2[2] - r1[2]
+    e2x, e2y, e2z = r3[0] - r1[0], r3[1] - r1[1], r3[2] - r1[2]
+    nx, ny, nz = _cross(e1x, e1y, e1z, e2x, e2y, e2z)
+    nn = math.sqrt(nx * nx + ny * ny + nz * nz)
+    if nn == 0.0:
+        return 0.0, 0.0
+    area = 0.5 * nn
+    nx, ny, nz = nx / nn, ny / nn, nz / nn
+    s2 = 0.0
+    for d in range(3):
+        s2 += (r1[d] - r2[d]) ** 2 + (r2[d] - r3[d]) ** 2 + (r1[d] - r3[d]) ** 2
+    var_a = 0.0
+    var_j = 0.0
+    for i in range(3):
+        if i == 0:
+            p, q, r = r1, r2, r3
+        elif i == 1:
+            p, q, r = r2, r3, r1
+        else:
+            p, q, r = r3, r1, r2
+        # grad_p A = (q - r) x n_hat / 2 ; grad_p S = 2 (p - q) + 2 (p - r)
+        gx, gy, gz = _cross(q[0] - r[0], q[1] - r[1], q[2] - r[2], nx, ny, nz)
+        gx, gy, gz = 0.5 * gx, 0.5 * gy, 0.5 * gz
+        sx = 2.0 * (2.0 * p[0] - q[0] - r[0])
+        sy = 2.0 * (2.0 * p[1] - q[1] - r[1])
+        sz = 2.0 * (2.0 * p[2] - q[2] - r[2])
+        jx = (s2 * gx + area * sx) / 36.0
+        jy = (s2 * gy + area * sy) / 36.0
+        jz = (s2 * gz + area * sz) / 36.0
+        pg = p[0] * gx + p[1] * gy + p[2] * gz
+        pj = p[0] * jx + p[1] * jy + p[2] * jz
+        var_a += gx * gx + gy * gy + gz * gz - pg * pg
+        var_j += jx * jx + jy * jy + jz * jz - pj * pj
+    s = sigma_rad * sigma_rad
+    return s * var_a, s * var_j
+
+
+@njit(cache=True, parallel=True)
+def count_triangles(unit, nbr_ptr, nbr_idx, chord_max, diameter_max_rad, min_area):
+    """Per star ``i``: how many catalog triangles ``i < j < k`` pass the database rules."""
+    n = unit.shape[0]
+    counts = np.zeros(n, dtype=np.int64)
+    for i in prange(n):
+        c = 0
+        for a in range(nbr_ptr[i], nbr_ptr[i + 1]):
+            j = nbr_idx[a]
+            for b in range(a + 1, nbr_ptr[i + 1]):
+                k = nbr_idx[b]
+                if chord(unit[j], unit[k]) > chord_max:
+                    continue
+                area, moment, diam = triangle_features(unit[i], unit[j], unit[k])
+                if diam <= diameter_max_rad and area >= min_area:
+                    c += 1
+        counts[i] = c
+    return counts
+
+
+@njit(cache=True, parallel=True)
+def fill_triangles(unit, nbr_ptr, nbr_idx, chord_max, diameter_max_rad, min_area, offsets,
+                   stars, area_out, moment_out):
+    """Write the triangles counted by :func:`count_triangles` at ``offsets[i]`` onwards."""
+    n = unit.shape[0]
+    for i in prange(n):
+        p = offsets[i]
+        for a in range(nbr_ptr[i], nbr_ptr[i + 1]):
+            j = nbr_idx[a]
+            for b in range(a + 1, nbr_ptr[i + 1]):
+                k = nbr_idx[b]
+                if chord(unit[j], unit[k]) > chord_max:
+                    continue
+                area, moment, diam = triangle_features(unit[i], unit[j], unit[k])
+                if diam <= diameter_max_rad and area >= min_area:
+                    stars[p, 0] = i
+                    stars[p, 1] = j
+                    stars[p, 2] = k
+                    area_out[p] = area
+                    moment_out[p] = moment
+                    p += 1
+
+
+@njit(cache=True)
+def _triple(u, v, w):
+    """``u . (v x w)``: its sign is the triangle's handedness (chirality)."""
+    return (u[0] * (v[1] * w[2] - v[2] * w[1]) + u[1] * (v[2] * w[0] - v[0] * w[2])
+            + u[2] * (v[0] * w[1] - v[1] * w[0]))
+
+
+@njit(cache=True)
+def _moment_filter(tri_moment, start, stop, lo, hi):
+    """Catalog triangles in ``[start, stop)`` whose polar moment lies in ``[lo, hi]``."""
+    out = np.empty(stop - start, dtype=np.int64)
+    m = 0
+    for t in range(start, stop):
+        mo = tri_moment[t]
+        if mo >= lo and mo <= hi:
+            out[m] = t
+            m += 1
+    return out[:m]
+
+
+@njit(cache=True)
+def _next_in_chain(prev, used, img_tri, img_area):
+    """Cole's linked list: the unused image triangle of largest area sharing exactly two stars
+    with ``prev`` (-1 if none)."""
+    best = -1
+    for t in range(img_tri.shape[0]):
+        if used[t]:
+            continue
+        shared = 0
+        for x in range(3):
+            for y in range(3):
+                if img_tri[t, x] == img_tri[prev, y]:
+                    shared += 1
+        if shared == 2 and (best < 0 or img_area[t] > img_area[best]):
+            best = t
+    return best
+
+
+@njit(cache=True)
+def _signatures(members, length):
+    """Sorted membership bitmasks of the stars of a chain of ``length`` triangles.
+
+    ``members[l]`` holds the 3 star ids of triangle ``l``; star ``x`` gets bit ``l`` when it
+    belongs to triangle ``l``. Two chains share stars the same way exactly when these sorted
+    lists are equal.
+    """
+    ids = np.empty(3 * length, dtype=np.int64)
+    masks = np.zeros(3 * length, dtype=np.int64)
+    n = 0
+    for l in range(length):
+        for x in range(3):
+            s = members[l, x]
+            p = -1
+            for q in range(n):
+                if ids[q] == s:
+                    p = q
+                    break
+            if p < 0:
+                p = n
+                ids[n] = s
+                n += 1
+            masks[p] |= np.int64(1) << l
+    return np.sort(masks[:n])
+
+
+@njit(cache=True)
+def _grow(arr, size):
+    out = np.empty(max(2 * arr.shape[0], size), dtype=arr.dtype)
+    out[:arr.shape[0]] = arr
+    return out
+
+
+@njit(cache=True)
+def _pivot(first, img_v, img_tri, img_area, img_start, img_stop, pivot_limit, tri_stars,
+           tri_moment, sigma_rad, beta, abort_if_grow, consistent_chain):
+    """The chain and pivot procedure of ``MatchStarsWPlanarTris.m``.
+
+    The chain starts at image triangle ``first``; each pivot appends the unused triangle of
+    largest area sharing two stars with the previous one (built lazily, only as far as the
+    pivots go; at most ``pivot_limit`` pivots). Finalists are chains of catalog triangles:
+    first the area hits of the start triangle whose polar moment is within ``beta`` sigma;
+    at each pivot a finalist is extended by every moment-filtered candidate of the next image
+    triangle that shares exactly two catalog stars with the finalist's last triangle. Stops at
+    one or zero finalists; abandons (no finalist) when the count grows and ``abort_if_grow``.
+    With ``consistent_chain`` (reconstructed; Cole compares only with the last triangle) a
+    finalist chain must also share its stars exactly as the image chain does (same sorted
+    membership signatures, :func:`_signatures`), i.e. the two stars a pivot shares are the
+    same two stars throughout.
+
+    Returns ``(chain, cat_chain, n_finalists)``: the image triangles used and, when exactly one
+    finalist survives, its catalog triangles (else an empty array).
+    """
+    m = img_tri.shape[0]
+    used_tri = np.zeros(m, dtype=np.bool_)
+    chain = np.empty(m, dtype=np.int64)
+    chain[0] = first
+    used_tri[first] = True
+    r1, r2, r3 = img_v[img_tri[first, 0]], img_v[img_tri[first, 1]], img_v[img_tri[first, 2]]
+    _, mo, _ = triangle_features(r1, r2, r3)
+    _, var_j = triangle_variances(r1, r2, r3, sigma_rad)
+    half = beta * math.sqrt(var_j)
+    # finalist tree: node = (catalog triangle, parent node); one layer per chain triangle
+    node_cat = _moment_filter(tri_moment, img_start[first], img_stop[first], mo - half, mo + half)
+    n_nodes = node_cat.shape[0]
+    node_parent = np.full(max(n_nodes, 1), -1, dtype=np.int64)
+    layer_lo = 0
+    n_fin = n_nodes
+    length = 1
+    while n_fin > 1 and length <= pivot_limit:
+        t = _next_in_chain(chain[length - 1], used_tri, img_tri, img_area)
+        if t < 0:
+            break
+        step = length
+        chain[step] = t
+        used_tri[t] = True
+        length += 1
+        r1, r2, r3 = img_v[img_tri[t, 0]], img_v[img_tri[t, 1]], img_v[img_tri[t, 2]]
+        _, mo, _ = triangle_features(r1, r2, r3)
+        _, var_j = triangle_variances(r1, r2, r3, sigma_rad)
+        half = beta * math.sqrt(var_j)
+        cand = _moment_filter(tri_moment, img_start[t], img_stop[t], mo - half, mo + half)
+        nc = cand.shape[0]
+        # index the candidates by each of their three star pairs
+        keys = np.empty(3 * nc, dtype=np.int64)
+        for c in range(nc):
+            s0 = np.int64(tri_stars[cand[c], 0])
+            s1 = np.int64(tri_stars[cand[c], 1])
+            s2 = np.int64(tri_stars[cand[c], 2])  # stored ascending
+            keys[3 * c] = s0 * KEY_BASE + s1
+            keys[3 * c + 1] = s0 * KEY_BASE + s2
+            keys[3 * c + 2] = s1 * KEY_BASE + s2
+        order = np.argsort(keys)
+        skeys = keys[order]
+        img_members = np.empty((step + 1, 3), dtype=np.int64)
+        for l in range(step + 1):
+            img_members[l] = img_tri[chain[l]]
+        img_sig = _signatures(img_members, step + 1)
+        cat_members = np.empty((step + 1, 3), dtype=np.int64)
+        layer_hi = layer_lo + n_fin
+        n_new = 0
+        grew = False
+        for f in range(layer_lo, layer_hi):
+            last = node_cat[f]
+            a0 = np.int64(tri_stars[last, 0])
+            a1 = np.int64(tri_stars[last, 1])
+            a2 = np.int64(tri_stars[last, 2])
+            for p in range(3):
+                if p == 0:
+                    key = a0 * KEY_BASE + a1
+                elif p == 1:
+                    key = a0 * KEY_BASE + a2
+                else:
+                    key = a1 * KEY_BASE + a2
+                pos = np.searchsorted(skeys, key)
+                while pos < skeys.shape[0] and skeys[pos] == key:
+                    c = cand[order[pos] // 3]
+                    pos += 1
+                    shared = 0
+                    for x in range(3):
+                        s = tri_stars[c, x]
+                        if s == a0 or s == a1 or s == a2:
+                            shared += 1
+                    if shared != 2:
+                        continue
+                    if consistent_chain:
+                        node = f
+                        for l in range(step - 1, -1, -1):
+                            for x in range(3):
+                                cat_members[l, x] = tri_stars[node_cat[node], x]
+                            node = node_parent[node]
+                        for x in range(3):
+                            cat_members[step, x] = tri_stars[c, x]
+                        cat_sig = _signatures(cat_members, step + 1)
+                        if cat_sig.shape[0] != img_sig.shape[0] or np.any(cat_sig != img_sig):
+                            continue
+                    if abort_if_grow and n_new >= n_fin:
+                        grew = True
+                        break
+                    if n_nodes >= node_cat.shape[0]:
+                        node_cat = _grow(node_cat, n_nodes + 1)
+                    if n_nodes >= node_parent.shape[0]:
+                        node_parent = _grow(node_parent, n_nodes + 1)
+                    node_cat[n_nodes] = c
+                    node_parent[n_nodes] = f
+                    n_nodes += 1
+                    n_new += 1
+                if grew:
+                    break
+            if grew:
+                break
+        if grew:  # more finalists than before: Cole abandons the match (inconclusive)
+            return chain[:length], np.empty(0, dtype=np.int64), 0
+        layer_lo = layer_hi
+        n_fin = n_new
+    cat_chain = np.empty(0, dtype=np.int64)
+    if n_fin == 1:
+        cat_chain = np.empty(length, dtype=np.int64)
+        node = layer_lo
+        for l in range(length - 1, -1, -1):
+            cat_chain[l] = node_cat[node]
+            node = node_parent[node]
+    return chain[:length], cat_chain, n_fin
+
+
+PERMS = np.array([[0, 1, 2], [0, 2, 1], [1, 0, 2], [1, 2, 0], [2, 0, 1], [2, 1, 0]], dtype=np.int64)
+
+
+@njit(cache=True)
+def _triangle_consistent(img_v, cat_unit, i0, i1, i2, g0, g1, g2, tol_chord):
+    """Chords agree within ``tol_chord`` and the handedness is the same (notes 3.7.1)."""
+    if abs(chord(img_v[i0], img_v[i1]) - chord(cat_unit[g0], cat_unit[g1])) > tol_chord:
+        return False
+    if abs(chord(img_v[i1], img_v[i2]) - chord(cat_unit[g1], cat_unit[g2])) > tol_chord:
+        return False
+    if abs(chord(img_v[i0], img_v[i2]) - chord(cat_unit[g0], cat_unit[g2])) > tol_chord:
+        return False
+    ti = _triple(img_v[i0], img_v[i1], img_v[i2])
+    tc = _triple(cat_unit[g0], cat_unit[g1], cat_unit[g2])
+    return (ti > 0.0) == (tc > 0.0)
+
+
+@njit(cache=True)
+def recover_correspondence(img_v, img_tri, chain, cat_chain, tri_stars, cat_unit, tol_chord, perms):
+    """Per-star catalog rows from the single surviving chain (notes 3.7.1), or all -1.
+
+    Every vertex order of the start triangle is tried; the others follow from the stars each
+    triangle shares with the ones before it. An assignment survives when every chain triangle
+    matches in chords and chirality, no catalog star is used twice, and every pair of assigned
+    stars agrees in chord. Exactly one surviving assignment is required.
+    """
+    n = img_v.shape[0]
+    best = np.full(n, -1, dtype=np.int64)
+    n_ok = 0
+    length = cat_chain.shape[0]
+    for p in range(perms.shape[0]):
+        rows = np.full(n, -1, dtype=np.int64)
+        t0 = chain[0]
+        c0 = cat_chain[0]
+        for s in range(3):
+            rows[img_tri[t0, s]] = tri_stars[c0, perms[p, s]]
+        ok = True
+        for step in range(length):
+            t = chain[step]
+            c = cat_chain[step]
+            cs = tri_stars[c]
+            # catalog stars of this triangle not yet claimed by its already assigned stars
+            free = -1
+            n_free = 0
+            for x in range(3):
+                claimed = False
+                for y in range(3):
+                    if rows[img_tri[t, y]] == cs[x]:
+                        claimed = True
+                if not claimed:
+                    free = cs[x]
+                    n_free += 1
+            n_unassigned = 0
+            for y in range(3):
+                if rows[img_tri[t, y]] < 0:
+                    n_unassigned += 1
+            if n_unassigned != n_free or n_free > 1:
+                ok = False
+                break
+            for y in range(3):
+                if rows[img_tri[t, y]] < 0:
+                    rows[img_tri[t, y]] = free
+            i0, i1, i2 = img_tri[t, 0], img_tri[t, 1], img_tri[t, 2]
+            if not _triangle_consistent(img_v, cat_unit, i0, i1, i2, rows[i0], rows[i1], rows[i2],
+                                        tol_chord):
+                ok = False
+                break
+        if not ok:
+            continue
+        for i in range(n):
+            if rows[i] < 0:
+                continue
+            for j in range(i + 1, n):
+                if rows[j] < 0:
+                    continue
+                if rows[i] == rows[j]:
+                    ok = False
+                elif abs(chord(img_v[i], img_v[j]) - chord(cat_unit[rows[i]], cat_unit[rows[j]])) > tol_chord:
+                    ok = False
+        if ok:
+            n_ok += 1
+            best = rows
+    if n_ok != 1:
+        return np.full(n, -1, dtype=np.int64)
+    return best
+
+
+@njit(cache=True)
+def extend_by_distance(img_v, rows, cat_unit, nbr_ptr, nbr_idx, tol_chord):
+    """Extension (not in the paper): identify further stars by angular distance.
+
+    For each unassigned observed star, the guide stars near the first assigned star's catalog
+    star whose chords to *every* assigned star agree with the observed chords within
+    ``tol_chord``; the star gets it when exactly one qualifies. Two stars given the same guide
+    star both lose it. Candidates are judged against the chain's stars only, so the result does
+    not depend on the order of the stars.
+    """
+    n = img_v.shape[0]
+    out = rows.copy()
+    anchors = np.flatnonzero(rows >= 0)
+    if anchors.shape[0] == 0:
+        return out
+    a0 = anchors[0]
+    g0 = rows[a0]
+    for o in range(n):
+        if rows[o] >= 0:
+            continue
+        found = -1
+        n_found = 0
+        for e in range(nbr_ptr[g0], nbr_ptr[g0 + 1]):
+            g = np.int64(nbr_idx[e])
+            taken = False
+            for a in anchors:
+                if rows[a] == g:
+                    taken = True
+            if taken:
+                continue
+            ok = True
+            for a in anchors:
+                if abs(chord(img_v[o], img_v[a]) - chord(cat_unit[g], cat_unit[rows[a]])) > tol_chord:
+                    ok = False
+                    break
+            if ok:
+                found = g
+                n_found += 1
+        if n_found == 1:
+            out[o] = found
+    clash = np.zeros(n, dtype=np.bool_)
+    for i in range(n):
+        if rows[i] >= 0 or out[i] < 0:
+            continue
+        for j in range(n):
+            if j != i and rows[j] < 0 and out[j] == out[i]:
+                clash[i] = True
+    for i in range(n):
+        if clash[i]:
+            out[i] = -1
+    return out
+
+
+@njit(cache=True)
+def identify_rows(img_v, tri_stars, tri_area, tri_moment, kv_k, kv_m, kv_q, cat_unit, nbr_ptr,
+                  nbr_idx, chord_db, fov_db_rad, min_area, sigma_rad, beta, climit, pivot_limit,
+                  abort_if_grow, consistent_chain, restarts, extend, min_support, min_verified, perms):
+    """The whole identification of one image: guide-star row per observed star, -1 if none.
+
+    1. every image triangle within ``fov_db_rad`` and of area >= ``min_area`` is looked up
+       in the area-sorted catalog with the k-vector, ``[A - beta sA, A + beta sA]``; triangles
+       with more than ``climit`` hits are dropped (``MatchStarsWPlanarTris.m``);
+    2. start triangle = the one of largest area; chain of triangles sharing two stars, at
+       most ``pivot_limit`` pivots; finalists filtered by the polar moment; pivot procedure;
+    3. a unique finalist chain is turned into per-star rows (chords + chirality);
+    4. (extension, ``extend``) further stars by angular distance, then pairwise verification;
+       at least ``min_verified`` verified stars are needed;
+    5. (extension, ``restarts`` > 0) on failure, start again from the next-largest triangle.
+    """
+    n = img_v.shape[0]
+    none = np.full(n, -1, dtype=np.int64)
+    if n < 3:
+        return none
+    tol_chord = beta * math.sqrt(2.0) * sigma_rad
+    max_t = n * (n - 1) * (n - 2) // 6
+    img_tri = np.empty((max_t, 3), dtype=np.int64)
+    img_area = np.empty(max_t)
+    img_start = np.empty(max_t, dtype=np.int64)
+    img_stop = np.empty(max_t, dtype=np.int64)
+    m = 0
+    for i in range(n):
+        for j in range(i + 1, n):
+            if chord(img_v[i], img_v[j]) > chord_db:
+                continue
+            for k in range(j + 1, n):
+                if chord(img_v[j], img_v[k]) > chord_db or chord(img_v[i], img_v[k]) > chord_db:
+                    continue
+                area, mo, diam = triangle_features(img_v[i], img_v[j], img_v[k])
+                if diam > fov_db_rad or area < min_area:
+                    continue
+                var_a, _ = triangle_variances(img_v[i], img_v[j], img_v[k], sigma_rad)
+                half = beta * math.sqrt(var_a)
+                start, stop = kvector_range(tri_area, kv_k, kv_m, kv_q, area - half, area + half)
+                if stop - start > climit:
+                    continue
+                img_tri[m, 0] = i
+                img_tri[m, 1] = j
+                img_tri[m, 2] = k
+                img_area[m] = area
+                img_start[m] = start
+                img_stop[m] = stop
+                m += 1
+    if m == 0:
+        return none
+    img_tri = img_tri[:m]
+    img_area = img_area[:m]
+    if pivot_limit < 0:  # no limit: the chain may use every image triangle
+        pivot_limit = m - 1
+    ranked = np.argsort(-img_area, kind="mergesort")
+    for attempt in range(min(restarts + 1, m)):
+        chain, cat_chain, n_fin = _pivot(ranked[attempt], img_v, img_tri, img_area, img_start,
+                                         img_stop, pivot_limit, tri_stars, tri_moment, sigma_rad,
+                                         beta, abort_if_grow, consistent_chain)
+        if n_fin != 1:
+            continue
+        rows = recover_correspondence(img_v, img_tri, chain, cat_chain, tri_stars, cat_unit,
+                                      tol_chord, perms)
+        if extend:
+            rows = extend_by_distance(img_v, rows, cat_unit, nbr_ptr, nbr_idx, tol_chord)
+        keep = verify_pairwise(img_v, rows, cat_unit, tol_chord, min_support)
+        n_keep = 0
+        for i in range(n):
+            if not keep[i]:
+                rows[i] = -1
+            else:
+                n_keep += 1
+        if n_keep >= min_verified:
+            return rows
+    return none
