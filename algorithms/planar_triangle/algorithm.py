@@ -16,7 +16,7 @@ from starid.kernels import kvector_build
 from starid.observation import Observation
 from starid.plugin import Algorithm, Database, Identification
 
-from .kernels import PERMS, count_triangles, fill_triangles, identify_rows
+from .kernels import PERMS, identify_rows, scan_triangles
 
 MAX_GUIDE_STARS = 65536  # star indices are stored as uint16
 DEG2_TO_CHORD2 = (math.pi / 180.0) ** 2
@@ -178,13 +178,15 @@ class PlanarTriangle(Algorithm):
         chord_db = 2.0 * math.sin(fov_db_rad / 2.0)
         min_area = self.min_area_deg2 * DEG2_TO_CHORD2
         ptr, idx = _neighbour_csr(unit, chord_db, symmetric=False)
-        counts = count_triangles(unit, ptr, idx, chord_db, fov_db_rad, min_area)
+        none = np.empty(0)
+        counts = scan_triangles(unit, ptr, idx, chord_db, fov_db_rad, min_area, none.astype(np.int64),
+                                np.empty((0, 3), dtype=np.uint16), none, none, False)
         offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
         total = int(offsets[-1])
         stars = np.empty((total, 3), dtype=np.uint16)
         area = np.empty(total, dtype=np.float64)
         moment = np.empty(total, dtype=np.float64)
-        fill_triangles(unit, ptr, idx, chord_db, fov_db_rad, min_area, offsets, stars, area, moment)
+        scan_triangles(unit, ptr, idx, chord_db, fov_db_rad, min_area, offsets, stars, area, moment, True)
         area32 = area.astype(np.float32)
         order = np.argsort(area32, kind="stable")
         area32 = area32[order]

@@ -13,9 +13,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
-from starid.kernels import chord, kvector_range, verify_pairwise
+from starid.kernels import chord_rows, kvector_range, verify_pairwise
 
 KEY_BASE = 65536  # star indices are < 65536 (uint16), so a sorted pair packs into lo * 65536 + hi
 
@@ -102,47 +102,37 @@ def triangle_variances(r1, r2, r3, sigma_rad):
     return s * var_a, s * var_j
 
 
-@njit(cache=True, parallel=True)
-def count_triangles(unit, nbr_ptr, nbr_idx, chord_max, diameter_max_rad, min_area):
-    """Per star ``i``: how many catalog triangles ``i < j < k`` pass the database rules."""
+@njit(cache=True)
+def scan_triangles(unit, nbr_ptr, nbr_idx, chord_max, diameter_max_rad, min_area, offsets,
+                   stars, area_out, moment_out, fill):
+    """Catalog triangles ``i < j < k`` that pass the database rules.
+
+    With ``fill=False`` returns the count per star ``i`` (the other outputs untouched); with
+    ``fill=True`` writes star ``i``'s triangles at ``offsets[i]`` onwards (two passes, so the
+    arrays are allocated once at their exact size).
+    """
     n = unit.shape[0]
     counts = np.zeros(n, dtype=np.int64)
-    for i in prange(n):
+    for i in range(n):
         c = 0
         for a in range(nbr_ptr[i], nbr_ptr[i + 1]):
             j = nbr_idx[a]
             for b in range(a + 1, nbr_ptr[i + 1]):
                 k = nbr_idx[b]
-                if chord(unit[j], unit[k]) > chord_max:
+                if chord_rows(unit, j, unit, k) > chord_max:
                     continue
                 area, moment, diam = triangle_features(unit[i], unit[j], unit[k])
                 if diam <= diameter_max_rad and area >= min_area:
+                    if fill:
+                        p = offsets[i] + c
+                        stars[p, 0] = i
+                        stars[p, 1] = j
+                        stars[p, 2] = k
+                        area_out[p] = area
+                        moment_out[p] = moment
                     c += 1
         counts[i] = c
     return counts
-
-
-@njit(cache=True, parallel=True)
-def fill_triangles(unit, nbr_ptr, nbr_idx, chord_max, diameter_max_rad, min_area, offsets,
-                   stars, area_out, moment_out):
-    """Write the triangles counted by :func:`count_triangles` at ``offsets[i]`` onwards."""
-    n = unit.shape[0]
-    for i in prange(n):
-        p = offsets[i]
-        for a in range(nbr_ptr[i], nbr_ptr[i + 1]):
-            j = nbr_idx[a]
-            for b in range(a + 1, nbr_ptr[i + 1]):
-                k = nbr_idx[b]
-                if chord(unit[j], unit[k]) > chord_max:
-                    continue
-                area, moment, diam = triangle_features(unit[i], unit[j], unit[k])
-                if diam <= diameter_max_rad and area >= min_area:
-                    stars[p, 0] = i
-                    stars[p, 1] = j
-                    stars[p, 2] = k
-                    area_out[p] = area
-                    moment_out[p] = moment
-                    p += 1
 
 
 @njit(cache=True)
@@ -355,11 +345,11 @@ PERMS = np.array([[0, 1, 2], [0, 2, 1], [1, 0, 2], [1, 2, 0], [2, 0, 1], [2, 1, 
 @njit(cache=True)
 def _triangle_consistent(img_v, cat_unit, i0, i1, i2, g0, g1, g2, tol_chord):
     """Chords agree within ``tol_chord`` and the handedness is the same (notes 3.7.1)."""
-    if abs(chord(img_v[i0], img_v[i1]) - chord(cat_unit[g0], cat_unit[g1])) > tol_chord:
+    if abs(chord_rows(img_v, i0, img_v, i1) - chord_rows(cat_unit, g0, cat_unit, g1)) > tol_chord:
         return False
-    if abs(chord(img_v[i1], img_v[i2]) - chord(cat_unit[g1], cat_unit[g2])) > tol_chord:
+    if abs(chord_rows(img_v, i1, img_v, i2) - chord_rows(cat_unit, g1, cat_unit, g2)) > tol_chord:
         return False
-    if abs(chord(img_v[i0], img_v[i2]) - chord(cat_unit[g0], cat_unit[g2])) > tol_chord:
+    if abs(chord_rows(img_v, i0, img_v, i2) - chord_rows(cat_unit, g0, cat_unit, g2)) > tol_chord:
         return False
     ti = _triple(img_v[i0], img_v[i1], img_v[i2])
     tc = _triple(cat_unit[g0], cat_unit[g1], cat_unit[g2])
@@ -426,7 +416,7 @@ def recover_correspondence(img_v, img_tri, chain, cat_chain, tri_stars, cat_unit
                     continue
                 if rows[i] == rows[j]:
                     ok = False
-                elif abs(chord(img_v[i], img_v[j]) - chord(cat_unit[rows[i]], cat_unit[rows[j]])) > tol_chord:
+                elif abs(chord_rows(img_v, i, img_v, j) - chord_rows(cat_unit, rows[i], cat_unit, rows[j])) > tol_chord:
                     ok = False
         if ok:
             n_ok += 1
@@ -468,7 +458,7 @@ def extend_by_distance(img_v, rows, cat_unit, nbr_ptr, nbr_idx, tol_chord):
                 continue
             ok = True
             for a in anchors:
-                if abs(chord(img_v[o], img_v[a]) - chord(cat_unit[g], cat_unit[rows[a]])) > tol_chord:
+                if abs(chord_rows(img_v, o, img_v, a) - chord_rows(cat_unit, g, cat_unit, rows[a])) > tol_chord:
                     ok = False
                     break
             if ok:
@@ -518,10 +508,10 @@ def identify_rows(img_v, tri_stars, tri_area, tri_moment, kv_k, kv_m, kv_q, cat_
     m = 0
     for i in range(n):
         for j in range(i + 1, n):
-            if chord(img_v[i], img_v[j]) > chord_db:
+            if chord_rows(img_v, i, img_v, j) > chord_db:
                 continue
             for k in range(j + 1, n):
-                if chord(img_v[j], img_v[k]) > chord_db or chord(img_v[i], img_v[k]) > chord_db:
+                if chord_rows(img_v, j, img_v, k) > chord_db or chord_rows(img_v, i, img_v, k) > chord_db:
                     continue
                 area, mo, diam = triangle_features(img_v[i], img_v[j], img_v[k])
                 if diam > fov_db_rad or area < min_area:
