@@ -9,7 +9,6 @@ The HIP number is the catalog id everywhere in starid.
 
 from __future__ import annotations
 
-import csv
 from dataclasses import dataclass
 from functools import lru_cache
 from importlib import resources
@@ -18,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import CatalogError
+from .io import read_numeric_csv
 
 EMBEDDED_CATALOG = "hipparcos_v8.npz"
 
@@ -131,10 +131,6 @@ def load_hipparcos(max_v_mag: float = 8.0) -> Catalog:
     return cat
 
 
-_ID_COLUMNS = ("hip", "id")
-_REQUIRED = ("ra_deg", "dec_deg", "vmag")
-
-
 def load_csv(path: str | Path) -> Catalog:
     """Load a user catalog from CSV with columns ``hip`` (or ``id``), ``ra_deg``, ``dec_deg``, ``vmag``.
 
@@ -142,38 +138,12 @@ def load_csv(path: str | Path) -> Catalog:
     line number.
     """
     path = Path(path)
-    try:
-        fh = path.open(newline="")
-    except OSError as exc:
-        raise CatalogError(f"cannot read catalog {path}: {exc.strerror}") from None
-    with fh:
-        reader = csv.reader(fh)
-        try:
-            header = [h.strip().lower() for h in next(reader)]
-        except StopIteration:
-            raise CatalogError(f"{path}: empty file, expected a header line") from None
-        id_col = next((c for c in _ID_COLUMNS if c in header), None)
-        missing = [c for c in _REQUIRED if c not in header] + ([] if id_col else ["hip (or id)"])
-        if missing:
-            raise CatalogError(f"{path}: missing column(s) {', '.join(missing)}; header is {header}")
-        cols = [header.index(c) for c in (id_col, *_REQUIRED)]
-        rows = []
-        for lineno, row in enumerate(reader, start=2):
-            if not row or all(not cell.strip() for cell in row):
-                continue
-            if len(row) != len(header):
-                raise CatalogError(f"{path}, line {lineno}: expected {len(header)} fields, got {len(row)}")
-            try:
-                values = [float(row[c]) for c in cols]
-            except ValueError:
-                raise CatalogError(f"{path}, line {lineno}: non-numeric value in {row}") from None
-            if not all(np.isfinite(values)):
-                raise CatalogError(f"{path}, line {lineno}: NaN or infinite value in {row}")
-            rows.append(values)
-    if not rows:
+    cols, lines = read_numeric_csv(path, [("hip", "id"), "ra_deg", "dec_deg", "vmag"], error=CatalogError,
+                                   lower=True)
+    if not lines.size:
         raise CatalogError(f"{path}: no stars")
-    arr = np.asarray(rows, dtype=np.float64)
+    ids = cols["hip"] if "hip" in cols else cols["id"]
     try:
-        return Catalog.from_arrays(arr[:, 0], arr[:, 1], arr[:, 2], arr[:, 3], name=path.name)
+        return Catalog.from_arrays(ids, cols["ra_deg"], cols["dec_deg"], cols["vmag"], name=path.name)
     except CatalogError as exc:
         raise CatalogError(f"{path}: {exc}") from None

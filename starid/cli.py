@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import csv
 import os
 import sys
 import time
@@ -17,7 +16,7 @@ from .camera import Camera
 from .catalog import Catalog, load_csv, load_hipparcos
 from .errors import ConfigError, ObservationError, StarIDError
 from .harness import SuccessRule, run, score_trial, summarize
-from .io import atomic_write_text, write_frame
+from .io import atomic_write_text, read_numeric_csv, write_frame
 from .observation import Observation
 from .plugin import Algorithm, check_identification
 from .registry import available_algorithms, get_algorithm
@@ -158,51 +157,27 @@ OBS_REQUIRED = ("trial", "x_px", "y_px", "mag")
 
 def read_observations(path: Path, camera: Camera) -> tuple[list[int], list[Observation], bool]:
     """Read OBS.csv (``trial, x_px, y_px, mag[, truth_hip]``); every problem names its line."""
-    try:
-        fh = path.open(newline="")
-    except OSError as exc:
-        raise ObservationError(f"cannot read {path}: {exc.strerror}") from None
-    with fh:
-        reader = csv.reader(fh)
-        try:
-            header = [h.strip() for h in next(reader)]
-        except StopIteration:
-            raise ObservationError(f"{path}: empty file, expected a header line") from None
-        missing = [c for c in OBS_REQUIRED if c not in header]
-        if missing:
-            raise ObservationError(f"{path}, line 1: missing column(s) {', '.join(missing)}; header is {header}")
-        has_truth = "truth_hip" in header
-        cols = {c: header.index(c) for c in (*OBS_REQUIRED, *(("truth_hip",) if has_truth else ()))}
-        groups: dict[int, list[tuple[float, float, float, int]]] = {}
-        for lineno, row in enumerate(reader, start=2):
-            if not row or all(not cell.strip() for cell in row):
-                continue
-            if len(row) != len(header):
-                raise ObservationError(f"{path}, line {lineno}: expected {len(header)} fields, got {len(row)}")
-            try:
-                trial_f = float(row[cols["trial"]])
-                x, y, m = (float(row[cols[c]]) for c in ("x_px", "y_px", "mag"))
-                truth_f = float(row[cols["truth_hip"]]) if has_truth else -1.0
-            except ValueError:
-                raise ObservationError(f"{path}, line {lineno}: non-numeric value in {row}") from None
-            values = (trial_f, x, y, m, truth_f)
-            if not all(np.isfinite(values)):
-                raise ObservationError(f"{path}, line {lineno}: NaN or infinite value in {row}")
-            if trial_f != int(trial_f) or truth_f != int(truth_f):
-                raise ObservationError(f"{path}, line {lineno}: trial and truth_hip must be whole numbers")
-            if not camera.in_image(np.array(x), np.array(y)):
-                raise ObservationError(f"{path}, line {lineno}: ({x}, {y}) px lies outside the "
-                                       f"{camera.width_px}x{camera.height_px} image")
-            groups.setdefault(int(trial_f), []).append((x, y, m, int(truth_f)))
-    if not groups:
+    cols, lines = read_numeric_csv(path, list(OBS_REQUIRED), ("truth_hip",), error=ObservationError)
+    if not lines.size:
         raise ObservationError(f"{path}: no observations")
-    trials = sorted(groups)
+    has_truth = "truth_hip" in cols
+    truth = cols.get("truth_hip", np.full(lines.size, -1.0))
+    for name, values in (("trial", cols["trial"]), ("truth_hip", truth)):
+        bad = np.flatnonzero(values != np.round(values))
+        if bad.size:
+            raise ObservationError(f"{path}, line {lines[bad[0]]}: {name} must be a whole number")
+    off = np.flatnonzero(~camera.in_image(cols["x_px"], cols["y_px"]))
+    if off.size:
+        k = off[0]
+        raise ObservationError(f"{path}, line {lines[k]}: ({cols['x_px'][k]}, {cols['y_px'][k]}) px lies outside "
+                               f"the {camera.width_px}x{camera.height_px} image")
+    trial = cols["trial"].astype(np.int64)
+    trials = sorted(set(trial.tolist()))
     observations = []
     for t in trials:
-        arr = groups[t]
-        observations.append(Observation(np.array([r[0] for r in arr]), np.array([r[1] for r in arr]),
-                                        np.array([r[2] for r in arr]), camera,
-                                        np.array([r[3] for r in arr], dtype=np.int64) if has_truth else None))
+        rows = np.flatnonzero(trial == t)   # input order within the trial
+        observations.append(Observation(cols["x_px"][rows], cols["y_px"][rows], cols["mag"][rows], camera,
+                                        truth[rows].astype(np.int64) if has_truth else None))
     return trials, observations, has_truth
 
 
