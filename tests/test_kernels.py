@@ -102,3 +102,28 @@ def test_wahba_rows_matches_svd_reference():
     rows = np.array([0, -1, 2])                      # -1 rows are skipped
     r = _sky(3, 9)
     assert rotation_angle_rad(wahba_rows(r, rows, r), np.eye(3)) < 1e-9
+
+
+def test_reproject_assign_counts_predicted_and_seen():
+    from starid import Camera
+    from starid.kernels import reproject_assign, z_band_rows
+
+    cam = Camera()
+    rng = np.random.default_rng(4)
+    sky = rng.normal(size=(40_000, 3))
+    sky /= np.linalg.norm(sky, axis=1, keepdims=True)
+    sky = sky[np.argsort(sky[:, 2])]
+    start, stop = z_band_rows(sky, 0.3, 0.1)
+    inside = np.flatnonzero(np.abs(np.arcsin(sky[:, 2]) - np.arcsin(0.3)) <= 2 * np.arcsin(0.05) - 1e-12)
+    assert start <= inside.min() and inside.max() < stop
+    # camera frame = ICRS (A = I): the boresight is +z
+    front = sky[sky[:, 2] > 0.9]
+    visible = front[cam.in_image(*cam.project(front))]
+    seen = visible[: len(visible) // 2]                    # half of them observed
+    out = np.empty(len(seen), dtype=np.int64)
+    c_fov = 2 * np.sin(cam.half_diagonal_rad / 2)
+    n_seen, n_predicted = reproject_assign(np.eye(3), seen, sky, c_fov, 1e-9, out, cam.f_px, cam.cx_px, cam.cy_px,
+                                           cam.width_px, cam.height_px)
+    assert len(visible) > 10
+    assert n_predicted == len(visible) and n_seen == len(seen)
+    assert np.allclose(sky[out], seen)

@@ -22,8 +22,10 @@ def test_database_layout(db, catalog):
     assert db.nbytes / 1e6 <= 0.784                        # the paper's Table 6 memory
     assert np.linalg.norm(db.axis) == pytest.approx(1.0) and db.axis.sum() > 0
     # recompute one triangle from the catalog
-    guide = catalog.subset(catalog.index_of(db.guide_hip))
-    r = guide.unit_icrs[db.ids[123].astype(int)]
+    rows = catalog.index_of(db.guide_hip)                   # guide rows are in declination order
+    assert np.all(np.diff(db.guide_unit[:, 2]) >= 0)
+    assert np.allclose(db.guide_unit, catalog.unit_icrs[rows], atol=1e-7)
+    r = catalog.unit_icrs[rows[db.ids[123].astype(int)]]
     a, b, c = (CHORD_SCALE * np.linalg.norm(r[i] - r[j]) for i, j in ((0, 1), (1, 2), (0, 2)))
     assert np.allclose(db.sides[:, 123], [a, b, c], rtol=1e-6)
     assert db.proj[123] == pytest.approx(db.axis @ (np.array([a, b, c]) - db.mean), abs=1e-3)
@@ -82,7 +84,7 @@ def test_paper_literal_variant_runs(catalog, camera, db):
 
 
 @pytest.mark.parametrize("kwargs", [{"sigma_px": 0}, {"n_slaves": 1}, {"d_min_deg": 6.0}, {"min_shared": 4},
-                                    {"beta": -1}, {"verify_min_fraction": 2}])
+                                    {"beta": -1}, {"verify_min_fraction": 2}, {"confirm_fraction": 1.5}])
 def test_invalid_parameters(kwargs):
     with pytest.raises(ConfigError):
         PTP(**kwargs)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from functools import cached_property
+from functools import cached_property, lru_cache
 from typing import ClassVar
 
 import numpy as np
@@ -33,9 +33,9 @@ class PTPDatabase(Database):
     sides : float32 (3, t) scaled sides a, b, c of eq. 1, one row per side (contiguous for the
         vectorised three-side check).
     mean : float64 (3,) mean side vector; axis : float64 (3,) the projection axis u_max.
-    guide_hip : int32 (g,) catalog id of each guide row.
-    guide_ra_rad, guide_dec_rad : float32 (g,) guide positions for the verification step
-        (two float32 angles: smaller than three unit-vector components, 0.1 arcsec precision).
+    guide_hip : int32 (g,) catalog id of each guide row; guide rows are sorted by z (declination).
+    guide_unit : float32 (g, 3) ICRS unit vectors of the guide stars, for verification and
+        confirmation (float32: 0.02 arcsec, far below the tolerances).
     """
 
     proj: np.ndarray
@@ -45,11 +45,16 @@ class PTPDatabase(Database):
     mean: np.ndarray
     axis: np.ndarray
     guide_hip: np.ndarray
-    guide_ra_rad: np.ndarray
-    guide_dec_rad: np.ndarray
+    guide_unit: np.ndarray
     km: float
     kq: float
     explained_variance: float
+
+
+@lru_cache(maxsize=16)
+def _fov_chord(camera: Camera) -> float:
+    """Chord from the boresight to the farthest image corner."""
+    return 2.0 * math.sin(camera.half_diagonal_rad / 2.0)
 
 
 def _index_dtype(n: int):
@@ -102,7 +107,12 @@ class PTP(Algorithm):
       validation and computes the attitude "from the correctly identified stars"; starid checks
       the pairings' mutual angular distances first, because under the harness's rule one wrong
       id makes the whole image wrong, and at 1 px noise the sharing-star rule alone validates
-      clusters of spurious triangles (``verify=False`` gives the paper-literal algorithm).
+      clusters of spurious triangles (``verify=False`` gives the paper-literal algorithm);
+    * ``confirm_fraction`` (starid's extension, 0 switches it off): a small self-consistent
+      cluster of wrong pairings passes the pairwise check; its attitude, though, predicts guide
+      stars where none are seen. The identification stands only if at least this fraction of
+      the guide stars its attitude puts in the image is observed (magnitude noise hides some
+      true ones, so not all).
     """
 
     name: ClassVar[str] = "ptp"
@@ -120,6 +130,7 @@ class PTP(Algorithm):
     majority: bool = True
     verify: bool = True
     verify_min_fraction: float = 0.5
+    confirm_fraction: float = 0.5
 
     def __post_init__(self):
         if not (math.isfinite(self.sigma_px) and self.sigma_px > 0):
@@ -133,6 +144,8 @@ class PTP(Algorithm):
                 raise ConfigError(f"ptp: {name} must be > 0, got {getattr(self, name)!r}")
         if int(self.min_shared) != self.min_shared or not 0 <= self.min_shared <= 3:
             raise ConfigError(f"ptp: min_shared must be 0, 1, 2 or 3, got {self.min_shared!r}")
+        if not 0.0 <= self.confirm_fraction <= 1.0:
+            raise ConfigError(f"ptp: confirm_fraction must lie in [0, 1], got {self.confirm_fraction!r}")
         if not 0.0 <= self.verify_min_fraction <= 1.0:
             raise ConfigError(f"ptp: verify_min_fraction must lie in [0, 1], got {self.verify_min_fraction!r}")
         if not math.isfinite(self.mag_limit):
@@ -157,7 +170,9 @@ class PTP(Algorithm):
             guide = guide.subset(~double)
         if len(guide) < 3:
             raise ConfigError(f"ptp: only {len(guide)} catalog stars have V <= {self.mag_limit}")
-        unit = guide.unit_icrs
+        by_z = np.argsort(guide.unit_icrs[:, 2], kind="stable")   # guide rows in declination order
+        unit = np.ascontiguousarray(guide.unit_icrs[by_z])
+        guide_hip = guide.hip[by_z]
         tree = cKDTree(unit)
         lists = tree.query_ball_point(unit, self._d_max / CHORD_SCALE)
         neighbours, offsets = [], [0]
@@ -183,20 +198,18 @@ class PTP(Algorithm):
         return PTPDatabase(proj=proj32, kvec=kvec.astype(_index_dtype(len(order))),
                            ids=ids[order].astype(_index_dtype(len(guide))),
                            sides=np.ascontiguousarray(sides[order].T, dtype=np.float32), mean=mean, axis=axis,
-                           guide_hip=guide.hip.astype(np.int32),
-                           guide_ra_rad=np.radians(guide.ra_deg).astype(np.float32),
-                           guide_dec_rad=np.radians(guide.dec_deg).astype(np.float32), km=km, kq=kq,
+                           guide_hip=guide_hip.astype(np.int32), guide_unit=unit.astype(np.float32), km=km, kq=kq,
                            explained_variance=float(eigval[-1] / eigval.sum()))
 
     def identify(self, database: PTPDatabase, observation: Observation) -> Identification:
         cam = observation.camera
-        rows = identify_kernel(observation.x_px, observation.y_px, cam.f_px, cam.cx_px, cam.cy_px,
-                               database.proj, database.kvec, database.km, database.kq, database.ids,
-                               database.sides, database.mean, database.axis, database.guide_ra_rad,
-                               database.guide_dec_rad, self.sigma_px / cam.f_px, CHORD_SCALE,
-                               self._d_min, self._d_max, int(self.n_slaves), self.beta, self.side_beta,
-                               bool(self.exclude_doubles), bool(self.swap_slaves), int(self.min_shared), bool(self.majority),
-                               bool(self.verify),
-                               float(self.verify_min_fraction))
+        rows = identify_kernel(observation.x_px, observation.y_px, cam.f_px, cam.cx_px, cam.cy_px, cam.width_px,
+                               cam.height_px, database.proj, database.kvec, database.km, database.kq, database.ids,
+                               database.sides, database.mean, database.axis, database.guide_unit,
+                               self.sigma_px / cam.f_px, CHORD_SCALE, self._d_min, self._d_max, int(self.n_slaves),
+                               self.beta, self.side_beta, bool(self.exclude_doubles), bool(self.swap_slaves),
+                               int(self.min_shared), bool(self.majority), bool(self.verify),
+                               float(self.verify_min_fraction), float(self.confirm_fraction),
+                               _fov_chord(cam))
         hip = np.where(rows >= 0, database.guide_hip[np.maximum(rows, 0)], -1).astype(np.int64)
         return Identification(hip)

@@ -7,7 +7,7 @@ import math
 import numpy as np
 from numba import njit
 
-from starid.kernels import backproject_px, chord_rows, kvector_range, verify_pairwise
+from starid.kernels import backproject_px, chord_rows, kvector_range, reproject_assign, verify_pairwise, wahba_rows
 
 
 @njit(cache=True)
@@ -181,9 +181,9 @@ def _triple_key(i, j, k, n):
 
 
 @njit(cache=True)
-def identify_kernel(x_px, y_px, f_px, cx_px, cy_px, proj, kvec, km, kq, db_ids, db_sides, mean, w,
-                    guide_ra_rad, guide_dec_rad, sigma, scale, d_min, d_max, n_slaves, beta, side_beta,
-                    exclude_doubles, swap_slaves, min_shared, majority, verify, verify_min_fraction):
+def identify_kernel(x_px, y_px, f_px, cx_px, cy_px, width_px, height_px, proj, kvec, km, kq, db_ids, db_sides,
+                    mean, w, guide_unit, sigma, scale, d_min, d_max, n_slaves, beta, side_beta, exclude_doubles,
+                    swap_slaves, min_shared, majority, verify, verify_min_fraction, confirm_fraction, c_fov):
     """PTP identification of one image (sections 2.2-2.3). Returns the guide index per star (-1 = none).
 
     1. Every star is a master; its slaves are the ``n_slaves`` nearest stars in
@@ -205,8 +205,11 @@ def identify_kernel(x_px, y_px, f_px, cx_px, cy_px, proj, kvec, km, kq, db_ids, 
     4. (``verify``, starid's extension) the surviving pairings must agree pairwise in angular
        distance (``verify_pairwise`` with a ``side_beta`` sqrt(2) sigma chord tolerance, each
        agreeing with at least two others and ``verify_min_fraction`` of them).
+    5. (``confirm_fraction``, starid's extension) the attitude of the surviving pairings
+       (Wahba) must put guide stars in the image of which at least that fraction is observed
+       within the same tolerance (``reproject_assign``); otherwise nothing is reported.
     """
-    n_guide = guide_ra_rad.shape[0]
+    n_guide = guide_unit.shape[0]
     n = x_px.shape[0]
     result = np.full(n, -1, dtype=np.int64)
     if n < 3:
@@ -332,21 +335,21 @@ def identify_kernel(x_px, y_px, f_px, cx_px, cy_px, proj, kvec, km, kq, db_ids, 
                 win = False
         if win:
             result[s] = best[s]
+    tol = side_beta * math.sqrt(2.0) * sigma
     if verify:
-        cat_vec = np.zeros((n, 3))
-        local = np.full(n, -1, dtype=np.int64)
-        for s in range(n):
-            g = result[s]
-            if g >= 0:
-                ra = np.float64(guide_ra_rad[g])
-                dec = np.float64(guide_dec_rad[g])
-                cat_vec[s, 0] = math.cos(dec) * math.cos(ra)
-                cat_vec[s, 1] = math.cos(dec) * math.sin(ra)
-                cat_vec[s, 2] = math.sin(dec)
-                local[s] = s
-        tol = side_beta * math.sqrt(2.0) * sigma
-        keep = verify_pairwise(unit, local, cat_vec, tol, 2, verify_min_fraction)
+        keep = verify_pairwise(unit, result, guide_unit, tol, 2, verify_min_fraction)
         for s in range(n):
             if not keep[s]:
                 result[s] = -1
+    n_found = 0
+    for s in range(n):
+        if result[s] >= 0:
+            n_found += 1
+    if confirm_fraction > 0 and n_found >= 2:
+        attitude = wahba_rows(unit, result, guide_unit)
+        seen = np.empty(n, dtype=np.int64)
+        n_seen, n_predicted = reproject_assign(attitude, unit, guide_unit, c_fov + tol, tol, seen, f_px, cx_px,
+                                               cy_px, width_px, height_px)
+        if n_seen < confirm_fraction * n_predicted:
+            result[:] = -1
     return result

@@ -14,7 +14,8 @@ import math
 import numpy as np
 from numba import njit
 
-from starid.kernels import backproject_px, chord_rows, chord_to_rad, kvector_range, verify_pairwise, wahba_rows
+from starid.kernels import (backproject_px, chord_rows, chord_to_rad, keep_unique, kvector_range, reproject_assign,
+                            verify_pairwise, wahba_rows, z_band_rows)
 
 # The six vertex correspondences (observed vertex j -> database vertex PERMS[p, j]).
 PERMS = np.array([[0, 1, 2], [1, 2, 0], [2, 0, 1], [0, 2, 1], [2, 1, 0], [1, 0, 2]], dtype=np.int64)
@@ -112,47 +113,10 @@ def triangle_feature(s_len01, s_len02, s_len12, sorted_sides):
 
 
 @njit(cache=True)
-def _bound_z(unit, z, upper):
-    """First row whose z is >= z (``upper``: > z); the rows are sorted by z."""
-    lo = 0
-    hi = unit.shape[0]
-    while lo < hi:
-        mid = (lo + hi) // 2
-        if unit[mid, 2] < z or (upper and unit[mid, 2] == z):
-            lo = mid + 1
-        else:
-            hi = mid
-    return lo
-
-
-@njit(cache=True)
-def band_rows(unit, z_centre, c_radius):
-    """Rows ``[start, stop)`` of the z-sorted guide stars in the declination band that holds every
-    star within chord ``c_radius`` of a direction whose z component is ``z_centre``."""
-    half = 2.0 * math.asin(min(1.0, 0.5 * c_radius))
-    dec0 = math.asin(max(-1.0, min(1.0, float(z_centre))))
-    z_lo = math.sin(max(-0.5 * math.pi, dec0 - half))
-    z_hi = math.sin(min(0.5 * math.pi, dec0 + half))
-    return _bound_z(unit, z_lo, False), _bound_z(unit, z_hi, True)
-
-
-@njit(cache=True)
 def _triple(a, b, c):
     """a . (b x c)."""
     return (a[0] * (b[1] * c[2] - b[2] * c[1]) + a[1] * (b[2] * c[0] - b[0] * c[2])
             + a[2] * (b[0] * c[1] - b[1] * c[0]))
-
-
-@njit(cache=True)
-def _keep_unique(n_match, out_row):
-    """Keep the rows of stars matched exactly once (others -1); returns how many are kept."""
-    count = 0
-    for i in range(n_match.shape[0]):
-        if n_match[i] == 1:
-            count += 1
-        else:
-            out_row[i] = -1
-    return count
 
 
 @njit(cache=True)
@@ -172,7 +136,7 @@ def match_extras(oc, tri_obs, cat_rows, unit, eps, c_band, out_row):
     r0 = cat_rows[0]
     r1 = cat_rows[1]
     r2 = cat_rows[2]
-    g, g_stop = band_rows(unit, unit[r0, 2], c_band)
+    g, g_stop = z_band_rows(unit, unit[r0, 2], c_band)
     while g < g_stop:
         if g != r0 and g != r1 and g != r2:
             c0 = chord_rows(unit, g, unit, r0)
@@ -197,44 +161,7 @@ def match_extras(oc, tri_obs, cat_rows, unit, eps, c_band, out_row):
                         if abs(oc[i, 0] - c0) <= eps and abs(oc[i, 1] - c1) <= eps and abs(oc[i, 2] - c2) <= eps:
                             n_match[i] += 2
         g += 1
-    return _keep_unique(n_match, out_row)
-
-
-@njit(cache=True)
-def assign_by_attitude(A, v, unit, c_fov, eps, out_row):
-    """Give each observed star the guide star predicted (``A r``) within chord ``eps`` of it.
-
-    Guide stars within chord ``c_fov`` of the boresight are predicted; only one-to-one pairs are
-    kept. Fills ``out_row`` (-1 elsewhere) and returns the number of assigned stars.
-    """
-    n = v.shape[0]
-    n_match = np.zeros(n, dtype=np.int64)
-    for i in range(n):
-        out_row[i] = -1
-    bore = np.empty((1, 3))  # boresight in ICRS: A^T (0, 0, 1)
-    for a in range(3):
-        bore[0, a] = A[2, a]
-    b = np.empty((1, 3))
-    g_start, g_stop = band_rows(unit, bore[0, 2], c_fov)
-    for g in range(g_start, g_stop):
-        if chord_rows(unit, g, bore, 0) > c_fov:
-            continue
-        for a in range(3):
-            b[0, a] = A[a, 0] * unit[g, 0] + A[a, 1] * unit[g, 1] + A[a, 2] * unit[g, 2]
-        found = -1
-        n_found = 0
-        for i in range(n):
-            if chord_rows(v, i, b, 0) <= eps:
-                n_found += 1
-                found = i
-        if n_found == 1:
-            n_match[found] += 1
-            out_row[found] = g
-        elif n_found > 1:
-            for i in range(n):
-                if chord_rows(v, i, b, 0) <= eps:
-                    n_match[i] += 2
-    return _keep_unique(n_match, out_row)
+    return keep_unique(n_match, out_row)
 
 
 @njit(cache=True)
@@ -378,7 +305,8 @@ def identify_rows(x_px, y_px, mag, f_px, cx_px, cy_px, width_px, height_px,
         n_assigned = 0
         for _ in range(2):
             attitude = wahba_rows(v, rows_best, unit)
-            n_assigned = assign_by_attitude(attitude, v, unit, c_fov, eps, rows_try)
+            n_assigned, _ = reproject_assign(attitude, v, unit, c_fov, eps, rows_try, f_px, cx_px, cy_px,
+                                             width_px, height_px)
             for i in range(n):
                 rows_best[i] = rows_try[i]
         if n_assigned < 3 + k_min:
