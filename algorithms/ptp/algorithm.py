@@ -203,13 +203,12 @@ class PTP(Algorithm):
 
     def identify(self, database: PTPDatabase, observation: Observation) -> Identification:
         cam = observation.camera
-        rows = identify_kernel(observation.x_px, observation.y_px, cam.f_px, cam.cx_px, cam.cy_px, cam.width_px,
-                               cam.height_px, database.proj, database.kvec, database.km, database.kq, database.ids,
-                               database.sides, database.mean, database.axis, database.guide_unit,
-                               self.sigma_px / cam.f_px, CHORD_SCALE, self._d_min, self._d_max, int(self.n_slaves),
-                               self.beta, self.side_beta, bool(self.exclude_doubles), bool(self.swap_slaves),
-                               int(self.min_shared), bool(self.majority), bool(self.verify),
-                               float(self.verify_min_fraction), float(self.confirm_fraction),
-                               _fov_chord(cam))
-        hip = np.where(rows >= 0, database.guide_hip[np.maximum(rows, 0)], -1).astype(np.int64)
+        f_px = cam.f_px
+        hip = identify_kernel(observation.x_px, observation.y_px, f_px, cam.cx_px, cam.cy_px, cam.width_px,
+                              cam.height_px, database.proj, database.kvec, database.km, database.kq, database.ids,
+                              database.sides, database.mean, database.axis, database.guide_unit,
+                              self.sigma_px / f_px, CHORD_SCALE, self._d_min, self._d_max, self.n_slaves, self.beta,
+                              self.side_beta, self.exclude_doubles, self.swap_slaves, self.min_shared, self.majority,
+                              self.verify, self.verify_min_fraction, self.confirm_fraction, _fov_chord(cam),
+                              database.guide_hip)
         return Identification(hip)

@@ -148,8 +148,9 @@ def _side_check(sides, start, stop, db_sides, sigma, scale, side_beta, out_cand)
     """Database rows in ``[start, stop)`` whose three sides all agree with ``sides``; returns the count.
 
     ``db_sides`` is (3, t) float32, one contiguous row per side. The comparison runs in float32;
-    a counting pass (a loop that vectorises) comes first, and the rows are collected only when
-    the window holds a match. ``out_cand`` must hold ``stop - start`` entries.
+    a first pass (min/max reductions, a loop that vectorises) finds the first and last agreeing
+    rows, and only the rows between them are then collected. ``out_cand`` must hold
+    ``stop - start`` entries.
     """
     a = np.float32(sides[0])
     b = np.float32(sides[1])
@@ -160,13 +161,15 @@ def _side_check(sides, start, stop, db_sides, sigma, scale, side_beta, out_cand)
     sa = db_sides[0, start:stop]
     sb = db_sides[1, start:stop]
     sc = db_sides[2, start:stop]
+    m = sa.shape[0]
+    first = m
+    last = -1
+    for k in range(m):
+        ok = _side_excess(sa, sb, sc, k, a, b, c, ta, tb, tc) <= 0
+        first = min(first, k if ok else m)
+        last = max(last, k if ok else -1)
     n_out = 0
-    for k in range(sa.shape[0]):
-        n_out += _side_excess(sa, sb, sc, k, a, b, c, ta, tb, tc) <= 0
-    if n_out == 0:
-        return 0
-    n_out = 0
-    for k in range(sa.shape[0]):
+    for k in range(first, last + 1):
         if _side_excess(sa, sb, sc, k, a, b, c, ta, tb, tc) <= 0:
             out_cand[n_out] = start + k
             n_out += 1
@@ -183,8 +186,9 @@ def _triple_key(i, j, k, n):
 @njit(cache=True)
 def identify_kernel(x_px, y_px, f_px, cx_px, cy_px, width_px, height_px, proj, kvec, km, kq, db_ids, db_sides,
                     mean, w, guide_unit, sigma, scale, d_min, d_max, n_slaves, beta, side_beta, exclude_doubles,
-                    swap_slaves, min_shared, majority, verify, verify_min_fraction, confirm_fraction, c_fov):
-    """PTP identification of one image (sections 2.2-2.3). Returns the guide index per star (-1 = none).
+                    swap_slaves, min_shared, majority, verify, verify_min_fraction, confirm_fraction, c_fov,
+                    guide_hip):
+    """PTP identification of one image (sections 2.2-2.3). Returns the HIP per star (-1 = none).
 
     1. Every star is a master; its slaves are the ``n_slaves`` nearest stars in
        ``[d_min, d_max]`` (same rule as the database); triangles (m, s_i, s_j), i < j. With
@@ -213,7 +217,7 @@ def identify_kernel(x_px, y_px, f_px, cx_px, cy_px, width_px, height_px, proj, k
     n = x_px.shape[0]
     result = np.full(n, -1, dtype=np.int64)
     if n < 3:
-        return result
+        return result   # all -1
     unit = backproject_px(x_px, y_px, f_px, cx_px, cy_px)
     dist = np.empty((n, n))
     usable = np.ones(n, dtype=np.bool_)
@@ -273,7 +277,7 @@ def identify_kernel(x_px, y_px, f_px, cx_px, cy_px, width_px, height_px, proj, k
                             m_cat[n_match, v] = db_ids[cand[c], v]
                         n_match += 1
     if n_match == 0:
-        return result
+        return result   # all -1
     # Support of each pairing = number of distinct observed triangles that propose it.
     n_pair = 3 * n_match
     key = np.empty(n_pair, dtype=np.int64)
@@ -352,4 +356,8 @@ def identify_kernel(x_px, y_px, f_px, cx_px, cy_px, width_px, height_px, proj, k
                                                cy_px, width_px, height_px)
         if n_seen < confirm_fraction * n_predicted:
             result[:] = -1
-    return result
+    hip = np.full(n, -1, dtype=np.int64)
+    for s in range(n):
+        if result[s] >= 0:
+            hip[s] = guide_hip[result[s]]
+    return hip
