@@ -70,5 +70,6 @@ def markdown(summary: pd.DataFrame, tests: pd.DataFrame, header: str) -> str:
     lines += ["", "Paired comparison of id rates on the same trials (McNemar's exact test):", "",
               "| A | B | only A correct | only B correct | p-value |", "|---|---|---|---|---|"]
     for r in tests.itertuples():
-        lines.append(f"| {r.a} | {r.b} | {r.only_a_correct} | {r.only_b_correct} | {r.p_value:.3g} |")
+        p = f"{r.p_value:.3g}" if r.p_value > 0 else "< 1e-300"
+        lines.append(f"| {r.a} | {r.b} | {r.only_a_correct} | {r.only_b_correct} | {p} |")
     return "\n".join(lines) + "\n"
