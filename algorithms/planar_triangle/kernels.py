@@ -156,6 +156,17 @@ def _moment_filter(tri_moment, start, stop, lo, hi):
 
 
 @njit(cache=True)
+def _moment_candidates(t, img_v, img_tri, img_start, img_stop, tri_moment, sigma_rad, beta):
+    """Area hits ``[img_start[t], img_stop[t])`` of image triangle ``t`` whose polar moment lies
+    within ``beta`` standard deviations of its own (paper eqs. 16-20)."""
+    r1, r2, r3 = img_v[img_tri[t, 0]], img_v[img_tri[t, 1]], img_v[img_tri[t, 2]]
+    _, moment, _ = triangle_features(r1, r2, r3)
+    _, var_j = triangle_variances(r1, r2, r3, sigma_rad)
+    half = beta * math.sqrt(var_j)
+    return _moment_filter(tri_moment, img_start[t], img_stop[t], moment - half, moment + half)
+
+
+@njit(cache=True)
 def _next_in_chain(prev, used, img_tri, img_area):
     """Cole's linked list: the unused image triangle of largest area sharing exactly two stars
     with ``prev`` (-1 if none)."""
@@ -232,12 +243,8 @@ def _pivot(first, img_v, img_tri, img_area, img_start, img_stop, pivot_limit, tr
     chain = np.empty(m, dtype=np.int64)
     chain[0] = first
     used_tri[first] = True
-    r1, r2, r3 = img_v[img_tri[first, 0]], img_v[img_tri[first, 1]], img_v[img_tri[first, 2]]
-    _, mo, _ = triangle_features(r1, r2, r3)
-    _, var_j = triangle_variances(r1, r2, r3, sigma_rad)
-    half = beta * math.sqrt(var_j)
     # finalist tree: node = (catalog triangle, parent node); one layer per chain triangle
-    node_cat = _moment_filter(tri_moment, img_start[first], img_stop[first], mo - half, mo + half)
+    node_cat = _moment_candidates(first, img_v, img_tri, img_start, img_stop, tri_moment, sigma_rad, beta)
     n_nodes = node_cat.shape[0]
     node_parent = np.full(max(n_nodes, 1), -1, dtype=np.int64)
     layer_lo = 0
@@ -251,11 +258,7 @@ def _pivot(first, img_v, img_tri, img_area, img_start, img_stop, pivot_limit, tr
         chain[step] = t
         used_tri[t] = True
         length += 1
-        r1, r2, r3 = img_v[img_tri[t, 0]], img_v[img_tri[t, 1]], img_v[img_tri[t, 2]]
-        _, mo, _ = triangle_features(r1, r2, r3)
-        _, var_j = triangle_variances(r1, r2, r3, sigma_rad)
-        half = beta * math.sqrt(var_j)
-        cand = _moment_filter(tri_moment, img_start[t], img_stop[t], mo - half, mo + half)
+        cand = _moment_candidates(t, img_v, img_tri, img_start, img_stop, tri_moment, sigma_rad, beta)
         nc = cand.shape[0]
         # index the candidates by each of their three star pairs
         keys = np.empty(3 * nc, dtype=np.int64)
