@@ -1,8 +1,9 @@
 """The scoring harness: every algorithm on the same trials, timed and scored the same way.
 
 For each algorithm: build the database once (``build_s``), warm the JIT up on a separate
-trial that is not scored (``compile_s``), then time ``identify`` per trial with
-``time.perf_counter_ns`` around the call alone (:func:`prepare`, :func:`score`, :func:`run`). An exception inside one trial is recorded as
+trial that is not scored (``compile_s``) -- :func:`prepare` -- then time ``identify`` per
+trial with ``time.perf_counter_ns`` around the call alone -- :func:`score`; :func:`run` does
+both for several algorithms on the same trials. An exception inside one trial is recorded as
 that trial's failure (``status == "error"`` with the error text) and the run goes on.
 
 Success rule (:class:`SuccessRule`, defaults): a trial is **correct** when at least
@@ -31,7 +32,6 @@ from .observation import TrialSet
 from .plugin import Algorithm, check_identification
 from .simulate import Simulator
 
-STATUSES = ("correct", "misidentified", "no_result", "error")
 RAD_TO_ARCSEC = 180.0 / math.pi * 3600.0
 
 SUMMARY_COLUMNS = [
