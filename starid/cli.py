@@ -15,10 +15,10 @@ from . import __version__, table6
 from .camera import Camera
 from .catalog import Catalog, load_csv, load_hipparcos
 from .errors import ConfigError, ObservationError, StarIDError
-from .harness import SuccessRule, run, score_trial, summarize
+from .harness import SuccessRule, prepare, run, score_trial, summarize, timed_identify
 from .io import atomic_write_text, read_numeric_csv, write_frame
 from .observation import Observation
-from .plugin import Algorithm, check_identification
+from .plugin import Algorithm
 from .registry import available_algorithms, get_algorithm
 from .simulate import SimConfig, Simulator
 
@@ -186,43 +186,25 @@ def cmd_identify(args) -> int:
     trials, observations, has_truth = read_observations(args.obs, camera)
     catalog = _catalog(args.catalog)
     algorithm = make_algorithm(args.algorithm, parse_overrides(args.set or [], [args.algorithm])[args.algorithm])
-    t0 = time.perf_counter()
-    db = algorithm.build(catalog, camera)
-    build_s = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    try:  # warm the JIT up outside the timed calls
-        algorithm.identify(db, observations[0])
-    except Exception:
-        pass
-    compile_s = time.perf_counter() - t0
+    prepared = prepare(algorithm, catalog, camera, observations[0])
     id_rows, trial_rows, scored = [], [], []
     rule = SuccessRule()
     for t, obs in zip(trials, observations):
-        t_start = time.perf_counter_ns()
-        try:
-            result = algorithm.identify(db, obs)
-            elapsed = time.perf_counter_ns() - t_start
-            hip = np.asarray(check_identification(result, len(obs), catalog.hip).hip, dtype=np.int64)
-            error = ""
-        except Exception as exc:
-            elapsed = time.perf_counter_ns() - t_start
-            hip, error = np.full(len(obs), -1, dtype=np.int64), f"{type(exc).__name__}: {exc}"
+        hip, elapsed_ns, error = timed_identify(algorithm, prepared.database, obs, catalog.hip)
         n_id = int((hip != -1).sum())
-        if error:
-            status = "error"
-        elif has_truth:
-            status = score_trial(hip, obs.truth_hip, rule)["status"]
-        else:
-            status = "identified" if n_id >= rule.min_correct else "no_result"
-        id_rows += [{"trial": t, "star": j, "hip": int(h)} for j, h in enumerate(hip)]
-        trial_rows.append({"trial": t, "status": status, "n_identified": n_id, "time_us": elapsed / 1e3,
-                           "error": error})
         if has_truth:
             s = score_trial(hip, obs.truth_hip, rule)
-            scored.append({"algorithm": algorithm.name, "trial": t,
-                           "n_true_stars": int((obs.truth_hip >= 0).sum()), "time_us": elapsed / 1e3,
-                           "db_mb": db.nbytes / 1e6, "build_s": build_s, "compile_s": compile_s,
-                           "attitude_err_arcsec": float("nan"), **s, "status": status})
+            s["status"] = "error" if error else s["status"]
+            scored.append({"algorithm": algorithm.name, "trial": t, "n_true_stars": int((obs.truth_hip >= 0).sum()),
+                           "time_us": elapsed_ns / 1e3, "db_mb": prepared.database.nbytes / 1e6,
+                           "build_s": prepared.build_s, "compile_s": prepared.compile_s,
+                           "attitude_err_arcsec": float("nan"), **s})
+            status = s["status"]
+        else:
+            status = "error" if error else ("identified" if n_id >= rule.min_correct else "no_result")
+        id_rows += [{"trial": t, "star": j, "hip": int(h)} for j, h in enumerate(hip)]
+        trial_rows.append({"trial": t, "status": status, "n_identified": n_id, "time_us": elapsed_ns / 1e3,
+                           "error": error})
     args.out.mkdir(parents=True, exist_ok=True)
     write_frame(pd.DataFrame(id_rows, columns=["trial", "star", "hip"]), args.out / "identifications.csv")
     write_frame(pd.DataFrame(trial_rows, columns=["trial", "status", "n_identified", "time_us", "error"]),

@@ -108,25 +108,34 @@ class Prepared:
     compile_s: float
 
 
-def prepare(algorithm: Algorithm, catalog: Catalog, simulator: Simulator) -> Prepared:
-    """Build the database once and warm the JIT up on a trial that is never scored."""
+def prepare(algorithm: Algorithm, catalog: Catalog, camera, warmup) -> Prepared:
+    """Build the database once and warm the JIT up on ``warmup``, an observation never scored."""
     t0 = time.perf_counter()
-    database = algorithm.build(catalog, simulator.camera)
+    database = algorithm.build(catalog, camera)
     build_s = time.perf_counter() - t0
     t0 = time.perf_counter()
-    warm = warmup_observation(simulator)
     try:
-        algorithm.identify(database, warm)
-        algorithm.identify(database, warm.permuted(np.arange(len(warm))[::-1]))
-    except Exception:  # a failing warm-up shows up again, per trial, in the scored runs
+        algorithm.identify(database, warmup)
+        algorithm.identify(database, warmup.permuted(np.arange(len(warmup))[::-1]))
+    except Exception:  # a failing warm-up shows up again, per image, in the scored runs
         pass
     return Prepared(algorithm, database, build_s, time.perf_counter() - t0)
 
 
-def _error_row(trial, obs, elapsed_ns, exc) -> dict:
-    return {"trial": trial, "n_stars": len(obs), "n_true_stars": int((obs.truth_hip >= 0).sum()),
-            "status": "error", "error": f"{type(exc).__name__}: {exc}", "n_identified": 0, "n_correct": 0,
-            "n_wrong": 0, "time_us": elapsed_ns / 1e3, "attitude_err_arcsec": float("nan")}
+def timed_identify(algorithm: Algorithm, database, obs, catalog_hip: np.ndarray) -> tuple[np.ndarray, int, str]:
+    """One ``identify`` call timed with ``perf_counter_ns`` around the call alone.
+
+    Returns ``(hip, elapsed_ns, error)``: on an exception or a broken plugin contract the ids
+    are all -1 and ``error`` says what happened.
+    """
+    t0 = time.perf_counter_ns()
+    try:
+        result = algorithm.identify(database, obs)
+        elapsed_ns = time.perf_counter_ns() - t0
+        check_identification(result, len(obs), catalog_hip)
+    except Exception as exc:
+        return np.full(len(obs), -1, dtype=np.int64), time.perf_counter_ns() - t0, f"{type(exc).__name__}: {exc}"
+    return np.asarray(result.hip, dtype=np.int64), elapsed_ns, ""
 
 
 def score(prepared: Prepared, trials: TrialSet, catalog: Catalog, simulator: Simulator,
@@ -141,21 +150,16 @@ def score(prepared: Prepared, trials: TrialSet, catalog: Catalog, simulator: Sim
         iterator = tqdm(iterator, desc=algorithm.name, unit="img", leave=False)
     for i in iterator:
         obs = trials.observation(i)
-        trial = int(trials.trial[i])
-        t0 = time.perf_counter_ns()
-        try:
-            result = algorithm.identify(database, obs)
-            elapsed_ns = time.perf_counter_ns() - t0
-            check_identification(result, len(obs), catalog.hip)
-        except Exception as exc:
-            rows.append(_error_row(trial, obs, time.perf_counter_ns() - t0, exc))
-            continue
-        hip = np.asarray(result.hip, dtype=np.int64)
-        row = {"trial": trial, "n_stars": len(obs), "n_true_stars": int((obs.truth_hip >= 0).sum()),
-               "error": ""}
+        hip, elapsed_ns, error = timed_identify(algorithm, database, obs, catalog.hip)
+        row = {"trial": int(trials.trial[i]), "n_stars": len(obs), "n_true_stars": int((obs.truth_hip >= 0).sum()),
+               "error": error}
         row.update(score_trial(hip, obs.truth_hip, rule))
         row["time_us"] = elapsed_ns / 1e3
-        row["attitude_err_arcsec"] = attitude_error_arcsec(hip, obs, catalog, trials.attitude[i])
+        if error:
+            row["status"] = "error"
+            row["attitude_err_arcsec"] = float("nan")
+        else:
+            row["attitude_err_arcsec"] = attitude_error_arcsec(hip, obs, catalog, trials.attitude[i])
         rows.append(row)
     df = pd.DataFrame(rows, columns=["trial", "n_stars", "n_true_stars", "status", "error", "n_identified",
                                      "n_correct", "n_wrong", "time_us", "attitude_err_arcsec"])
@@ -190,7 +194,8 @@ def run(algorithms: list[Algorithm], trials: TrialSet, catalog: Catalog, simulat
     algorithm on its chunk, so all algorithms are timed under the same load); everything but
     the measured times is identical for any ``jobs``.
     """
-    prepared = [prepare(a, catalog, simulator) for a in algorithms]
+    warmup = warmup_observation(simulator)
+    prepared = [prepare(a, catalog, simulator.camera, warmup) for a in algorithms]
     jobs = max(1, min(int(jobs), len(trials)))
     if jobs == 1 or "fork" not in mp.get_all_start_methods():
         frames = [score(p, trials, catalog, simulator, rule, progress) for p in prepared]
