@@ -24,6 +24,7 @@ import numpy as np
 
 from .errors import ConfigError
 from .kernels import backproject_px, project_cam
+from .params import check_number
 
 
 @dataclass(frozen=True)
@@ -51,12 +52,9 @@ class Camera:
         if self.cy_px is None:
             object.__setattr__(self, "cy_px", self.height_px / 2.0)
         for name in ("width_px", "height_px", "pixel_um", "focal_mm"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float, np.integer, np.floating)) and math.isfinite(value) and value > 0):
-                raise ConfigError(f"camera {name} must be a positive finite number, got {value!r}")
+            check_number(f"camera {name}", getattr(self, name), lo=0, lo_open=True)
         for name in ("cx_px", "cy_px"):
-            if not math.isfinite(getattr(self, name)):
-                raise ConfigError(f"camera {name} must be finite, got {getattr(self, name)!r}")
+            check_number(f"camera {name}", getattr(self, name))
 
     @classmethod
     def from_fov(cls, fov_deg: float, resolution_px: int = 1024, pixel_um: float = 12.0) -> "Camera":

@@ -35,6 +35,7 @@ from .attitude import random_attitude
 from .camera import Camera
 from .catalog import Catalog
 from .errors import ConfigError
+from .params import check_number, check_whole
 from .kernels import project_cam
 from .observation import Observation, TrialSet
 
@@ -55,15 +56,10 @@ class SimConfig:
 
     def __post_init__(self):
         for name in ("sigma_px", "sigma_mag", "merge_radius_px"):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v >= 0):
-                raise ConfigError(f"{name} must be a finite number >= 0, got {v!r}")
-        if not math.isfinite(self.mag_limit):
-            raise ConfigError(f"mag_limit must be finite, got {self.mag_limit!r}")
+            check_number(name, getattr(self, name), lo=0)
+        check_number("mag_limit", self.mag_limit)
         for name in ("false_stars", "lost_stars", "min_stars"):
-            v = getattr(self, name)
-            if int(v) != v or v < 0:
-                raise ConfigError(f"{name} must be a whole number >= 0, got {v!r}")
+            check_whole(name, getattr(self, name), 0)
 
     def as_dict(self) -> dict:
         return asdict(self)

@@ -12,6 +12,7 @@ from scipy.spatial import cKDTree
 from starid.camera import Camera
 from starid.catalog import Catalog
 from starid.errors import ConfigError
+from starid.params import check_flag, check_number, check_whole
 from starid.kernels import kvector_build
 from starid.observation import Observation
 from starid.plugin import Algorithm, Database, Identification
@@ -141,30 +142,17 @@ class PlanarTriangle(Algorithm):
     min_verified: int = 4
 
     def __post_init__(self):
-        for field in ("mag_limit", "sigma_px", "fov_db_deg", "min_area_deg2", "beta"):
-            v = getattr(self, field)
-            if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) \
-                    or not math.isfinite(v):
-                raise ConfigError(f"{field} must be a finite number, got {v!r}")
-        if self.sigma_px <= 0:
-            raise ConfigError(f"sigma_px must be > 0, got {self.sigma_px!r}")
-        if not 0 < self.fov_db_deg < 90:
-            raise ConfigError(f"fov_db_deg must be in (0, 90), got {self.fov_db_deg!r}")
-        if self.min_area_deg2 < 0:
-            raise ConfigError(f"min_area_deg2 must be >= 0, got {self.min_area_deg2!r}")
-        if self.beta <= 0:
-            raise ConfigError(f"beta must be > 0, got {self.beta!r}")
-        if self.pivot_limit is not None and (isinstance(self.pivot_limit, bool) or not isinstance(
-                self.pivot_limit, (int, np.integer)) or self.pivot_limit < 0):
-            raise ConfigError(f"pivot_limit must be None (no limit) or an integer >= 0, got {self.pivot_limit!r}")
-        for field, low in (("climit", 1), ("restarts", 0), ("min_support", 0),
-                           ("min_verified", 1)):
-            v = getattr(self, field)
-            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < low:
-                raise ConfigError(f"{field} must be an integer >= {low}, got {v!r}")
+        check_number("mag_limit", self.mag_limit)
+        check_number("sigma_px", self.sigma_px, lo=0, lo_open=True)
+        check_number("fov_db_deg", self.fov_db_deg, lo=0, hi=90, lo_open=True, hi_open=True)
+        check_number("min_area_deg2", self.min_area_deg2, lo=0)
+        check_number("beta", self.beta, lo=0, lo_open=True)
+        if self.pivot_limit is not None:
+            check_whole("pivot_limit (or None: no limit)", self.pivot_limit, 0)
+        for field, low in (("climit", 1), ("restarts", 0), ("min_support", 0), ("min_verified", 1)):
+            check_whole(field, getattr(self, field), low)
         for field in ("abort_if_finalists_grow", "consistent_chain", "extend"):
-            if not isinstance(getattr(self, field), (bool, np.bool_)):
-                raise ConfigError(f"{field} must be True or False, got {getattr(self, field)!r}")
+            check_flag(field, getattr(self, field))
 
     def build(self, catalog: Catalog, camera: Camera) -> PlanarTriangleDatabase:
         guide = catalog.brighter_than(self.mag_limit)

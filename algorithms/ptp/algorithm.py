@@ -13,6 +13,7 @@ from scipy.spatial import cKDTree
 from starid.camera import Camera
 from starid.catalog import Catalog
 from starid.errors import ConfigError
+from starid.params import check_flag, check_number, check_whole
 from starid.kernels import kvector_build
 from starid.observation import Observation
 from starid.plugin import Algorithm, Database, Identification
@@ -133,23 +134,20 @@ class PTP(Algorithm):
     confirm_fraction: float = 0.5
 
     def __post_init__(self):
-        if not (math.isfinite(self.sigma_px) and self.sigma_px > 0):
-            raise ConfigError(f"ptp: sigma_px must be > 0 (it sets the search windows), got {self.sigma_px!r}")
-        if int(self.n_slaves) != self.n_slaves or self.n_slaves < 2:
-            raise ConfigError(f"ptp: n_slaves must be a whole number >= 2, got {self.n_slaves!r}")
-        if not (0 <= self.d_min_deg < self.d_max_deg < 90):
-            raise ConfigError(f"ptp: need 0 <= d_min_deg < d_max_deg < 90, got {self.d_min_deg!r}, {self.d_max_deg!r}")
+        check_number("mag_limit", self.mag_limit)
+        check_number("sigma_px", self.sigma_px, lo=0, lo_open=True)   # it sets the search windows
+        check_whole("n_slaves", self.n_slaves, 2)
+        check_number("d_min_deg", self.d_min_deg, lo=0)
+        check_number("d_max_deg", self.d_max_deg, hi=90, hi_open=True)
+        if not self.d_min_deg < self.d_max_deg:
+            raise ConfigError(f"d_min_deg ({self.d_min_deg!r}) must be smaller than d_max_deg ({self.d_max_deg!r})")
         for name in ("beta", "side_beta"):
-            if not (math.isfinite(getattr(self, name)) and getattr(self, name) > 0):
-                raise ConfigError(f"ptp: {name} must be > 0, got {getattr(self, name)!r}")
-        if int(self.min_shared) != self.min_shared or not 0 <= self.min_shared <= 3:
-            raise ConfigError(f"ptp: min_shared must be 0, 1, 2 or 3, got {self.min_shared!r}")
-        if not 0.0 <= self.confirm_fraction <= 1.0:
-            raise ConfigError(f"ptp: confirm_fraction must lie in [0, 1], got {self.confirm_fraction!r}")
-        if not 0.0 <= self.verify_min_fraction <= 1.0:
-            raise ConfigError(f"ptp: verify_min_fraction must lie in [0, 1], got {self.verify_min_fraction!r}")
-        if not math.isfinite(self.mag_limit):
-            raise ConfigError(f"ptp: mag_limit must be finite, got {self.mag_limit!r}")
+            check_number(name, getattr(self, name), lo=0, lo_open=True)
+        check_whole("min_shared", self.min_shared, 0, 3)
+        for name in ("verify_min_fraction", "confirm_fraction"):
+            check_number(name, getattr(self, name), lo=0, hi=1)
+        for name in ("exclude_doubles", "swap_slaves", "majority", "verify"):
+            check_flag(name, getattr(self, name))
 
     @cached_property
     def _d_min(self) -> float:

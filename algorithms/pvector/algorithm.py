@@ -12,6 +12,7 @@ from scipy.spatial import cKDTree
 from starid.camera import Camera
 from starid.catalog import Catalog
 from starid.errors import ConfigError
+from starid.params import check_choice, check_flag, check_number, check_whole
 from starid.kernels import kvector_build
 from starid.observation import Observation
 from starid.plugin import Algorithm, Database, Identification
@@ -48,24 +49,6 @@ class PVectorDatabase(Database):
     unit_icrs: np.ndarray
     hip: np.ndarray
     explained_variance: float = float("nan")
-
-
-def _check_choice(name, value, choices):
-    if value not in choices:
-        raise ConfigError(f"{name} must be one of {choices}, got {value!r}")
-
-
-def _check_positive(name, value, allow_zero=False):
-    ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool) \
-        and math.isfinite(value) and (value >= 0 if allow_zero else value > 0)
-    if not ok:
-        bound = ">= 0" if allow_zero else "> 0"
-        raise ConfigError(f"{name} must be a finite number {bound}, got {value!r}")
-
-
-def _check_whole(name, value, low):
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
-        raise ConfigError(f"{name} must be a whole number >= {low}, got {value!r}")
 
 
 @dataclass(frozen=True)
@@ -159,24 +142,19 @@ class PVector(Algorithm):
     """Only use main stars whose R-disc lies inside the image (strict notes 2.5.4)."""
 
     def __post_init__(self):
-        if isinstance(self.mag_limit, bool) or not isinstance(self.mag_limit, (int, float, np.integer, np.floating)) \
-                or not math.isfinite(self.mag_limit):
-            raise ConfigError(f"mag_limit must be a finite number, got {self.mag_limit!r}")
-        _check_positive("sigma_px", self.sigma_px)
-        _check_positive("pattern_radius_deg", self.pattern_radius_deg)
-        _check_positive("min_sep_deg", self.min_sep_deg, allow_zero=True)
-        _check_positive("beta", self.beta)
-        if not self.pattern_radius_deg < 90.0:
-            raise ConfigError(f"pattern_radius_deg must be < 90, got {self.pattern_radius_deg!r}")
+        check_number("mag_limit", self.mag_limit)
+        check_number("sigma_px", self.sigma_px, lo=0, lo_open=True)
+        check_number("pattern_radius_deg", self.pattern_radius_deg, lo=0, hi=90, lo_open=True, hi_open=True)
+        check_number("min_sep_deg", self.min_sep_deg, lo=0)
+        check_number("beta", self.beta, lo=0, lo_open=True)
         if not self.min_sep_deg < self.pattern_radius_deg:
             raise ConfigError(f"min_sep_deg ({self.min_sep_deg!r}) must be smaller than "
                               f"pattern_radius_deg ({self.pattern_radius_deg!r})")
-        _check_whole("k_min", self.k_min, 0)
-        _check_choice("side_order", self.side_order, SIDE_ORDERS)
-        _check_choice("neighbour_rule", self.neighbour_rule, NEIGHBOUR_RULES)
-        _check_choice("main_order", self.main_order, MAIN_ORDERS)
-        if not isinstance(self.disc_inside_only, (bool, np.bool_)):
-            raise ConfigError(f"disc_inside_only must be True or False, got {self.disc_inside_only!r}")
+        check_whole("k_min", self.k_min, 0)
+        check_choice("side_order", self.side_order, SIDE_ORDERS)
+        check_choice("neighbour_rule", self.neighbour_rule, NEIGHBOUR_RULES)
+        check_choice("main_order", self.main_order, MAIN_ORDERS)
+        check_flag("disc_inside_only", self.disc_inside_only)
         params = np.zeros(K.N_PARAMS)
         params[K.P_MAG_LIMIT] = self.mag_limit
         params[K.P_CHORD_RMIN] = 2.0 * math.sin(0.5 * math.radians(self.min_sep_deg))

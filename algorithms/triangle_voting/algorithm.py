@@ -12,6 +12,7 @@ from scipy.spatial import cKDTree
 from starid.camera import Camera
 from starid.catalog import Catalog
 from starid.errors import ConfigError
+from starid.params import check_flag, check_number, check_whole
 from starid.kernels import backproject_px, rad_to_chord, verify_pairwise
 from starid.observation import Observation
 from starid.plugin import Algorithm, Database, Identification
@@ -123,38 +124,25 @@ class TriangleVoting(Algorithm):
     max_hypotheses: int = 32
 
     def __post_init__(self):
-        def number(name, lo, hi=math.inf, lo_open=True):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) \
-                    or not math.isfinite(v) or v > hi or (v <= lo if lo_open else v < lo):
-                raise ConfigError(f"{name} must be a finite number {'>' if lo_open else '>='} {lo}"
-                                  f"{'' if hi == math.inf else f' and <= {hi}'}, got {v!r}")
-
-        def whole(name, lo):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < lo:
-                raise ConfigError(f"{name} must be an integer >= {lo}, got {v!r}")
-
-        number("mag_limit", -math.inf)
-        number("sigma_px", 0.0)
-        number("pattern_radius_deg", 0.0, 90.0)
-        number("d_min_deg", 0.0, lo_open=False)
+        check_number("mag_limit", self.mag_limit)
+        check_number("sigma_px", self.sigma_px, lo=0, lo_open=True)
+        check_number("pattern_radius_deg", self.pattern_radius_deg, lo=0, hi=90, lo_open=True)
+        check_number("d_min_deg", self.d_min_deg, lo=0)
         if self.d_min_deg >= self.pattern_radius_deg:
             raise ConfigError(f"d_min_deg ({self.d_min_deg}) must be smaller than pattern_radius_deg "
                               f"({self.pattern_radius_deg})")
-        whole("n_neighbours", 2)
-        whole("lambda_extra", 0)
-        number("k_sigma", 0.0)
-        number("double_star_deg", 0.0, lo_open=False)
-        number("grid_cell_tol", 0.0)
+        check_whole("n_neighbours", self.n_neighbours, 2)
+        check_whole("lambda_extra", self.lambda_extra, 0)
+        check_number("k_sigma", self.k_sigma, lo=0, lo_open=True)
+        check_number("double_star_deg", self.double_star_deg, lo=0)
+        check_number("grid_cell_tol", self.grid_cell_tol, lo=0, lo_open=True)
         for name in ("side_check", "vote_neighbours"):
-            if not isinstance(getattr(self, name), (bool, np.bool_)):
-                raise ConfigError(f"{name} must be a bool, got {getattr(self, name)!r}")
-        whole("v_min", 1)
-        whole("min_support", 1)
-        whole("n_candidates", 2)
-        whole("min_stars", 2)
-        whole("max_hypotheses", 0)
+            check_flag(name, getattr(self, name))
+        check_whole("v_min", self.v_min, 1)
+        check_whole("min_support", self.min_support, 1)
+        check_whole("n_candidates", self.n_candidates, 2)
+        check_whole("min_stars", self.min_stars, 2)
+        check_whole("max_hypotheses", self.max_hypotheses, 0)
 
     def _tolerance_chord(self, f_px: float) -> float:
         """eps_base = k_sigma sqrt(2) sigma: base, side and pairwise-distance tolerance (notes 1.3)."""

@@ -1,0 +1,54 @@
+"""Parameter checks shared by the simulator and every algorithm: one rule, one wording.
+
+Each check raises :class:`starid.errors.ConfigError` naming the parameter, the rule and the
+value it got. Booleans are not numbers here (``True`` is no valid ``sigma_px``).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .errors import ConfigError
+
+
+def _is_number(value) -> bool:
+    return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
+
+
+def check_number(name: str, value, lo: float = -math.inf, hi: float = math.inf, lo_open: bool = False,
+                 hi_open: bool = False) -> None:
+    """A finite number in the interval from ``lo`` to ``hi`` (each end closed unless ``*_open``)."""
+    ok = _is_number(value) and math.isfinite(value)
+    if ok:
+        ok = (value > lo if lo_open else value >= lo) and (value < hi if hi_open else value <= hi)
+    if not ok:
+        rule = []
+        if lo > -math.inf:
+            rule.append(f"{'>' if lo_open else '>='} {lo:g}")
+        if hi < math.inf:
+            rule.append(f"{'<' if hi_open else '<='} {hi:g}")
+        raise ConfigError(f"{name} must be a finite number{' ' + ' and '.join(rule) if rule else ''}, got {value!r}")
+
+
+def check_whole(name: str, value, lo: int, hi: int | None = None) -> None:
+    """An integer (not a float, not a bool) with ``lo <= value`` (and ``value <= hi``)."""
+    ok = isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_)) and value >= lo
+    if ok and hi is not None:
+        ok = value <= hi
+    if not ok:
+        upper = "" if hi is None else f" and <= {hi}"
+        raise ConfigError(f"{name} must be an integer >= {lo}{upper}, got {value!r}")
+
+
+def check_flag(name: str, value) -> None:
+    """True or False."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise ConfigError(f"{name} must be True or False, got {value!r}")
+
+
+def check_choice(name: str, value, choices) -> None:
+    """One of ``choices``."""
+    if value not in choices:
+        raise ConfigError(f"{name} must be one of {tuple(choices)}, got {value!r}")
