@@ -19,7 +19,7 @@ def _blocks(lang):
 def test_readme_starts_with_two_setup_commands():
     first = README.split("```sh\n", 1)[1].split("```", 1)[0].strip().splitlines()
     assert len(first) == 2
-    assert first[0].startswith("pip install .") and "starid table6" in first[0]
+    assert first[0].startswith("pip install -e .") and "starid table6" in first[0]
     assert "'.[test]'" in first[1] and "pytest" in first[1]
     assert README.index("```sh") < README.index("\n## ")
 
