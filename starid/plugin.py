@@ -9,7 +9,15 @@ An algorithm is a small class (a frozen dataclass is the easy way) that
 * ``build(catalog, camera)`` returns a :class:`Database` (a frozen dataclass of numpy arrays
   whose ``nbytes`` is the memory the identify step reads);
 * ``identify(database, observation)`` returns an :class:`Identification`: per observed star a
-  catalog id or -1, and optionally an attitude.
+  catalog id or -1, and optionally an attitude;
+* optionally ``explain(database, observation)`` returns an :class:`Explanation`: plain drawable
+  data (segments, polygons, labelled points, a caption) showing its reasoning on one image;
+* optionally lists in ``follows`` the parameters that describe the simulated world rather than
+  the method (e.g. ``{"sigma_px": "sigma_px"}``: the centroid noise its tolerances assume). Such a
+  parameter defaults to ``None`` = "follow the simulator": :meth:`Algorithm.resolved` fills it
+  from the simulator's settings before the database is built, so ``--pos-noise-px 3`` retunes
+  the algorithm unless the user pins the parameter. A plugin must still work when it is ``None``
+  (called outside the harness) and applies its own floor (a 0 px world still needs a window).
 
 The harness, not the plugin, decides whether an identification is correct. Plugins register
 through the entry-point group ``starid.algorithms`` (see ``pyproject.toml``), or in process
@@ -20,7 +28,7 @@ from __future__ import annotations
 
 import abc
 import dataclasses
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import ClassVar
 
 import numpy as np
@@ -71,10 +79,49 @@ class Identification:
         return cls(np.full(n, -1, dtype=np.int64))
 
 
+@dataclass(frozen=True, eq=False)
+class Explanation:
+    """What an algorithm did on one image, as plain drawable data in pixel coordinates.
+
+    segments : float (k, 2, 2) line segments ``[[x0, y0], [x1, y1]]`` (e.g. a triangle's sides).
+    polygons : tuple of float (m, 2) closed outlines (e.g. the triangle that matched).
+    points : float (p, 2) marked positions; ``labels`` : tuple of p strings beside them.
+    caption : one or two sentences saying what the picture shows.
+    highlight : int (k,) indices of ``segments`` to draw bold (the decisive ones); may be empty.
+    """
+
+    segments: np.ndarray = field(default_factory=lambda: np.zeros((0, 2, 2)))
+    polygons: tuple = ()
+    points: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    labels: tuple = ()
+    caption: str = ""
+    highlight: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+
+    def __post_init__(self):
+        seg = np.asarray(self.segments, dtype=np.float64).reshape(-1, 2, 2)
+        pts = np.asarray(self.points, dtype=np.float64).reshape(-1, 2)
+        polys = tuple(np.asarray(p, dtype=np.float64).reshape(-1, 2) for p in self.polygons)
+        hl = np.asarray(self.highlight, dtype=np.int64).ravel()
+        if len(self.labels) not in (0, len(pts)):
+            raise PluginError(f"explain: {len(self.labels)} labels for {len(pts)} points")
+        if hl.size and (hl.min() < 0 or hl.max() >= len(seg)):
+            raise PluginError("explain: highlight indexes a segment that does not exist")
+        for name, arr in (("segments", seg), ("points", pts), *((f"polygon {i}", p) for i, p in enumerate(polys))):
+            if not np.all(np.isfinite(arr)):
+                raise PluginError(f"explain: {name} has non-finite coordinates")
+        object.__setattr__(self, "segments", seg)
+        object.__setattr__(self, "points", pts)
+        object.__setattr__(self, "polygons", polys)
+        object.__setattr__(self, "labels", tuple(str(x) for x in self.labels))
+        object.__setattr__(self, "highlight", hl)
+
+
 class Algorithm(abc.ABC):
     """Abstract base of every star-identification plugin (see the module docstring)."""
 
     name: ClassVar[str] = ""
+    #: parameter name -> :class:`starid.simulate.SimConfig` field it follows when left ``None``
+    follows: ClassVar[dict] = {}
 
     def params(self) -> dict:
         """The parameters of this instance, as a plain dict (for result rows)."""
@@ -89,6 +136,19 @@ class Algorithm(abc.ABC):
     @abc.abstractmethod
     def identify(self, database: Database, observation: Observation) -> Identification:
         """Identify the observed stars; must not read ``observation.truth_hip``."""
+
+    def resolved(self, world) -> "Algorithm":
+        """This algorithm with every ``follows`` parameter left ``None`` set from ``world``.
+
+        ``world`` is the simulator's :class:`~starid.simulate.SimConfig`; pinned parameters
+        (not ``None``) are kept. The result is what gets built, timed and recorded.
+        """
+        fill = {p: getattr(world, key) for p, key in self.follows.items() if getattr(self, p, 0) is None}
+        if not fill:
+            return self
+        if not dataclasses.is_dataclass(self):
+            raise PluginError(f"{self.name}: 'follows' needs the algorithm to be a dataclass")
+        return dataclasses.replace(self, **fill)
 
     @classmethod
     def summary(cls) -> str:

@@ -1,0 +1,25 @@
+"""Shared numba kernels: every algorithm reuses these instead of writing its own.
+
+All are ``@njit(cache=True)`` (except the k-vector builders, which run once per database) and
+take plain numpy arrays or named bundles of them (:class:`KVector`), so they can be called from
+Python or from other kernels. Units: angles in radians; unit vectors are 3-vectors in the frame
+the caller says (camera frame for observed stars, ICRS for catalog stars); a "chord" is the
+Euclidean distance between two unit vectors, ``2 sin(theta / 2)`` (:func:`rad_to_chord`).
+
+* :mod:`.geometry` -- pinhole projection, chords and angles, triangle sides;
+* :mod:`.kvector` -- Mortari's k-vector range search;
+* :mod:`.verify` -- pairwise angular verification, identification by reprojection;
+* :mod:`.attitude` -- Wahba's problem.
+"""
+
+from .attitude import wahba_rows
+from .geometry import (angular_distance_rad, backproject_px, chord, chord_rows, chord_to_rad, pairwise_chords,
+                       project_cam, rad_to_chord, triangle_sides)
+from .kvector import KVector, kvector_build, kvector_make, kvector_query, kvector_range
+from .verify import keep_unique, reproject_assign, verify_pairwise, z_band_rows, z_bound
+
+__all__ = [
+    "KVector", "angular_distance_rad", "backproject_px", "chord", "chord_rows", "chord_to_rad", "keep_unique",
+    "kvector_build", "kvector_make", "kvector_query", "kvector_range", "pairwise_chords", "project_cam",
+    "rad_to_chord", "reproject_assign", "triangle_sides", "verify_pairwise", "wahba_rows", "z_band_rows", "z_bound",
+]

@@ -1,0 +1,65 @@
+"""Wahba's problem in numba (the twin of :func:`starid.attitude.solve_wahba`)."""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True)
+def _det3(M):
+    """Determinant of a 3x3 matrix."""
+    return (M[0, 0] * (M[1, 1] * M[2, 2] - M[1, 2] * M[2, 1])
+            - M[0, 1] * (M[1, 0] * M[2, 2] - M[1, 2] * M[2, 0])
+            + M[0, 2] * (M[1, 0] * M[2, 1] - M[1, 1] * M[2, 0]))
+
+
+@njit(cache=True)
+def wahba_rows(v, rows, unit):
+    """ICRS -> camera rotation from the stars with ``rows >= 0`` (Wahba's problem, equal weights).
+
+    ``v[i]`` is the camera-frame unit vector of star ``i`` and ``unit[rows[i]]`` its catalog
+    (ICRS) unit vector; the numba twin of :func:`starid.attitude.solve_wahba`.
+
+    The optimum is the orthogonal polar factor of ``B = sum b r^T`` when ``det B > 0`` (the SVD
+    solution of Markley 1988 without the sign flip); it is found by Newton's iteration
+    ``X <- (X + X^-T) / 2`` (quadratic convergence, a few 3x3 steps, much cheaper than a LAPACK
+    SVD call). When ``det B <= 0`` (degenerate or mirrored data) the SVD solution is used.
+    """
+    B = np.zeros((3, 3))
+    for i in range(v.shape[0]):
+        if rows[i] < 0:
+            continue
+        for a in range(3):
+            for b in range(3):
+                B[a, b] += v[i, a] * float(unit[rows[i], b])
+    det = _det3(B)
+    if not det > 1e-12 * (np.abs(B).max() ** 3 + 1e-300):
+        U, _, Vt = np.linalg.svd(B)
+        d = np.linalg.det(U) * np.linalg.det(Vt)
+        for a in range(3):
+            U[a, 2] *= d
+        return U @ Vt
+    X = B / abs(det) ** (1.0 / 3.0)
+    for _ in range(50):
+        d = _det3(X)
+        # inverse transpose = cofactor matrix / det
+        C = np.empty((3, 3))
+        C[0, 0] = X[1, 1] * X[2, 2] - X[1, 2] * X[2, 1]
+        C[0, 1] = X[1, 2] * X[2, 0] - X[1, 0] * X[2, 2]
+        C[0, 2] = X[1, 0] * X[2, 1] - X[1, 1] * X[2, 0]
+        C[1, 0] = X[0, 2] * X[2, 1] - X[0, 1] * X[2, 2]
+        C[1, 1] = X[0, 0] * X[2, 2] - X[0, 2] * X[2, 0]
+        C[1, 2] = X[0, 1] * X[2, 0] - X[0, 0] * X[2, 1]
+        C[2, 0] = X[0, 1] * X[1, 2] - X[0, 2] * X[1, 1]
+        C[2, 1] = X[0, 2] * X[1, 0] - X[0, 0] * X[1, 2]
+        C[2, 2] = X[0, 0] * X[1, 1] - X[0, 1] * X[1, 0]
+        change = 0.0
+        for a in range(3):
+            for b in range(3):
+                new = 0.5 * (X[a, b] + C[a, b] / d)
+                change = max(change, abs(new - X[a, b]))
+                X[a, b] = new
+        if change < 1e-14:
+            break
+    return X

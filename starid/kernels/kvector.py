@@ -1,0 +1,101 @@
+"""Mortari's k-vector: O(1) range search over sorted keys (Mortari & Neta 2000)."""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+
+def kvector_build(sorted_values: np.ndarray) -> tuple[np.ndarray, float, float]:
+    """Build Mortari's k-vector over ascending ``sorted_values`` (Mortari & Neta 2000).
+
+    The line ``z(i) = m i + q`` (i = 1..n) is slightly steeper than the data and passes just
+    outside both extremes (Zhou & Ye 2015, eqs. 15-16); ``k[i-1] = #{s_j <= z(i)}``.
+    Returns ``(k, m, q)``; query with :func:`kvector_range`.
+    """
+    s = np.ascontiguousarray(sorted_values, dtype=np.float64)
+    n = s.shape[0]
+    if n >= 2 and np.any(np.diff(s) < 0):
+        raise ValueError("kvector_build needs ascending values")
+    if n < 2 or s[-1] == s[0]:
+        lo = s[0] if n else 0.0
+        m, q = 1.0, lo - 1.0
+    else:
+        xi = np.finfo(np.float64).eps * max(abs(s[0]), abs(s[-1]))
+        m = (s[-1] - s[0] + 2.0 * xi) / (n - 1)
+        q = s[0] - m - xi
+    z = m * np.arange(1, n + 1, dtype=np.float64) + q
+    k = np.searchsorted(s, z, side="right").astype(np.int64)
+    return k, float(m), float(q)
+
+
+@njit(cache=True)
+def kvector_range(sorted_values, k, m, q, lo, hi):
+    """Index range ``[start, stop)`` of ``sorted_values`` lying in ``[lo, hi]``.
+
+    The k-vector gives a slightly wide slice in O(1) (Zhou & Ye 2015, eqs. 17-19); its ends
+    are then trimmed exactly, so the result equals
+    ``searchsorted(s, lo, 'left'), searchsorted(s, hi, 'right')``.
+    """
+    n = sorted_values.shape[0]
+    if n == 0 or hi < lo:
+        return 0, 0
+    jb = int(math.floor((lo - q) / m)) - 1
+    jt = int(math.ceil((hi - q) / m)) + 1
+    if jb < 1:
+        start = 0
+    elif jb > n:
+        start = n
+    else:
+        start = k[jb - 1]
+    if jt < 1:
+        stop = 0
+    elif jt > n:
+        stop = n
+    else:
+        stop = k[jt - 1]
+    # Trim (or widen, when float rounding put the line on the wrong side) to the exact range.
+    while start > 0 and sorted_values[start - 1] >= lo:
+        start -= 1
+    while start < n and sorted_values[start] < lo:
+        start += 1
+    while stop < n and sorted_values[stop] <= hi:
+        stop += 1
+    while stop > start and sorted_values[stop - 1] > hi:
+        stop -= 1
+    if stop < start:
+        stop = start
+    return start, stop
+
+
+class KVector(NamedTuple):
+    """A k-vector as one bundle, the single name every plugin uses for it.
+
+    values : float (n,) the sorted keys; k : int (n,) the k-vector; m, q : its line ``z = m i + q``.
+    numba passes a ``KVector`` into kernels as a tuple, so kernels take one argument, not four.
+    """
+
+    values: np.ndarray
+    k: np.ndarray
+    m: float
+    q: float
+
+    @property
+    def nbytes(self) -> int:
+        return int(self.values.nbytes + self.k.nbytes)
+
+
+def kvector_make(sorted_values: np.ndarray, values_dtype=np.float64, index_dtype=np.int64) -> KVector:
+    """Build a :class:`KVector` over ascending ``sorted_values`` (stored as ``values_dtype``)."""
+    values = np.ascontiguousarray(sorted_values, dtype=values_dtype)
+    k, m, q = kvector_build(values.astype(np.float64))
+    return KVector(values, k.astype(index_dtype), m, q)
+
+
+@njit(cache=True)
+def kvector_query(kv, lo, hi):
+    """Index range ``[start, stop)`` of ``kv.values`` lying in ``[lo, hi]`` (see :func:`kvector_range`)."""
+    return kvector_range(kv[0], kv[1], kv[2], kv[3], lo, hi)
