@@ -7,19 +7,9 @@ warm-up so JIT compilation is excluded.
 
 import pytest
 
-from starid import Camera, SimConfig, Simulator, load_hipparcos
+from starid import SimConfig, Simulator
 
 N_IMAGES = 200
-
-
-@pytest.fixture(scope="session")
-def catalog():
-    return load_hipparcos()
-
-
-@pytest.fixture(scope="session")
-def camera():
-    return Camera()
 
 
 @pytest.fixture(scope="session")

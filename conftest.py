@@ -1,3 +1,5 @@
+"""Fixtures shared by every test folder: tests/, each plugin's algorithms/<name>/tests/, benchmarks/."""
+
 import pytest
 
 from starid import Camera, load_hipparcos
