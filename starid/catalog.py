@@ -9,6 +9,7 @@ The HIP number is the catalog id everywhere in starid.
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 from functools import lru_cache
 from importlib import resources
@@ -16,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import CatalogError
+from .errors import CatalogError, StarIDWarning
 from .io import read_numeric_csv
 
 EMBEDDED_CATALOG = "hipparcos_v8.npz"
@@ -53,6 +54,7 @@ class Catalog:
     @classmethod
     def from_arrays(cls, hip, ra_deg, dec_deg, v_mag, name: str = "custom") -> "Catalog":
         """Validate and build a catalog; rows are sorted by id."""
+        hip_in = np.asarray(hip).ravel()
         try:
             hip_f = np.asarray(hip, dtype=np.float64).ravel()
             ra = np.asarray(ra_deg, dtype=np.float64).ravel()
@@ -79,7 +81,7 @@ class Catalog:
         bad = np.flatnonzero((ra < 0) | (ra >= 360))
         if bad.size:
             raise CatalogError(f"ra_deg must lie in [0, 360) (row {bad[0]}: {ra[bad[0]]!r})")
-        ids = hip_f.astype(np.int64)
+        ids = hip_in.astype(np.int64) if np.issubdtype(hip_in.dtype, np.integer) else hip_f.astype(np.int64)
         order = np.argsort(ids, kind="stable")
         ids = ids[order]
         dup = np.flatnonzero(np.diff(ids) == 0)
@@ -87,6 +89,17 @@ class Catalog:
             raise CatalogError(f"catalog id {ids[dup[0]]} appears more than once")
         ra, dec, mag = ra[order], dec[order], mag[order]
         return cls(hip=ids, ra_deg=ra, dec_deg=dec, v_mag=mag, unit_icrs=radec_to_unit(ra, dec), name=name)
+
+    @classmethod
+    def embedded(cls, max_v_mag: float = 8.0) -> "Catalog":
+        """The embedded Hipparcos catalog (see :func:`load_hipparcos`)."""
+        return load_hipparcos(max_v_mag)
+
+    def to_frame(self):
+        """The catalog as a pandas DataFrame (``hip, ra_deg, dec_deg, v_mag``)."""
+        import pandas as pd
+
+        return pd.DataFrame({"hip": self.hip, "ra_deg": self.ra_deg, "dec_deg": self.dec_deg, "v_mag": self.v_mag})
 
     def __len__(self) -> int:
         return int(self.hip.size)
@@ -139,10 +152,14 @@ def load_csv(path: str | Path) -> Catalog:
     """
     path = Path(path)
     cols, lines = read_numeric_csv(path, [("hip", "id"), "ra_deg", "dec_deg", "vmag"], error=CatalogError,
-                                   lower=True)
+                                   lower=True, integer=("hip", "id"))
     if not lines.size:
         raise CatalogError(f"{path}: no stars")
     ids = cols["hip"] if "hip" in cols else cols["id"]
+    if len(ids) >= 20 and np.abs(cols["ra_deg"]).max() <= 2 * np.pi + 1e-9 \
+            and np.abs(cols["dec_deg"]).max() <= np.pi / 2 + 1e-9:
+        warnings.warn(f"{path}: every ra_deg is <= 2 pi and every dec_deg <= pi/2: are these radians? "
+                      f"starid reads degrees", StarIDWarning, stacklevel=2)
     try:
         return Catalog.from_arrays(ids, cols["ra_deg"], cols["dec_deg"], cols["vmag"], name=path.name)
     except CatalogError as exc:

@@ -19,3 +19,7 @@ class ConfigError(StarIDError):
 
 class PluginError(StarIDError):
     """An algorithm plugin is unknown, failed to import, or broke the plugin contract."""
+
+
+class StarIDWarning(UserWarning):
+    """Input that is valid but probably not what was meant (e.g. a catalog in radians)."""

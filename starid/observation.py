@@ -77,6 +77,28 @@ class Observation:
         return Observation(self.x_px[order], self.y_px[order], self.mag[order], self.camera,
                            None if self.truth_hip is None else self.truth_hip[order])
 
+    def for_plugin(self) -> "Observation":
+        """What an algorithm is handed: read-only arrays and no truth."""
+        x, y, m = (_read_only(a) for a in (self.x_px, self.y_px, self.mag))
+        return Observation(x, y, m, self.camera)
+
+    def to_frame(self):
+        """The detections as a pandas DataFrame (``star, x_px, y_px, mag[, truth_hip]``)."""
+        import pandas as pd
+
+        data = {"star": np.arange(len(self)), "x_px": self.x_px, "y_px": self.y_px, "mag": self.mag}
+        if self.truth_hip is not None:
+            data["truth_hip"] = self.truth_hip
+        return pd.DataFrame(data)
+
+
+def _read_only(a: np.ndarray) -> np.ndarray:
+    """A read-only view of ``a`` (a copy when ``a`` itself may still be written through)."""
+    if a.flags.writeable:
+        a = a.copy()
+        a.flags.writeable = False
+    return a.view()
+
 
 @dataclass(frozen=True, eq=False)
 class TrialSet:
@@ -90,8 +112,10 @@ class TrialSet:
     attitude : float64 (t, 3, 3) true attitudes (ICRS -> camera).
     n_redraws : int64 (t,) attitudes rejected by the ``min_stars`` filter before this trial.
     camera : the camera.
-    seed : the seed of the simulator that made them.
-    config : the simulator parameters, as a plain dict.
+    warmup : an image outside the set (never scored) on which the harness warms the JIT up.
+
+    The arrays are made read-only: a plugin handed a view cannot change the images the next
+    algorithm is scored on. What made the trials (seed, settings) is the caller's to record.
     """
 
     trial: np.ndarray
@@ -103,8 +127,15 @@ class TrialSet:
     attitude: np.ndarray
     n_redraws: np.ndarray
     camera: Camera
-    seed: int
-    config: dict
+    warmup: Observation | None = None
+
+    def __post_init__(self):
+        for name in ("trial", "offsets", "x_px", "y_px", "mag", "truth_hip", "attitude", "n_redraws"):
+            arr = getattr(self, name)
+            if arr.flags.writeable:
+                arr = arr.copy() if arr.base is not None else arr
+                arr.flags.writeable = False
+                object.__setattr__(self, name, arr)
 
     def __len__(self) -> int:
         return int(self.trial.size)
@@ -112,10 +143,23 @@ class TrialSet:
     def n_stars(self) -> np.ndarray:
         return np.diff(self.offsets)
 
-    def observation(self, i: int) -> Observation:
-        """The ``i``-th image of the set (position ``i``, not trial index)."""
+    def observation(self, i: int, truth: bool = True) -> Observation:
+        """The ``i``-th image of the set (position ``i``, not trial index); read-only views.
+
+        ``truth=False`` leaves the truth out, as handed to an algorithm.
+        """
         a, b = self.offsets[i], self.offsets[i + 1]
-        return Observation(self.x_px[a:b], self.y_px[a:b], self.mag[a:b], self.camera, self.truth_hip[a:b])
+        return Observation(self.x_px[a:b], self.y_px[a:b], self.mag[a:b], self.camera,
+                           self.truth_hip[a:b] if truth else None)
+
+    def to_frame(self):
+        """Every detection as a tidy DataFrame (``trial, star, x_px, y_px, mag, truth_hip``)."""
+        import pandas as pd
+
+        counts = self.n_stars()
+        return pd.DataFrame({"trial": np.repeat(self.trial, counts),
+                             "star": np.arange(self.x_px.size) - np.repeat(self.offsets[:-1], counts),
+                             "x_px": self.x_px, "y_px": self.y_px, "mag": self.mag, "truth_hip": self.truth_hip})
 
     def select(self, positions: np.ndarray) -> "TrialSet":
         """A subset of the images, by position."""
@@ -126,4 +170,4 @@ class TrialSet:
         offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
         return TrialSet(self.trial[positions], offsets, self.x_px[rows], self.y_px[rows], self.mag[rows],
                         self.truth_hip[rows], self.attitude[positions], self.n_redraws[positions],
-                        self.camera, self.seed, self.config)
+                        self.camera, self.warmup)

@@ -23,6 +23,8 @@ class AlgorithmInfo:
     cls: type[Algorithm] | None
     source: str
     error: str = ""
+    dist: str = ""
+    dist_version: str = ""
 
 
 def register(cls: type[Algorithm]) -> type[Algorithm]:
@@ -40,36 +42,64 @@ def unregister(name: str) -> None:
     _registered.pop(name, None)
 
 
+def _dist(ep) -> tuple[str, str]:
+    dist = getattr(ep, "dist", None)
+    return (dist.name, dist.version) if dist is not None else ("", "")
+
+
 def _load_entry_point(ep) -> AlgorithmInfo:
     source = f"entry point {ep.value}"
+    dist, dist_version = _dist(ep)
     try:
         cls = ep.load()
     except Exception as exc:  # a broken plugin must never break the listing
-        return AlgorithmInfo(ep.name, "broken", "", None, source, f"{type(exc).__name__}: {exc}")
+        return AlgorithmInfo(ep.name, "broken", "", None, source, f"{type(exc).__name__}: {exc}", dist, dist_version)
     if not (isinstance(cls, type) and issubclass(cls, Algorithm)):
         return AlgorithmInfo(ep.name, "broken", "", None, source,
-                             f"{ep.value} is not a subclass of starid.plugin.Algorithm")
+                             f"{ep.value} is not a subclass of starid.plugin.Algorithm", dist, dist_version)
     if cls.name != ep.name:
         return AlgorithmInfo(ep.name, "broken", cls.summary(), None, source,
-                             f"entry point name {ep.name!r} differs from {cls.__name__}.name {cls.name!r}")
-    return AlgorithmInfo(ep.name, "ok", cls.summary(), cls, source)
+                             f"entry point name {ep.name!r} differs from {cls.__name__}.name {cls.name!r}",
+                             dist, dist_version)
+    return AlgorithmInfo(ep.name, "ok", cls.summary(), cls, source, "", dist, dist_version)
 
 
 def available_algorithms() -> list[AlgorithmInfo]:
-    """Every registered algorithm, sorted by name; in-process registrations win over entry points."""
-    found = {ep.name: _load_entry_point(ep) for ep in entry_points(group=ENTRY_POINT_GROUP)}
+    """Every registered algorithm, sorted by name.
+
+    Two entry points (or an entry point and an in-process registration) claiming one name are a
+    clash: neither may silently replace the other, so the name is listed as ``broken`` with an
+    error naming both distributions, and running it is refused.
+    """
+    found: dict[str, AlgorithmInfo] = {}
+    claims: dict[str, list[str]] = {}
+    for ep in entry_points(group=ENTRY_POINT_GROUP):
+        dist, version = _dist(ep)
+        claims.setdefault(ep.name, []).append(f"{dist or '?'} {version}".strip() + f" ({ep.value})")
+        found[ep.name] = _load_entry_point(ep)
     for name, cls in _registered.items():
+        claims.setdefault(name, []).append(f"in-process registration of {cls.__module__}.{cls.__qualname__}")
         found[name] = AlgorithmInfo(name, "ok", cls.summary(), cls, "registered in process")
+    for name, who in claims.items():
+        if len(who) > 1:
+            found[name] = AlgorithmInfo(name, "broken", "", None, "clash",
+                                        f"the name {name!r} is claimed {len(who)} times: {'; '.join(who)}; "
+                                        f"rename one plugin's entry point")
     return [found[name] for name in sorted(found)]
+
+
+def algorithm_info(name: str) -> AlgorithmInfo:
+    """The registration of ``name``; :class:`PluginError` if unknown or broken (run ``starid list``)."""
+    infos = {info.name: info for info in available_algorithms()}
+    if name not in infos:
+        known = ", ".join(infos) or "none"
+        raise PluginError(f"unknown algorithm {name!r}; registered: {known} (see 'starid list')")
+    info = infos[name]
+    if info.status != "ok":
+        raise PluginError(f"algorithm {name!r} is broken: {info.error}")
+    return info
 
 
 def get_algorithm(name: str) -> type[Algorithm]:
     """The algorithm class registered as ``name``; :class:`PluginError` if unknown or broken."""
-    infos = {info.name: info for info in available_algorithms()}
-    if name not in infos:
-        known = ", ".join(infos) or "none"
-        raise PluginError(f"unknown algorithm {name!r}; registered: {known}")
-    info = infos[name]
-    if info.status != "ok":
-        raise PluginError(f"algorithm {name!r} is broken: {info.error}")
-    return info.cls
+    return algorithm_info(name).cls

@@ -1,14 +1,23 @@
 """The one star-image simulator every algorithm is scored on.
 
-Each trial is reproducible from ``(seed, trial index)`` alone: its generator is
-``numpy.random.default_rng([seed, trial])``, so any trial can be regenerated for inspection
-without generating the ones before it.
+Each trial is reproducible from ``(seed, trial index)`` alone, so any trial can be regenerated
+for inspection without generating the ones before it. Two streams per trial give **common
+random numbers**: attitudes come from ``default_rng([seed, trial, 0])`` and every noise draw
+from ``default_rng([seed, trial, 1])``, so trial ``k`` has the same attitude at every noise
+level, sky and false-star count (unless the ``min_stars`` filter redraws it), and two grid
+points or algorithms can be compared trial by trial.
+
+The **sky** is which catalog stars are imaged at all: ``sky_mag_limit = None`` (the *real*
+sky) images every star of the catalog (the embedded one goes to V 8), so magnitude noise can
+bring stars that are in no guide list into the image; ``sky_mag_limit = 6`` (the *paper's*
+sky) images only the papers' guide stars, so magnitude noise can only remove stars.
+:data:`SKIES` names them.
 
 One trial (defaults in :class:`SimConfig`):
 
 1. draw an attitude uniformly over SO(3) (:func:`starid.attitude.random_attitude`);
-2. take the *deep* catalog stars (the embedded catalog goes to V <= 8.0, deeper than the guide
-   lists) near the boresight with a k-d tree on unit vectors, and project them
+2. take the sky's catalog stars (all of them, or those with V <= ``sky_mag_limit``) near the
+   boresight with a k-d tree on unit vectors, and project them
    (:mod:`starid.camera` conventions);
 3. stars closer than ``merge_radius_px`` become one detection at the flux-weighted centroid
    with the combined magnitude; its truth is the brighter star;
@@ -40,6 +49,10 @@ from .kernels import project_cam
 from .observation import Observation, TrialSet
 
 MAX_REDRAWS = 10_000
+#: Centroid-noise margin (px) around the sensor inside which stars get noise draws at any noise level.
+CRN_MARGIN_PX = 50.0
+#: The trial index of the warm-up image (never part of a scored range).
+WARMUP_TRIAL = 2**62
 
 
 @dataclass(frozen=True)
@@ -53,16 +66,26 @@ class SimConfig:
     lost_stars: int = 0
     min_stars: int = 6
     merge_radius_px: float = 2.0
+    sky_mag_limit: float | None = None
 
     def __post_init__(self):
         for name in ("sigma_px", "sigma_mag", "merge_radius_px"):
             check_number(name, getattr(self, name), lo=0)
         check_number("mag_limit", self.mag_limit)
+        if self.sky_mag_limit is not None:
+            check_number("sky_mag_limit", self.sky_mag_limit)
         for name in ("false_stars", "lost_stars", "min_stars"):
             check_whole(name, getattr(self, name), 0)
 
     def as_dict(self) -> dict:
         return asdict(self)
+
+
+#: Named skies: the settings that decide which stars are imaged (see the module docstring).
+SKIES = {
+    "real": {"sky_mag_limit": None},
+    "paper": {"sky_mag_limit": 6.0},
+}
 
 
 @njit(cache=True)
@@ -107,13 +130,18 @@ class Simulator:
             raise ConfigError(f"seed must be a whole number >= 0, got {seed!r}")
         self.seed = int(seed)
         cfg = self.config
-        # Only stars that magnitude noise could bring to the detection limit matter.
-        bright = catalog.v_mag <= cfg.mag_limit + 6.0 * cfg.sigma_mag + 1.5
+        # Candidates: every star that magnitude noise could bring to the detection limit, and every
+        # star near enough to the sensor for centroid noise to push it in. Both bounds are fixed
+        # (not scaled by the noise up to 0.5 Mv and 8 px) so that the candidates -- and with them
+        # each star's noise draws -- are the same at every noise level and in every sky.
+        bright = catalog.v_mag <= cfg.mag_limit + max(3.0, 6.0 * cfg.sigma_mag) + 1.5
         self._hip = catalog.hip[bright]
         self._v_mag = catalog.v_mag[bright]
+        self._in_sky = np.ones(self._hip.size, dtype=bool) if cfg.sky_mag_limit is None \
+            else self._v_mag <= cfg.sky_mag_limit
         self._unit_icrs = catalog.unit_icrs[bright]
         self._tree = cKDTree(self._unit_icrs)
-        self._margin_px = cfg.merge_radius_px + 6.0 * cfg.sigma_px + 1.0
+        self._margin_px = cfg.merge_radius_px + max(CRN_MARGIN_PX, 6.0 * cfg.sigma_px + 1.0)
         cam = self.camera
         dx = max(cam.cx_px, cam.width_px - cam.cx_px) + self._margin_px
         dy = max(cam.cy_px, cam.height_px - cam.cy_px) + self._margin_px
@@ -128,10 +156,10 @@ class Simulator:
                 **{f"camera_{k}": v for k, v in self.camera.as_dict().items()},
                 "catalog": self.catalog.name, "catalog_stars": len(self.catalog)}
 
-    def _draw_once(self, rng: np.random.Generator):
+    def _draw_once(self, att_rng: np.random.Generator, rng: np.random.Generator):
         cfg, cam = self.config, self.camera
-        attitude = random_attitude(rng)
-        idx = np.asarray(self._tree.query_ball_point(attitude[2], self._query_chord), dtype=np.int64)
+        attitude = random_attitude(att_rng)
+        idx = np.sort(np.asarray(self._tree.query_ball_point(attitude[2], self._query_chord), dtype=np.int64))
         v_cam = self._unit_icrs[idx] @ attitude.T
         front = v_cam[:, 2] > 1e-9
         idx, v_cam = idx[front], v_cam[front]
@@ -139,13 +167,18 @@ class Simulator:
         m = self._margin_px
         near = (x_px >= -m) & (x_px < cam.width_px + m) & (y_px >= -m) & (y_px < cam.height_px + m)
         idx, x_px, y_px = idx[near], x_px[near], y_px[near]
+        # each candidate star's own noise draws (common random numbers), then the sky's cut
+        z = rng.normal(0.0, 1.0, (3, idx.size))
+        sky = self._in_sky[idx]
+        idx, x_px, y_px, z = idx[sky], x_px[sky], y_px[sky], z[:, sky]
         v_mag = self._v_mag[idx]
         hip = self._hip[idx]
         if cfg.merge_radius_px > 0 and idx.size > 1:
-            x_px, y_px, v_mag, hip = self._merge(x_px, y_px, v_mag, hip)
-        mag = v_mag + rng.normal(0.0, 1.0, v_mag.size) * cfg.sigma_mag
-        x_px = x_px + rng.normal(0.0, 1.0, x_px.size) * cfg.sigma_px
-        y_px = y_px + rng.normal(0.0, 1.0, y_px.size) * cfg.sigma_px
+            x_px, y_px, v_mag, hip, rep = self._merge(x_px, y_px, v_mag, hip)
+            z = z[:, rep]
+        mag = v_mag + z[0] * cfg.sigma_mag
+        x_px = x_px + z[1] * cfg.sigma_px
+        y_px = y_px + z[2] * cfg.sigma_px
         keep = (mag <= cfg.mag_limit) & cam.in_image(x_px, y_px)
         x_px, y_px, mag, hip = x_px[keep], y_px[keep], mag[keep], hip[keep]
         if cfg.lost_stars:
@@ -170,24 +203,26 @@ class Simulator:
         x_out = np.bincount(inverse, weights=flux * x_px) / total
         y_out = np.bincount(inverse, weights=flux * y_px) / total
         mag_out = -2.5 * np.log10(total)
-        # truth: the brightest member of each group
+        # truth (and noise draws): the brightest member of each group
         order = np.lexsort((v_mag, inverse))
         first = np.ones(order.size, dtype=bool)
         first[1:] = inverse[order][1:] != inverse[order][:-1]
-        hip_out = hip[order][first]
-        return x_out, y_out, mag_out, hip_out
+        rep = order[first]
+        return x_out, y_out, mag_out, hip[rep], rep
 
     def _merge(self, x_px, y_px, v_mag, hip):
+        """Blends merged; also returns each detection's representative (brightest) input row."""
         labels = _merge_labels(x_px, y_px, self.config.merge_radius_px)
         if np.all(labels == np.arange(labels.size)):
-            return x_px, y_px, v_mag, hip
+            return x_px, y_px, v_mag, hip, np.arange(labels.size)
         return self._merge_groups(x_px, y_px, v_mag, hip, labels)
 
     def draw(self, trial: int):
         """One trial: ``(attitude, x_px, y_px, mag, truth_hip, n_redraws)``, detections shuffled."""
-        rng = np.random.default_rng([self.seed, int(trial)])
+        att_rng = np.random.default_rng([self.seed, int(trial), 0])
+        rng = np.random.default_rng([self.seed, int(trial), 1])
         for redraws in range(MAX_REDRAWS):
-            attitude, x_px, y_px, mag, hip = self._draw_once(rng)
+            attitude, x_px, y_px, mag, hip = self._draw_once(att_rng, rng)
             if int(np.count_nonzero(hip >= 0)) >= self.config.min_stars:
                 order = rng.permutation(hip.size)
                 return attitude, x_px[order], y_px[order], mag[order], hip[order].astype(np.int64), redraws
@@ -200,7 +235,10 @@ class Simulator:
         return Observation(x_px, y_px, mag, self.camera, hip)
 
     def generate(self, n_trials: int, start: int = 0) -> TrialSet:
-        """Trials ``start .. start + n_trials - 1`` as a :class:`TrialSet`."""
+        """Trials ``start .. start + n_trials - 1`` as a :class:`TrialSet`.
+
+        Its ``warmup`` image is trial 2**62, outside every scored range.
+        """
         if n_trials < 0:
             raise ConfigError(f"n_trials must be >= 0, got {n_trials}")
         parts = [self.draw(t) for t in range(start, start + n_trials)]
@@ -216,4 +254,4 @@ class Simulator:
             truth_hip=cat(4, np.int64),
             attitude=np.array([p[0] for p in parts]).reshape(n_trials, 3, 3),
             n_redraws=np.array([p[5] for p in parts], dtype=np.int64),
-            camera=self.camera, seed=self.seed, config=self.config.as_dict())
+            camera=self.camera, warmup=self.observation(WARMUP_TRIAL))

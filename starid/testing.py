@@ -24,7 +24,7 @@ import numpy as np
 
 from .camera import Camera
 from .catalog import Catalog, load_hipparcos
-from .harness import SuccessRule, score_trial
+from .scoring import SuccessRule, score_trial
 from .observation import Observation
 from .plugin import Algorithm, Database, check_identification
 from .simulate import SimConfig, Simulator

@@ -1,0 +1,106 @@
+"""Intervals, paired tests and summaries of trial rows (grouped by algorithm label)."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pandas as pd
+from scipy.stats import binomtest
+
+from .scoring import CORRECT, CRASHED, ERROR, MISIDENTIFIED, NO_RESULT, TIMEOUT
+
+#: The summary columns, in order (the first 15 are the CLI's printed contract).
+SUMMARY_COLUMNS = [
+    "algorithm", "trials", "id_rate", "id_rate_lo", "id_rate_hi", "misid_rate", "no_result_rate",
+    "star_recall", "star_precision", "time_median_us", "time_mean_us", "time_p95_us", "db_mb",
+    "build_s", "compile_s", "error_rate", "attitude_err_median_arcsec", "timeout_rate", "crash_rate", "label",
+]
+
+
+def wilson_interval(successes: int, n: int, confidence: float = 0.95) -> tuple[float, float]:
+    """Wilson score interval of a binomial proportion (scipy's ``proportion_ci``); NaN for n = 0."""
+    if n == 0:
+        return (float("nan"), float("nan"))
+    ci = binomtest(int(successes), int(n)).proportion_ci(confidence_level=confidence, method="wilson")
+    return (float(ci.low), float(ci.high))
+
+
+def mcnemar(trials: pd.DataFrame, a: str, b: str, by: str = "label") -> dict:
+    """Exact McNemar test of ``a`` vs ``b`` (values of ``by``) on the trials both ran.
+
+    Correct vs anything else; under equal rates the discordant trials are binomial(1/2).
+    """
+    key = "trial" if "point" not in trials.columns else ["point", "trial"]
+    wide = trials.assign(ok=trials["status"] == CORRECT).pivot_table(index=key, columns=by, values="ok",
+                                                                      aggfunc="first")
+    both = wide[[a, b]].dropna().astype(bool)
+    only_a = int((both[a] & ~both[b]).sum())
+    only_b = int((both[b] & ~both[a]).sum())
+    p = binomtest(only_a, only_a + only_b, 0.5).pvalue if only_a + only_b else 1.0
+    return {"a": a, "b": b, "only_a_correct": only_a, "only_b_correct": only_b, "p_value": float(p)}
+
+
+def mcnemar_all(trials: pd.DataFrame, by: str = "label") -> pd.DataFrame:
+    """McNemar's test for every pair of labels (in order of first appearance)."""
+    names = list(dict.fromkeys(trials[by]))
+    return pd.DataFrame([mcnemar(trials, a, b, by) for a, b in itertools.combinations(names, 2)],
+                        columns=["a", "b", "only_a_correct", "only_b_correct", "p_value"])
+
+
+def _rate(g: pd.DataFrame, status: str) -> float:
+    return float((g["status"] == status).mean())
+
+
+def summarize(df: pd.DataFrame, by=("label",)) -> pd.DataFrame:
+    """One row per group (default: per algorithm label, in order of first appearance).
+
+    ``by`` may add grid columns (e.g. ``("point", "label")``); they follow the summary columns.
+    Times are over the trials that ran (not over failures).
+    """
+    by = [c for c in ([by] if isinstance(by, str) else list(by))]
+    if "label" in by and "label" not in df.columns:
+        df = df.assign(label=df["algorithm"])
+    out = []
+    for key, g in df.groupby(by, sort=False):
+        key = key if isinstance(key, tuple) else (key,)
+        n = len(g)
+        n_ok = int((g["status"] == CORRECT).sum())
+        lo, hi = wilson_interval(n_ok, n)
+        reported = g["n_identified"].sum()
+        ran = g[~g["status"].isin([ERROR, TIMEOUT, CRASHED])]
+        t = ran["time_us"].to_numpy() if len(ran) else np.array([np.nan])
+        att = g["attitude_err_arcsec"]
+        row = dict(zip(by, key))
+        row.update({
+            "algorithm": g["algorithm"].iloc[0], "trials": n, "id_rate": n_ok / n,
+            "id_rate_lo": lo, "id_rate_hi": hi,
+            "misid_rate": _rate(g, MISIDENTIFIED), "no_result_rate": _rate(g, NO_RESULT),
+            "star_recall": g["n_correct"].clip(lower=0).sum() / max(g["n_true_stars"].sum(), 1),
+            "star_precision": g["n_correct"].clip(lower=0).sum() / reported if reported else float("nan"),
+            "time_median_us": float(np.median(t)), "time_mean_us": float(np.mean(t)),
+            "time_p95_us": float(np.percentile(t, 95)),
+            "db_mb": float(g["db_mb"].iloc[0]), "build_s": float(g["build_s"].iloc[0]),
+            "compile_s": float(g["compile_s"].iloc[0]),
+            "error_rate": _rate(g, ERROR),
+            "attitude_err_median_arcsec": float(np.nanmedian(att)) if att.notna().any() else float("nan"),
+            "timeout_rate": _rate(g, TIMEOUT), "crash_rate": _rate(g, CRASHED),
+        })
+        out.append(row)
+    cols = SUMMARY_COLUMNS + [c for c in by if c != "label"]
+    return pd.DataFrame(out, columns=cols)
+
+
+def split_by_stars(df: pd.DataFrame, threshold: int = 8, by=("label",)) -> pd.DataFrame:
+    """Id rate with its interval for images with ``<= threshold`` and ``> threshold`` true stars."""
+    rows = []
+    by = list(by)
+    for key, g in df.groupby(by, sort=False):
+        key = key if isinstance(key, tuple) else (key,)
+        for name, part in ((f"<= {threshold}", g[g["n_true_stars"] <= threshold]),
+                           (f"> {threshold}", g[g["n_true_stars"] > threshold])):
+            n, k = len(part), int((part["status"] == CORRECT).sum())
+            lo, hi = wilson_interval(k, n)
+            rows.append({**dict(zip(by, key)), "stars": name, "trials": n,
+                         "id_rate": k / n if n else float("nan"), "id_rate_lo": lo, "id_rate_hi": hi})
+    return pd.DataFrame(rows)
