@@ -1,0 +1,302 @@
+"""Where chunks run: supervised local worker processes, or a Dask cluster.
+
+A *task* is one chunk (grid point x algorithm variant x block of trials, see
+:mod:`starid.experiment.runner`) plus the images to skip. :func:`execute_task` computes it
+anywhere; each worker process keeps the databases it built and the trials it simulated, so a
+database is built once per variant and worker, not once per chunk.
+
+:class:`LocalExecutor` (``--executor local``, the default) runs ``jobs`` worker processes (never
+more than the machine's cores, so measured times are not oversubscribed) and supervises them:
+before every image a worker writes which image it is on; an image that runs past the time limit
+gets its worker killed and is recorded as ``timeout``, a worker that dies (a segfault,
+``os._exit``) gets its image recorded as ``crashed`` against that algorithm, and in both cases a
+fresh worker redoes the chunk with that image skipped. Ctrl-C or SIGTERM stop every worker;
+finished chunks are already in the results folder.
+
+:class:`DaskExecutor` (``--executor dask [--scheduler ADDRESS]``, the ``starid[dask]`` extra)
+submits the same tasks to a Dask cluster (a ``LocalCluster`` without an address); Dask, not
+starid, then handles worker failures, and there is no per-image time limit.
+"""
+
+from __future__ import annotations
+
+import multiprocessing as mp
+import os
+import signal
+import time
+from collections import OrderedDict, deque
+from dataclasses import dataclass, field
+from multiprocessing.connection import wait
+
+import pandas as pd
+
+from ..catalog import Catalog, load_csv, load_hipparcos
+from ..errors import ConfigError
+from ..harness import failed_row, prepare, rows_to_frame, trial_row
+from ..provenance import versions
+from ..registry import algorithm_info
+from ..scoring import CRASHED, ERROR, TIMEOUT, SuccessRule
+from ..simulate import SimConfig, Simulator
+
+DEFAULT_TIME_LIMIT_S = 10.0
+BUILD_TIME_LIMIT_S = 900.0
+
+
+@dataclass(frozen=True)
+class Task:
+    """One chunk to compute; ``skip`` maps image positions to ``(status, error)`` already decided."""
+
+    index: int
+    chunk: object
+    catalog_path: str
+    camera: object
+    seed: int
+    min_correct: int
+    skip: dict = field(default_factory=dict)
+
+
+# ---- what a worker process computes (also called by Dask workers) -------------------------------
+
+_CACHE: dict = {"catalog": {}, "trials": OrderedDict(), "prepared": {}}
+
+
+def _catalog(path: str) -> Catalog:
+    cache = _CACHE["catalog"]
+    if path not in cache:
+        cache[path] = load_csv(path) if path else load_hipparcos()
+    return cache[path]
+
+
+def _trials(task: Task, catalog: Catalog):
+    chunk = task.chunk
+    key = (task.catalog_path, task.camera, task.seed, chunk.settings_key, chunk.start, chunk.stop)
+    cache = _CACHE["trials"]
+    if key not in cache:
+        sim = Simulator(catalog, task.camera, SimConfig(**chunk.settings), seed=task.seed)
+        cache[key] = (sim, sim.generate(chunk.stop - chunk.start, chunk.start))
+        while len(cache) > 4:
+            cache.popitem(last=False)
+    return cache[key]
+
+
+def execute_task(task: Task, beat=None) -> pd.DataFrame:
+    """The trial rows of one chunk. ``beat`` (a shared array) hears which image is running."""
+    catalog = _catalog(task.catalog_path)
+    sim, trials = _trials(task, catalog)
+    chunk = task.chunk
+    if beat is not None:
+        beat[0], beat[1], beat[2] = task.index, -1.0, time.monotonic()
+    try:
+        algorithm = chunk.variant.make().resolved(sim.config)
+        info = algorithm_info(chunk.variant.name)
+        key = (chunk.variant.name, repr(sorted(algorithm.params().items())), task.catalog_path, task.camera)
+        prepared = _CACHE["prepared"].get(key)
+        if prepared is None:
+            prepared = prepare(algorithm, catalog, task.camera, trials.warmup, chunk.variant.label)
+            _CACHE["prepared"][key] = prepared
+        elif prepared.label != chunk.variant.label:
+            prepared = type(prepared)(algorithm, chunk.variant.label, prepared.database, prepared.build_s,
+                                      prepared.compile_s, prepared.error)
+        dist, dist_version = info.dist or "in process", info.dist_version
+    except Exception as exc:  # an algorithm that cannot even be made is that algorithm's failure
+        from ..harness import Prepared
+
+        prepared = Prepared(_Unmade(chunk.variant.name), chunk.variant.label, None, 0.0, 0.0,
+                            f"cannot make {chunk.variant.label}: {type(exc).__name__}: {exc}")
+        algorithm, dist, dist_version = None, "", ""
+    rule = SuccessRule(task.min_correct)
+    rows = []
+    for i in range(len(trials)):
+        if i in task.skip:
+            status, error = task.skip[i]
+            rows.append(failed_row(trials, i, status, error))
+            continue
+        if beat is not None:
+            beat[1], beat[2] = float(i), time.monotonic()
+        rows.append(trial_row(prepared, trials, i, catalog, rule))
+    if beat is not None:
+        beat[1] = -2.0
+    df = rows_to_frame(prepared, rows)
+    df["plugin_dist"] = dist
+    df["plugin_version"] = dist_version
+    params = algorithm.params() if algorithm is not None else dict(chunk.variant.params)
+    for k, v in params.items():
+        df[f"param_{k}"] = v if isinstance(v, (bool, int, float, str, type(None))) else repr(v)
+    for k, v in versions().items():
+        df[k] = v
+    return df
+
+
+class _Unmade:
+    """Stands in for an algorithm that could not be constructed (its rows carry the error)."""
+
+    def __init__(self, name):
+        self.name = name
+
+
+# ---- local supervised workers ------------------------------------------------------------------
+
+def _worker_main(conn, beat):
+    signal.signal(signal.SIGINT, signal.SIG_IGN)      # the parent alone handles Ctrl-C
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    while True:
+        task = conn.recv()
+        if task is None:
+            return
+        try:
+            conn.send(("ok", task.index, execute_task(task, beat)))
+        except Exception as exc:   # a harness bug, not a plugin's: report it, keep the worker
+            conn.send(("fail", task.index, f"{type(exc).__name__}: {exc}"))
+
+
+class _Worker:
+    def __init__(self, ctx):
+        self.beat = ctx.Array("d", [-1.0, -2.0, 0.0], lock=False)
+        self.conn, child = ctx.Pipe()
+        self.proc = ctx.Process(target=_worker_main, args=(child, self.beat), daemon=True)
+        self.proc.start()
+        child.close()
+        self.task: Task | None = None
+
+    def stop(self, kill: bool = False):
+        if kill:
+            self.proc.kill()
+        else:
+            try:
+                self.conn.send(None)
+            except (OSError, BrokenPipeError):
+                self.proc.kill()
+        self.proc.join(timeout=5)
+        if self.proc.is_alive():
+            self.proc.kill()
+            self.proc.join()
+
+
+def check_jobs(jobs: int) -> int:
+    """``jobs`` if it is a whole number from 1 to the number of cores, else a clear error."""
+    cores = os.cpu_count() or 1
+    if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
+        raise ConfigError(f"--jobs must be a whole number >= 1, got {jobs!r}")
+    if jobs > cores:
+        raise ConfigError(f"--jobs {jobs} exceeds the {cores} cores of this machine; timings would be "
+                          f"oversubscribed (use at most {cores})")
+    return jobs
+
+
+class LocalExecutor:
+    """Supervised worker processes on this machine (see the module docstring)."""
+
+    def __init__(self, jobs: int | None = None, time_limit_s: float = DEFAULT_TIME_LIMIT_S):
+        self.jobs = check_jobs(jobs if jobs is not None else (os.cpu_count() or 1))
+        if not (isinstance(time_limit_s, (int, float)) and time_limit_s > 0):
+            raise ConfigError(f"--time-limit must be a number of seconds > 0, got {time_limit_s!r}")
+        self.time_limit_s = float(time_limit_s)
+
+    def run(self, tasks: list[Task], on_result) -> None:
+        ctx = mp.get_context("fork" if "fork" in mp.get_all_start_methods() else "spawn")
+        pending = deque(tasks)
+        workers = [_Worker(ctx) for _ in range(min(self.jobs, len(tasks)))]
+        try:
+            while pending or any(w.task is not None for w in workers):
+                for w in workers:
+                    if w.task is None and pending:
+                        w.task = pending.popleft()
+                        w.conn.send(w.task)
+                busy = [w for w in workers if w.task is not None]
+                ready = wait([w.conn for w in busy], timeout=0.1)
+                for w in busy:
+                    if w.conn in ready:
+                        try:
+                            kind, index, payload = w.conn.recv()
+                        except (EOFError, OSError):
+                            continue            # it died; handled below
+                        if kind == "fail":
+                            raise RuntimeError(f"starid internal error in a worker: {payload}")
+                        task, w.task = w.task, None
+                        on_result(task, payload)
+                for k, w in enumerate(workers):
+                    if w.task is None:
+                        continue
+                    replacement = self._check(w)
+                    if replacement is not None:
+                        w.stop(kill=True)
+                        workers[k] = _Worker(ctx)
+                        pending.appendleft(replacement)
+        finally:
+            for w in workers:
+                w.stop(kill=w.task is not None)
+
+    def _check(self, w: _Worker) -> Task | None:
+        """A task to redo when ``w`` died or overran, else ``None``."""
+        task = w.task
+        position, since = int(w.beat[1]), w.beat[2]
+        alive = w.proc.is_alive()
+        elapsed = time.monotonic() - since
+        if alive and not (position >= 0 and elapsed > self.time_limit_s) and \
+                not (position == -1 and elapsed > BUILD_TIME_LIMIT_S):
+            return None
+        if alive:
+            status = TIMEOUT
+            error = (f"identify ran longer than the {self.time_limit_s:g} s limit" if position >= 0
+                     else f"build ran longer than {BUILD_TIME_LIMIT_S:g} s")
+        else:
+            w.proc.join()
+            status = CRASHED
+            error = f"the worker process died (exit code {w.proc.exitcode}) inside " + \
+                    ("identify" if position >= 0 else "build")
+        skip = dict(task.skip)
+        if position >= 0 and int(w.beat[0]) == task.index:
+            skip[position] = (status, error)
+        else:       # died or hung while building: every image of the chunk fails the same way
+            n = task.chunk.stop - task.chunk.start
+            skip = {i: (ERROR if status == TIMEOUT else CRASHED, error) for i in range(n)}
+        w.task = None
+        return Task(task.index, task.chunk, task.catalog_path, task.camera, task.seed, task.min_correct, skip)
+
+
+# ---- Dask ---------------------------------------------------------------------------------------
+
+class DaskExecutor:
+    """The same tasks on a Dask cluster (``scheduler`` address, or a LocalCluster of ``jobs`` workers)."""
+
+    def __init__(self, jobs: int | None = None, scheduler: str | None = None):
+        try:
+            import distributed  # noqa: F401
+        except ImportError:
+            raise ConfigError("--executor dask needs the dask extra: pip install 'starid[dask]'") from None
+        self.jobs = check_jobs(jobs if jobs is not None else (os.cpu_count() or 1))
+        self.scheduler = scheduler
+
+    def run(self, tasks: list[Task], on_result) -> None:
+        from distributed import Client, LocalCluster, as_completed
+
+        cluster = None
+        if self.scheduler:
+            client = Client(self.scheduler)
+        else:
+            cluster = LocalCluster(n_workers=self.jobs, threads_per_worker=1, processes=True,
+                                   dashboard_address=None)
+            client = Client(cluster)
+        try:
+            futures = {client.submit(execute_task, t, pure=False): t for t in tasks}
+            for future in as_completed(futures):
+                on_result(futures[future], future.result())
+        finally:
+            client.close()
+            if cluster is not None:
+                cluster.close()
+
+
+def make_executor(name: str, jobs: int | None, scheduler: str | None = None,
+                  time_limit_s: float = DEFAULT_TIME_LIMIT_S):
+    """``local`` or ``dask``."""
+    if name == "local":
+        if scheduler:
+            raise ConfigError("--scheduler goes with --executor dask")
+        return LocalExecutor(jobs, time_limit_s)
+    if name == "dask":
+        return DaskExecutor(jobs, scheduler)
+    raise ConfigError(f"unknown executor {name!r}; use 'local' or 'dask'")
+
+
+__all__ = ["DaskExecutor", "LocalExecutor", "Task", "check_jobs", "execute_task", "make_executor"]

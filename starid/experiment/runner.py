@@ -1,0 +1,171 @@
+"""Plan an experiment into chunks, compute the missing ones, assemble the tidy frame.
+
+A chunk is (grid point settings, algorithm variant, block of ``BLOCK`` trials). Its key hashes
+everything that decides its rows, so chunks shared by two studies (Table 6's condition is also a
+point of the noise sweeps) are computed once, a resumed run computes only missing keys, and a
+changed experiment only the chunks it changes.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from ..catalog import load_csv, load_hipparcos
+from ..provenance import now, versions
+from ..registry import algorithm_info
+from ..scoring import SuccessRule
+from ..simulate import SimConfig
+from .executors import DEFAULT_TIME_LIMIT_S, Task, make_executor
+from .spec import Experiment, Variant, sim_settings
+from .store import Store
+
+#: Trials per chunk: the unit of parallel work, of resuming and of progress.
+BLOCK = 500
+
+
+@dataclass(frozen=True)
+class Chunk:
+    key: str
+    settings: dict
+    settings_key: str
+    variant: Variant
+    start: int
+    stop: int
+
+
+@dataclass(frozen=True)
+class Placement:
+    """Where a chunk's rows go in the frame: study, point and that point's grid values."""
+
+    study: str
+    point: int
+    grid_values: dict
+    chunk: Chunk
+
+
+def _hash(obj) -> str:
+    return hashlib.sha256(json.dumps(obj, sort_keys=True, default=str).encode()).hexdigest()[:20]
+
+
+def catalog_identity(catalog) -> str:
+    """A content hash of a catalog (ids, positions, magnitudes)."""
+    h = hashlib.sha256()
+    for arr in (catalog.hip, catalog.ra_deg, catalog.dec_deg, catalog.v_mag):
+        h.update(np.ascontiguousarray(arr).tobytes())
+    return h.hexdigest()[:16]
+
+
+def plan(experiment: Experiment, catalog, rule: SuccessRule = SuccessRule()) -> list[Placement]:
+    """Every chunk of the experiment, in frame order (study, point, variant, block)."""
+    camera = experiment.make_camera()
+    common = {"camera": camera.as_dict(), "seed": experiment.seed, "catalog": catalog_identity(catalog),
+              "rule": rule.min_correct, "starid": versions()["starid_version"]}
+    out = []
+    for study in experiment.studies:
+        for p, point in enumerate(study.grid.points()):
+            settings = sim_settings(experiment.sim, point)
+            settings_key = _hash(settings)
+            for variant in study.variants:
+                info = algorithm_info(variant.name)
+                for start in range(0, experiment.trials, BLOCK):
+                    stop = min(start + BLOCK, experiment.trials)
+                    key = _hash({**common, "settings": settings, "algorithm": variant.name,
+                                 "params": [list(kv) for kv in variant.params], "label": variant.label,
+                                 "plugin": [info.dist, info.dist_version], "start": start, "stop": stop})
+                    out.append(Placement(study.name, p, point, Chunk(key, settings, settings_key, variant, start,
+                                                                     stop)))
+    return out
+
+
+def _progress_bar(total: int, enabled: bool):
+    if not enabled:
+        return None
+    from tqdm.auto import tqdm
+
+    return tqdm(total=total, desc="chunks", unit="chunk", leave=False)
+
+
+def run_experiment(experiment: Experiment, out: str | Path | None = None, jobs: int | None = None,
+                   executor: str = "local", scheduler: str | None = None, catalog_path: str = "",
+                   time_limit_s: float = DEFAULT_TIME_LIMIT_S, progress: bool | None = None,
+                   rule: SuccessRule = SuccessRule()) -> pd.DataFrame:
+    """Run (or resume) ``experiment``; the tidy frame, one row per (study, point, variant, trial).
+
+    With ``out`` the results folder (:mod:`.store`) keeps every chunk as it finishes, so an
+    interrupted run resumes where it stopped; without it nothing is written.
+    """
+    catalog = load_csv(catalog_path) if catalog_path else load_hipparcos()
+    placements = plan(experiment, catalog, rule)
+    chunks = {pl.chunk.key: pl.chunk for pl in placements}
+    keys = list(chunks)
+    store = Store(out, experiment) if out is not None else None
+    started = now()
+    if store is not None:
+        store.write_manifest(keys, started, None)
+    done: dict[str, pd.DataFrame] = {}
+    todo = [chunks[k] for k in keys if store is None or not store.has(k)]
+    ex = make_executor(executor, jobs, scheduler, time_limit_s)
+    camera = experiment.make_camera()
+    tasks = [Task(i, c, catalog_path, camera, experiment.seed, rule.min_correct) for i, c in enumerate(todo)]
+    bar = _progress_bar(len(tasks), sys.stderr.isatty() if progress is None else progress)
+
+    def on_result(task: Task, frame: pd.DataFrame) -> None:
+        if store is not None:
+            store.write(task.chunk.key, frame)
+        else:
+            done[task.chunk.key] = frame
+        if bar is not None:
+            bar.update(1)
+
+    try:
+        if tasks:
+            ex.run(tasks, on_result)
+    finally:
+        if bar is not None:
+            bar.close()
+    frame = assemble(placements, experiment, lambda k: done[k] if store is None else store.read(k))
+    if store is not None:
+        store.write_results(frame)
+        store.write_manifest(keys, started, now(), {"computed_chunks": len(tasks), "reused_chunks":
+                                                    len(keys) - len(tasks)})
+    return frame
+
+
+def assemble(placements: list[Placement], experiment: Experiment, read) -> pd.DataFrame:
+    """The chunks' rows in plan order, with study, point, grid values and settings as columns."""
+    camera = experiment.make_camera()
+    frames = []
+    for pl in placements:
+        df = read(pl.chunk.key)
+        lead = {"study": pl.study, "point": pl.point}
+        for k, v in pl.grid_values.items():
+            lead[f"grid_{k}"] = v
+        for k, v in reversed(list(lead.items())):
+            df.insert(0, k, v)
+        df["seed"] = experiment.seed
+        for k, v in SimConfig(**pl.chunk.settings).as_dict().items():
+            df[f"sim_{k}"] = v
+        for k, v in camera.as_dict().items():
+            df[f"camera_{k}"] = v
+        frames.append(df)
+    out = pd.concat(frames, ignore_index=True)
+    return _uniform_types(out)
+
+
+def _uniform_types(df: pd.DataFrame) -> pd.DataFrame:
+    """Columns mixing types across algorithms (a parameter that is a bool here, a float there) as text,
+    so the frame can be written to Parquet."""
+    for col in df.columns:
+        if df[col].dtype == object:
+            kinds = {type(v) for v in df[col].dropna()}
+            if len(kinds) > 1:
+                df[col] = df[col].map(lambda v: None if v is None or (isinstance(v, float) and np.isnan(v))
+                                      else str(v))
+    return df

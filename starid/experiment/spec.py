@@ -1,0 +1,306 @@
+"""Experiments as data: algorithm variants, studies (grids of simulator settings) and their TOML form.
+
+An :class:`Experiment` is a name, a camera, base simulator settings, a seed, a number of trials
+per grid point and one or more :class:`Study` s. A study is a set of algorithm
+:class:`Variant` s run at every point of a :class:`Grid` (a product or a zip of simulator
+settings). Trial ``k`` is the same attitude at every point and for every algorithm (common
+random numbers, :mod:`starid.simulate`). The same experiment can be written as TOML::
+
+    name = "noise-sweep"
+    trials = 1000
+    seed = 0
+    [camera]                   # starid.Camera fields, or fov_deg (+ resolution_px)
+    fov_deg = 10
+    [sim]                      # starid.SimConfig fields, or sky = "paper" / "real"
+    sigma_mag = 0.5
+    sky = "paper"
+    [[study]]
+    name = "position noise"
+    algorithms = ["ptp", "pvector", "ptp[n_slaves=3]"]
+    grid = { sigma_px = [0.0, 0.5, 1.0, 1.5, 2.0] }   # mode = "zip" pairs equal-length lists
+
+A single-study experiment may give ``algorithms`` and ``grid`` at the top level.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import itertools
+import json
+import re
+import tomllib
+import typing
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ..camera import Camera
+from ..errors import ConfigError
+from ..plugin import Algorithm
+from ..registry import get_algorithm
+from ..simulate import SKIES, SimConfig
+
+_LABEL = re.compile(r"^\s*([A-Za-z_][\w.-]*)\s*(?:\[(.*)\])?\s*$")
+
+
+def _format_value(value) -> str:
+    return json.dumps(value) if isinstance(value, str) and re.search(r"[,\]=\s]", value) else str(value)
+
+
+def coerce(cls: type[Algorithm], key: str, value):
+    """``value`` (possibly text from a command line) as the type of ``cls``'s field ``key``.
+
+    Unknown keys are refused listing the valid ones; text is converted by the field's declared
+    type (``int`` accepts only plain integers: ``1_0`` is not 10), never guessed.
+    """
+    fields = {f.name: f for f in dataclasses.fields(cls)} if dataclasses.is_dataclass(cls) else {}
+    if key not in fields:
+        valid = ", ".join(fields) or "none"
+        raise ConfigError(f"{cls.name} has no parameter {key!r}; valid: {valid}")
+    hints = typing.get_type_hints(cls)
+    kind = hints.get(key, type(fields[key].default))
+    if not isinstance(value, str):
+        return value
+    text = value.strip()
+    options = typing.get_args(kind) or (kind,)
+    if type(None) in options and text.lower() in ("none", "null", ""):
+        return None
+    for option in options:
+        if option is bool and text.lower() in ("true", "false", "1", "0", "yes", "no"):
+            return text.lower() in ("true", "1", "yes")
+        if option is int and re.fullmatch(r"[+-]?\d+", text):
+            return int(text)
+        if option is float and re.fullmatch(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?|[+-]?inf", text):
+            return float(text)
+        if option is str:
+            return text
+    names = " or ".join(getattr(o, "__name__", str(o)) for o in options)
+    raise ConfigError(f"{cls.name}.{key} must be {names}, got {value!r}")
+
+
+@dataclass(frozen=True)
+class Variant:
+    """An algorithm with parameter overrides; its ``label`` is the grouping key of every result.
+
+    ``Variant("ptp")`` is labelled ``ptp``; ``Variant("ptp", (("n_slaves", 3),))`` is labelled
+    ``ptp[n_slaves=3]`` (benchopt's parametrized names); a ``label`` given explicitly wins.
+    """
+
+    name: str
+    params: tuple = ()
+    label: str = ""
+
+    def __post_init__(self):
+        params = self.params.items() if isinstance(self.params, dict) else self.params
+        object.__setattr__(self, "params", tuple((str(k), v) for k, v in params))
+        if not self.label:
+            inner = ",".join(f"{k}={_format_value(v)}" for k, v in self.params)
+            object.__setattr__(self, "label", f"{self.name}[{inner}]" if inner else self.name)
+
+    @classmethod
+    def parse(cls, text: str) -> "Variant":
+        """``"ptp"`` or ``"ptp[n_slaves=3,verify=false]"``, values coerced by the field types."""
+        m = _LABEL.match(text)
+        if not m:
+            raise ConfigError(f"cannot read algorithm {text!r}; expected NAME or NAME[KEY=VALUE,...]")
+        name, inner = m.group(1), m.group(2)
+        params = []
+        if inner and inner.strip():
+            algo = get_algorithm(name)
+            for item in inner.split(","):
+                key, sep, value = item.partition("=")
+                if not sep:
+                    raise ConfigError(f"{text!r}: expected KEY=VALUE, got {item!r}")
+                params.append((key.strip(), coerce(algo, key.strip(), value)))
+        return cls(name, tuple(params))
+
+    def with_params(self, **params) -> "Variant":
+        """The same variant with more overrides (the label follows unless it was set explicitly)."""
+        merged = dict(self.params)
+        merged.update(params)
+        auto = Variant(self.name, self.params).label == self.label
+        return Variant(self.name, tuple(merged.items()), "" if auto else self.label)
+
+    def make(self) -> Algorithm:
+        """An instance of the registered algorithm with these overrides."""
+        cls = get_algorithm(self.name)
+        params = {k: coerce(cls, k, v) for k, v in self.params}
+        try:
+            return cls(**params)
+        except TypeError as exc:
+            raise ConfigError(f"{self.label}: {exc}") from None
+
+    def to_dict(self) -> dict:
+        return {"name": self.name, "params": dict(self.params), "label": self.label}
+
+
+@dataclass(frozen=True)
+class Grid:
+    """Points of simulator settings: the product (default) or the zip of the value lists.
+
+    Axis names are :class:`~starid.simulate.SimConfig` fields or ``sky`` (a name in
+    :data:`~starid.simulate.SKIES`). An empty grid is one point with the base settings.
+    """
+
+    axes: tuple = ()
+    mode: str = "product"
+
+    def __post_init__(self):
+        axes = self.axes.items() if isinstance(self.axes, dict) else self.axes
+        axes = tuple((str(k), tuple(v) if isinstance(v, (list, tuple)) else (v,)) for k, v in axes)
+        object.__setattr__(self, "axes", axes)
+        if self.mode not in ("product", "zip"):
+            raise ConfigError(f"grid mode must be 'product' or 'zip', got {self.mode!r}")
+        known = {f.name for f in dataclasses.fields(SimConfig)} | {"sky"}
+        for name, values in axes:
+            if name not in known:
+                raise ConfigError(f"grid axis {name!r} is not a simulator setting; valid: {', '.join(sorted(known))}")
+            if not values:
+                raise ConfigError(f"grid axis {name!r} has no values")
+        if self.mode == "zip" and len({len(v) for _, v in axes}) > 1:
+            raise ConfigError("a zip grid needs value lists of equal length")
+
+    def points(self) -> list[dict]:
+        if not self.axes:
+            return [{}]
+        names = [n for n, _ in self.axes]
+        values = [v for _, v in self.axes]
+        combos = itertools.product(*values) if self.mode == "product" else zip(*values)
+        return [dict(zip(names, c)) for c in combos]
+
+
+def sim_settings(base: dict, point: dict) -> dict:
+    """Base simulator settings updated by a grid point, ``sky`` names expanded: every
+    :class:`~starid.simulate.SimConfig` field, checked (so equal worlds have equal settings)."""
+    settings = {**base, **point}
+    sky = settings.pop("sky", None)
+    if sky is not None:
+        if sky not in SKIES:
+            raise ConfigError(f"unknown sky {sky!r}; known: {', '.join(SKIES)}")
+        settings = {**SKIES[sky], **{k: v for k, v in settings.items() if k not in SKIES[sky] or k in point}}
+    try:
+        return SimConfig(**settings).as_dict()
+    except TypeError as exc:
+        raise ConfigError(f"simulator settings: {exc}") from None
+
+
+@dataclass(frozen=True)
+class Study:
+    """Some algorithm variants at every point of a grid."""
+
+    name: str
+    variants: tuple
+    grid: Grid = field(default_factory=Grid)
+
+    def __post_init__(self):
+        variants = tuple(v if isinstance(v, Variant) else Variant.parse(v) for v in self.variants)
+        object.__setattr__(self, "variants", variants)
+        labels = [v.label for v in variants]
+        dup = sorted({x for x in labels if labels.count(x) > 1})
+        if dup:
+            raise ConfigError(f"study {self.name!r}: algorithm label(s) {dup} appear twice; "
+                              f"give each variant its own parameters or label")
+        if not variants:
+            raise ConfigError(f"study {self.name!r} has no algorithms")
+
+
+@dataclass(frozen=True)
+class Experiment:
+    """A named set of studies on one camera, seed and number of trials per point."""
+
+    name: str
+    studies: tuple
+    trials: int = 1000
+    seed: int = 0
+    camera: dict = field(default_factory=dict)
+    sim: dict = field(default_factory=dict)
+    description: str = ""
+
+    def __post_init__(self):
+        if not re.fullmatch(r"[\w.-]+", self.name or ""):
+            raise ConfigError(f"experiment name {self.name!r} must be letters, digits, '_', '-' or '.'")
+        if isinstance(self.trials, bool) or not isinstance(self.trials, int) or not 1 <= self.trials <= 10_000_000:
+            raise ConfigError(f"trials must be an integer from 1 to 10,000,000, got {self.trials!r}")
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
+            raise ConfigError(f"seed must be an integer >= 0, got {self.seed!r}")
+        object.__setattr__(self, "studies", tuple(self.studies))
+        names = [s.name for s in self.studies]
+        if len(set(names)) != len(names) or not names:
+            raise ConfigError("an experiment needs at least one study, each with its own name")
+        self.make_camera()
+        for study in self.studies:
+            for point in study.grid.points():
+                sim_settings(self.sim, point)
+
+    def make_camera(self) -> Camera:
+        spec = dict(self.camera)
+        if "fov_deg" in spec:
+            fov = spec.pop("fov_deg")
+            res = spec.pop("resolution_px", 1024)
+            cam = Camera.from_fov(fov, res, spec.pop("pixel_um", 12.0))
+            if spec:
+                raise ConfigError(f"camera: with fov_deg give only resolution_px and pixel_um, not {sorted(spec)}")
+            return cam
+        try:
+            return Camera(**spec)
+        except TypeError as exc:
+            raise ConfigError(f"camera: {exc}") from None
+
+    def to_dict(self) -> dict:
+        return {"name": self.name, "description": self.description, "trials": self.trials, "seed": self.seed,
+                "camera": dict(self.camera), "sim": dict(self.sim),
+                "studies": [{"name": s.name, "variants": [v.to_dict() for v in s.variants],
+                             "grid": {"axes": {k: list(v) for k, v in s.grid.axes}, "mode": s.grid.mode}}
+                            for s in self.studies]}
+
+    def digest(self) -> str:
+        """A hash of the definition (what it computes, not its description)."""
+        d = self.to_dict()
+        d.pop("description")
+        return hashlib.sha256(json.dumps(d, sort_keys=True, default=str).encode()).hexdigest()[:16]
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "Experiment":
+        d = dict(d)
+        studies = d.pop("studies", None) or d.pop("study", None)
+        if studies is None:
+            studies = [{"name": d.get("name", "main"), "algorithms": d.pop("algorithms", None),
+                        "grid": d.pop("grid", {}), "mode": d.pop("mode", "product")}]
+        out = []
+        for s in studies:
+            s = dict(s)
+            if "variants" in s:
+                variants = [Variant(v["name"], tuple(v.get("params", {}).items()), v.get("label", ""))
+                            for v in s["variants"]]
+            else:
+                algos = s.get("algorithms")
+                if not algos:
+                    raise ConfigError(f"study {s.get('name')!r}: 'algorithms' is missing")
+                variants = [Variant.parse(a) if isinstance(a, str)
+                            else Variant(a["name"], tuple(a.get("params", {}).items()), a.get("label", ""))
+                            for a in algos]
+            grid = s.get("grid", {})
+            if "axes" in grid:
+                grid_obj = Grid(grid["axes"], grid.get("mode", "product"))
+            else:
+                grid_obj = Grid(grid, s.get("mode", "product"))
+            out.append(Study(s.get("name", "main"), tuple(variants), grid_obj))
+        unknown = set(d) - {"name", "trials", "seed", "camera", "sim", "description"}
+        if unknown:
+            raise ConfigError(f"unknown experiment key(s) {sorted(unknown)}")
+        return cls(name=d.get("name", ""), studies=tuple(out), trials=d.get("trials", 1000), seed=d.get("seed", 0),
+                   camera=d.get("camera", {}), sim=d.get("sim", {}), description=d.get("description", ""))
+
+    @classmethod
+    def from_toml(cls, path: str | Path) -> "Experiment":
+        path = Path(path)
+        try:
+            data = tomllib.loads(path.read_text(encoding="utf-8-sig"))
+        except OSError as exc:
+            raise ConfigError(f"cannot read {path}: {exc.strerror}") from None
+        except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+            raise ConfigError(f"{path}: not valid TOML: {exc}") from None
+        try:
+            return cls.from_dict(data)
+        except ConfigError as exc:
+            raise ConfigError(f"{path}: {exc}") from None
