@@ -5,8 +5,12 @@ import numpy as np
 import pandas as pd
 import pytest
 
+import starid
+
 from starid import SimConfig, Simulator
-from starid.harness import SUMMARY_COLUMNS, SuccessRule, run, score_trial, summarize, wilson_interval
+from starid.harness import run
+from starid.scoring import SuccessRule, score_trial
+from starid.stats import SUMMARY_COLUMNS, summarize, wilson_interval
 from starid.plugin import Algorithm, Database, Identification
 
 
@@ -15,9 +19,20 @@ class _DB(Database):
     hip: np.ndarray
 
 
+#: What the test knows and the harness never hands a plugin: each image's truth, by its first centroid.
+TRUTH: dict = {}
+
+
+def learn_truth(trials):
+    for i in range(len(trials)):
+        obs = trials.observation(i)
+        TRUTH[(obs.x_px[0], obs.y_px[0], len(obs))] = obs.truth_hip.copy()
+    return trials
+
+
 @dataclass(frozen=True)
 class Oracle(Algorithm):
-    """Test double: reads the truth (which real plugins must never do) and can misbehave on purpose."""
+    """Test double: knows the truth through the test (the harness hands plugins none) and can misbehave."""
 
     name: ClassVar[str] = "oracle"
     mode: str = "truth"
@@ -26,13 +41,16 @@ class Oracle(Algorithm):
         return _DB(catalog.hip.copy())
 
     def identify(self, database, observation):
-        hip = observation.truth_hip.copy()
+        assert observation.truth_hip is None, "the harness handed a plugin the truth"
+        assert not observation.x_px.flags.writeable, "the harness handed a plugin writeable arrays"
+        hip = TRUTH[(observation.x_px[0], observation.y_px[0], len(observation))].copy()
         if self.mode == "raise_on_odd" and len(observation) % 2:
             raise RuntimeError("odd star count")
         if self.mode == "one_wrong":
             hip[0] = database.hip[0] if hip[0] != database.hip[0] else database.hip[1]
         if self.mode == "duplicate":
-            hip[1] = hip[0]
+            a = int(np.flatnonzero(hip >= 0)[0])
+            hip[(a + 1) % len(hip)] = hip[a]
         if self.mode == "wrong_length":
             hip = hip[:-1]
         return Identification(hip)
@@ -41,7 +59,7 @@ class Oracle(Algorithm):
 @pytest.fixture(scope="module")
 def setup(catalog, camera):
     sim = Simulator(catalog, camera, SimConfig(sigma_px=1.0, false_stars=1), seed=3)
-    return sim, sim.generate(40)
+    return sim, learn_truth(sim.generate(40))
 
 
 def test_score_trial_rules():
@@ -68,14 +86,14 @@ def test_oracle_scores_perfectly(setup, catalog):
     s = summarize(df)
     assert list(s.columns) == SUMMARY_COLUMNS
     assert s["id_rate"].iloc[0] == 1.0 and s["star_precision"].iloc[0] == 1.0 and s["star_recall"].iloc[0] == 1.0
-    for col in ("seed", "sim_sigma_px", "sim_false_stars", "starid_version", "numba_version", "algorithm_params"):
+    for col in ("seed", "sim_sigma_px", "sim_false_stars", "starid_version", "numba_version", "param_mode", "label"):
         assert col in df.columns
     assert (df["seed"] == 3).all()
 
 
 def test_attitude_error_is_zero_without_noise(catalog, camera):
     sim = Simulator(catalog, camera, SimConfig(merge_radius_px=0.0), seed=4)   # merged blends are offset
-    df = run([Oracle()], sim.generate(10), catalog, sim)
+    df = run([Oracle()], learn_truth(sim.generate(10)), catalog, sim)
     assert df["attitude_err_arcsec"].max() < 1e-3
 
 
@@ -100,15 +118,23 @@ def test_exception_in_one_trial_is_recorded_and_run_goes_on(setup, catalog):
 
 def test_same_trials_for_every_algorithm(setup, catalog):
     sim, trials = setup
-    df = run([Oracle(), Oracle(mode="one_wrong")], trials, catalog, sim)
-    a, b = (g.reset_index(drop=True) for _, g in df.groupby("algorithm_params", sort=False))
+    df = run([Oracle(), ("oracle[mode=one_wrong]", Oracle(mode="one_wrong"))], trials, catalog, sim)
+    assert list(summarize(df)["label"]) == ["oracle", "oracle[mode=one_wrong]"]
+    a, b = (g.reset_index(drop=True) for _, g in df.groupby("label", sort=False))
     pd.testing.assert_series_equal(a["trial"], b["trial"])
     pd.testing.assert_series_equal(a["n_stars"], b["n_stars"])
 
 
-def test_parallel_run_matches_serial(setup, catalog):
+def test_duplicate_labels_are_refused(setup, catalog):
     sim, trials = setup
-    serial = run([Oracle(), Oracle(mode="raise_on_odd")], trials, catalog, sim, jobs=1)
-    parallel = run([Oracle(), Oracle(mode="raise_on_odd")], trials, catalog, sim, jobs=2)
-    cols = [c for c in serial.columns if c not in ("time_us", "build_s", "compile_s")]
-    pd.testing.assert_frame_equal(serial[cols], parallel[cols])
+    with pytest.raises(starid.ConfigError, match="given twice"):
+        run([Oracle(), Oracle(mode="one_wrong")], trials, catalog, sim)
+
+
+def test_wilson_matches_scipy_reference():
+    # the closed form, as a check on scipy's method="wilson"
+    k, n, z = 37, 50, 1.959963984540054
+    p = k / n
+    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
+    half = z * np.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
+    assert wilson_interval(k, n) == pytest.approx((centre - half, centre + half), abs=1e-9)

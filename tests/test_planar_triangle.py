@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from starid import ConfigError, Observation, SimConfig, Simulator
-from starid.harness import run, summarize
+from starid import run, summarize
 from starid.kernels import kvector_range
 from starid.registry import get_algorithm
 from starid_algorithms.planar_triangle import PlanarTriangle

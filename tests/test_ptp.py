@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from starid import ConfigError, SimConfig, Simulator
-from starid.harness import run, summarize
+from starid import run, summarize
 from starid_algorithms.ptp import PTP
 from starid_algorithms.ptp.algorithm import CHORD_SCALE
 from starid_algorithms.ptp.kernels import nearest_slaves, projection_sigma

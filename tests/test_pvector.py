@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from starid import Camera, Catalog, ConfigError, Observation, SimConfig, Simulator
-from starid.harness import run, summarize
+from starid import run, summarize
 from starid.plugin import check_identification
 from starid.registry import get_algorithm
 from starid_algorithms.pvector import PVector, PVectorDatabase

@@ -66,7 +66,7 @@ def test_conformance_suite_runs_on_third_party_plugin(third_party_site):
 
 def _cli(site, *args):
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(site), os.environ.get("PYTHONPATH", "")]))
-    return subprocess.run([sys.executable, "-m", "starid.cli", *args], capture_output=True, text=True, env=env,
+    return subprocess.run([sys.executable, "-m", "starid", *args], capture_output=True, text=True, env=env,
                           timeout=300)
 
 
@@ -79,7 +79,13 @@ def test_third_party_plugin_in_cli(third_party_site, tmp_path):
     result = _cli(third_party_site, "run", "toy_ptp5", "ptp", "--trials", "20", "--seed", "2", "--out", str(out))
     assert result.returncode == 0, result.stderr
     assert "toy_ptp5" in result.stdout
-    assert (out / "summary.csv").read_text().count("toy_ptp5") == 1
+    import pandas as pd
+
+    summary = pd.read_csv(out / "summary.csv")
+    assert summary["label"].tolist() == ["toy_ptp5", "ptp"]
+    trials = pd.read_csv(out / "trials.csv")
+    assert set(trials.loc[trials["label"] == "toy_ptp5", "plugin_dist"]) == {"toy-starid-plugin"}
+    assert set(trials.loc[trials["label"] == "toy_ptp5", "plugin_version"].astype(str)) == {"0.1"}
 
 
 def test_unknown_algorithm():

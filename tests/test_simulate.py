@@ -81,7 +81,7 @@ def test_close_stars_merge(camera):
     sim = Simulator(cat, camera, SimConfig(min_stars=1), seed=0)
     # look straight at (ra, dec) = (0, 0): camera z = +x_icrs
     A = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]])
-    x, y, mag, hip = sim._merge(*camera.project(cat.unit_icrs[:2] @ A.T), cat.v_mag[:2], cat.hip[:2])
+    x, y, mag, hip, _ = sim._merge(*camera.project(cat.unit_icrs[:2] @ A.T), cat.v_mag[:2], cat.hip[:2])
     assert len(hip) == 1 and hip[0] == 1
     assert mag[0] == pytest.approx(3.0 - 2.5 * np.log10(2))
 

@@ -1,0 +1,160 @@
+"""Argument groups shared by the commands, and their conversion to starid objects."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from pathlib import Path
+
+from ..camera import Camera
+from ..errors import ConfigError
+from ..experiment.executors import DEFAULT_TIME_LIMIT_S
+from ..simulate import SKIES
+
+MAX_TRIALS = 10_000_000
+
+
+class Formatter(argparse.ArgumentDefaultsHelpFormatter, argparse.RawDescriptionHelpFormatter):
+    """Defaults in every help line, examples kept as written."""
+
+
+def trials_type(text: str) -> int:
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a whole number, got {text!r}") from None
+    if not 1 <= n <= MAX_TRIALS:
+        raise argparse.ArgumentTypeError(f"must be from 1 to {MAX_TRIALS:,}, got {n}")
+    return n
+
+
+def seed_type(text: str) -> int:
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a whole number >= 0, got {text!r}") from None
+    if n < 0:
+        raise argparse.ArgumentTypeError(f"must be >= 0, got {n}")
+    return n
+
+
+def jobs_type(text: str) -> int:
+    cores = os.cpu_count() or 1
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a whole number, got {text!r}") from None
+    if not 1 <= n <= cores:
+        raise argparse.ArgumentTypeError(f"must be from 1 to {cores} (this machine's cores; more would "
+                                         f"oversubscribe the timings), got {n}")
+    return n
+
+
+def add_engine(p: argparse.ArgumentParser, trials: int | None, seed: int = 0) -> None:
+    """--trials --seed --jobs --executor --scheduler --time-limit --quiet --out."""
+    if trials is not None:
+        p.add_argument("--trials", type=trials_type, default=trials, help="images per grid point")
+    p.add_argument("--seed", type=seed_type, default=seed, help="simulator seed (trial k is reproducible "
+                   "from (seed, k) alone)")
+    p.add_argument("--jobs", type=jobs_type, default=os.cpu_count() or 1,
+                   help="worker processes (default: all cores); every result but the times is identical for any "
+                        "number")
+    p.add_argument("--executor", choices=("local", "dask"), default="local",
+                   help="where chunks run: supervised local processes, or a Dask cluster (starid[dask])")
+    p.add_argument("--scheduler", metavar="ADDRESS", help="Dask scheduler address (default: a LocalCluster)")
+    p.add_argument("--time-limit", type=float, default=DEFAULT_TIME_LIMIT_S, metavar="S",
+                   help="per-image identify time limit in seconds; slower images are recorded as 'timeout'")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def add_out(p: argparse.ArgumentParser, what: str, required: bool = False) -> None:
+    p.add_argument("--out", type=Path, required=required, metavar="DIR",
+                   help=f"results folder: {what}; running the same command on it again resumes an interrupted run")
+
+
+def add_world(p: argparse.ArgumentParser, pos_default: float = 0.0, mag_default: float = 0.0) -> None:
+    """The simulated world: noise, false and lost stars, sky, catalog."""
+    g = p.add_argument_group("simulated world")
+    g.add_argument("--pos-noise-px", type=float, default=pos_default, help="centroid noise sigma in px")
+    g.add_argument("--mag-noise", type=float, default=mag_default, help="magnitude noise sigma in mag")
+    g.add_argument("--false-stars", type=int, default=0, help="false stars added per image")
+    g.add_argument("--lost-stars", type=int, default=0, help="detections removed per image")
+    g.add_argument("--min-stars", type=int, default=6, help="redraw images with fewer true stars")
+    g.add_argument("--mag-limit", type=float, default=6.0, help="sensor detection limit in mag")
+    g.add_argument("--merge-radius-px", type=float, default=2.0, help="stars closer than this merge")
+    g.add_argument("--sky", choices=tuple(SKIES), default=None,
+                   help="which stars are imaged: 'real' = every catalog star (V <= 8), 'paper' = the papers' "
+                        "guide stars only (V <= 6); default real")
+    g.add_argument("--sky-mag-limit", type=float, default=None,
+                   help="image only catalog stars with V <= this (6.0 is the paper's sky)")
+    g.add_argument("--catalog", help="CSV catalog (hip,ra_deg,dec_deg,vmag) instead of the embedded Hipparcos")
+
+
+def world_settings(args) -> dict:
+    """The simulator settings the world options give (a dict for :class:`~starid.simulate.SimConfig`)."""
+    if args.sky is not None and args.sky_mag_limit is not None:
+        raise ConfigError("give either --sky or --sky-mag-limit, not both")
+    settings = {"sigma_px": args.pos_noise_px, "sigma_mag": args.mag_noise, "mag_limit": args.mag_limit,
+                "false_stars": args.false_stars, "lost_stars": args.lost_stars, "min_stars": args.min_stars,
+                "merge_radius_px": args.merge_radius_px}
+    if args.sky is not None:
+        settings["sky"] = args.sky
+    elif args.sky_mag_limit is not None:
+        settings["sky_mag_limit"] = args.sky_mag_limit
+    return settings
+
+
+def add_camera(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("camera (default: Zhou & Ye Table 4, 1024 px, 12 um, 70.2262 mm: 10 x 10 deg)")
+    g.add_argument("--fov-deg", type=float, help="square field of view across the image width")
+    g.add_argument("--resolution", type=int, help="image width = height in px")
+    g.add_argument("--focal-mm", type=float, help="focal length in mm")
+    g.add_argument("--pixel-um", type=float, help="pixel pitch in um")
+
+
+def camera_spec(args) -> dict:
+    """The camera options as :class:`~starid.experiment.Experiment` camera settings (checked)."""
+    given = {k: getattr(args, k) for k in ("fov_deg", "resolution", "focal_mm", "pixel_um")
+             if getattr(args, k, None) is not None}
+    if "fov_deg" in given and "focal_mm" in given:
+        raise ConfigError("give either --fov-deg or --focal-mm, not both")
+    if "fov_deg" in given:
+        spec = {"fov_deg": given["fov_deg"], "resolution_px": given.get("resolution", 1024),
+                "pixel_um": given.get("pixel_um", 12.0)}
+    else:
+        spec = {}
+        if "resolution" in given:
+            spec["width_px"] = spec["height_px"] = given["resolution"]
+        if "focal_mm" in given:
+            spec["focal_mm"] = given["focal_mm"]
+        if "pixel_um" in given:
+            spec["pixel_um"] = given["pixel_um"]
+    return spec
+
+
+def make_camera(spec: dict) -> Camera:
+    spec = dict(spec)
+    if "fov_deg" in spec:
+        return Camera.from_fov(spec["fov_deg"], spec["resolution_px"], spec["pixel_um"])
+    return Camera(**spec)
+
+
+def progress(args) -> bool:
+    return not getattr(args, "quiet", False) and sys.stderr.isatty()
+
+
+def check_out(path: Path | None) -> None:
+    """Refuse an ``--out`` folder that is a file or cannot be created or written, before any work
+    is done (nothing is created here: a refused run leaves nothing behind)."""
+    if path is None:
+        return
+    if path.exists() and not path.is_dir():
+        raise ConfigError(f"--out {path} is a file, not a folder")
+    existing = path.resolve()
+    while not existing.exists():
+        existing = existing.parent
+    if not existing.is_dir():
+        raise ConfigError(f"--out {path}: {existing} is a file, not a folder")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise ConfigError(f"cannot write to --out {path}: {existing} is not writable")

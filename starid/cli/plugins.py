@@ -1,0 +1,66 @@
+"""``list`` and ``info``: what is registered, and what each algorithm's parameters mean."""
+
+from __future__ import annotations
+
+import dataclasses
+import inspect
+import typing
+
+from ..catalog import load_hipparcos
+from ..camera import Camera
+from ..registry import algorithm_info, available_algorithms
+
+
+def cmd_list(args) -> int:
+    infos = available_algorithms()
+    if not infos:
+        print("no algorithms registered")
+        return 0
+    width = max(len(i.name) for i in infos)
+    for info in infos:
+        text = info.summary if info.status == "ok" else info.error
+        print(f"{info.name:<{width}}  {info.status:<6}  {text}")
+    return 0
+
+
+def parameter_table(cls) -> list[dict]:
+    """Each dataclass field of an algorithm: name, type, default, and what ``follows`` it."""
+    hints = typing.get_type_hints(cls)
+    rows = []
+    for f in dataclasses.fields(cls):
+        kind = hints.get(f.name, object)
+        type_text = getattr(kind, "__name__", None) or str(kind).replace("typing.", "")
+        follows = cls.follows.get(f.name)
+        default = f.default if f.default is not dataclasses.MISSING else "(required)"
+        rows.append({"name": f.name, "type": type_text, "default": default,
+                     "follows": f"simulator {follows}" if follows else ""})
+    return rows
+
+
+def cmd_info(args) -> int:
+    info = algorithm_info(args.name)
+    cls = info.cls
+    print(f"{info.name}: {info.summary}")
+    print(f"from {info.dist or 'this process'} {info.dist_version} ({info.source})\n")
+    print(inspect.cleandoc(cls.__doc__ or "").split("\n", 1)[-1].strip())
+    print("\nparameters (set with NAME[KEY=VALUE,...] or --set NAME.KEY=VALUE):")
+    rows = parameter_table(cls) if dataclasses.is_dataclass(cls) else []
+    width = max((len(r["name"]) for r in rows), default=4)
+    for r in rows:
+        tail = f"  (None: follows the {r['follows']})" if r["follows"] else ""
+        print(f"  {r['name']:<{width}}  {r['type']:<14} default {r['default']!r}{tail}")
+    if not args.no_build:
+        db = cls().build(load_hipparcos(), Camera())
+        print(f"\ndatabase for the default camera and the embedded catalog: {db.nbytes / 1e6:.3f} MB")
+    print(f"\nmore: docs/algorithms/{info.name}.md (built-ins) or the plugin's own documentation")
+    return 0
+
+
+def add_parsers(sub, formatter) -> None:
+    p = sub.add_parser("list", help="registered algorithms: name, ok/broken, summary", formatter_class=formatter)
+    p.set_defaults(func=cmd_list)
+    p = sub.add_parser("info", help="an algorithm's reference, reconstruction notes and parameters",
+                       formatter_class=formatter, epilog="example:\n  starid info ptp")
+    p.add_argument("name", metavar="ALGO", help="a registered name (see 'starid list')")
+    p.add_argument("--no-build", action="store_true", help="skip building the database to report its size")
+    p.set_defaults(func=cmd_info)

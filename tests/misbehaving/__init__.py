@@ -1,0 +1,65 @@
+"""Test plugins that misbehave on purpose, one way each (issue: a plugin cannot cheat, corrupt or hide).
+
+They register in process (``register_all``); forked worker processes inherit the registrations.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import time
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+
+from starid.plugin import Algorithm, Database, Identification
+from starid.registry import register, unregister
+
+
+@dataclass(frozen=True, eq=False)
+class Empty(Database):
+    ids: np.ndarray
+
+
+@dataclass(frozen=True)
+class Misbehaving(Algorithm):
+    """Identifies nothing, then misbehaves as ``mode`` says (test double)."""
+
+    name: ClassVar[str] = "misbehaving"
+    mode: str = "none"
+    every: int = 3
+
+    def build(self, catalog, camera):
+        if self.mode == "build_raises":
+            raise RuntimeError("cannot build")
+        return Empty(catalog.hip[:10].copy())
+
+    def _hit(self, observation) -> bool:
+        return len(observation) % self.every == 0
+
+    def identify(self, database, observation):
+        n = len(observation)
+        if self.mode == "hang" and self._hit(observation):
+            time.sleep(3600)
+        if self.mode == "exit" and self._hit(observation):
+            sys.exit(3)
+        if self.mode == "crash" and self._hit(observation):
+            os._exit(9)
+        if self.mode == "mutate":
+            observation.x_px[:] = 0.0
+        if self.mode == "cheat":
+            return Identification(observation.truth_hip.copy())
+        return Identification.none(n)
+
+
+NAMES = ("misbehaving",)
+
+
+def register_all():
+    register(Misbehaving)
+
+
+def unregister_all():
+    for name in NAMES:
+        unregister(name)
