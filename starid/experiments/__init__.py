@@ -1,8 +1,10 @@
 """Built-in experiments: published comparisons as data, each with its paper's printed values.
 
-Each module defines ``NAME``, ``DESCRIPTION``, ``DEFAULT_TRIALS``, ``experiment(trials, seed)``
-(an :class:`~starid.experiment.Experiment`) and ``tables(frame, experiment)`` (a list of
-:class:`~starid.report.tables.Table`, every measured value beside the paper's where it prints one).
+Each module defines ``NAME``, ``TITLE``, ``DESCRIPTION``, ``DEFAULT_TRIALS``,
+``experiment(trials, seed)`` (an :class:`~starid.experiment.Experiment`), ``tables(frame,
+experiment)`` (a list of :class:`~starid.report.tables.Table`, every measured value beside the
+paper's where it prints one) and ``paper_points()`` (the paper's printed points of its swept
+figures, for plots: ``study, axis, value, algorithm, paper_id_rate``).
 ``starid experiment list`` names them; ``starid reproduce NAME`` runs one.
 """
 

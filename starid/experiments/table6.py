@@ -19,6 +19,7 @@ from ..stats import mcnemar, summarize
 from . import registered_beyond
 
 NAME = "table6"
+TITLE = "Table 6 (Zhou & Ye 2015)"
 DESCRIPTION = "Zhou & Ye (2015) Table 6: PTP, P-vector, planar triangle at 1 px / 0.5 Mv, paper's and real sky"
 DEFAULT_TRIALS = 10_000
 PAPER_ALGORITHMS = ("ptp", "pvector", "planar_triangle")
@@ -79,6 +80,11 @@ def _shown(s: pd.DataFrame, with_paper: bool) -> pd.DataFrame:
     if with_paper:
         out["paper DB (MB)"] = s["paper_db_mb"].map(lambda v: "" if pd.isna(v) else f"{v:g}")
     return out
+
+
+def paper_points() -> pd.DataFrame:
+    """Table 6 has no swept figure: no points to overlay."""
+    return pd.DataFrame(columns=["study", "axis", "value", "algorithm", "paper_id_rate"])
 
 
 def tables(frame: pd.DataFrame, experiment: Experiment, study_name: str = "table6") -> list[Table]:

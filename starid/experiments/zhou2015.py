@@ -25,6 +25,7 @@ from ..stats import split_by_stars, summarize, wilson_interval
 from . import registered_beyond, table6
 
 NAME = "zhou2015"
+TITLE = "Zhou & Ye (2015), section 3"
 DESCRIPTION = "Zhou & Ye (2015) section 3: Tables 5-6, Figs. 10-13, false and lost stars, every algorithm"
 DEFAULT_TRIALS = 2000
 BASE = {"mag_limit": 6.0, "min_stars": 6, "sky": "paper"}
@@ -140,6 +141,15 @@ def sweep(frame: pd.DataFrame, name: str) -> Table:
               "false_stars": "Beyond the paper: id rate vs false stars",
               "lost_stars": "Beyond the paper: id rate vs lost stars"}
     return Table(name, f"{titles[name]} ({conditions}; paper's sky)", s, markdown(wide.reset_index()))
+
+
+def paper_points() -> pd.DataFrame:
+    """The paper's printed points of its swept figures: ``study, axis, value, algorithm, paper_id_rate``."""
+    rows = []
+    for name, (axis, _, _, paper, _) in SWEEPS.items():
+        rows += [{"study": name, "axis": axis, "value": v, "algorithm": a, "paper_id_rate": r}
+                 for (v, a), r in paper.items()]
+    return pd.DataFrame(rows, columns=["study", "axis", "value", "algorithm", "paper_id_rate"])
 
 
 def tables(frame: pd.DataFrame, experiment: Experiment) -> list[Table]:
