@@ -25,6 +25,7 @@ import numpy as np
 import pandas as pd
 
 from .catalog import Catalog
+from .jitcache import describe
 from .observation import Observation, TrialSet
 from .plugin import Algorithm, check_identification
 from .provenance import versions
@@ -54,7 +55,7 @@ class Prepared:
 
 
 def _describe(exc: BaseException) -> str:
-    return f"{type(exc).__name__}: {exc}"
+    return describe(exc)
 
 
 def prepare(algorithm: Algorithm, catalog: Catalog, camera, warmup: Observation | None,

@@ -1,4 +1,4 @@
-"""Conformance suite every algorithm plugin should pass.
+"""Conformance suite every algorithm plugin should pass, one explicit check at a time.
 
 Use it from your plugin's tests, one pytest case per check (so ``pytest -k few_stars`` runs one)::
 
@@ -10,10 +10,14 @@ Use it from your plugin's tests, one pytest case per check (so ``pytest -k few_s
     def test_conformance(check):
         check_algorithm(MyAlgorithm, checks=[check])
 
-Checks: the class is default-constructible and documented; identify is deterministic; 0, 1,
-2 and 3 stars are handled without an exception; only valid catalog ids or -1 are returned, never
-one id for two stars; the order of the input stars does not change the answer; noise-free trials
-are identified. Databases are built once per (class, catalog, camera) and cached.
+or from the shell: ``starid check NAME`` (a registered name, or a distribution: every algorithm it
+registers). Checks: the class is default-constructible and documented; identify is deterministic;
+0-3 stars and coincident detections are handled; only valid catalog ids or -1 are returned,
+never one id for two stars; the order of the input stars does not change the answer; noise-free
+trials are identified; fields of random points (no real star) give no identification; the
+observation is not written to; ``explain``, when present, returns valid drawable data. The
+checks raise :class:`ConformanceError` (not ``assert``, so ``python -O`` cannot skip them).
+Databases are built once per (class, catalog, camera) and cached.
 """
 
 from __future__ import annotations
@@ -24,24 +28,37 @@ import numpy as np
 
 from .camera import Camera
 from .catalog import Catalog, load_hipparcos
-from .scoring import SuccessRule, score_trial
+from .errors import StarIDError
 from .observation import Observation
-from .plugin import Algorithm, Database, check_identification
+from .plugin import Algorithm, Database, Explanation, check_identification
+from .scoring import CORRECT, MISIDENTIFIED, SuccessRule, score_trial
 from .simulate import SimConfig, Simulator
 
-CHECKS = ("default_constructible", "deterministic", "few_stars", "valid_ids", "order_invariant",
-          "noise_free_identified")
+CHECKS = ("default_constructible", "deterministic", "few_stars", "coincident_stars", "valid_ids", "order_invariant",
+          "noise_free_identified", "random_fields", "read_only_input", "explain")
 
 #: Trials the checks use (fixed, so a failure can be reproduced with ``Simulator(..., seed=SEED)``).
 SEED = 20151
 NOISY = SimConfig(sigma_px=1.0, sigma_mag=0.5, false_stars=2)
 NOISE_FREE = SimConfig()
+RANDOM_FIELDS, RANDOM_POINTS = 40, 30
+#: Random fields with any identification that still pass (a chance alignment of 3+ stars is rare).
+RANDOM_FIELDS_ALLOWED = 1
+
+
+class ConformanceError(AssertionError):
+    """A plugin failed a conformance check (the message names the check and what went wrong)."""
+
+
+def _require(ok: bool, message: str) -> None:
+    if not ok:
+        raise ConformanceError(message)
 
 
 @lru_cache(maxsize=8)
 def _database(cls: type[Algorithm], catalog: Catalog, camera: Camera) -> Database:
     db = cls().build(catalog, camera)
-    assert isinstance(db, Database), f"{cls.__name__}.build must return a starid.plugin.Database"
+    _require(isinstance(db, Database), f"{cls.__name__}.build must return a starid.plugin.Database")
     return db
 
 
@@ -52,30 +69,42 @@ def _trials(catalog: Catalog, camera: Camera, config: SimConfig, n: int):
 
 
 def _identify(algorithm: Algorithm, db: Database, obs: Observation, catalog: Catalog) -> np.ndarray:
-    result = algorithm.identify(db, obs)
-    return np.asarray(check_identification(result, len(obs), catalog.hip).hip)
+    result = algorithm.identify(db, obs.for_plugin())
+    try:
+        return np.asarray(check_identification(result, len(obs), catalog.hip).hip)
+    except StarIDError as exc:
+        raise ConformanceError(str(exc)) from None
 
 
 def _check_default_constructible(cls, algorithm, db, catalog, camera):
-    assert isinstance(cls.name, str) and cls.name, f"{cls.__name__} needs a non-empty class attribute 'name'"
-    assert cls.summary(), f"{cls.__name__} needs a docstring (first line = summary, then the reference)"
-    assert isinstance(algorithm.params(), dict)
-    assert isinstance(db.nbytes, int) and db.nbytes > 0, "database.nbytes must be a positive int"
+    _require(isinstance(cls.name, str) and bool(cls.name), f"{cls.__name__} needs a non-empty class attribute 'name'")
+    _require(bool(cls.summary()), f"{cls.__name__} needs a docstring (first line = summary, then the reference)")
+    _require(isinstance(algorithm.params(), dict), "params() must return a dict")
+    _require(isinstance(db.nbytes, int) and db.nbytes > 0, "database.nbytes must be a positive int")
 
 
 def _check_deterministic(cls, algorithm, db, catalog, camera):
     for obs in _trials(catalog, camera, NOISY, 5):
         first = _identify(algorithm, db, obs, catalog)
         second = _identify(cls(), db, obs, catalog)
-        assert np.array_equal(first, second), "identify gave different answers for the same input"
+        _require(np.array_equal(first, second), "identify gave different answers for the same input")
 
 
 def _check_few_stars(cls, algorithm, db, catalog, camera):
     obs = _trials(catalog, camera, NOISE_FREE, 1)[0]
     for k in range(4):
         small = Observation(obs.x_px[:k], obs.y_px[:k], obs.mag[:k], obs.camera)
-        hip = _identify(algorithm, db, small, catalog)
-        assert hip.shape == (k,)
+        _require(_identify(algorithm, db, small, catalog).shape == (k,), f"wrong result length for {k} stars")
+
+
+def _check_coincident_stars(cls, algorithm, db, catalog, camera):
+    obs = _trials(catalog, camera, NOISE_FREE, 1)[0]
+    x = np.concatenate([obs.x_px, obs.x_px[:2]])
+    y = np.concatenate([obs.y_px, obs.y_px[:2]])
+    m = np.concatenate([obs.mag, obs.mag[:2]])
+    _identify(algorithm, db, Observation(x, y, m, obs.camera), catalog)
+    one = Observation(np.full(5, 100.0), np.full(5, 200.0), np.full(5, 4.0), obs.camera)
+    _identify(algorithm, db, one, catalog)
 
 
 def _check_valid_ids(cls, algorithm, db, catalog, camera):
@@ -89,15 +118,45 @@ def _check_order_invariant(cls, algorithm, db, catalog, camera):
         base = _identify(algorithm, db, obs, catalog)
         for order in (np.arange(len(obs))[::-1], rng.permutation(len(obs))):
             permuted = _identify(algorithm, db, obs.permuted(order), catalog)
-            assert np.array_equal(permuted, base[order]), "reordering the input stars changed the answer"
+            _require(np.array_equal(permuted, base[order]), "reordering the input stars changed the answer")
 
 
 def _check_noise_free_identified(cls, algorithm, db, catalog, camera):
-    statuses = []
-    for obs in _trials(catalog, camera, NOISE_FREE, 10):
-        statuses.append(score_trial(_identify(algorithm, db, obs, catalog), obs.truth_hip, SuccessRule())["status"])
-    assert "misidentified" not in statuses, f"noise-free trials misidentified: {statuses}"
-    assert statuses.count("correct") >= 8, f"fewer than 8 of 10 noise-free trials identified: {statuses}"
+    statuses = [score_trial(_identify(algorithm, db, obs, catalog), obs.truth_hip, SuccessRule())["status"]
+                for obs in _trials(catalog, camera, NOISE_FREE, 10)]
+    _require(MISIDENTIFIED not in statuses, f"noise-free trials misidentified: {statuses}")
+    _require(statuses.count(CORRECT) >= 8, f"fewer than 8 of 10 noise-free trials identified: {statuses}")
+
+
+def _check_random_fields(cls, algorithm, db, catalog, camera):
+    rng = np.random.default_rng(SEED)
+    claimed = 0
+    for _ in range(RANDOM_FIELDS):
+        x = rng.uniform(0, camera.width_px, RANDOM_POINTS)
+        y = rng.uniform(0, camera.height_px, RANDOM_POINTS)
+        m = rng.uniform(2.0, 6.0, RANDOM_POINTS)
+        claimed += int((_identify(algorithm, db, Observation(x, y, m, camera), catalog) != -1).any())
+    _require(claimed <= RANDOM_FIELDS_ALLOWED,
+             f"identified stars in {claimed} of {RANDOM_FIELDS} fields of {RANDOM_POINTS} random points (no real "
+             f"star): at most {RANDOM_FIELDS_ALLOWED} allowed; verification is too lax")
+
+
+def _check_read_only_input(cls, algorithm, db, catalog, camera):
+    obs = _trials(catalog, camera, NOISY, 1)[0]
+    view = obs.for_plugin()
+    before = (view.x_px.copy(), view.y_px.copy(), view.mag.copy())
+    algorithm.identify(db, view)
+    _require(all(np.array_equal(a, b) for a, b in zip(before, (view.x_px, view.y_px, view.mag))),
+             "identify changed the observation it was handed")
+
+
+def _check_explain(cls, algorithm, db, catalog, camera):
+    if not hasattr(algorithm, "explain"):
+        return
+    for obs in _trials(catalog, camera, NOISY, 3):
+        result = algorithm.explain(db, obs.for_plugin())
+        _require(isinstance(result, Explanation), f"explain must return a starid.plugin.Explanation, got "
+                                                  f"{type(result).__name__}")
 
 
 _FUNCTIONS = {name: globals()[f"_check_{name}"] for name in CHECKS}
@@ -105,7 +164,7 @@ _FUNCTIONS = {name: globals()[f"_check_{name}"] for name in CHECKS}
 
 def check_algorithm(algorithm: type[Algorithm], checks=None, catalog: Catalog | None = None,
                     camera: Camera | None = None) -> list[str]:
-    """Run the named checks (default: all) on an algorithm class; AssertionError on the first failure."""
+    """Run the named checks (default: all) on an algorithm class; :class:`ConformanceError` on the first failure."""
     if not (isinstance(algorithm, type) and issubclass(algorithm, Algorithm)):
         raise TypeError(f"check_algorithm needs an Algorithm subclass, got {algorithm!r}")
     names = list(CHECKS if checks is None else checks)
@@ -119,9 +178,21 @@ def check_algorithm(algorithm: type[Algorithm], checks=None, catalog: Catalog | 
     for name in names:
         try:
             _FUNCTIONS[name](algorithm, instance, db, catalog, camera)
-        except AssertionError as exc:
-            raise AssertionError(f"{algorithm.name}: check {name!r} failed: {exc}") from None
+        except ConformanceError as exc:
+            raise ConformanceError(f"{algorithm.name}: check {name!r} failed: {exc}") from None
+        except Exception as exc:
+            raise ConformanceError(f"{algorithm.name}: check {name!r} raised {type(exc).__name__}: {exc}") from exc
     return names
 
 
-__all__ = ["CHECKS", "check_algorithm"]
+def run_checks(algorithm: type[Algorithm], catalog: Catalog | None = None, camera: Camera | None = None):
+    """Every check, one at a time: yields ``(check, "ok" | "FAILED", message)`` (the shell's ``starid check``)."""
+    for name in CHECKS:
+        try:
+            check_algorithm(algorithm, [name], catalog, camera)
+            yield name, "ok", ""
+        except ConformanceError as exc:
+            yield name, "FAILED", str(exc)
+
+
+__all__ = ["CHECKS", "ConformanceError", "check_algorithm", "run_checks"]

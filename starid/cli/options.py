@@ -85,7 +85,8 @@ def add_world(p: argparse.ArgumentParser, pos_default: float = 0.0, mag_default:
     g.add_argument("--merge-radius-px", type=float, default=2.0, help="stars closer than this merge")
     g.add_argument("--sky", choices=tuple(SKIES), default=None,
                    help="which stars are imaged: 'real' = every catalog star (V <= 8), 'paper' = the papers' "
-                        "guide stars only (V <= 6); default real")
+                        "guide stars only (V <= 6), 'fig10' = V <= 6.15 (calibrated on Zhou & Ye's Fig. 10 star "
+                        "counts); default real")
     g.add_argument("--sky-mag-limit", type=float, default=None,
                    help="image only catalog stars with V <= this (6.0 is the paper's sky)")
     g.add_argument("--catalog", help="CSV catalog (hip,ra_deg,dec_deg,vmag) instead of the embedded Hipparcos")
