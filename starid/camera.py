@@ -22,9 +22,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import ConfigError
 from .kernels import backproject_px, project_cam
-from .params import check_number
+from .params import check_number, check_whole
 
 
 @dataclass(frozen=True)
@@ -47,20 +46,22 @@ class Camera:
     cy_px: float | None = None
 
     def __post_init__(self):
+        for name in ("width_px", "height_px"):
+            check_whole(f"camera {name}", getattr(self, name), 1, 1_000_000)
+        for name in ("pixel_um", "focal_mm"):
+            check_number(f"camera {name}", getattr(self, name), lo=0, lo_open=True)
         if self.cx_px is None:
             object.__setattr__(self, "cx_px", self.width_px / 2.0)
         if self.cy_px is None:
             object.__setattr__(self, "cy_px", self.height_px / 2.0)
-        for name in ("width_px", "height_px", "pixel_um", "focal_mm"):
-            check_number(f"camera {name}", getattr(self, name), lo=0, lo_open=True)
         for name in ("cx_px", "cy_px"):
             check_number(f"camera {name}", getattr(self, name))
 
     @classmethod
     def from_fov(cls, fov_deg: float, resolution_px: int = 1024, pixel_um: float = 12.0) -> "Camera":
         """A square camera whose full field of view across the image width is ``fov_deg``."""
-        if not (0 < fov_deg < 180):
-            raise ConfigError(f"fov_deg must be in (0, 180), got {fov_deg!r}")
+        check_number("fov_deg", fov_deg, lo=0, hi=180, lo_open=True, hi_open=True)
+        check_whole("resolution_px", resolution_px, 1, 1_000_000)
         f_px = (resolution_px / 2.0) / math.tan(math.radians(fov_deg) / 2.0)
         return cls(width_px=resolution_px, height_px=resolution_px, pixel_um=pixel_um,
                    focal_mm=f_px * pixel_um / 1000.0)
