@@ -89,7 +89,9 @@ def _progress_bar(total: int, enabled: bool):
         return None
     from tqdm.auto import tqdm
 
-    return tqdm(total=total, desc="chunks", unit="chunk", leave=False)
+    # the first chunks of each worker build the databases and compile the kernels (numba, ~20 s
+    # on a first run): say so until the first chunk is back
+    return tqdm(total=total, desc="building databases, compiling kernels", unit="chunk", leave=False)
 
 
 def run_experiment(experiment: Experiment, out: str | Path | None = None, jobs: int | None = None,
@@ -122,6 +124,7 @@ def run_experiment(experiment: Experiment, out: str | Path | None = None, jobs: 
         else:
             done[task.chunk.key] = frame
         if bar is not None:
+            bar.set_description("chunks", refresh=False)
             bar.update(1)
 
     try:
