@@ -14,11 +14,11 @@ from starid.camera import Camera
 from starid.catalog import Catalog
 from starid.errors import ConfigError
 from starid.params import check_flag, check_number, check_whole
-from starid.kernels import kvector_build
+from starid.kernels import KVector, kvector_make, rad_to_chord
 from starid.observation import Observation
 from starid.plugin import Algorithm, Database, Identification
 
-from .kernels import build_triangles, identify_kernel
+from .kernels import Frame, Tables, Tolerances, build_triangles, identify_kernel
 
 #: Sides and D_ms are chords of unit vectors times this (section 2.1: 5 deg -> 872.8).
 CHORD_SCALE = 10000.0
@@ -28,8 +28,8 @@ CHORD_SCALE = 10000.0
 class PTPDatabase(Database):
     """The pattern database of section 2.1 (Table 1) plus its k-vector (Table 2).
 
-    proj : float32 (t,) projections p_r (eq. 3), ascending.
-    kvec : uint16/int32 (t,) k-vector over ``proj``; ``km``, ``kq`` its line (eq. 16).
+    kv : :class:`starid.kernels.KVector`: ``kv.values`` float32 (t,) the projections p_r (eq. 3),
+        ascending; ``kv.k`` uint16/int32 (t,) the k-vector, ``kv.m``, ``kv.q`` its line (eq. 16).
     ids : uint16/int32 (t, 3) guide-star rows of (r1, r2, r3) = (master, nearer slave, farther slave).
     sides : float32 (3, t) scaled sides a, b, c of eq. 1, one row per side (contiguous for the
         vectorised three-side check).
@@ -39,23 +39,30 @@ class PTPDatabase(Database):
         confirmation (float32: 0.02 arcsec, far below the tolerances).
     """
 
-    proj: np.ndarray
-    kvec: np.ndarray
+    kv: KVector
     ids: np.ndarray
     sides: np.ndarray
     mean: np.ndarray
     axis: np.ndarray
     guide_hip: np.ndarray
     guide_unit: np.ndarray
-    km: float
-    kq: float
     explained_variance: float
+
+    @property
+    def proj(self) -> np.ndarray:
+        """The sorted projections p_r (``kv.values``)."""
+        return self.kv.values
+
+    def tables(self) -> Tables:
+        """The arrays identify reads, as one kernel argument."""
+        return Tables(self.kv, self.ids, self.sides, self.mean, self.axis, self.guide_unit, self.guide_hip)
 
 
 @lru_cache(maxsize=16)
-def _fov_chord(camera: Camera) -> float:
-    """Chord from the boresight to the farthest image corner."""
-    return 2.0 * math.sin(camera.half_diagonal_rad / 2.0)
+def _frame(camera: Camera) -> Frame:
+    """The camera as the kernel needs it (``c_fov``: chord from the boresight to the farthest corner)."""
+    return Frame(float(camera.f_px), float(camera.cx_px), float(camera.cy_px), float(camera.width_px),
+                 float(camera.height_px), rad_to_chord(camera.half_diagonal_rad))
 
 
 def _index_dtype(n: int):
@@ -152,12 +159,20 @@ class PTP(Algorithm):
     @cached_property
     def _d_min(self) -> float:
         """d_min as a scaled chord (8.728 for 0.05 deg)."""
-        return CHORD_SCALE * 2.0 * math.sin(math.radians(self.d_min_deg) / 2.0)
+        return CHORD_SCALE * rad_to_chord(math.radians(self.d_min_deg))
 
     @cached_property
     def _d_max(self) -> float:
         """d_max as a scaled chord (872.8 for 5 deg)."""
-        return CHORD_SCALE * 2.0 * math.sin(math.radians(self.d_max_deg) / 2.0)
+        return CHORD_SCALE * rad_to_chord(math.radians(self.d_max_deg))
+
+    @cached_property
+    def _tol(self) -> Tolerances:
+        """The parameters as the kernel's tolerance bundle."""
+        return Tolerances(float(self.sigma_px), CHORD_SCALE, self._d_min, self._d_max, int(self.n_slaves),
+                          float(self.beta), float(self.side_beta), bool(self.exclude_doubles),
+                          bool(self.swap_slaves), int(self.min_shared), bool(self.majority), bool(self.verify),
+                          float(self.verify_min_fraction), float(self.confirm_fraction))
 
     def build(self, catalog: Catalog, camera: Camera) -> PTPDatabase:
         guide = catalog.brighter_than(self.mag_limit)
@@ -191,22 +206,13 @@ class PTP(Algorithm):
         axis = eigvec[:, -1] * np.sign(eigvec[:, -1].sum())
         proj = q @ axis                                   # eq. 3
         order = np.argsort(proj, kind="stable")
-        proj32 = proj[order].astype(np.float32)
-        kvec, km, kq = kvector_build(proj32.astype(np.float64))
-        return PTPDatabase(proj=proj32, kvec=kvec.astype(_index_dtype(len(order))),
-                           ids=ids[order].astype(_index_dtype(len(guide))),
+        kv = kvector_make(proj[order], values_dtype=np.float32, index_dtype=_index_dtype(len(order)))
+        return PTPDatabase(kv=kv, ids=ids[order].astype(_index_dtype(len(guide))),
                            sides=np.ascontiguousarray(sides[order].T, dtype=np.float32), mean=mean, axis=axis,
-                           guide_hip=guide_hip.astype(np.int32), guide_unit=unit.astype(np.float32), km=km, kq=kq,
+                           guide_hip=guide_hip.astype(np.int32), guide_unit=unit.astype(np.float32),
                            explained_variance=float(eigval[-1] / eigval.sum()))
 
     def identify(self, database: PTPDatabase, observation: Observation) -> Identification:
-        cam = observation.camera
-        f_px = cam.f_px
-        hip = identify_kernel(observation.x_px, observation.y_px, f_px, cam.cx_px, cam.cy_px, cam.width_px,
-                              cam.height_px, database.proj, database.kvec, database.km, database.kq, database.ids,
-                              database.sides, database.mean, database.axis, database.guide_unit,
-                              self.sigma_px / f_px, CHORD_SCALE, self._d_min, self._d_max, self.n_slaves, self.beta,
-                              self.side_beta, self.exclude_doubles, self.swap_slaves, self.min_shared, self.majority,
-                              self.verify, self.verify_min_fraction, self.confirm_fraction, _fov_chord(cam),
-                              database.guide_hip)
+        hip = identify_kernel(observation.x_px, observation.y_px, _frame(observation.camera), database.tables(),
+                              self._tol)
         return Identification(hip)

@@ -13,7 +13,7 @@ from starid.camera import Camera
 from starid.catalog import Catalog
 from starid.errors import ConfigError
 from starid.params import check_choice, check_flag, check_number, check_whole
-from starid.kernels import kvector_build
+from starid.kernels import KVector, kvector_make, rad_to_chord
 from starid.observation import Observation
 from starid.plugin import Algorithm, Database, Identification
 
@@ -29,8 +29,9 @@ class PVectorDatabase(Database):
     """One triangle per guide star, sorted by its P value, plus the guide stars.
 
     p_axis : float64 (3,) the P vector (first principal axis of the side vectors, sum > 0).
-    key : float32 (m,) P = p . d of every triangle, ascending.
-    kv_k : int32 (m,) k-vector over ``key``; ``kv_m``, ``kv_q`` its line (Mortari & Neta 2000).
+    kv : :class:`starid.kernels.KVector`: ``kv.values`` float32 (m,) the keys P = p . d of every
+        triangle, ascending; ``kv.k`` int32 (m,) the k-vector; ``kv.m``, ``kv.q`` its line
+        (Mortari & Neta 2000).
     tri_sides : float32 (m, 3) the side vector d (rad) in the order the key uses.
     tri_rows : int16/int32 (m, 3) guide rows of (S, N1, N2): main star, brighter (or nearer)
         neighbour, the other neighbour.
@@ -40,15 +41,21 @@ class PVectorDatabase(Database):
     """
 
     p_axis: np.ndarray
-    key: np.ndarray
-    kv_k: np.ndarray
-    kv_m: float
-    kv_q: float
+    kv: KVector
     tri_sides: np.ndarray
     tri_rows: np.ndarray
     unit_icrs: np.ndarray
     hip: np.ndarray
     explained_variance: float = float("nan")
+
+    @property
+    def key(self) -> np.ndarray:
+        """The sorted keys P (``kv.values``)."""
+        return self.kv.values
+
+    def tables(self) -> K.Tables:
+        """The arrays identify reads, as one kernel argument."""
+        return K.Tables(self.p_axis, self.kv, self.tri_sides, self.tri_rows, self.unit_icrs, self.hip)
 
 
 @dataclass(frozen=True)
@@ -155,26 +162,25 @@ class PVector(Algorithm):
         check_choice("neighbour_rule", self.neighbour_rule, NEIGHBOUR_RULES)
         check_choice("main_order", self.main_order, MAIN_ORDERS)
         check_flag("disc_inside_only", self.disc_inside_only)
-        params = np.zeros(K.N_PARAMS)
-        params[K.P_MAG_LIMIT] = self.mag_limit
-        params[K.P_CHORD_RMIN] = 2.0 * math.sin(0.5 * math.radians(self.min_sep_deg))
-        params[K.P_CHORD_R] = 2.0 * math.sin(0.5 * math.radians(self.pattern_radius_deg))
-        params[K.P_R_RAD] = math.radians(self.pattern_radius_deg)
-        params[K.P_SIGMA_PX] = self.sigma_px
-        params[K.P_BETA] = self.beta
-        params[K.P_K_MIN] = self.k_min
-        params[K.P_SORTED] = self.side_order == "sorted"
-        params[K.P_BRIGHTEST] = self.neighbour_rule == "brightest"
-        params[K.P_CENTRE] = self.main_order == "centre"
-        params[K.P_INSIDE_ONLY] = bool(self.disc_inside_only)
-        params.setflags(write=False)
-        object.__setattr__(self, "_params", params)
+        tol = K.Tolerances(
+            mag_limit=float(self.mag_limit),
+            c_rmin=rad_to_chord(math.radians(self.min_sep_deg)),
+            c_r=rad_to_chord(math.radians(self.pattern_radius_deg)),
+            r_rad=math.radians(self.pattern_radius_deg),
+            sigma_px=float(self.sigma_px),
+            beta=float(self.beta),
+            k_min=int(self.k_min),
+            sorted_sides=self.side_order == "sorted",
+            brightest=self.neighbour_rule == "brightest",
+            centre_first=self.main_order == "centre",
+            inside_only=bool(self.disc_inside_only))
+        object.__setattr__(self, "_tol", tol)
 
     # ------------------------------------------------------------------ build
     def _triangles(self, unit, v_mag, hip):
         """(S, N1, N2) rows of every guide star that has two neighbours, in row order."""
-        c_rmin = self._params[K.P_CHORD_RMIN]
-        c_r = self._params[K.P_CHORD_R]
+        c_rmin = self._tol.c_rmin
+        c_r = self._tol.c_r
         tree = cKDTree(unit)
         pairs = tree.query_pairs(c_r, output_type="ndarray")
         i = np.concatenate([pairs[:, 0], pairs[:, 1]])
@@ -217,16 +223,11 @@ class PVector(Algorithm):
             p_axis = -p_axis
         key = (sides @ p_axis).astype(np.float32)
         order = np.argsort(key, kind="stable")
-        key = np.ascontiguousarray(key[order])
-        k, m, q = kvector_build(key.astype(np.float64))
         row_dtype = np.int16 if unit.shape[0] <= np.iinfo(np.int16).max else np.int32
         hip_dtype = np.int32 if hip.max() <= np.iinfo(np.int32).max else np.int64
         return PVectorDatabase(
             p_axis=np.ascontiguousarray(p_axis, dtype=np.float64),
-            key=key,
-            kv_k=k.astype(np.int32),
-            kv_m=m,
-            kv_q=q,
+            kv=kvector_make(key[order], values_dtype=np.float32, index_dtype=np.int32),
             tri_sides=np.ascontiguousarray(sides[order], dtype=np.float32),
             tri_rows=np.ascontiguousarray(rows[order], dtype=row_dtype),
             unit_icrs=np.ascontiguousarray(unit, dtype=np.float32),
@@ -240,9 +241,8 @@ class PVector(Algorithm):
         if n < 3:
             return Identification.none(n)
         cam = observation.camera
-        hip, attitude, ok = K.identify_rows(
-            observation.x_px, observation.y_px, observation.mag, cam.f_px, float(cam.cx_px), float(cam.cy_px),
-            float(cam.width_px), float(cam.height_px), database.p_axis, database.key, database.kv_k,
-            database.kv_m, database.kv_q, database.tri_sides, database.tri_rows, database.unit_icrs,
-            database.hip, self._params)
+        frame = K.Frame(float(cam.f_px), float(cam.cx_px), float(cam.cy_px), float(cam.width_px),
+                        float(cam.height_px))
+        hip, attitude, ok = K.identify_rows(observation.x_px, observation.y_px, observation.mag, frame,
+                                            database.tables(), self._tol)
         return Identification(hip, attitude if ok else None)

@@ -10,29 +10,65 @@ with an angular tolerance is at least as loose as the angular test).
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 
-from starid.kernels import (backproject_px, chord_rows, chord_to_rad, keep_unique, kvector_range, reproject_assign,
-                            verify_pairwise, wahba_rows, z_band_rows)
+from starid.kernels import (KVector, backproject_px, chord_rows, chord_to_rad, keep_unique, kvector_query,
+                            reproject_assign, verify_pairwise, wahba_rows, z_band_rows)
 
 # The six vertex correspondences (observed vertex j -> database vertex PERMS[p, j]).
 PERMS = np.array([[0, 1, 2], [1, 2, 0], [2, 0, 1], [0, 2, 1], [2, 1, 0], [1, 0, 2]], dtype=np.int64)
 
-# Indices of ``params`` (a float64 array packed once by the algorithm class).
-P_MAG_LIMIT = 0      # guide-star magnitude limit applied to the observed (noisy) magnitudes
-P_CHORD_RMIN = 1     # chord of r_min
-P_CHORD_R = 2        # chord of the pattern radius R
-P_R_RAD = 3          # pattern radius R in radians (for the disc-inside test)
-P_SIGMA_PX = 4       # assumed centroid noise (px)
-P_BETA = 5           # tolerance factor: eps_d = beta * sqrt(2) * sigma_px / f_px
-P_K_MIN = 6          # confirmations needed beyond the three triangle stars
-P_SORTED = 7         # 1: sides sorted ascending; 0: sides in role order (S-N1, S-N2, N1-N2)
-P_BRIGHTEST = 8      # 1: two brightest neighbours; 0: two nearest
-P_CENTRE = 9         # 1: main stars ordered by distance to the image edge; 0: by brightness
-P_INSIDE_ONLY = 10   # 1: only main stars whose R-disc lies inside the image
-N_PARAMS = 11
+
+
+class Frame(NamedTuple):
+    """The camera as identify needs it: focal length and principal point (px), sensor size (px)."""
+
+    f_px: float
+    cx_px: float
+    cy_px: float
+    width_px: float
+    height_px: float
+
+
+class Tables(NamedTuple):
+    """What identify reads from :class:`~starid_algorithms.pvector.PVectorDatabase`, as one argument.
+
+    p_axis : (3,) the P vector; kv : :class:`starid.kernels.KVector` over the keys P (float32);
+    tri_sides : float32 (m, 3) side vectors (rad); tri_rows : (m, 3) guide rows of (S, N1, N2);
+    unit : float32 (n, 3) guide unit vectors (ICRS, z-sorted); hip : int64 (n,) their ids.
+    """
+
+    p_axis: np.ndarray
+    kv: KVector
+    tri_sides: np.ndarray
+    tri_rows: np.ndarray
+    unit: np.ndarray
+    hip: np.ndarray
+
+
+class Tolerances(NamedTuple):
+    """The parameters identify uses (see :class:`~starid_algorithms.pvector.PVector`).
+
+    mag_limit : guide-star limit applied to the measured magnitudes; c_rmin, c_r : chords of r_min
+    and R; r_rad : R in radians; sigma_px : assumed centroid noise; beta : tolerance factor
+    (eps_d = beta sqrt(2) sigma_px / f_px); k_min : confirmations beyond the triangle; sorted_sides,
+    brightest, centre_first, inside_only : the switches of the class parameters.
+    """
+
+    mag_limit: float
+    c_rmin: float
+    c_r: float
+    r_rad: float
+    sigma_px: float
+    beta: float
+    k_min: int
+    sorted_sides: bool
+    brightest: bool
+    centre_first: bool
+    inside_only: bool
 
 
 @njit(cache=True)
@@ -165,8 +201,7 @@ def match_extras(oc, tri_obs, cat_rows, unit, eps, c_band, out_row):
 
 
 @njit(cache=True)
-def identify_rows(x_px, y_px, mag, f_px, cx_px, cy_px, width_px, height_px,
-                  p_axis, key, kv_k, kv_m, kv_q, tri_sides, tri_rows, unit, hip, params):
+def identify_rows(x_px, y_px, mag, frame, db, tol):
     """``(hip, attitude, ok)``: catalog id per observed star (-1 = unidentified, input order),
     the ICRS -> camera attitude and whether the image was identified.
 
@@ -177,6 +212,8 @@ def identify_rows(x_px, y_px, mag, f_px, cx_px, cy_px, width_px, height_px,
     correspondence is verified (mutual consistency, attitude, re-identification from the
     attitude) and reported.
     """
+    f_px, cx_px, cy_px, width_px, height_px = frame.f_px, frame.cx_px, frame.cy_px, frame.width_px, frame.height_px
+    p_axis, tri_sides, tri_rows, unit, hip = db.p_axis, db.tri_sides, db.tri_rows, db.unit, db.hip
     n = x_px.shape[0]
     out = np.full(n, -1, dtype=np.int64)
     if n < 3:
@@ -188,18 +225,18 @@ def identify_rows(x_px, y_px, mag, f_px, cx_px, cy_px, width_px, height_px,
     ms = mag[canon]
     v = backproject_px(xs, ys, f_px, cx_px, cy_px)
 
-    mag_limit = params[P_MAG_LIMIT]
-    c_rmin = params[P_CHORD_RMIN]
-    c_r = params[P_CHORD_R]
+    mag_limit = tol.mag_limit
+    c_rmin = tol.c_rmin
+    c_r = tol.c_r
     # per-side tolerance: angle noise sqrt(2) sigma (notes 1.3); key tolerance ||p||_1 eps_d
-    eps = params[P_BETA] * math.sqrt(2.0) * params[P_SIGMA_PX] / f_px
+    eps = tol.beta * math.sqrt(2.0) * tol.sigma_px / f_px
     eps_key = (abs(p_axis[0]) + abs(p_axis[1]) + abs(p_axis[2])) * eps
-    k_min = int(params[P_K_MIN])
-    sorted_sides = params[P_SORTED] != 0.0
-    brightest = params[P_BRIGHTEST] != 0.0
-    centre_first = params[P_CENTRE] != 0.0
-    inside_only = params[P_INSIDE_ONLY] != 0.0
-    r_px = f_px * math.tan(params[P_R_RAD])
+    k_min = tol.k_min
+    sorted_sides = tol.sorted_sides
+    brightest = tol.brightest
+    centre_first = tol.centre_first
+    inside_only = tol.inside_only
+    r_px = f_px * math.tan(tol.r_rad)
     # chord from the boresight to the farthest image corner, plus the tolerance
     corners = backproject_px(np.array([0.0, width_px, 0.0, width_px]), np.array([0.0, 0.0, height_px, height_px]),
                              f_px, cx_px, cy_px)
@@ -243,7 +280,7 @@ def identify_rows(x_px, y_px, mag, f_px, cx_px, cy_px, width_px, height_px,
         c12 = chord_rows(v, n1, v, n2)
         d_obs = triangle_feature(chord_to_rad(c01), chord_to_rad(c02), chord_to_rad(c12), sorted_sides)
         p_obs = p_axis[0] * d_obs[0] + p_axis[1] * d_obs[1] + p_axis[2] * d_obs[2]
-        start, stop = kvector_range(key, kv_k, kv_m, kv_q, p_obs - eps_key, p_obs + eps_key)
+        start, stop = kvector_query(db.kv, p_obs - eps_key, p_obs + eps_key)
         if stop <= start:
             continue
         trip_obs = _triple(v[s], v[n1], v[n2])

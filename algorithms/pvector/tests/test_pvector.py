@@ -60,7 +60,7 @@ def test_database_invariants(algo, db, catalog):
     assert np.array_equal(np.sort(db.hip.astype(np.int64)), guide.hip)
     assert 0.95 * n < m <= n  # one triangle per guide star with two neighbours
     assert db.key.dtype == np.float32 and np.all(np.diff(db.key) >= 0)
-    assert db.kv_k.dtype == np.int32 and db.kv_k.shape == (m,)
+    assert db.kv.k.dtype == np.int32 and db.kv.k.shape == (m,)
     assert db.tri_rows.dtype == np.int16 and db.tri_rows.shape == (m, 3)
     assert db.tri_sides.dtype == np.float32 and db.tri_sides.shape == (m, 3)
     assert abs(np.linalg.norm(db.p_axis) - 1.0) < 1e-12 and db.p_axis.sum() > 0

@@ -18,7 +18,7 @@ def test_database_layout(db, catalog):
     assert 4_900 <= n_guide <= 5_100                       # V <= 6 minus close doubles
     assert 5.5 * n_guide < db.proj.size <= 6 * n_guide       # six triangles for (almost) every master
     assert np.all(np.diff(db.proj) >= 0)
-    assert db.ids.dtype == np.uint16 and db.kvec.dtype == np.uint16 and db.sides.dtype == np.float32
+    assert db.ids.dtype == np.uint16 and db.kv.k.dtype == np.uint16 and db.sides.dtype == np.float32
     assert db.nbytes / 1e6 <= 0.784                        # the paper's Table 6 memory
     assert np.linalg.norm(db.axis) == pytest.approx(1.0) and db.axis.sum() > 0
     # recompute one triangle from the catalog
