@@ -22,6 +22,8 @@ from .kernels import Frame, Tables, Tolerances, build_triangles, identify_kernel
 
 #: Sides and D_ms are chords of unit vectors times this (section 2.1: 5 deg -> 872.8).
 CHORD_SCALE = 10000.0
+#: Smallest centroid noise (px) the windows assume, whatever ``sigma_px`` says.
+SIGMA_FLOOR_PX = 1.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -110,7 +112,10 @@ class PTP(Algorithm):
       roles swapped, a neighbouring look-alike) are matched too and would wipe out true stars, so
       by default the pairing proposed by more distinct observed triangles wins (``majority``,
       reconstruction); ``majority=False`` drops every conflicting star;
-    * ``sigma_px`` is the centroid noise the tolerances assume (1 px in Table 6);
+    * ``sigma_px`` is the centroid noise the tolerances assume (1 px in Table 6). It follows the
+      simulator (``None``, the default: the harness sets it to the simulated noise), with a floor
+      of ``SIGMA_FLOOR_PX`` = 1 px so a noise-free world still gets windows wide enough for the
+      catalog's and the float32 tables' rounding (and today's 1 px results are unchanged);
     * ``verify`` (starid's extension, on by default): the paper stops after the sharing-star
       validation and computes the attitude "from the correctly identified stars"; starid checks
       the pairings' mutual angular distances first, because under the harness's rule one wrong
@@ -124,9 +129,10 @@ class PTP(Algorithm):
     """
 
     name: ClassVar[str] = "ptp"
+    follows: ClassVar[dict] = {"sigma_px": "sigma_px"}
 
     mag_limit: float = 6.0
-    sigma_px: float = 1.0
+    sigma_px: float | None = None
     n_slaves: int = 4
     d_min_deg: float = 0.05
     d_max_deg: float = 5.0
@@ -142,7 +148,8 @@ class PTP(Algorithm):
 
     def __post_init__(self):
         check_number("mag_limit", self.mag_limit)
-        check_number("sigma_px", self.sigma_px, lo=0, lo_open=True)   # it sets the search windows
+        if self.sigma_px is not None:
+            check_number("sigma_px", self.sigma_px, lo=0)   # None: follow the simulator
         check_whole("n_slaves", self.n_slaves, 2)
         check_number("d_min_deg", self.d_min_deg, lo=0)
         check_number("d_max_deg", self.d_max_deg, hi=90, hi_open=True)
@@ -155,6 +162,11 @@ class PTP(Algorithm):
             check_number(name, getattr(self, name), lo=0, hi=1)
         for name in ("exclude_doubles", "swap_slaves", "majority", "verify"):
             check_flag(name, getattr(self, name))
+
+    @property
+    def sigma_eff_px(self) -> float:
+        """The centroid noise the windows use: ``sigma_px`` (None = 0) floored at ``SIGMA_FLOOR_PX``."""
+        return max(self.sigma_px or 0.0, SIGMA_FLOOR_PX)
 
     @cached_property
     def _d_min(self) -> float:
@@ -169,7 +181,7 @@ class PTP(Algorithm):
     @cached_property
     def _tol(self) -> Tolerances:
         """The parameters as the kernel's tolerance bundle."""
-        return Tolerances(float(self.sigma_px), CHORD_SCALE, self._d_min, self._d_max, int(self.n_slaves),
+        return Tolerances(self.sigma_eff_px, CHORD_SCALE, self._d_min, self._d_max, int(self.n_slaves),
                           float(self.beta), float(self.side_beta), bool(self.exclude_doubles),
                           bool(self.swap_slaves), int(self.min_shared), bool(self.majority), bool(self.verify),
                           float(self.verify_min_fraction), float(self.confirm_fraction))

@@ -19,6 +19,8 @@ from starid.plugin import Algorithm, Database, Identification
 
 from . import kernels as K
 
+#: Smallest centroid noise (px) the tolerances assume, whatever ``sigma_px`` says.
+SIGMA_FLOOR_PX = 1.0
 SIDE_ORDERS = ("sorted", "role")
 NEIGHBOUR_RULES = ("brightest", "nearest")
 MAIN_ORDERS = ("centre", "brightness")
@@ -126,11 +128,14 @@ class PVector(Algorithm):
     """
 
     name: ClassVar[str] = "pvector"
+    follows: ClassVar[dict] = {"sigma_px": "sigma_px"}
 
     mag_limit: float = 6.0
     """Guide-star limit (V); applied to the catalog and to the measured magnitudes."""
-    sigma_px: float = 1.0
-    """Assumed centroid noise (px) from which every tolerance is derived (Table 6: 1 px)."""
+    sigma_px: float | None = None
+    """Assumed centroid noise (px) from which every tolerance is derived (Table 6: 1 px). ``None``
+    (default) follows the simulator; floored at ``SIGMA_FLOOR_PX`` = 1 px, so a noise-free world
+    still gets a window."""
     pattern_radius_deg: float = 4.0
     """R: neighbours lie within R of the main star (reconstructed; see the class docstring)."""
     min_sep_deg: float = 0.2
@@ -150,7 +155,8 @@ class PVector(Algorithm):
 
     def __post_init__(self):
         check_number("mag_limit", self.mag_limit)
-        check_number("sigma_px", self.sigma_px, lo=0, lo_open=True)
+        if self.sigma_px is not None:
+            check_number("sigma_px", self.sigma_px, lo=0)   # None: follow the simulator
         check_number("pattern_radius_deg", self.pattern_radius_deg, lo=0, hi=90, lo_open=True, hi_open=True)
         check_number("min_sep_deg", self.min_sep_deg, lo=0)
         check_number("beta", self.beta, lo=0, lo_open=True)
@@ -167,7 +173,7 @@ class PVector(Algorithm):
             c_rmin=rad_to_chord(math.radians(self.min_sep_deg)),
             c_r=rad_to_chord(math.radians(self.pattern_radius_deg)),
             r_rad=math.radians(self.pattern_radius_deg),
-            sigma_px=float(self.sigma_px),
+            sigma_px=max(self.sigma_px or 0.0, SIGMA_FLOOR_PX),
             beta=float(self.beta),
             k_min=int(self.k_min),
             sorted_sides=self.side_order == "sorted",

@@ -83,8 +83,17 @@ def test_paper_literal_variant_runs(catalog, camera, db):
     assert hip.shape == (len(obs),)
 
 
-@pytest.mark.parametrize("kwargs", [{"sigma_px": 0}, {"n_slaves": 1}, {"d_min_deg": 6.0}, {"min_shared": 4},
+@pytest.mark.parametrize("kwargs", [{"sigma_px": -1}, {"sigma_px": "1"}, {"n_slaves": 1}, {"d_min_deg": 6.0}, {"min_shared": 4},
                                     {"beta": -1}, {"verify_min_fraction": 2}, {"confirm_fraction": 1.5}])
 def test_invalid_parameters(kwargs):
     with pytest.raises(ConfigError):
         PTP(**kwargs)
+
+
+def test_sigma_px_follows_the_simulator_with_a_floor():
+    assert PTP.follows == {"sigma_px": "sigma_px"} and PTP().sigma_px is None
+    assert PTP().resolved(SimConfig(sigma_px=2.5)).sigma_px == 2.5
+    assert PTP(sigma_px=0.3).resolved(SimConfig(sigma_px=2.5)).sigma_px == 0.3      # pinned stays
+    assert PTP().sigma_eff_px == 1.0 and PTP(sigma_px=0.0).sigma_eff_px == 1.0
+    assert PTP().resolved(SimConfig()).sigma_eff_px == 1.0                            # noise-free: floor
+    assert PTP(sigma_px=2.0).sigma_eff_px == 2.0

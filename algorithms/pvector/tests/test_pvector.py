@@ -34,11 +34,11 @@ def test_registered_and_default_constructible():
     algo = PVector()
     assert algo.name == "pvector"
     assert "Yang" in PVector.summary() and "2007" in PVector.summary()
-    assert algo.params()["mag_limit"] == 6.0 and algo.params()["sigma_px"] == 1.0
+    assert algo.params()["mag_limit"] == 6.0 and algo.params()["sigma_px"] is None
 
 
 @pytest.mark.parametrize("kwargs", [
-    dict(mag_limit=float("nan")), dict(mag_limit="6"), dict(sigma_px=0.0), dict(sigma_px=-1.0),
+    dict(mag_limit=float("nan")), dict(mag_limit="6"), dict(sigma_px=-1.0),
     dict(sigma_px=float("inf")), dict(pattern_radius_deg=0.0), dict(pattern_radius_deg=95.0),
     dict(min_sep_deg=-0.1), dict(min_sep_deg=5.0, pattern_radius_deg=4.0), dict(beta=0.0),
     dict(k_min=-1), dict(k_min=1.5), dict(k_min=True), dict(side_order="perimeter"),
@@ -47,6 +47,14 @@ def test_registered_and_default_constructible():
 def test_parameter_validation(kwargs):
     with pytest.raises(ConfigError):
         PVector(**kwargs)
+
+
+def test_sigma_px_follows_the_simulator_with_a_floor():
+    assert PVector.follows == {"sigma_px": "sigma_px"}
+    assert PVector().resolved(SimConfig(sigma_px=2.5))._tol.sigma_px == 2.5
+    assert PVector(sigma_px=0.5).resolved(SimConfig(sigma_px=2.5)).sigma_px == 0.5    # pinned stays
+    assert PVector()._tol.sigma_px == 1.0 and PVector(sigma_px=0.0)._tol.sigma_px == 1.0
+    assert PVector().resolved(SimConfig())._tol.sigma_px == 1.0
 
 
 # ------------------------------------------------------------------------------- database
