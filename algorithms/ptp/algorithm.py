@@ -36,7 +36,7 @@ class PTPDatabase(Database):
     sides : float32 (3, t) scaled sides a, b, c of eq. 1, one row per side (contiguous for the
         vectorised three-side check).
     mean : float64 (3,) mean side vector; axis : float64 (3,) the projection axis u_max.
-    guide_hip : int32 (g,) catalog id of each guide row; guide rows are sorted by z (declination).
+    guide_hip : int64 (g,) catalog id of each guide row; guide rows are sorted by z (declination).
     guide_unit : float32 (g, 3) ICRS unit vectors of the guide stars, for verification and
         confirmation (float32: 0.02 arcsec, far below the tolerances).
     """
@@ -126,6 +126,11 @@ class PTP(Algorithm):
       stars where none are seen. The identification stands only if at least this fraction of
       the guide stars its attitude puts in the image is observed (magnitude noise hides some
       true ones, so not all).
+    * ``max_stars`` (time bound): only the brightest ``max_stars`` detections take part (100: never
+      binding on the Table 4 camera); ``max_candidates``: an image triangle whose window holds more
+      database triangles than this is skipped as uninformative (on very wide fields 1 px is degrees
+      and every triangle matches everything; 64 never binds on the Table 4 camera). Coincident
+      detections (distance 0) are never slaves, whatever ``d_min_deg``.
     """
 
     name: ClassVar[str] = "ptp"
@@ -145,6 +150,8 @@ class PTP(Algorithm):
     verify: bool = True
     verify_min_fraction: float = 0.5
     confirm_fraction: float = 0.5
+    max_stars: int = 100
+    max_candidates: int = 64
 
     def __post_init__(self):
         check_number("mag_limit", self.mag_limit)
@@ -158,6 +165,8 @@ class PTP(Algorithm):
         for name in ("beta", "side_beta"):
             check_number(name, getattr(self, name), lo=0, lo_open=True)
         check_whole("min_shared", self.min_shared, 0, 3)
+        check_whole("max_stars", self.max_stars, 3, 10_000)
+        check_whole("max_candidates", self.max_candidates, 1)
         for name in ("verify_min_fraction", "confirm_fraction"):
             check_number(name, getattr(self, name), lo=0, hi=1)
         for name in ("exclude_doubles", "swap_slaves", "majority", "verify"):
@@ -184,7 +193,8 @@ class PTP(Algorithm):
         return Tolerances(self.sigma_eff_px, CHORD_SCALE, self._d_min, self._d_max, int(self.n_slaves),
                           float(self.beta), float(self.side_beta), bool(self.exclude_doubles),
                           bool(self.swap_slaves), int(self.min_shared), bool(self.majority), bool(self.verify),
-                          float(self.verify_min_fraction), float(self.confirm_fraction))
+                          float(self.verify_min_fraction), float(self.confirm_fraction), int(self.max_stars),
+                          int(self.max_candidates))
 
     def build(self, catalog: Catalog, camera: Camera) -> PTPDatabase:
         guide = catalog.brighter_than(self.mag_limit)
@@ -221,10 +231,10 @@ class PTP(Algorithm):
         kv = kvector_make(proj[order], values_dtype=np.float32, index_dtype=_index_dtype(len(order)))
         return PTPDatabase(kv=kv, ids=ids[order].astype(_index_dtype(len(guide))),
                            sides=np.ascontiguousarray(sides[order].T, dtype=np.float32), mean=mean, axis=axis,
-                           guide_hip=guide_hip.astype(np.int32), guide_unit=unit.astype(np.float32),
+                           guide_hip=guide_hip.astype(np.int64), guide_unit=unit.astype(np.float32),
                            explained_variance=float(eigval[-1] / eigval.sum()))
 
     def identify(self, database: PTPDatabase, observation: Observation) -> Identification:
-        hip = identify_kernel(observation.x_px, observation.y_px, _frame(observation.camera), database.tables(),
-                              self._tol)
+        hip = identify_kernel(observation.x_px, observation.y_px, observation.mag, _frame(observation.camera),
+                              database.tables(), self._tol)
         return Identification(hip)

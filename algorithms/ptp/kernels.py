@@ -62,6 +62,8 @@ class Tolerances(NamedTuple):
     verify: bool
     verify_min_fraction: float
     confirm_fraction: float
+    max_stars: int
+    max_candidates: int
 
 
 @njit(cache=True)
@@ -78,6 +80,8 @@ def _before(dist, unit, i, j):
 def nearest_slaves(dist_row, unit, usable, master, d_min, d_max, n_slaves, out):
     """The ``n_slaves`` usable stars nearest ``master`` with ``d_min <= D_ms <= d_max`` (eq. 2), nearest first.
 
+    A star at distance 0 (a coincident detection) is never a slave, whatever ``d_min``.
+
     ``dist_row[j]`` is the scaled chord ``D_ms`` from the master to star ``j``. Writes them to
     ``out`` and returns how many there are.
     """
@@ -86,7 +90,7 @@ def nearest_slaves(dist_row, unit, usable, master, d_min, d_max, n_slaves, out):
     while m < n_slaves:
         pick = -1
         for j in range(n):
-            if j == master or not usable[j] or not (d_min <= dist_row[j] <= d_max):
+            if j == master or not usable[j] or not (d_min <= dist_row[j] <= d_max) or dist_row[j] <= 0.0:
                 continue
             taken = False
             for t in range(m):
@@ -238,8 +242,46 @@ def _triple_key(i, j, k, n):
 
 
 @njit(cache=True)
-def identify_kernel(x_px, y_px, frame, db, tol):
-    """PTP identification of one image (sections 2.2-2.3). Returns the HIP per star (-1 = none).
+def select_stars(x_px, y_px, mag, max_stars):
+    """Indices of the ``max_stars`` brightest detections (ties: by x, then y), brightest first."""
+    n = x_px.shape[0]
+    order = np.arange(n)
+    for i in range(1, n):      # insertion sort on (mag, x, y): images are small, and it is input-order free
+        j = i
+        while j > 0:
+            a = order[j]
+            b = order[j - 1]
+            if mag[a] < mag[b] or (mag[a] == mag[b] and (x_px[a] < x_px[b] or (x_px[a] == x_px[b]
+                                                                                  and y_px[a] < y_px[b]))):
+                order[j] = b
+                order[j - 1] = a
+                j -= 1
+            else:
+                break
+    return order[:min(n, max_stars)].copy()
+
+
+@njit(cache=True)
+def identify_kernel(x_px, y_px, mag, frame, db, tol):
+    """The catalog id of each detection (-1 = none): :func:`match_rows` on the ``tol.max_stars``
+    brightest detections (all of them when there are fewer)."""
+    n = x_px.shape[0]
+    hip = np.full(n, -1, dtype=np.int64)
+    if n < 3:
+        return hip
+    sel = select_stars(x_px, y_px, mag, tol.max_stars)
+    unit = backproject_px(x_px[sel], y_px[sel], frame.f_px, frame.cx_px, frame.cy_px)
+    rows = match_rows(unit, frame, db, tol)
+    for s in range(sel.shape[0]):
+        if rows[s] >= 0:
+            hip[sel[s]] = db.guide_hip[rows[s]]
+    return hip
+
+
+@njit(cache=True)
+def match_rows(unit, frame, db, tol):
+    """PTP identification of one image (sections 2.2-2.3) from the detections' camera-frame unit
+    vectors ``unit``: the guide row of each (-1 = none).
 
     1. Every star is a master; its slaves are the ``n_slaves`` nearest stars in
        ``[d_min, d_max]`` (same rule as the database); triangles (m, s_i, s_j), i < j. With
@@ -270,11 +312,10 @@ def identify_kernel(x_px, y_px, frame, db, tol):
     scale, d_min, d_max, n_slaves = tol.scale, tol.d_min, tol.d_max, tol.n_slaves
     side_beta, exclude_doubles, majority = tol.side_beta, tol.exclude_doubles, tol.majority
     n_guide = guide_unit.shape[0]
-    n = x_px.shape[0]
+    n = unit.shape[0]
     result = np.full(n, -1, dtype=np.int64)
     if n < 3:
         return result   # all -1
-    unit = backproject_px(x_px, y_px, f_px, cx_px, cy_px)
     dist = np.empty((n, n))
     usable = np.ones(n, dtype=np.bool_)
     for i in range(n):
@@ -306,6 +347,8 @@ def identify_kernel(x_px, y_px, frame, db, tol):
                 s2 = slaves[ib]
                 d1 = dist[master, s1]
                 d2 = dist[master, s2]
+                if dist[s1, s2] <= 0.0:
+                    continue    # coincident slaves make no triangle
                 tol_swap = side_beta * scale * side_sigma(max(d1, d2) / scale, sigma)
                 n_orders = 2 if (tol.swap_slaves and abs(d2 - d1) <= tol_swap) else 1
                 for o in range(n_orders):
@@ -317,6 +360,8 @@ def identify_kernel(x_px, y_px, frame, db, tol):
                     if stop - start > cand.shape[0]:
                         cand = np.empty(2 * (stop - start), dtype=np.int64)
                     nc = _side_check(sides, start, stop, db.sides, sigma, scale, side_beta, cand)
+                    if nc > tol.max_candidates:
+                        continue    # an uninformative triangle (a window far wider than the catalog's spacing)
                     for c in range(nc):
                         if n_match == m_cap:
                             m_cap *= 2
@@ -412,8 +457,4 @@ def identify_kernel(x_px, y_px, frame, db, tol):
                                                f_px, cx_px, cy_px, frame.width_px, frame.height_px)
         if n_seen < tol.confirm_fraction * n_predicted:
             result[:] = -1
-    hip = np.full(n, -1, dtype=np.int64)
-    for s in range(n):
-        if result[s] >= 0:
-            hip[s] = db.guide_hip[result[s]]
-    return hip
+    return result

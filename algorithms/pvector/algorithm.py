@@ -38,7 +38,7 @@ class PVectorDatabase(Database):
     tri_rows : int16/int32 (m, 3) guide rows of (S, N1, N2): main star, brighter (or nearer)
         neighbour, the other neighbour.
     unit_icrs : float32 (n, 3) guide-star unit vectors, sorted by z (declination bands).
-    hip : int32/int64 (n,) the HIP number of each guide row.
+    hip : int64 (n,) the catalog id (HIP) of each guide row.
     explained_variance : fraction of the side-vector variance along p (build diagnostic).
     """
 
@@ -152,6 +152,12 @@ class PVector(Algorithm):
     """'centre' (edge distance, notes 2.5.4) or 'brightness' (reconstructed alternatives)."""
     disc_inside_only: bool = False
     """Only use main stars whose R-disc lies inside the image (strict notes 2.5.4)."""
+    max_stars: int = 100
+    """Only the brightest ``max_stars`` detections take part (a time bound for crowded or wide images)."""
+    max_candidates: int = 64
+    """A main star whose triangle matches more database triangles than this is skipped (uninformative)."""
+    confirm_fraction: float = 0.5
+    """The attitude must find at least this fraction of the guide stars it puts in the image (0: off)."""
 
     def __post_init__(self):
         check_number("mag_limit", self.mag_limit)
@@ -168,6 +174,9 @@ class PVector(Algorithm):
         check_choice("neighbour_rule", self.neighbour_rule, NEIGHBOUR_RULES)
         check_choice("main_order", self.main_order, MAIN_ORDERS)
         check_flag("disc_inside_only", self.disc_inside_only)
+        check_whole("max_stars", self.max_stars, 3, 10_000)
+        check_whole("max_candidates", self.max_candidates, 1)
+        check_number("confirm_fraction", self.confirm_fraction, lo=0, hi=1)
         tol = K.Tolerances(
             mag_limit=float(self.mag_limit),
             c_rmin=rad_to_chord(math.radians(self.min_sep_deg)),
@@ -179,7 +188,10 @@ class PVector(Algorithm):
             sorted_sides=self.side_order == "sorted",
             brightest=self.neighbour_rule == "brightest",
             centre_first=self.main_order == "centre",
-            inside_only=bool(self.disc_inside_only))
+            inside_only=bool(self.disc_inside_only),
+            max_stars=int(self.max_stars),
+            max_candidates=int(self.max_candidates),
+            confirm_fraction=float(self.confirm_fraction))
         object.__setattr__(self, "_tol", tol)
 
     # ------------------------------------------------------------------ build
@@ -230,14 +242,13 @@ class PVector(Algorithm):
         key = (sides @ p_axis).astype(np.float32)
         order = np.argsort(key, kind="stable")
         row_dtype = np.int16 if unit.shape[0] <= np.iinfo(np.int16).max else np.int32
-        hip_dtype = np.int32 if hip.max() <= np.iinfo(np.int32).max else np.int64
         return PVectorDatabase(
             p_axis=np.ascontiguousarray(p_axis, dtype=np.float64),
             kv=kvector_make(key[order], values_dtype=np.float32, index_dtype=np.int32),
             tri_sides=np.ascontiguousarray(sides[order], dtype=np.float32),
             tri_rows=np.ascontiguousarray(rows[order], dtype=row_dtype),
             unit_icrs=np.ascontiguousarray(unit, dtype=np.float32),
-            hip=hip.astype(hip_dtype),
+            hip=hip.astype(np.int64),
             explained_variance=float(eigval[-1] / eigval.sum()),
         )
 

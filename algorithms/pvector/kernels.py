@@ -69,6 +69,9 @@ class Tolerances(NamedTuple):
     brightest: bool
     centre_first: bool
     inside_only: bool
+    max_stars: int
+    max_candidates: int
+    confirm_fraction: float
 
 
 @njit(cache=True)
@@ -125,7 +128,7 @@ def select_neighbours(v, mag, eligible, centre, c_rmin, c_r, brightest, x_px, y_
         if j == centre or not eligible[j]:
             continue
         d = chord_rows(v, centre, v, j)
-        if d < c_rmin or d > c_r:
+        if d < c_rmin or d > c_r or d <= 0.0:   # a coincident detection is never a neighbour
             continue
         k = mag[j] if brightest else d
         if best1 < 0 or _ranks_before(x_px, y_px, j, k, d, best1, k1, d1):
@@ -214,12 +217,14 @@ def identify_rows(x_px, y_px, mag, frame, db, tol):
     """
     f_px, cx_px, cy_px, width_px, height_px = frame.f_px, frame.cx_px, frame.cy_px, frame.width_px, frame.height_px
     p_axis, tri_sides, tri_rows, unit, hip = db.p_axis, db.tri_sides, db.tri_rows, db.unit, db.hip
-    n = x_px.shape[0]
-    out = np.full(n, -1, dtype=np.int64)
-    if n < 3:
+    out = np.full(x_px.shape[0], -1, dtype=np.int64)
+    if x_px.shape[0] < 3:
         return out, np.eye(3), False
+    # only the max_stars brightest detections take part (ties by position)
+    sel = _sort_by(mag, x_px, y_px)[:min(x_px.shape[0], tol.max_stars)]
+    n = sel.shape[0]
     # canonical order: the answer cannot depend on the input order
-    canon = _sort_by(x_px, x_px, y_px)
+    canon = sel[_sort_by(x_px[sel], x_px[sel], y_px[sel])]
     xs = x_px[canon]
     ys = y_px[canon]
     ms = mag[canon]
@@ -292,6 +297,13 @@ def identify_rows(x_px, y_px, mag, frame, db, tol):
         for i in range(n):
             c_band = max(c_band, oc[i, 0])
         c_band += eps
+        n_side = 0
+        for t in range(start, stop):
+            if (abs(tri_sides[t, 0] - d_obs[0]) <= eps and abs(tri_sides[t, 1] - d_obs[1]) <= eps
+                    and abs(tri_sides[t, 2] - d_obs[2]) <= eps):
+                n_side += 1
+        if n_side > tol.max_candidates:
+            continue    # an uninformative triangle: its window is far wider than the catalog's spacing
         n_found = 0
         ambiguous = False
         for t in range(start, stop):
@@ -340,13 +352,14 @@ def identify_rows(x_px, y_px, mag, frame, db, tol):
         # attitude from the consistent stars, then every star re-identified from it (twice, the
         # second attitude using the larger, better spread set)
         n_assigned = 0
+        n_predicted = 0
         for _ in range(2):
             attitude = wahba_rows(v, rows_best, unit)
-            n_assigned, _ = reproject_assign(attitude, v, unit, c_fov, eps, rows_try, f_px, cx_px, cy_px,
-                                             width_px, height_px)
+            n_assigned, n_predicted = reproject_assign(attitude, v, unit, c_fov, eps, rows_try, f_px, cx_px, cy_px,
+                                                       width_px, height_px)
             for i in range(n):
                 rows_best[i] = rows_try[i]
-        if n_assigned < 3 + k_min:
+        if n_assigned < 3 + k_min or n_assigned < tol.confirm_fraction * n_predicted:
             continue
         for i in range(n):
             if rows_best[i] >= 0:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import time
 
 import numpy as np
 import pytest
@@ -11,6 +12,7 @@ from starid import Camera, Catalog, ConfigError, Observation, SimConfig, Simulat
 from starid.harness import run, summarize
 from starid.plugin import check_identification
 from starid.registry import get_algorithm
+from starid.testing import CHECKS, check_algorithm
 from starid_algorithms.pvector import PVector, PVectorDatabase
 
 
@@ -43,6 +45,7 @@ def test_registered_and_default_constructible():
     dict(min_sep_deg=-0.1), dict(min_sep_deg=5.0, pattern_radius_deg=4.0), dict(beta=0.0),
     dict(k_min=-1), dict(k_min=1.5), dict(k_min=True), dict(side_order="perimeter"),
     dict(neighbour_rule="faintest"), dict(main_order="random"), dict(disc_inside_only=1),
+    dict(max_stars=2), dict(max_candidates=0), dict(confirm_fraction=1.5),
 ])
 def test_parameter_validation(kwargs):
     with pytest.raises(ConfigError):
@@ -184,3 +187,55 @@ def test_magnitude_noise_hurts_as_in_the_paper(catalog):
     assert rates["pos"].id_rate >= 0.92
     assert rates["mag"].id_rate < rates["pos"].id_rate - 0.05
     assert rates["mag"].misid_rate <= 0.01
+
+
+# ------------------------------------------------------------------------------------ trust (issue 10)
+def test_ids_beyond_int32(catalog, camera):
+    cat = catalog.brighter_than(6.5)
+    offset = Catalog.from_arrays(cat.hip + 2**31, cat.ra_deg, cat.dec_deg, cat.v_mag, name="offset")
+    db = PVector().build(offset, camera)
+    assert db.hip.dtype == np.int64 and db.hip.min() > 2**31
+    sim = Simulator(offset, camera, SimConfig(sigma_px=0.5), seed=4)
+    s = summarize(run([PVector()], sim.generate(30), offset, sim)).iloc[0]
+    assert s["error_rate"] == 0 and s["id_rate"] >= 0.8 and s["misid_rate"] == 0
+
+
+def test_random_fields_give_nothing(algo, db, camera):
+    rng = np.random.default_rng(2024)
+    claimed = 0
+    for _ in range(40):
+        obs = Observation(rng.uniform(0, 1024, 30), rng.uniform(0, 1024, 30), rng.uniform(2, 6, 30), camera)
+        claimed += int(np.any(algo.identify(db, obs).hip >= 0))
+    assert claimed == 0
+
+
+def test_coincident_detections(catalog, camera, db):
+    sim = Simulator(catalog, camera, SimConfig(sigma_px=0.5), seed=8)
+    for min_sep in (0.2, 0.0):
+        algo = PVector(min_sep_deg=min_sep)
+        base = db if min_sep else algo.build(catalog, camera)
+        for t in range(5):
+            o = sim.observation(t)
+            dup = Observation(np.append(o.x_px, o.x_px[:2]), np.append(o.y_px, o.y_px[:2]),
+                              np.append(o.mag, o.mag[:2]), camera)
+            hip = check_identification(algo.identify(base, dup), len(dup), catalog.hip).hip
+            truth = np.append(o.truth_hip, o.truth_hip[:2])
+            assert not np.any((hip >= 0) & (hip != truth))
+
+
+@pytest.mark.parametrize("fov_deg", [170.0, 40.0])
+def test_wide_field_finishes_quickly(catalog, fov_deg):
+    cam = Camera.from_fov(fov_deg)
+    algo = PVector()
+    db = algo.build(catalog, cam)
+    obs = Simulator(catalog, cam, SimConfig(sigma_px=1.0, sigma_mag=0.5), seed=1).observation(1)
+    algo.identify(db, obs)                     # compile
+    t0 = time.perf_counter()
+    hip = algo.identify(db, obs).hip
+    assert time.perf_counter() - t0 < 2.0
+    assert not np.any((hip >= 0) & (hip != obs.truth_hip))   # 40 deg: was 6 wrong ids before confirm_fraction
+
+
+@pytest.mark.parametrize("check", CHECKS)
+def test_conformance(check):
+    check_algorithm(PVector, checks=[check])
