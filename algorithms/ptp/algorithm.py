@@ -48,6 +48,8 @@ class PTPDatabase(Database):
     axis: np.ndarray
     guide_hip: np.ndarray
     guide_unit: np.ndarray
+    deep_unit: np.ndarray
+    deep_hip: np.ndarray
     explained_variance: float
 
     @property
@@ -57,7 +59,8 @@ class PTPDatabase(Database):
 
     def tables(self) -> Tables:
         """The arrays identify reads, as one kernel argument."""
-        return Tables(self.kv, self.ids, self.sides, self.mean, self.axis, self.guide_unit, self.guide_hip)
+        return Tables(self.kv, self.ids, self.sides, self.mean, self.axis, self.guide_unit, self.guide_hip,
+                      self.deep_unit, self.deep_hip)
 
 
 @lru_cache(maxsize=16)
@@ -65,6 +68,17 @@ def _frame(camera: Camera) -> Frame:
     """The camera as the kernel needs it (``c_fov``: chord from the boresight to the farthest corner)."""
     return Frame(float(camera.f_px), float(camera.cx_px), float(camera.cy_px), float(camera.width_px),
                  float(camera.height_px), rad_to_chord(camera.half_diagonal_rad))
+
+
+def _deep(catalog: Catalog, limit: float | None) -> dict:
+    """The deep catalog (V <= ``limit``) for ``assign_all``: z-sorted float32 unit vectors and int64 ids
+    (empty when ``limit`` is None)."""
+    if limit is None:
+        return {"deep_unit": np.zeros((0, 3), dtype=np.float32), "deep_hip": np.zeros(0, dtype=np.int64)}
+    deep = catalog.brighter_than(limit)
+    by_z = np.argsort(deep.unit_icrs[:, 2], kind="stable")
+    return {"deep_unit": np.ascontiguousarray(deep.unit_icrs[by_z], dtype=np.float32),
+            "deep_hip": deep.hip[by_z].astype(np.int64)}
 
 
 def _index_dtype(n: int):
@@ -152,6 +166,10 @@ class PTP(Algorithm):
     confirm_fraction: float = 0.5
     max_stars: int = 100
     max_candidates: int = 64
+    image_slaves: int = 6
+    mag_margin: float = 0.5
+    assign_all: bool = False
+    deep_mag_limit: float = 7.5
 
     def __post_init__(self):
         check_number("mag_limit", self.mag_limit)
@@ -167,6 +185,10 @@ class PTP(Algorithm):
         check_whole("min_shared", self.min_shared, 0, 3)
         check_whole("max_stars", self.max_stars, 3, 10_000)
         check_whole("max_candidates", self.max_candidates, 1)
+        check_whole("image_slaves", self.image_slaves, 2)
+        check_number("mag_margin", self.mag_margin)
+        check_number("deep_mag_limit", self.deep_mag_limit)
+        check_flag("assign_all", self.assign_all)
         for name in ("verify_min_fraction", "confirm_fraction"):
             check_number(name, getattr(self, name), lo=0, hi=1)
         for name in ("exclude_doubles", "swap_slaves", "majority", "verify"):
@@ -194,7 +216,8 @@ class PTP(Algorithm):
                           float(self.beta), float(self.side_beta), bool(self.exclude_doubles),
                           bool(self.swap_slaves), int(self.min_shared), bool(self.majority), bool(self.verify),
                           float(self.verify_min_fraction), float(self.confirm_fraction), int(self.max_stars),
-                          int(self.max_candidates))
+                          int(self.max_candidates), int(self.image_slaves), float(self.mag_limit + self.mag_margin),
+                          bool(self.assign_all))
 
     def build(self, catalog: Catalog, camera: Camera) -> PTPDatabase:
         guide = catalog.brighter_than(self.mag_limit)
@@ -232,6 +255,7 @@ class PTP(Algorithm):
         return PTPDatabase(kv=kv, ids=ids[order].astype(_index_dtype(len(guide))),
                            sides=np.ascontiguousarray(sides[order].T, dtype=np.float32), mean=mean, axis=axis,
                            guide_hip=guide_hip.astype(np.int64), guide_unit=unit.astype(np.float32),
+                           **_deep(catalog, self.deep_mag_limit if self.assign_all else None),
                            explained_variance=float(eigval[-1] / eigval.sum()))
 
     def identify(self, database: PTPDatabase, observation: Observation) -> Identification:

@@ -31,6 +31,8 @@ class Tables(NamedTuple):
     ids : (t, 3) guide rows of (r1, r2, r3); sides : float32 (3, t) scaled sides a, b, c (eq. 1).
     mean : (3,) mean side vector; axis : (3,) projection axis u_max.
     guide_unit : float32 (g, 3) guide unit vectors (ICRS, z-sorted); guide_hip : int64 (g,) their ids.
+    deep_unit : float32 (d, 3) the deeper catalog stars for ``assign_all`` (z-sorted; may be empty);
+    deep_hip : int64 (d,) their ids.
     """
 
     kv: KVector
@@ -40,6 +42,8 @@ class Tables(NamedTuple):
     axis: np.ndarray
     guide_unit: np.ndarray
     guide_hip: np.ndarray
+    deep_unit: np.ndarray
+    deep_hip: np.ndarray
 
 
 class Tolerances(NamedTuple):
@@ -64,6 +68,9 @@ class Tolerances(NamedTuple):
     confirm_fraction: float
     max_stars: int
     max_candidates: int
+    image_slaves: int
+    star_mag_max: float
+    assign_all: bool
 
 
 @njit(cache=True)
@@ -263,19 +270,64 @@ def select_stars(x_px, y_px, mag, max_stars):
 
 @njit(cache=True)
 def identify_kernel(x_px, y_px, mag, frame, db, tol):
-    """The catalog id of each detection (-1 = none): :func:`match_rows` on the ``tol.max_stars``
-    brightest detections (all of them when there are fewer)."""
+    """The catalog id of each detection (-1 = none) and whether an attitude was found.
+
+    :func:`match_rows` runs on the ``tol.max_stars`` brightest detections whose measured magnitude
+    is at most ``tol.star_mag_max`` (the flight precaution: a star that cannot be in the database
+    makes no pattern). With ``tol.assign_all`` the attitude of the identified stars then assigns
+    every detection to the deep catalog star predicted within the tolerance
+    (``starid.kernels.reproject_assign``, one-to-one only).
+    """
     n = x_px.shape[0]
     hip = np.full(n, -1, dtype=np.int64)
     if n < 3:
         return hip
     sel = select_stars(x_px, y_px, mag, tol.max_stars)
+    k = 0
+    while k < sel.shape[0] and mag[sel[k]] <= tol.star_mag_max:
+        k += 1
+    sel = sel[:k]
+    if k < 3:
+        return hip
     unit = backproject_px(x_px[sel], y_px[sel], frame.f_px, frame.cx_px, frame.cy_px)
     rows = match_rows(unit, frame, db, tol)
+    n_found = 0
     for s in range(sel.shape[0]):
         if rows[s] >= 0:
             hip[sel[s]] = db.guide_hip[rows[s]]
+            n_found += 1
+    if tol.assign_all and n_found >= 3 and db.deep_unit.shape[0] > 0:
+        assign_deep(x_px, y_px, frame, db.guide_unit, rows, unit, db.deep_unit, db.deep_hip,
+                    tol.side_beta * math.sqrt(2.0) * tol.sigma_px / frame.f_px, hip)
     return hip
+
+
+@njit(cache=True)
+def assign_deep(x_px, y_px, frame, guide_unit, rows, unit, deep_unit, deep_hip, tol_chord, hip):
+    """The standard final step: the attitude of the identified stars (``rows`` of ``unit``) assigns
+    every detection to the deep catalog star predicted within ``tol_chord`` of it (one-to-one).
+    Detections left unassigned keep the id they had in ``hip`` unless the deep assignment gave that
+    id to another detection. Updates ``hip`` in place."""
+    n = x_px.shape[0]
+    attitude = wahba_rows(unit, rows, guide_unit)
+    v_all = backproject_px(x_px, y_px, frame.f_px, frame.cx_px, frame.cy_px)
+    deep_rows = np.empty(n, dtype=np.int64)
+    reproject_assign(attitude, v_all, deep_unit, frame.c_fov + tol_chord, tol_chord, deep_rows, frame.f_px,
+                     frame.cx_px, frame.cy_px, frame.width_px, frame.height_px)
+    out = np.full(n, -1, dtype=np.int64)
+    for i in range(n):
+        if deep_rows[i] >= 0:
+            out[i] = deep_hip[deep_rows[i]]
+    for i in range(n):
+        if out[i] < 0 and hip[i] >= 0:
+            taken = False
+            for j in range(n):
+                if out[j] == hip[i]:
+                    taken = True
+            if not taken:
+                out[i] = hip[i]
+    for i in range(n):
+        hip[i] = out[i]
 
 
 @njit(cache=True)
@@ -328,7 +380,8 @@ def match_rows(unit, frame, db, tol):
                 usable[i] = False
                 usable[j] = False
     cand = np.empty(1024, dtype=np.int64)
-    slaves = np.empty(n_slaves, dtype=np.int64)
+    n_img_slaves = max(n_slaves, tol.image_slaves)
+    slaves = np.empty(n_img_slaves, dtype=np.int64)
     # match records: image triangle id, image stars (3), guide stars (3)
     m_cap = 256
     m_tri = np.empty(m_cap, dtype=np.int64)
@@ -340,7 +393,7 @@ def match_rows(unit, frame, db, tol):
     for master in range(n):
         if not usable[master]:
             continue
-        k = nearest_slaves(dist[master], unit, usable, master, d_min, d_max, n_slaves, slaves)
+        k = nearest_slaves(dist[master], unit, usable, master, d_min, d_max, n_img_slaves, slaves)
         for ia in range(k):
             for ib in range(ia + 1, k):
                 s1 = slaves[ia]

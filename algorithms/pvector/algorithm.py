@@ -24,6 +24,18 @@ SIGMA_FLOOR_PX = 1.0
 SIDE_ORDERS = ("sorted", "role")
 NEIGHBOUR_RULES = ("brightest", "nearest")
 MAIN_ORDERS = ("centre", "brightness")
+SEARCHES = ("kvector", "linear")
+
+
+def _deep(catalog: Catalog, limit: float | None) -> dict:
+    """The deep catalog (V <= ``limit``) for ``assign_all``: z-sorted float32 unit vectors and int64 ids
+    (empty when ``limit`` is None)."""
+    if limit is None:
+        return {"deep_unit": np.zeros((0, 3), dtype=np.float32), "deep_hip": np.zeros(0, dtype=np.int64)}
+    deep = catalog.brighter_than(limit)
+    by_z = np.argsort(deep.unit_icrs[:, 2], kind="stable")
+    return {"deep_unit": np.ascontiguousarray(deep.unit_icrs[by_z], dtype=np.float32),
+            "deep_hip": deep.hip[by_z].astype(np.int64)}
 
 
 @dataclass(frozen=True, eq=False)
@@ -48,6 +60,8 @@ class PVectorDatabase(Database):
     tri_rows: np.ndarray
     unit_icrs: np.ndarray
     hip: np.ndarray
+    deep_unit: np.ndarray
+    deep_hip: np.ndarray
     explained_variance: float = float("nan")
 
     @property
@@ -57,7 +71,8 @@ class PVectorDatabase(Database):
 
     def tables(self) -> K.Tables:
         """The arrays identify reads, as one kernel argument."""
-        return K.Tables(self.p_axis, self.kv, self.tri_sides, self.tri_rows, self.unit_icrs, self.hip)
+        return K.Tables(self.p_axis, self.kv, self.tri_sides, self.tri_rows, self.unit_icrs, self.hip,
+                        self.deep_unit, self.deep_hip)
 
 
 @dataclass(frozen=True)
@@ -158,6 +173,18 @@ class PVector(Algorithm):
     """A main star whose triangle matches more database triangles than this is skipped (uninformative)."""
     confirm_fraction: float = 0.5
     """The attitude must find at least this fraction of the guide stars it puts in the image (0: off)."""
+    triangles_per_star: int = 3
+    """K: each guide star stores the triangles of its K brightest neighbours, K(K-1)/2 of them
+    (2 = one triangle per star; reconstruction, see docs/algorithms/pvector.md)."""
+    search: str = "kvector"
+    """'kvector' (fair default, the same index as PTP) or 'linear' (a scan of the sorted keys)."""
+    mag_margin: float = 0.5
+    """Image stars measured fainter than ``mag_limit + mag_margin`` make no pattern (flight precaution)."""
+    assign_all: bool = False
+    """Final step: once the attitude is known, assign every detection to the deep catalog star
+    (V <= ``deep_mag_limit``) predicted within the tolerance."""
+    deep_mag_limit: float = 7.5
+    """Depth of the catalog kept for ``assign_all`` (stored only when ``assign_all``)."""
 
     def __post_init__(self):
         check_number("mag_limit", self.mag_limit)
@@ -177,6 +204,11 @@ class PVector(Algorithm):
         check_whole("max_stars", self.max_stars, 3, 10_000)
         check_whole("max_candidates", self.max_candidates, 1)
         check_number("confirm_fraction", self.confirm_fraction, lo=0, hi=1)
+        check_whole("triangles_per_star", self.triangles_per_star, 2, 10)
+        check_choice("search", self.search, SEARCHES)
+        check_number("mag_margin", self.mag_margin)
+        check_flag("assign_all", self.assign_all)
+        check_number("deep_mag_limit", self.deep_mag_limit)
         tol = K.Tolerances(
             mag_limit=float(self.mag_limit),
             c_rmin=rad_to_chord(math.radians(self.min_sep_deg)),
@@ -191,7 +223,11 @@ class PVector(Algorithm):
             inside_only=bool(self.disc_inside_only),
             max_stars=int(self.max_stars),
             max_candidates=int(self.max_candidates),
-            confirm_fraction=float(self.confirm_fraction))
+            confirm_fraction=float(self.confirm_fraction),
+            triangles_per_star=int(self.triangles_per_star),
+            linear_search=self.search == "linear",
+            assign_all=bool(self.assign_all),
+            mag_margin=float(self.mag_margin))
         object.__setattr__(self, "_tol", tol)
 
     # ------------------------------------------------------------------ build
@@ -212,8 +248,14 @@ class PVector(Algorithm):
         i, j = i[order], j[order]
         first = np.searchsorted(i, np.arange(unit.shape[0]), side="left")
         count = np.bincount(i, minlength=unit.shape[0])
-        has = np.flatnonzero(count >= 2)
-        return np.stack([has, j[first[has]], j[first[has] + 1]], axis=1)
+        k = int(self.triangles_per_star)
+        out = []
+        for b in range(1, k):          # brightest pair first, as identify tries them
+            for a in range(b):
+                has = np.flatnonzero(count >= b + 1)
+                out.append(np.stack([has, j[first[has] + a], j[first[has] + b]], axis=1))
+        rows = np.concatenate(out)
+        return rows[np.lexsort((rows[:, 2], rows[:, 1], rows[:, 0]))]
 
     def build(self, catalog: Catalog, camera: Camera) -> PVectorDatabase:
         guide = catalog.brighter_than(self.mag_limit)
@@ -249,6 +291,7 @@ class PVector(Algorithm):
             tri_rows=np.ascontiguousarray(rows[order], dtype=row_dtype),
             unit_icrs=np.ascontiguousarray(unit, dtype=np.float32),
             hip=hip.astype(np.int64),
+            **_deep(catalog, self.deep_mag_limit if self.assign_all else None),
             explained_variance=float(eigval[-1] / eigval.sum()),
         )
 

@@ -47,6 +47,8 @@ class Tables(NamedTuple):
     tri_rows: np.ndarray
     unit: np.ndarray
     hip: np.ndarray
+    deep_unit: np.ndarray
+    deep_hip: np.ndarray
 
 
 class Tolerances(NamedTuple):
@@ -72,6 +74,10 @@ class Tolerances(NamedTuple):
     max_stars: int
     max_candidates: int
     confirm_fraction: float
+    triangles_per_star: int
+    linear_search: bool
+    assign_all: bool
+    mag_margin: float
 
 
 @njit(cache=True)
@@ -140,6 +146,54 @@ def select_neighbours(v, mag, eligible, centre, c_rmin, c_r, brightest, x_px, y_
 
 
 @njit(cache=True)
+def select_top(v, mag, eligible, centre, c_rmin, c_r, brightest, x_px, y_px, out):
+    """The ``len(out)`` neighbours of star ``centre`` that form its triangles, best first; returns how many.
+
+    Same candidates and ranking as :func:`select_neighbours` (which is the ``len(out) == 2`` case).
+    """
+    k_max = out.shape[0]
+    keys = np.empty(k_max)
+    chords = np.empty(k_max)
+    m = 0
+    for j in range(v.shape[0]):
+        if j == centre or not eligible[j]:
+            continue
+        d = chord_rows(v, centre, v, j)
+        if d < c_rmin or d > c_r or d <= 0.0:
+            continue
+        k = mag[j] if brightest else d
+        pos = m
+        while pos > 0 and _ranks_before(x_px, y_px, j, k, d, out[pos - 1], keys[pos - 1], chords[pos - 1]):
+            pos -= 1
+        if pos >= k_max:
+            continue
+        last = min(m, k_max - 1)
+        for t in range(last, pos, -1):
+            out[t] = out[t - 1]
+            keys[t] = keys[t - 1]
+            chords[t] = chords[t - 1]
+        out[pos] = j
+        keys[pos] = k
+        chords[pos] = d
+        m = min(m + 1, k_max)
+    return m
+
+
+@njit(cache=True)
+def linear_range(values, lo, hi):
+    """``[start, stop)`` of ascending ``values`` in ``[lo, hi]`` by a linear scan from the start: the
+    search a sorted table without an index gets (``search='linear'``), O(m) per query."""
+    n = values.shape[0]
+    start = 0
+    while start < n and values[start] < lo:
+        start += 1
+    stop = start
+    while stop < n and values[stop] <= hi:
+        stop += 1
+    return start, stop
+
+
+@njit(cache=True)
 def triangle_feature(s_len01, s_len02, s_len12, sorted_sides):
     """Feature vector of a triangle from its role-ordered sides (S-N1, S-N2, N1-N2)."""
     d = np.empty(3)
@@ -204,6 +258,39 @@ def match_extras(oc, tri_obs, cat_rows, unit, eps, c_band, out_row):
 
 
 @njit(cache=True)
+def assign_deep(x_px, y_px, frame, attitude, deep_unit, deep_hip, eps, hip):
+    """The standard final step (``assign_all``): ``attitude`` assigns every detection to the deep
+    catalog star predicted within chord ``eps`` (``starid.kernels.reproject_assign``, one-to-one).
+    A detection left unassigned keeps its id in ``hip`` unless that id went to another detection.
+    Updates ``hip`` in place."""
+    n = x_px.shape[0]
+    v_all = backproject_px(x_px, y_px, frame.f_px, frame.cx_px, frame.cy_px)
+    c_fov = 0.0
+    corners = backproject_px(np.array([0.0, frame.width_px, 0.0, frame.width_px]),
+                             np.array([0.0, 0.0, frame.height_px, frame.height_px]), frame.f_px, frame.cx_px,
+                             frame.cy_px)
+    for i in range(4):
+        c_fov = max(c_fov, math.sqrt(corners[i, 0] ** 2 + corners[i, 1] ** 2 + (corners[i, 2] - 1.0) ** 2))
+    deep_rows = np.empty(n, dtype=np.int64)
+    reproject_assign(attitude, v_all, deep_unit, c_fov + eps, eps, deep_rows, frame.f_px, frame.cx_px, frame.cy_px,
+                     frame.width_px, frame.height_px)
+    out = np.full(n, -1, dtype=np.int64)
+    for i in range(n):
+        if deep_rows[i] >= 0:
+            out[i] = deep_hip[deep_rows[i]]
+    for i in range(n):
+        if out[i] < 0 and hip[i] >= 0:
+            taken = False
+            for j in range(n):
+                if out[j] == hip[i]:
+                    taken = True
+            if not taken:
+                out[i] = hip[i]
+    for i in range(n):
+        hip[i] = out[i]
+
+
+@njit(cache=True)
 def identify_rows(x_px, y_px, mag, frame, db, tol):
     """``(hip, attitude, ok)``: catalog id per observed star (-1 = unidentified, input order),
     the ICRS -> camera attitude and whether the image was identified.
@@ -250,7 +337,7 @@ def identify_rows(x_px, y_px, mag, frame, db, tol):
         c_fov = max(c_fov, math.sqrt(corners[i, 0] ** 2 + corners[i, 1] ** 2 + (corners[i, 2] - 1.0) ** 2))
     c_fov += eps
 
-    eligible = ms <= mag_limit
+    eligible = ms <= mag_limit + tol.mag_margin   # stars that can be in the database (flight precaution)
     # main-star preference: largest distance to the image edge first (R-disc inside), or brightest
     pref = np.empty(n)
     for i in range(n):
@@ -264,6 +351,7 @@ def identify_rows(x_px, y_px, mag, frame, db, tol):
     rows_try = np.empty(n, dtype=np.int64)
     rows_best = np.empty(n, dtype=np.int64)
     best_map = np.empty(3, dtype=np.int64)
+    nbs = np.empty(max(2, tol.triangles_per_star), dtype=np.int64)
     n_perm = 6 if sorted_sides else 1
 
     for oi in range(n):
@@ -274,95 +362,104 @@ def identify_rows(x_px, y_px, mag, frame, db, tol):
             edge = min(min(xs[s], width_px - xs[s]), min(ys[s], height_px - ys[s]))
             if edge < r_px:
                 continue
-        n1, n2 = select_neighbours(v, ms, eligible, s, c_rmin, c_r, brightest, xs, ys)
-        if n2 < 0:
-            continue
-        tri_obs[0] = s
-        tri_obs[1] = n1
-        tri_obs[2] = n2
-        c01 = chord_rows(v, s, v, n1)
-        c02 = chord_rows(v, s, v, n2)
-        c12 = chord_rows(v, n1, v, n2)
-        d_obs = triangle_feature(chord_to_rad(c01), chord_to_rad(c02), chord_to_rad(c12), sorted_sides)
-        p_obs = p_axis[0] * d_obs[0] + p_axis[1] * d_obs[1] + p_axis[2] * d_obs[2]
-        start, stop = kvector_query(db.kv, p_obs - eps_key, p_obs + eps_key)
-        if stop <= start:
-            continue
-        trip_obs = _triple(v[s], v[n1], v[n2])
-        chir_significant = abs(trip_obs) > eps * max(c01, max(c02, c12))
-        for i in range(n):
-            for j in range(3):
-                oc[i, j] = chord_rows(v, i, v, tri_obs[j])
-        c_band = 0.0
-        for i in range(n):
-            c_band = max(c_band, oc[i, 0])
-        c_band += eps
-        n_side = 0
-        for t in range(start, stop):
-            if (abs(tri_sides[t, 0] - d_obs[0]) <= eps and abs(tri_sides[t, 1] - d_obs[1]) <= eps
-                    and abs(tri_sides[t, 2] - d_obs[2]) <= eps):
-                n_side += 1
-        if n_side > tol.max_candidates:
-            continue    # an uninformative triangle: its window is far wider than the catalog's spacing
-        n_found = 0
-        ambiguous = False
-        for t in range(start, stop):
-            if (abs(tri_sides[t, 0] - d_obs[0]) > eps or abs(tri_sides[t, 1] - d_obs[1]) > eps
-                    or abs(tri_sides[t, 2] - d_obs[2]) > eps):
-                continue
-            for p in range(n_perm):
-                for j in range(3):
-                    cat_rows[j] = tri_rows[t, PERMS[p, j]]
-                if sorted_sides:
-                    if (abs(chord_rows(unit, cat_rows[0], unit, cat_rows[1]) - c01) > eps
-                            or abs(chord_rows(unit, cat_rows[0], unit, cat_rows[2]) - c02) > eps
-                            or abs(chord_rows(unit, cat_rows[1], unit, cat_rows[2]) - c12) > eps):
-                        continue
-                if chir_significant:
-                    trip_cat = _triple(unit[cat_rows[0]], unit[cat_rows[1]], unit[cat_rows[2]])
-                    if (trip_cat > 0) != (trip_obs > 0):
-                        continue
-                if n_found > 0 and cat_rows[0] == best_map[0] and cat_rows[1] == best_map[1] \
-                        and cat_rows[2] == best_map[2]:
-                    continue  # the same correspondence reached through another database entry
-                confirmed = match_extras(oc, tri_obs, cat_rows, unit, eps, c_band, rows_try)
-                if confirmed < k_min:
+        n_nb = select_top(v, ms, eligible, s, c_rmin, c_r, brightest, xs, ys, nbs)
+        # the triangles of the K brightest neighbours, brightest pair first: (0,1), (0,2), (1,2), (0,3), ...
+        for b_i in range(1, n_nb):
+            for a_i in range(b_i):
+                n1 = nbs[a_i]
+                n2 = nbs[b_i]
+                tri_obs[0] = s
+                tri_obs[1] = n1
+                tri_obs[2] = n2
+                c01 = chord_rows(v, s, v, n1)
+                c02 = chord_rows(v, s, v, n2)
+                c12 = chord_rows(v, n1, v, n2)
+                d_obs = triangle_feature(chord_to_rad(c01), chord_to_rad(c02), chord_to_rad(c12), sorted_sides)
+                p_obs = p_axis[0] * d_obs[0] + p_axis[1] * d_obs[1] + p_axis[2] * d_obs[2]
+                if tol.linear_search:
+                    start, stop = linear_range(db.kv.values, p_obs - eps_key, p_obs + eps_key)
+                else:
+                    start, stop = kvector_query(db.kv, p_obs - eps_key, p_obs + eps_key)
+                if stop <= start:
                     continue
-                if n_found == 0:
-                    n_found = 1
+                trip_obs = _triple(v[s], v[n1], v[n2])
+                chir_significant = abs(trip_obs) > eps * max(c01, max(c02, c12))
+                for i in range(n):
                     for j in range(3):
-                        best_map[j] = cat_rows[j]
+                        oc[i, j] = chord_rows(v, i, v, tri_obs[j])
+                c_band = 0.0
+                for i in range(n):
+                    c_band = max(c_band, oc[i, 0])
+                c_band += eps
+                n_side = 0
+                for t in range(start, stop):
+                    if (abs(tri_sides[t, 0] - d_obs[0]) <= eps and abs(tri_sides[t, 1] - d_obs[1]) <= eps
+                            and abs(tri_sides[t, 2] - d_obs[2]) <= eps):
+                        n_side += 1
+                if n_side > tol.max_candidates:
+                    continue    # an uninformative triangle: its window is far wider than the catalog's spacing
+                n_found = 0
+                ambiguous = False
+                for t in range(start, stop):
+                    if (abs(tri_sides[t, 0] - d_obs[0]) > eps or abs(tri_sides[t, 1] - d_obs[1]) > eps
+                            or abs(tri_sides[t, 2] - d_obs[2]) > eps):
+                        continue
+                    for p in range(n_perm):
+                        for j in range(3):
+                            cat_rows[j] = tri_rows[t, PERMS[p, j]]
+                        if sorted_sides:
+                            if (abs(chord_rows(unit, cat_rows[0], unit, cat_rows[1]) - c01) > eps
+                                    or abs(chord_rows(unit, cat_rows[0], unit, cat_rows[2]) - c02) > eps
+                                    or abs(chord_rows(unit, cat_rows[1], unit, cat_rows[2]) - c12) > eps):
+                                continue
+                        if chir_significant:
+                            trip_cat = _triple(unit[cat_rows[0]], unit[cat_rows[1]], unit[cat_rows[2]])
+                            if (trip_cat > 0) != (trip_obs > 0):
+                                continue
+                        if n_found > 0 and cat_rows[0] == best_map[0] and cat_rows[1] == best_map[1] \
+                                and cat_rows[2] == best_map[2]:
+                            continue  # the same correspondence reached through another database entry
+                        confirmed = match_extras(oc, tri_obs, cat_rows, unit, eps, c_band, rows_try)
+                        if confirmed < k_min:
+                            continue
+                        if n_found == 0:
+                            n_found = 1
+                            for j in range(3):
+                                best_map[j] = cat_rows[j]
+                            for i in range(n):
+                                rows_best[i] = rows_try[i]
+                        else:
+                            ambiguous = True
+                if n_found == 0 or ambiguous:
+                    continue
+                for j in range(3):
+                    rows_best[tri_obs[j]] = best_map[j]
+                keep = verify_pairwise(v, rows_best, unit, eps, 0, 1.0)   # every pair must agree
+                n_keep = 0
+                for i in range(n):
+                    if keep[i]:
+                        n_keep += 1
+                    else:
+                        rows_best[i] = -1
+                if n_keep < 3 + k_min:
+                    continue
+                # attitude from the consistent stars, then every star re-identified from it (twice, the
+                # second attitude using the larger, better spread set)
+                n_assigned = 0
+                n_predicted = 0
+                for _ in range(2):
+                    attitude = wahba_rows(v, rows_best, unit)
+                    n_assigned, n_predicted = reproject_assign(attitude, v, unit, c_fov, eps, rows_try, f_px, cx_px, cy_px,
+                                                               width_px, height_px)
                     for i in range(n):
                         rows_best[i] = rows_try[i]
-                else:
-                    ambiguous = True
-        if n_found == 0 or ambiguous:
-            continue
-        for j in range(3):
-            rows_best[tri_obs[j]] = best_map[j]
-        keep = verify_pairwise(v, rows_best, unit, eps, 0, 1.0)   # every pair must agree
-        n_keep = 0
-        for i in range(n):
-            if keep[i]:
-                n_keep += 1
-            else:
-                rows_best[i] = -1
-        if n_keep < 3 + k_min:
-            continue
-        # attitude from the consistent stars, then every star re-identified from it (twice, the
-        # second attitude using the larger, better spread set)
-        n_assigned = 0
-        n_predicted = 0
-        for _ in range(2):
-            attitude = wahba_rows(v, rows_best, unit)
-            n_assigned, n_predicted = reproject_assign(attitude, v, unit, c_fov, eps, rows_try, f_px, cx_px, cy_px,
-                                                       width_px, height_px)
-            for i in range(n):
-                rows_best[i] = rows_try[i]
-        if n_assigned < 3 + k_min or n_assigned < tol.confirm_fraction * n_predicted:
-            continue
-        for i in range(n):
-            if rows_best[i] >= 0:
-                out[canon[i]] = hip[rows_best[i]]
-        return out, wahba_rows(v, rows_best, unit), True
+                if n_assigned < 3 + k_min or n_assigned < tol.confirm_fraction * n_predicted:
+                    continue
+                for i in range(n):
+                    if rows_best[i] >= 0:
+                        out[canon[i]] = hip[rows_best[i]]
+                attitude = wahba_rows(v, rows_best, unit)
+                if tol.assign_all and db.deep_unit.shape[0] > 0:
+                    assign_deep(x_px, y_px, frame, attitude, db.deep_unit, db.deep_hip, eps, out)
+                return out, attitude, True
     return out, np.eye(3), False

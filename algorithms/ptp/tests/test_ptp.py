@@ -161,3 +161,32 @@ def test_wide_field_finishes_quickly(catalog, fov_deg):
 @pytest.mark.parametrize("check", CHECKS)
 def test_conformance(check):
     check_algorithm(PTP, checks=[check])
+
+
+def test_assign_all_raises_recall_without_wrong_ids(catalog, camera):
+    sim = Simulator(catalog, camera, SimConfig(sigma_px=1.0, sigma_mag=0.5), seed=22)
+    recall, wrong = {}, {}
+    for assign in (False, True):
+        algo = PTP(assign_all=assign)
+        db = algo.build(catalog, camera)
+        right = total = bad = 0
+        for t in range(40):
+            o = sim.observation(t)
+            hip = algo.identify(db, o).hip
+            right += int(np.sum((hip >= 0) & (hip == o.truth_hip)))
+            bad += int(np.sum((hip >= 0) & (hip != o.truth_hip)))
+            total += len(o)
+        recall[assign], wrong[assign] = right / total, bad
+    assert recall[True] > recall[False] + 0.05
+    assert wrong[True] <= 2
+
+
+def test_image_slaves_form_more_triangles(db, catalog, camera):
+    """Extra image slaves only add triangles: what 4 slaves identify, 6 identify too (noise-free)."""
+    sim = Simulator(catalog, camera, SimConfig(), seed=23)
+    for t in range(8):
+        o = sim.observation(t)
+        four = PTP(image_slaves=4).identify(db, o).hip
+        six = PTP(image_slaves=6).identify(db, o).hip
+        assert (six >= 0).sum() >= 3 or (four >= 0).sum() < 3
+        assert not np.any((six >= 0) & (six != o.truth_hip))
