@@ -16,9 +16,9 @@ from starid.errors import ConfigError
 from starid.params import check_flag, check_number, check_whole
 from starid.kernels import KVector, kvector_make, rad_to_chord
 from starid.observation import Observation
-from starid.plugin import Algorithm, Database, Identification
+from starid.plugin import Algorithm, Database, Explanation, Identification
 
-from .kernels import Frame, Tables, Tolerances, build_triangles, identify_kernel
+from .kernels import Frame, Tables, Tolerances, build_triangles, identify_kernel, nearest_slaves, select_stars
 
 #: Sides and D_ms are chords of unit vectors times this (section 2.1: 5 deg -> 872.8).
 CHORD_SCALE = 10000.0
@@ -262,3 +262,50 @@ class PTP(Algorithm):
         hip = identify_kernel(observation.x_px, observation.y_px, observation.mag, _frame(observation.camera),
                               database.tables(), self._tol)
         return Identification(hip)
+
+    def explain(self, database: PTPDatabase, observation: Observation) -> Explanation:
+        """The image triangles PTP formed (every master with its nearest slaves) as segments; bold:
+        the sides of the first image triangle whose three identified stars form a database triangle."""
+        n = len(observation)
+        hip = self.identify(database, observation).hip
+        x, y, mag = observation.x_px, observation.y_px, observation.mag
+        sel = select_stars(x, y, mag, self.max_stars) if n else np.zeros(0, dtype=np.int64)
+        sel = sel[mag[sel] <= self._tol.star_mag_max]
+        unit = observation.camera.backproject(x[sel], y[sel])
+        dist = CHORD_SCALE * np.linalg.norm(unit[:, None] - unit[None], axis=2)
+        usable = np.ones(sel.size, dtype=bool)
+        if self.exclude_doubles:
+            close = (dist < self._d_min) & ~np.eye(sel.size, dtype=bool)
+            usable = ~close.any(axis=1)
+        n_img = max(self.n_slaves, self.image_slaves)
+        out = np.empty(n_img, dtype=np.int64)
+        triangles = []
+        for m in range(sel.size):
+            if not usable[m]:
+                continue
+            k = nearest_slaves(dist[m], unit, usable, m, self._d_min, self._d_max, n_img, out)
+            triangles += [(m, out[a], out[b]) for a in range(k) for b in range(a + 1, k)]
+        db_tri = {frozenset(t) for t in database.guide_hip[database.ids.astype(np.int64)].tolist()}
+        segments, highlight, seen, matched = [], [], set(), None
+        for tri in triangles:
+            key = frozenset(int(v) for v in tri)
+            if key in seen:
+                continue
+            seen.add(key)
+            ids = [int(hip[sel[v]]) for v in tri]
+            base = len(segments)
+            for a, b in ((0, 1), (1, 2), (0, 2)):
+                i, j = sel[tri[a]], sel[tri[b]]
+                segments.append([[x[i], y[i]], [x[j], y[j]]])
+            if matched is None and min(ids) >= 0 and frozenset(ids) in db_tri:
+                matched = tri
+                highlight = [base, base + 1, base + 2]
+        points = np.stack([x, y], axis=1) if n else np.zeros((0, 2))
+        labels = tuple(str(h) if h >= 0 else "" for h in hip)
+        n_id = int(np.sum(hip >= 0))
+        caption = (f"PTP: {len(seen)} image triangles (each detection a master with its {n_img} nearest slaves); "
+                   + (f"bold: a matched triangle; {n_id} of {n} stars identified." if matched is not None
+                      else f"no triangle matched a validated database triangle; {n_id} of {n} stars identified."))
+        polygons = () if matched is None else (np.array([[x[sel[v]], y[sel[v]]] for v in matched]),)
+        return Explanation(segments=np.array(segments).reshape(-1, 2, 2), polygons=polygons, points=points,
+                           labels=labels, caption=caption, highlight=np.array(highlight, dtype=np.int64))

@@ -15,7 +15,7 @@ from starid.errors import ConfigError
 from starid.params import check_choice, check_flag, check_number, check_whole
 from starid.kernels import KVector, kvector_make, rad_to_chord
 from starid.observation import Observation
-from starid.plugin import Algorithm, Database, Identification
+from starid.plugin import Algorithm, Database, Explanation, Identification
 
 from . import kernels as K
 
@@ -296,13 +296,36 @@ class PVector(Algorithm):
         )
 
     # --------------------------------------------------------------- identify
+    def _run(self, database: PVectorDatabase, observation: Observation):
+        cam = observation.camera
+        frame = K.Frame(float(cam.f_px), float(cam.cx_px), float(cam.cy_px), float(cam.width_px),
+                        float(cam.height_px))
+        return K.identify_rows(observation.x_px, observation.y_px, observation.mag, frame, database.tables(),
+                               self._tol)
+
     def identify(self, database: PVectorDatabase, observation: Observation) -> Identification:
         n = observation.x_px.shape[0]
         if n < 3:
             return Identification.none(n)
-        cam = observation.camera
-        frame = K.Frame(float(cam.f_px), float(cam.cx_px), float(cam.cy_px), float(cam.width_px),
-                        float(cam.height_px))
-        hip, attitude, ok = K.identify_rows(observation.x_px, observation.y_px, observation.mag, frame,
-                                            database.tables(), self._tol)
+        hip, attitude, ok, _ = self._run(database, observation)
         return Identification(hip, attitude if ok else None)
+
+    def explain(self, database: PVectorDatabase, observation: Observation) -> Explanation:
+        """The accepted main (guide) star and the two neighbours of its triangle, as three bold segments."""
+        n = len(observation)
+        x, y = observation.x_px, observation.y_px
+        points = np.stack([x, y], axis=1) if n else np.zeros((0, 2))
+        if n < 3:
+            return Explanation(points=points, labels=("",) * n, caption=f"P-vector: {n} stars, no triangle.")
+        hip, _, ok, tri = self._run(database, observation)
+        labels = tuple(str(h) if h >= 0 else "" for h in hip)
+        if not ok:
+            return Explanation(points=points, labels=labels,
+                               caption="P-vector: no main star's triangle was confirmed; nothing identified.")
+        s, n1, n2 = (int(v) for v in tri)
+        segments = [[[x[a], y[a]], [x[b], y[b]]] for a, b in ((s, n1), (s, n2), (n1, n2))]
+        caption = (f"P-vector: main star {int(hip[s])} with its neighbours {int(hip[n1])} and {int(hip[n2])} "
+                   f"(bold triangle, key P = p . sides) identified the image; {int(np.sum(hip >= 0))} of {n} "
+                   f"stars identified.")
+        return Explanation(segments=np.array(segments), polygons=(np.array([[x[v], y[v]] for v in (s, n1, n2)]),),
+                           points=points, labels=labels, caption=caption, highlight=np.arange(3))

@@ -292,8 +292,9 @@ def assign_deep(x_px, y_px, frame, attitude, deep_unit, deep_hip, eps, hip):
 
 @njit(cache=True)
 def identify_rows(x_px, y_px, mag, frame, db, tol):
-    """``(hip, attitude, ok)``: catalog id per observed star (-1 = unidentified, input order),
-    the ICRS -> camera attitude and whether the image was identified.
+    """``(hip, attitude, ok, triangle)``: catalog id per observed star (-1 = unidentified, input
+    order), the ICRS -> camera attitude, whether the image was identified, and the input indices of
+    the accepted triangle (main star, N1, N2; -1 when none).
 
     Steps (the docstring of :class:`starid_algorithms.pvector.PVector` maps them to the paper):
     canonical star order; main stars in preference order; per main star its triangle, the
@@ -305,8 +306,9 @@ def identify_rows(x_px, y_px, mag, frame, db, tol):
     f_px, cx_px, cy_px, width_px, height_px = frame.f_px, frame.cx_px, frame.cy_px, frame.width_px, frame.height_px
     p_axis, tri_sides, tri_rows, unit, hip = db.p_axis, db.tri_sides, db.tri_rows, db.unit, db.hip
     out = np.full(x_px.shape[0], -1, dtype=np.int64)
+    tri_found = np.full(3, -1, dtype=np.int64)
     if x_px.shape[0] < 3:
-        return out, np.eye(3), False
+        return out, np.eye(3), False, tri_found
     # only the max_stars brightest detections take part (ties by position)
     sel = _sort_by(mag, x_px, y_px)[:min(x_px.shape[0], tol.max_stars)]
     n = sel.shape[0]
@@ -461,5 +463,7 @@ def identify_rows(x_px, y_px, mag, frame, db, tol):
                 attitude = wahba_rows(v, rows_best, unit)
                 if tol.assign_all and db.deep_unit.shape[0] > 0:
                     assign_deep(x_px, y_px, frame, attitude, db.deep_unit, db.deep_hip, eps, out)
-                return out, attitude, True
-    return out, np.eye(3), False
+                for j in range(3):
+                    tri_found[j] = canon[tri_obs[j]]
+                return out, attitude, True, tri_found
+    return out, np.eye(3), False, tri_found

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from starid import Camera, Catalog, ConfigError, Observation, SimConfig, Simulator
-from starid.plugin import check_identification
+from starid.plugin import Explanation, check_identification
 from starid.testing import CHECKS, check_algorithm
 from starid.harness import run, summarize
 from starid_algorithms.ptp import PTP
@@ -190,3 +190,19 @@ def test_image_slaves_form_more_triangles(db, catalog, camera):
         six = PTP(image_slaves=6).identify(db, o).hip
         assert (six >= 0).sum() >= 3 or (four >= 0).sum() < 3
         assert not np.any((six >= 0) & (six != o.truth_hip))
+
+
+def test_explain_draws_the_image_triangles(db, catalog, camera):
+    obs = Simulator(catalog, camera, SimConfig(sigma_px=1.0), seed=31).observation(0)
+    ex = PTP().explain(db, obs)
+    assert isinstance(ex, Explanation)
+    assert len(ex.segments) >= 3 * len(obs) and len(ex.highlight) == 3 and len(ex.polygons) == 1
+    hip = PTP().identify(db, obs).hip
+    tri = ex.polygons[0]
+    # the bold triangle's corners are identified detections
+    for px in tri:
+        i = np.flatnonzero((obs.x_px == px[0]) & (obs.y_px == px[1]))[0]
+        assert hip[i] >= 0
+    assert "matched" in ex.caption
+    few = Observation(obs.x_px[:2], obs.y_px[:2], obs.mag[:2], camera)
+    assert len(PTP().explain(db, few).segments) == 0

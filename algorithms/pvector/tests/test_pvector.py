@@ -10,7 +10,7 @@ import pytest
 
 from starid import Camera, Catalog, ConfigError, Observation, SimConfig, Simulator
 from starid.harness import run, summarize
-from starid.plugin import check_identification
+from starid.plugin import Explanation, check_identification
 from starid.registry import get_algorithm
 from starid.testing import CHECKS, check_algorithm
 from starid_algorithms.pvector import PVector, PVectorDatabase
@@ -266,3 +266,17 @@ def test_assign_all_raises_recall_without_wrong_ids(catalog, camera):
         recall[assign], wrong[assign] = right / total, bad
     assert recall[True] > recall[False] + 0.05
     assert wrong[True] <= 2
+
+
+def test_explain_shows_the_guide_star_and_its_two_brightest_neighbours(algo, db, catalog, camera):
+    obs = Simulator(catalog, camera, SimConfig(sigma_px=1.0), seed=31).observation(0)
+    ex = algo.explain(db, obs)
+    assert isinstance(ex, Explanation)
+    assert ex.segments.shape == (3, 2, 2) and list(ex.highlight) == [0, 1, 2]
+    hip = algo.identify(db, obs).hip
+    corners = [int(np.flatnonzero((obs.x_px == p[0]) & (obs.y_px == p[1]))[0]) for p in ex.polygons[0]]
+    assert all(hip[i] >= 0 for i in corners)
+    main, n1, n2 = corners
+    d = np.hypot(obs.x_px - obs.x_px[main], obs.y_px - obs.y_px[main])
+    assert obs.mag[n1] <= obs.mag[n2] and d[n1] > 0
+    assert algo.explain(db, Observation(obs.x_px[:2], obs.y_px[:2], obs.mag[:2], camera)).caption
