@@ -14,48 +14,71 @@ from starid.camera import Camera
 from starid.catalog import Catalog
 from starid.errors import ConfigError
 from starid.params import check_flag, check_number, check_whole
-from starid.kernels import kvector_build
+from starid.kernels import KVector, kvector_make, rad_to_chord
 from starid.observation import Observation
-from starid.plugin import Algorithm, Database, Identification
+from starid.plugin import Algorithm, Database, Explanation, Identification
 
-from .kernels import build_triangles, identify_kernel
+from .kernels import Frame, Tables, Tolerances, build_triangles, identify_kernel, nearest_slaves, select_stars
 
 #: Sides and D_ms are chords of unit vectors times this (section 2.1: 5 deg -> 872.8).
 CHORD_SCALE = 10000.0
+#: Smallest centroid noise (px) the windows assume, whatever ``sigma_px`` says.
+SIGMA_FLOOR_PX = 1.0
 
 
 @dataclass(frozen=True, eq=False)
 class PTPDatabase(Database):
     """The pattern database of section 2.1 (Table 1) plus its k-vector (Table 2).
 
-    proj : float32 (t,) projections p_r (eq. 3), ascending.
-    kvec : uint16/int32 (t,) k-vector over ``proj``; ``km``, ``kq`` its line (eq. 16).
+    kv : :class:`starid.kernels.KVector`: ``kv.values`` float32 (t,) the projections p_r (eq. 3),
+        ascending; ``kv.k`` uint16/int32 (t,) the k-vector, ``kv.m``, ``kv.q`` its line (eq. 16).
     ids : uint16/int32 (t, 3) guide-star rows of (r1, r2, r3) = (master, nearer slave, farther slave).
     sides : float32 (3, t) scaled sides a, b, c of eq. 1, one row per side (contiguous for the
         vectorised three-side check).
     mean : float64 (3,) mean side vector; axis : float64 (3,) the projection axis u_max.
-    guide_hip : int32 (g,) catalog id of each guide row; guide rows are sorted by z (declination).
+    guide_hip : int64 (g,) catalog id of each guide row; guide rows are sorted by z (declination).
     guide_unit : float32 (g, 3) ICRS unit vectors of the guide stars, for verification and
         confirmation (float32: 0.02 arcsec, far below the tolerances).
     """
 
-    proj: np.ndarray
-    kvec: np.ndarray
+    kv: KVector
     ids: np.ndarray
     sides: np.ndarray
     mean: np.ndarray
     axis: np.ndarray
     guide_hip: np.ndarray
     guide_unit: np.ndarray
-    km: float
-    kq: float
+    deep_unit: np.ndarray
+    deep_hip: np.ndarray
     explained_variance: float
+
+    @property
+    def proj(self) -> np.ndarray:
+        """The sorted projections p_r (``kv.values``)."""
+        return self.kv.values
+
+    def tables(self) -> Tables:
+        """The arrays identify reads, as one kernel argument."""
+        return Tables(self.kv, self.ids, self.sides, self.mean, self.axis, self.guide_unit, self.guide_hip,
+                      self.deep_unit, self.deep_hip)
 
 
 @lru_cache(maxsize=16)
-def _fov_chord(camera: Camera) -> float:
-    """Chord from the boresight to the farthest image corner."""
-    return 2.0 * math.sin(camera.half_diagonal_rad / 2.0)
+def _frame(camera: Camera) -> Frame:
+    """The camera as the kernel needs it (``c_fov``: chord from the boresight to the farthest corner)."""
+    return Frame(float(camera.f_px), float(camera.cx_px), float(camera.cy_px), float(camera.width_px),
+                 float(camera.height_px), rad_to_chord(camera.half_diagonal_rad))
+
+
+def _deep(catalog: Catalog, limit: float | None) -> dict:
+    """The deep catalog (V <= ``limit``) for ``assign_all``: z-sorted float32 unit vectors and int64 ids
+    (empty when ``limit`` is None)."""
+    if limit is None:
+        return {"deep_unit": np.zeros((0, 3), dtype=np.float32), "deep_hip": np.zeros(0, dtype=np.int64)}
+    deep = catalog.brighter_than(limit)
+    by_z = np.argsort(deep.unit_icrs[:, 2], kind="stable")
+    return {"deep_unit": np.ascontiguousarray(deep.unit_icrs[by_z], dtype=np.float32),
+            "deep_hip": deep.hip[by_z].astype(np.int64)}
 
 
 def _index_dtype(n: int):
@@ -103,7 +126,10 @@ class PTP(Algorithm):
       roles swapped, a neighbouring look-alike) are matched too and would wipe out true stars, so
       by default the pairing proposed by more distinct observed triangles wins (``majority``,
       reconstruction); ``majority=False`` drops every conflicting star;
-    * ``sigma_px`` is the centroid noise the tolerances assume (1 px in Table 6);
+    * ``sigma_px`` is the centroid noise the tolerances assume (1 px in Table 6). It follows the
+      simulator (``None``, the default: the harness sets it to the simulated noise), with a floor
+      of ``SIGMA_FLOOR_PX`` = 1 px so a noise-free world still gets windows wide enough for the
+      catalog's and the float32 tables' rounding (and today's 1 px results are unchanged);
     * ``verify`` (starid's extension, on by default): the paper stops after the sharing-star
       validation and computes the attitude "from the correctly identified stars"; starid checks
       the pairings' mutual angular distances first, because under the harness's rule one wrong
@@ -114,12 +140,18 @@ class PTP(Algorithm):
       stars where none are seen. The identification stands only if at least this fraction of
       the guide stars its attitude puts in the image is observed (magnitude noise hides some
       true ones, so not all).
+    * ``max_stars`` (time bound): only the brightest ``max_stars`` detections take part (100: never
+      binding on the Table 4 camera); ``max_candidates``: an image triangle whose window holds more
+      database triangles than this is skipped as uninformative (on very wide fields 1 px is degrees
+      and every triangle matches everything; 64 never binds on the Table 4 camera). Coincident
+      detections (distance 0) are never slaves, whatever ``d_min_deg``.
     """
 
     name: ClassVar[str] = "ptp"
+    follows: ClassVar[dict] = {"sigma_px": "sigma_px"}
 
     mag_limit: float = 6.0
-    sigma_px: float = 1.0
+    sigma_px: float | None = None
     n_slaves: int = 4
     d_min_deg: float = 0.05
     d_max_deg: float = 5.0
@@ -132,10 +164,17 @@ class PTP(Algorithm):
     verify: bool = True
     verify_min_fraction: float = 0.5
     confirm_fraction: float = 0.5
+    max_stars: int = 100
+    max_candidates: int = 64
+    image_slaves: int = 6
+    mag_margin: float = 0.5
+    assign_all: bool = False
+    deep_mag_limit: float = 7.5
 
     def __post_init__(self):
         check_number("mag_limit", self.mag_limit)
-        check_number("sigma_px", self.sigma_px, lo=0, lo_open=True)   # it sets the search windows
+        if self.sigma_px is not None:
+            check_number("sigma_px", self.sigma_px, lo=0)   # None: follow the simulator
         check_whole("n_slaves", self.n_slaves, 2)
         check_number("d_min_deg", self.d_min_deg, lo=0)
         check_number("d_max_deg", self.d_max_deg, hi=90, hi_open=True)
@@ -144,20 +183,41 @@ class PTP(Algorithm):
         for name in ("beta", "side_beta"):
             check_number(name, getattr(self, name), lo=0, lo_open=True)
         check_whole("min_shared", self.min_shared, 0, 3)
+        check_whole("max_stars", self.max_stars, 3, 10_000)
+        check_whole("max_candidates", self.max_candidates, 1)
+        check_whole("image_slaves", self.image_slaves, 2)
+        check_number("mag_margin", self.mag_margin)
+        check_number("deep_mag_limit", self.deep_mag_limit)
+        check_flag("assign_all", self.assign_all)
         for name in ("verify_min_fraction", "confirm_fraction"):
             check_number(name, getattr(self, name), lo=0, hi=1)
         for name in ("exclude_doubles", "swap_slaves", "majority", "verify"):
             check_flag(name, getattr(self, name))
 
+    @property
+    def sigma_eff_px(self) -> float:
+        """The centroid noise the windows use: ``sigma_px`` (None = 0) floored at ``SIGMA_FLOOR_PX``."""
+        return max(self.sigma_px or 0.0, SIGMA_FLOOR_PX)
+
     @cached_property
     def _d_min(self) -> float:
         """d_min as a scaled chord (8.728 for 0.05 deg)."""
-        return CHORD_SCALE * 2.0 * math.sin(math.radians(self.d_min_deg) / 2.0)
+        return CHORD_SCALE * rad_to_chord(math.radians(self.d_min_deg))
 
     @cached_property
     def _d_max(self) -> float:
         """d_max as a scaled chord (872.8 for 5 deg)."""
-        return CHORD_SCALE * 2.0 * math.sin(math.radians(self.d_max_deg) / 2.0)
+        return CHORD_SCALE * rad_to_chord(math.radians(self.d_max_deg))
+
+    @cached_property
+    def _tol(self) -> Tolerances:
+        """The parameters as the kernel's tolerance bundle."""
+        return Tolerances(self.sigma_eff_px, CHORD_SCALE, self._d_min, self._d_max, int(self.n_slaves),
+                          float(self.beta), float(self.side_beta), bool(self.exclude_doubles),
+                          bool(self.swap_slaves), int(self.min_shared), bool(self.majority), bool(self.verify),
+                          float(self.verify_min_fraction), float(self.confirm_fraction), int(self.max_stars),
+                          int(self.max_candidates), int(self.image_slaves), float(self.mag_limit + self.mag_margin),
+                          bool(self.assign_all))
 
     def build(self, catalog: Catalog, camera: Camera) -> PTPDatabase:
         guide = catalog.brighter_than(self.mag_limit)
@@ -191,22 +251,61 @@ class PTP(Algorithm):
         axis = eigvec[:, -1] * np.sign(eigvec[:, -1].sum())
         proj = q @ axis                                   # eq. 3
         order = np.argsort(proj, kind="stable")
-        proj32 = proj[order].astype(np.float32)
-        kvec, km, kq = kvector_build(proj32.astype(np.float64))
-        return PTPDatabase(proj=proj32, kvec=kvec.astype(_index_dtype(len(order))),
-                           ids=ids[order].astype(_index_dtype(len(guide))),
+        kv = kvector_make(proj[order], values_dtype=np.float32, index_dtype=_index_dtype(len(order)))
+        return PTPDatabase(kv=kv, ids=ids[order].astype(_index_dtype(len(guide))),
                            sides=np.ascontiguousarray(sides[order].T, dtype=np.float32), mean=mean, axis=axis,
-                           guide_hip=guide_hip.astype(np.int32), guide_unit=unit.astype(np.float32), km=km, kq=kq,
+                           guide_hip=guide_hip.astype(np.int64), guide_unit=unit.astype(np.float32),
+                           **_deep(catalog, self.deep_mag_limit if self.assign_all else None),
                            explained_variance=float(eigval[-1] / eigval.sum()))
 
     def identify(self, database: PTPDatabase, observation: Observation) -> Identification:
-        cam = observation.camera
-        f_px = cam.f_px
-        hip = identify_kernel(observation.x_px, observation.y_px, f_px, cam.cx_px, cam.cy_px, cam.width_px,
-                              cam.height_px, database.proj, database.kvec, database.km, database.kq, database.ids,
-                              database.sides, database.mean, database.axis, database.guide_unit,
-                              self.sigma_px / f_px, CHORD_SCALE, self._d_min, self._d_max, self.n_slaves, self.beta,
-                              self.side_beta, self.exclude_doubles, self.swap_slaves, self.min_shared, self.majority,
-                              self.verify, self.verify_min_fraction, self.confirm_fraction, _fov_chord(cam),
-                              database.guide_hip)
+        hip = identify_kernel(observation.x_px, observation.y_px, observation.mag, _frame(observation.camera),
+                              database.tables(), self._tol)
         return Identification(hip)
+
+    def explain(self, database: PTPDatabase, observation: Observation) -> Explanation:
+        """The image triangles PTP formed (every master with its nearest slaves) as segments; bold:
+        the sides of the first image triangle whose three identified stars form a database triangle."""
+        n = len(observation)
+        hip = self.identify(database, observation).hip
+        x, y, mag = observation.x_px, observation.y_px, observation.mag
+        sel = select_stars(x, y, mag, self.max_stars) if n else np.zeros(0, dtype=np.int64)
+        sel = sel[mag[sel] <= self._tol.star_mag_max]
+        unit = observation.camera.backproject(x[sel], y[sel])
+        dist = CHORD_SCALE * np.linalg.norm(unit[:, None] - unit[None], axis=2)
+        usable = np.ones(sel.size, dtype=bool)
+        if self.exclude_doubles:
+            close = (dist < self._d_min) & ~np.eye(sel.size, dtype=bool)
+            usable = ~close.any(axis=1)
+        n_img = max(self.n_slaves, self.image_slaves)
+        out = np.empty(n_img, dtype=np.int64)
+        triangles = []
+        for m in range(sel.size):
+            if not usable[m]:
+                continue
+            k = nearest_slaves(dist[m], unit, usable, m, self._d_min, self._d_max, n_img, out)
+            triangles += [(m, out[a], out[b]) for a in range(k) for b in range(a + 1, k)]
+        db_tri = {frozenset(t) for t in database.guide_hip[database.ids.astype(np.int64)].tolist()}
+        segments, highlight, seen, matched = [], [], set(), None
+        for tri in triangles:
+            key = frozenset(int(v) for v in tri)
+            if key in seen:
+                continue
+            seen.add(key)
+            ids = [int(hip[sel[v]]) for v in tri]
+            base = len(segments)
+            for a, b in ((0, 1), (1, 2), (0, 2)):
+                i, j = sel[tri[a]], sel[tri[b]]
+                segments.append([[x[i], y[i]], [x[j], y[j]]])
+            if matched is None and min(ids) >= 0 and frozenset(ids) in db_tri:
+                matched = tri
+                highlight = [base, base + 1, base + 2]
+        points = np.stack([x, y], axis=1) if n else np.zeros((0, 2))
+        labels = tuple(str(h) if h >= 0 else "" for h in hip)
+        n_id = int(np.sum(hip >= 0))
+        caption = (f"PTP: {len(seen)} image triangles (each detection a master with its {n_img} nearest slaves); "
+                   + (f"bold: a matched triangle; {n_id} of {n} stars identified." if matched is not None
+                      else f"no triangle matched a validated database triangle; {n_id} of {n} stars identified."))
+        polygons = () if matched is None else (np.array([[x[sel[v]], y[sel[v]]] for v in matched]),)
+        return Explanation(segments=np.array(segments).reshape(-1, 2, 2), polygons=polygons, points=points,
+                           labels=labels, caption=caption, highlight=np.array(highlight, dtype=np.int64))

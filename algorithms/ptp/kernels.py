@@ -3,11 +3,74 @@
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 
-from starid.kernels import backproject_px, chord_rows, kvector_range, reproject_assign, verify_pairwise, wahba_rows
+from starid.kernels import (KVector, backproject_px, chord_rows, kvector_query, reproject_assign, verify_pairwise,
+                            wahba_rows)
+
+
+class Frame(NamedTuple):
+    """The camera as identify needs it: pinhole focal length and principal point (px), sensor size (px),
+    and ``c_fov``, the chord from the boresight to the farthest image corner."""
+
+    f_px: float
+    cx_px: float
+    cy_px: float
+    width_px: float
+    height_px: float
+    c_fov: float
+
+
+class Tables(NamedTuple):
+    """What identify reads from :class:`~starid_algorithms.ptp.PTPDatabase`, as one kernel argument.
+
+    kv : :class:`starid.kernels.KVector` over the projections p_r (eq. 3), ascending.
+    ids : (t, 3) guide rows of (r1, r2, r3); sides : float32 (3, t) scaled sides a, b, c (eq. 1).
+    mean : (3,) mean side vector; axis : (3,) projection axis u_max.
+    guide_unit : float32 (g, 3) guide unit vectors (ICRS, z-sorted); guide_hip : int64 (g,) their ids.
+    deep_unit : float32 (d, 3) the deeper catalog stars for ``assign_all`` (z-sorted; may be empty);
+    deep_hip : int64 (d,) their ids.
+    """
+
+    kv: KVector
+    ids: np.ndarray
+    sides: np.ndarray
+    mean: np.ndarray
+    axis: np.ndarray
+    guide_unit: np.ndarray
+    guide_hip: np.ndarray
+    deep_unit: np.ndarray
+    deep_hip: np.ndarray
+
+
+class Tolerances(NamedTuple):
+    """The parameters identify uses (see :class:`~starid_algorithms.ptp.PTP`); chords scaled by ``scale``.
+
+    sigma_px : assumed centroid noise (px); the angular sigma is ``sigma_px / f_px``.
+    """
+
+    sigma_px: float
+    scale: float
+    d_min: float
+    d_max: float
+    n_slaves: int
+    beta: float
+    side_beta: float
+    exclude_doubles: bool
+    swap_slaves: bool
+    min_shared: int
+    majority: bool
+    verify: bool
+    verify_min_fraction: float
+    confirm_fraction: float
+    max_stars: int
+    max_candidates: int
+    image_slaves: int
+    star_mag_max: float
+    assign_all: bool
 
 
 @njit(cache=True)
@@ -24,6 +87,8 @@ def _before(dist, unit, i, j):
 def nearest_slaves(dist_row, unit, usable, master, d_min, d_max, n_slaves, out):
     """The ``n_slaves`` usable stars nearest ``master`` with ``d_min <= D_ms <= d_max`` (eq. 2), nearest first.
 
+    A star at distance 0 (a coincident detection) is never a slave, whatever ``d_min``.
+
     ``dist_row[j]`` is the scaled chord ``D_ms`` from the master to star ``j``. Writes them to
     ``out`` and returns how many there are.
     """
@@ -32,7 +97,7 @@ def nearest_slaves(dist_row, unit, usable, master, d_min, d_max, n_slaves, out):
     while m < n_slaves:
         pick = -1
         for j in range(n):
-            if j == master or not usable[j] or not (d_min <= dist_row[j] <= d_max):
+            if j == master or not usable[j] or not (d_min <= dist_row[j] <= d_max) or dist_row[j] <= 0.0:
                 continue
             taken = False
             for t in range(m):
@@ -123,7 +188,7 @@ def side_sigma(side, sigma):
 
 
 @njit(cache=True)
-def _window(t, i1, i2, i3, sides, proj, kvec, km, kq, mean, w, sigma, scale, beta):
+def _window(t, i1, i2, i3, sides, kv, mean, w, sigma, scale, beta):
     """Sides (eq. 4), projection (eq. 5) and k-vector window [p - xi, p + xi] (eqs. 13-19) of a triangle."""
     a = scale * chord_rows(t, i1, t, i2)
     b = scale * chord_rows(t, i2, t, i3)
@@ -133,7 +198,7 @@ def _window(t, i1, i2, i3, sides, proj, kvec, km, kq, mean, w, sigma, scale, bet
     sides[2] = c
     p = w[0] * (a - mean[0]) + w[1] * (b - mean[1]) + w[2] * (c - mean[2])
     xi = beta * projection_sigma(t, i1, i2, i3, a, b, c, w, sigma, scale)
-    return kvector_range(proj, kvec, km, kq, p - xi, p + xi)
+    return kvector_query(kv, p - xi, p + xi)
 
 
 @njit(cache=True)
@@ -184,11 +249,91 @@ def _triple_key(i, j, k, n):
 
 
 @njit(cache=True)
-def identify_kernel(x_px, y_px, f_px, cx_px, cy_px, width_px, height_px, proj, kvec, km, kq, db_ids, db_sides,
-                    mean, w, guide_unit, sigma, scale, d_min, d_max, n_slaves, beta, side_beta, exclude_doubles,
-                    swap_slaves, min_shared, majority, verify, verify_min_fraction, confirm_fraction, c_fov,
-                    guide_hip):
-    """PTP identification of one image (sections 2.2-2.3). Returns the HIP per star (-1 = none).
+def select_stars(x_px, y_px, mag, max_stars):
+    """Indices of the ``max_stars`` brightest detections (ties: by x, then y), brightest first."""
+    n = x_px.shape[0]
+    order = np.arange(n)
+    for i in range(1, n):      # insertion sort on (mag, x, y): images are small, and it is input-order free
+        j = i
+        while j > 0:
+            a = order[j]
+            b = order[j - 1]
+            if mag[a] < mag[b] or (mag[a] == mag[b] and (x_px[a] < x_px[b] or (x_px[a] == x_px[b]
+                                                                                  and y_px[a] < y_px[b]))):
+                order[j] = b
+                order[j - 1] = a
+                j -= 1
+            else:
+                break
+    return order[:min(n, max_stars)].copy()
+
+
+@njit(cache=True)
+def identify_kernel(x_px, y_px, mag, frame, db, tol):
+    """The catalog id of each detection (-1 = none) and whether an attitude was found.
+
+    :func:`match_rows` runs on the ``tol.max_stars`` brightest detections whose measured magnitude
+    is at most ``tol.star_mag_max`` (the flight precaution: a star that cannot be in the database
+    makes no pattern). With ``tol.assign_all`` the attitude of the identified stars then assigns
+    every detection to the deep catalog star predicted within the tolerance
+    (``starid.kernels.reproject_assign``, one-to-one only).
+    """
+    n = x_px.shape[0]
+    hip = np.full(n, -1, dtype=np.int64)
+    if n < 3:
+        return hip
+    sel = select_stars(x_px, y_px, mag, tol.max_stars)
+    k = 0
+    while k < sel.shape[0] and mag[sel[k]] <= tol.star_mag_max:
+        k += 1
+    sel = sel[:k]
+    if k < 3:
+        return hip
+    unit = backproject_px(x_px[sel], y_px[sel], frame.f_px, frame.cx_px, frame.cy_px)
+    rows = match_rows(unit, frame, db, tol)
+    n_found = 0
+    for s in range(sel.shape[0]):
+        if rows[s] >= 0:
+            hip[sel[s]] = db.guide_hip[rows[s]]
+            n_found += 1
+    if tol.assign_all and n_found >= 3 and db.deep_unit.shape[0] > 0:
+        assign_deep(x_px, y_px, frame, db.guide_unit, rows, unit, db.deep_unit, db.deep_hip,
+                    tol.side_beta * math.sqrt(2.0) * tol.sigma_px / frame.f_px, hip)
+    return hip
+
+
+@njit(cache=True)
+def assign_deep(x_px, y_px, frame, guide_unit, rows, unit, deep_unit, deep_hip, tol_chord, hip):
+    """The standard final step: the attitude of the identified stars (``rows`` of ``unit``) assigns
+    every detection to the deep catalog star predicted within ``tol_chord`` of it (one-to-one).
+    Detections left unassigned keep the id they had in ``hip`` unless the deep assignment gave that
+    id to another detection. Updates ``hip`` in place."""
+    n = x_px.shape[0]
+    attitude = wahba_rows(unit, rows, guide_unit)
+    v_all = backproject_px(x_px, y_px, frame.f_px, frame.cx_px, frame.cy_px)
+    deep_rows = np.empty(n, dtype=np.int64)
+    reproject_assign(attitude, v_all, deep_unit, frame.c_fov + tol_chord, tol_chord, deep_rows, frame.f_px,
+                     frame.cx_px, frame.cy_px, frame.width_px, frame.height_px)
+    out = np.full(n, -1, dtype=np.int64)
+    for i in range(n):
+        if deep_rows[i] >= 0:
+            out[i] = deep_hip[deep_rows[i]]
+    for i in range(n):
+        if out[i] < 0 and hip[i] >= 0:
+            taken = False
+            for j in range(n):
+                if out[j] == hip[i]:
+                    taken = True
+            if not taken:
+                out[i] = hip[i]
+    for i in range(n):
+        hip[i] = out[i]
+
+
+@njit(cache=True)
+def match_rows(unit, frame, db, tol):
+    """PTP identification of one image (sections 2.2-2.3) from the detections' camera-frame unit
+    vectors ``unit``: the guide row of each (-1 = none).
 
     1. Every star is a master; its slaves are the ``n_slaves`` nearest stars in
        ``[d_min, d_max]`` (same rule as the database); triangles (m, s_i, s_j), i < j. With
@@ -213,12 +358,16 @@ def identify_kernel(x_px, y_px, f_px, cx_px, cy_px, width_px, height_px, proj, k
        (Wahba) must put guide stars in the image of which at least that fraction is observed
        within the same tolerance (``reproject_assign``); otherwise nothing is reported.
     """
+    f_px, cx_px, cy_px = frame.f_px, frame.cx_px, frame.cy_px
+    guide_unit = db.guide_unit
+    sigma = tol.sigma_px / f_px
+    scale, d_min, d_max, n_slaves = tol.scale, tol.d_min, tol.d_max, tol.n_slaves
+    side_beta, exclude_doubles, majority = tol.side_beta, tol.exclude_doubles, tol.majority
     n_guide = guide_unit.shape[0]
-    n = x_px.shape[0]
+    n = unit.shape[0]
     result = np.full(n, -1, dtype=np.int64)
     if n < 3:
         return result   # all -1
-    unit = backproject_px(x_px, y_px, f_px, cx_px, cy_px)
     dist = np.empty((n, n))
     usable = np.ones(n, dtype=np.bool_)
     for i in range(n):
@@ -231,7 +380,8 @@ def identify_kernel(x_px, y_px, f_px, cx_px, cy_px, width_px, height_px, proj, k
                 usable[i] = False
                 usable[j] = False
     cand = np.empty(1024, dtype=np.int64)
-    slaves = np.empty(n_slaves, dtype=np.int64)
+    n_img_slaves = max(n_slaves, tol.image_slaves)
+    slaves = np.empty(n_img_slaves, dtype=np.int64)
     # match records: image triangle id, image stars (3), guide stars (3)
     m_cap = 256
     m_tri = np.empty(m_cap, dtype=np.int64)
@@ -243,24 +393,28 @@ def identify_kernel(x_px, y_px, f_px, cx_px, cy_px, width_px, height_px, proj, k
     for master in range(n):
         if not usable[master]:
             continue
-        k = nearest_slaves(dist[master], unit, usable, master, d_min, d_max, n_slaves, slaves)
+        k = nearest_slaves(dist[master], unit, usable, master, d_min, d_max, n_img_slaves, slaves)
         for ia in range(k):
             for ib in range(ia + 1, k):
                 s1 = slaves[ia]
                 s2 = slaves[ib]
                 d1 = dist[master, s1]
                 d2 = dist[master, s2]
-                tol = side_beta * scale * side_sigma(max(d1, d2) / scale, sigma)
-                n_orders = 2 if (swap_slaves and abs(d2 - d1) <= tol) else 1
+                if dist[s1, s2] <= 0.0:
+                    continue    # coincident slaves make no triangle
+                tol_swap = side_beta * scale * side_sigma(max(d1, d2) / scale, sigma)
+                n_orders = 2 if (tol.swap_slaves and abs(d2 - d1) <= tol_swap) else 1
                 for o in range(n_orders):
                     order_img[0] = master
                     order_img[1] = s1 if o == 0 else s2
                     order_img[2] = s2 if o == 0 else s1
                     start, stop = _window(unit, order_img[0], order_img[1], order_img[2],
-                                          sides, proj, kvec, km, kq, mean, w, sigma, scale, beta)
+                                          sides, db.kv, db.mean, db.axis, sigma, scale, tol.beta)
                     if stop - start > cand.shape[0]:
                         cand = np.empty(2 * (stop - start), dtype=np.int64)
-                    nc = _side_check(sides, start, stop, db_sides, sigma, scale, side_beta, cand)
+                    nc = _side_check(sides, start, stop, db.sides, sigma, scale, side_beta, cand)
+                    if nc > tol.max_candidates:
+                        continue    # an uninformative triangle (a window far wider than the catalog's spacing)
                     for c in range(nc):
                         if n_match == m_cap:
                             m_cap *= 2
@@ -274,7 +428,7 @@ def identify_kernel(x_px, y_px, f_px, cx_px, cy_px, width_px, height_px, proj, k
                         m_tri[n_match] = _triple_key(master, s1, s2, n)
                         for v in range(3):
                             m_img[n_match, v] = order_img[v]
-                            m_cat[n_match, v] = db_ids[cand[c], v]
+                            m_cat[n_match, v] = db.ids[cand[c], v]
                         n_match += 1
     if n_match == 0:
         return result   # all -1
@@ -312,7 +466,7 @@ def identify_kernel(x_px, y_px, f_px, cx_px, cy_px, width_px, height_px, proj, k
         for v in range(3):
             if support[3 * mi + v] >= 2:
                 shared += 1
-        if shared < min_shared:
+        if shared < tol.min_shared:
             continue
         for v in range(3):
             s = m_img[mi, v]
@@ -339,9 +493,9 @@ def identify_kernel(x_px, y_px, f_px, cx_px, cy_px, width_px, height_px, proj, k
                 win = False
         if win:
             result[s] = best[s]
-    tol = side_beta * math.sqrt(2.0) * sigma
-    if verify:
-        keep = verify_pairwise(unit, result, guide_unit, tol, 2, verify_min_fraction)
+    tol_chord = side_beta * math.sqrt(2.0) * sigma
+    if tol.verify:
+        keep = verify_pairwise(unit, result, guide_unit, tol_chord, 2, tol.verify_min_fraction)
         for s in range(n):
             if not keep[s]:
                 result[s] = -1
@@ -349,15 +503,11 @@ def identify_kernel(x_px, y_px, f_px, cx_px, cy_px, width_px, height_px, proj, k
     for s in range(n):
         if result[s] >= 0:
             n_found += 1
-    if confirm_fraction > 0 and n_found >= 2:
+    if tol.confirm_fraction > 0 and n_found >= 2:
         attitude = wahba_rows(unit, result, guide_unit)
         seen = np.empty(n, dtype=np.int64)
-        n_seen, n_predicted = reproject_assign(attitude, unit, guide_unit, c_fov + tol, tol, seen, f_px, cx_px,
-                                               cy_px, width_px, height_px)
-        if n_seen < confirm_fraction * n_predicted:
+        n_seen, n_predicted = reproject_assign(attitude, unit, guide_unit, frame.c_fov + tol_chord, tol_chord, seen,
+                                               f_px, cx_px, cy_px, frame.width_px, frame.height_px)
+        if n_seen < tol.confirm_fraction * n_predicted:
             result[:] = -1
-    hip = np.full(n, -1, dtype=np.int64)
-    for s in range(n):
-        if result[s] >= 0:
-            hip[s] = guide_hip[result[s]]
-    return hip
+    return result

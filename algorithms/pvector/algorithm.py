@@ -13,15 +13,29 @@ from starid.camera import Camera
 from starid.catalog import Catalog
 from starid.errors import ConfigError
 from starid.params import check_choice, check_flag, check_number, check_whole
-from starid.kernels import kvector_build
+from starid.kernels import KVector, kvector_make, rad_to_chord
 from starid.observation import Observation
-from starid.plugin import Algorithm, Database, Identification
+from starid.plugin import Algorithm, Database, Explanation, Identification
 
 from . import kernels as K
 
+#: Smallest centroid noise (px) the tolerances assume, whatever ``sigma_px`` says.
+SIGMA_FLOOR_PX = 1.0
 SIDE_ORDERS = ("sorted", "role")
 NEIGHBOUR_RULES = ("brightest", "nearest")
 MAIN_ORDERS = ("centre", "brightness")
+SEARCHES = ("kvector", "linear")
+
+
+def _deep(catalog: Catalog, limit: float | None) -> dict:
+    """The deep catalog (V <= ``limit``) for ``assign_all``: z-sorted float32 unit vectors and int64 ids
+    (empty when ``limit`` is None)."""
+    if limit is None:
+        return {"deep_unit": np.zeros((0, 3), dtype=np.float32), "deep_hip": np.zeros(0, dtype=np.int64)}
+    deep = catalog.brighter_than(limit)
+    by_z = np.argsort(deep.unit_icrs[:, 2], kind="stable")
+    return {"deep_unit": np.ascontiguousarray(deep.unit_icrs[by_z], dtype=np.float32),
+            "deep_hip": deep.hip[by_z].astype(np.int64)}
 
 
 @dataclass(frozen=True, eq=False)
@@ -29,26 +43,36 @@ class PVectorDatabase(Database):
     """One triangle per guide star, sorted by its P value, plus the guide stars.
 
     p_axis : float64 (3,) the P vector (first principal axis of the side vectors, sum > 0).
-    key : float32 (m,) P = p . d of every triangle, ascending.
-    kv_k : int32 (m,) k-vector over ``key``; ``kv_m``, ``kv_q`` its line (Mortari & Neta 2000).
+    kv : :class:`starid.kernels.KVector`: ``kv.values`` float32 (m,) the keys P = p . d of every
+        triangle, ascending; ``kv.k`` int32 (m,) the k-vector; ``kv.m``, ``kv.q`` its line
+        (Mortari & Neta 2000).
     tri_sides : float32 (m, 3) the side vector d (rad) in the order the key uses.
     tri_rows : int16/int32 (m, 3) guide rows of (S, N1, N2): main star, brighter (or nearer)
         neighbour, the other neighbour.
     unit_icrs : float32 (n, 3) guide-star unit vectors, sorted by z (declination bands).
-    hip : int32/int64 (n,) the HIP number of each guide row.
+    hip : int64 (n,) the catalog id (HIP) of each guide row.
     explained_variance : fraction of the side-vector variance along p (build diagnostic).
     """
 
     p_axis: np.ndarray
-    key: np.ndarray
-    kv_k: np.ndarray
-    kv_m: float
-    kv_q: float
+    kv: KVector
     tri_sides: np.ndarray
     tri_rows: np.ndarray
     unit_icrs: np.ndarray
     hip: np.ndarray
+    deep_unit: np.ndarray
+    deep_hip: np.ndarray
     explained_variance: float = float("nan")
+
+    @property
+    def key(self) -> np.ndarray:
+        """The sorted keys P (``kv.values``)."""
+        return self.kv.values
+
+    def tables(self) -> K.Tables:
+        """The arrays identify reads, as one kernel argument."""
+        return K.Tables(self.p_axis, self.kv, self.tri_sides, self.tri_rows, self.unit_icrs, self.hip,
+                        self.deep_unit, self.deep_hip)
 
 
 @dataclass(frozen=True)
@@ -119,11 +143,14 @@ class PVector(Algorithm):
     """
 
     name: ClassVar[str] = "pvector"
+    follows: ClassVar[dict] = {"sigma_px": "sigma_px"}
 
     mag_limit: float = 6.0
     """Guide-star limit (V); applied to the catalog and to the measured magnitudes."""
-    sigma_px: float = 1.0
-    """Assumed centroid noise (px) from which every tolerance is derived (Table 6: 1 px)."""
+    sigma_px: float | None = None
+    """Assumed centroid noise (px) from which every tolerance is derived (Table 6: 1 px). ``None``
+    (default) follows the simulator; floored at ``SIGMA_FLOOR_PX`` = 1 px, so a noise-free world
+    still gets a window."""
     pattern_radius_deg: float = 4.0
     """R: neighbours lie within R of the main star (reconstructed; see the class docstring)."""
     min_sep_deg: float = 0.2
@@ -140,10 +167,30 @@ class PVector(Algorithm):
     """'centre' (edge distance, notes 2.5.4) or 'brightness' (reconstructed alternatives)."""
     disc_inside_only: bool = False
     """Only use main stars whose R-disc lies inside the image (strict notes 2.5.4)."""
+    max_stars: int = 100
+    """Only the brightest ``max_stars`` detections take part (a time bound for crowded or wide images)."""
+    max_candidates: int = 16
+    """A triangle matching more database triangles than this is skipped (uninformative; never binds on
+    the Table 4 camera: 1,000 real-sky trials identical with 64; a 40 deg field 30x faster)."""
+    confirm_fraction: float = 0.5
+    """The attitude must find at least this fraction of the guide stars it puts in the image (0: off)."""
+    triangles_per_star: int = 3
+    """K: each guide star stores the triangles of its K brightest neighbours, K(K-1)/2 of them
+    (2 = one triangle per star; reconstruction, see docs/algorithms/pvector.md)."""
+    search: str = "kvector"
+    """'kvector' (fair default, the same index as PTP) or 'linear' (a scan of the sorted keys)."""
+    mag_margin: float = 0.5
+    """Image stars measured fainter than ``mag_limit + mag_margin`` make no pattern (flight precaution)."""
+    assign_all: bool = False
+    """Final step: once the attitude is known, assign every detection to the deep catalog star
+    (V <= ``deep_mag_limit``) predicted within the tolerance."""
+    deep_mag_limit: float = 7.5
+    """Depth of the catalog kept for ``assign_all`` (stored only when ``assign_all``)."""
 
     def __post_init__(self):
         check_number("mag_limit", self.mag_limit)
-        check_number("sigma_px", self.sigma_px, lo=0, lo_open=True)
+        if self.sigma_px is not None:
+            check_number("sigma_px", self.sigma_px, lo=0)   # None: follow the simulator
         check_number("pattern_radius_deg", self.pattern_radius_deg, lo=0, hi=90, lo_open=True, hi_open=True)
         check_number("min_sep_deg", self.min_sep_deg, lo=0)
         check_number("beta", self.beta, lo=0, lo_open=True)
@@ -155,26 +202,40 @@ class PVector(Algorithm):
         check_choice("neighbour_rule", self.neighbour_rule, NEIGHBOUR_RULES)
         check_choice("main_order", self.main_order, MAIN_ORDERS)
         check_flag("disc_inside_only", self.disc_inside_only)
-        params = np.zeros(K.N_PARAMS)
-        params[K.P_MAG_LIMIT] = self.mag_limit
-        params[K.P_CHORD_RMIN] = 2.0 * math.sin(0.5 * math.radians(self.min_sep_deg))
-        params[K.P_CHORD_R] = 2.0 * math.sin(0.5 * math.radians(self.pattern_radius_deg))
-        params[K.P_R_RAD] = math.radians(self.pattern_radius_deg)
-        params[K.P_SIGMA_PX] = self.sigma_px
-        params[K.P_BETA] = self.beta
-        params[K.P_K_MIN] = self.k_min
-        params[K.P_SORTED] = self.side_order == "sorted"
-        params[K.P_BRIGHTEST] = self.neighbour_rule == "brightest"
-        params[K.P_CENTRE] = self.main_order == "centre"
-        params[K.P_INSIDE_ONLY] = bool(self.disc_inside_only)
-        params.setflags(write=False)
-        object.__setattr__(self, "_params", params)
+        check_whole("max_stars", self.max_stars, 3, 10_000)
+        check_whole("max_candidates", self.max_candidates, 1)
+        check_number("confirm_fraction", self.confirm_fraction, lo=0, hi=1)
+        check_whole("triangles_per_star", self.triangles_per_star, 2, 10)
+        check_choice("search", self.search, SEARCHES)
+        check_number("mag_margin", self.mag_margin)
+        check_flag("assign_all", self.assign_all)
+        check_number("deep_mag_limit", self.deep_mag_limit)
+        tol = K.Tolerances(
+            mag_limit=float(self.mag_limit),
+            c_rmin=rad_to_chord(math.radians(self.min_sep_deg)),
+            c_r=rad_to_chord(math.radians(self.pattern_radius_deg)),
+            r_rad=math.radians(self.pattern_radius_deg),
+            sigma_px=max(self.sigma_px or 0.0, SIGMA_FLOOR_PX),
+            beta=float(self.beta),
+            k_min=int(self.k_min),
+            sorted_sides=self.side_order == "sorted",
+            brightest=self.neighbour_rule == "brightest",
+            centre_first=self.main_order == "centre",
+            inside_only=bool(self.disc_inside_only),
+            max_stars=int(self.max_stars),
+            max_candidates=int(self.max_candidates),
+            confirm_fraction=float(self.confirm_fraction),
+            triangles_per_star=int(self.triangles_per_star),
+            linear_search=self.search == "linear",
+            assign_all=bool(self.assign_all),
+            mag_margin=float(self.mag_margin))
+        object.__setattr__(self, "_tol", tol)
 
     # ------------------------------------------------------------------ build
     def _triangles(self, unit, v_mag, hip):
         """(S, N1, N2) rows of every guide star that has two neighbours, in row order."""
-        c_rmin = self._params[K.P_CHORD_RMIN]
-        c_r = self._params[K.P_CHORD_R]
+        c_rmin = self._tol.c_rmin
+        c_r = self._tol.c_r
         tree = cKDTree(unit)
         pairs = tree.query_pairs(c_r, output_type="ndarray")
         i = np.concatenate([pairs[:, 0], pairs[:, 1]])
@@ -188,8 +249,14 @@ class PVector(Algorithm):
         i, j = i[order], j[order]
         first = np.searchsorted(i, np.arange(unit.shape[0]), side="left")
         count = np.bincount(i, minlength=unit.shape[0])
-        has = np.flatnonzero(count >= 2)
-        return np.stack([has, j[first[has]], j[first[has] + 1]], axis=1)
+        k = int(self.triangles_per_star)
+        out = []
+        for b in range(1, k):          # brightest pair first, as identify tries them
+            for a in range(b):
+                has = np.flatnonzero(count >= b + 1)
+                out.append(np.stack([has, j[first[has] + a], j[first[has] + b]], axis=1))
+        rows = np.concatenate(out)
+        return rows[np.lexsort((rows[:, 2], rows[:, 1], rows[:, 0]))]
 
     def build(self, catalog: Catalog, camera: Camera) -> PVectorDatabase:
         guide = catalog.brighter_than(self.mag_limit)
@@ -217,32 +284,49 @@ class PVector(Algorithm):
             p_axis = -p_axis
         key = (sides @ p_axis).astype(np.float32)
         order = np.argsort(key, kind="stable")
-        key = np.ascontiguousarray(key[order])
-        k, m, q = kvector_build(key.astype(np.float64))
         row_dtype = np.int16 if unit.shape[0] <= np.iinfo(np.int16).max else np.int32
-        hip_dtype = np.int32 if hip.max() <= np.iinfo(np.int32).max else np.int64
         return PVectorDatabase(
             p_axis=np.ascontiguousarray(p_axis, dtype=np.float64),
-            key=key,
-            kv_k=k.astype(np.int32),
-            kv_m=m,
-            kv_q=q,
+            kv=kvector_make(key[order], values_dtype=np.float32, index_dtype=np.int32),
             tri_sides=np.ascontiguousarray(sides[order], dtype=np.float32),
             tri_rows=np.ascontiguousarray(rows[order], dtype=row_dtype),
             unit_icrs=np.ascontiguousarray(unit, dtype=np.float32),
-            hip=hip.astype(hip_dtype),
+            hip=hip.astype(np.int64),
+            **_deep(catalog, self.deep_mag_limit if self.assign_all else None),
             explained_variance=float(eigval[-1] / eigval.sum()),
         )
 
     # --------------------------------------------------------------- identify
+    def _run(self, database: PVectorDatabase, observation: Observation):
+        cam = observation.camera
+        frame = K.Frame(float(cam.f_px), float(cam.cx_px), float(cam.cy_px), float(cam.width_px),
+                        float(cam.height_px))
+        return K.identify_rows(observation.x_px, observation.y_px, observation.mag, frame, database.tables(),
+                               self._tol)
+
     def identify(self, database: PVectorDatabase, observation: Observation) -> Identification:
         n = observation.x_px.shape[0]
         if n < 3:
             return Identification.none(n)
-        cam = observation.camera
-        hip, attitude, ok = K.identify_rows(
-            observation.x_px, observation.y_px, observation.mag, cam.f_px, float(cam.cx_px), float(cam.cy_px),
-            float(cam.width_px), float(cam.height_px), database.p_axis, database.key, database.kv_k,
-            database.kv_m, database.kv_q, database.tri_sides, database.tri_rows, database.unit_icrs,
-            database.hip, self._params)
+        hip, attitude, ok, _ = self._run(database, observation)
         return Identification(hip, attitude if ok else None)
+
+    def explain(self, database: PVectorDatabase, observation: Observation) -> Explanation:
+        """The accepted main (guide) star and the two neighbours of its triangle, as three bold segments."""
+        n = len(observation)
+        x, y = observation.x_px, observation.y_px
+        points = np.stack([x, y], axis=1) if n else np.zeros((0, 2))
+        if n < 3:
+            return Explanation(points=points, labels=("",) * n, caption=f"P-vector: {n} stars, no triangle.")
+        hip, _, ok, tri = self._run(database, observation)
+        labels = tuple(str(h) if h >= 0 else "" for h in hip)
+        if not ok:
+            return Explanation(points=points, labels=labels,
+                               caption="P-vector: no main star's triangle was confirmed; nothing identified.")
+        s, n1, n2 = (int(v) for v in tri)
+        segments = [[[x[a], y[a]], [x[b], y[b]]] for a, b in ((s, n1), (s, n2), (n1, n2))]
+        caption = (f"P-vector: main star {int(hip[s])} with its neighbours {int(hip[n1])} and {int(hip[n2])} "
+                   f"(bold triangle, key P = p . sides) identified the image; {int(np.sum(hip >= 0))} of {n} "
+                   f"stars identified.")
+        return Explanation(segments=np.array(segments), polygons=(np.array([[x[v], y[v]] for v in (s, n1, n2)]),),
+                           points=points, labels=labels, caption=caption, highlight=np.arange(3))

@@ -10,29 +10,74 @@ with an angular tolerance is at least as loose as the angular test).
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 
-from starid.kernels import (backproject_px, chord_rows, chord_to_rad, keep_unique, kvector_range, reproject_assign,
-                            verify_pairwise, wahba_rows, z_band_rows)
+from starid.kernels import (KVector, backproject_px, chord_rows, chord_to_rad, keep_unique, kvector_query,
+                            reproject_assign, verify_pairwise, wahba_rows, z_band_rows)
 
 # The six vertex correspondences (observed vertex j -> database vertex PERMS[p, j]).
 PERMS = np.array([[0, 1, 2], [1, 2, 0], [2, 0, 1], [0, 2, 1], [2, 1, 0], [1, 0, 2]], dtype=np.int64)
 
-# Indices of ``params`` (a float64 array packed once by the algorithm class).
-P_MAG_LIMIT = 0      # guide-star magnitude limit applied to the observed (noisy) magnitudes
-P_CHORD_RMIN = 1     # chord of r_min
-P_CHORD_R = 2        # chord of the pattern radius R
-P_R_RAD = 3          # pattern radius R in radians (for the disc-inside test)
-P_SIGMA_PX = 4       # assumed centroid noise (px)
-P_BETA = 5           # tolerance factor: eps_d = beta * sqrt(2) * sigma_px / f_px
-P_K_MIN = 6          # confirmations needed beyond the three triangle stars
-P_SORTED = 7         # 1: sides sorted ascending; 0: sides in role order (S-N1, S-N2, N1-N2)
-P_BRIGHTEST = 8      # 1: two brightest neighbours; 0: two nearest
-P_CENTRE = 9         # 1: main stars ordered by distance to the image edge; 0: by brightness
-P_INSIDE_ONLY = 10   # 1: only main stars whose R-disc lies inside the image
-N_PARAMS = 11
+
+
+class Frame(NamedTuple):
+    """The camera as identify needs it: focal length and principal point (px), sensor size (px)."""
+
+    f_px: float
+    cx_px: float
+    cy_px: float
+    width_px: float
+    height_px: float
+
+
+class Tables(NamedTuple):
+    """What identify reads from :class:`~starid_algorithms.pvector.PVectorDatabase`, as one argument.
+
+    p_axis : (3,) the P vector; kv : :class:`starid.kernels.KVector` over the keys P (float32);
+    tri_sides : float32 (m, 3) side vectors (rad); tri_rows : (m, 3) guide rows of (S, N1, N2);
+    unit : float32 (n, 3) guide unit vectors (ICRS, z-sorted); hip : int64 (n,) their ids.
+    """
+
+    p_axis: np.ndarray
+    kv: KVector
+    tri_sides: np.ndarray
+    tri_rows: np.ndarray
+    unit: np.ndarray
+    hip: np.ndarray
+    deep_unit: np.ndarray
+    deep_hip: np.ndarray
+
+
+class Tolerances(NamedTuple):
+    """The parameters identify uses (see :class:`~starid_algorithms.pvector.PVector`).
+
+    mag_limit : guide-star limit applied to the measured magnitudes; c_rmin, c_r : chords of r_min
+    and R; r_rad : R in radians; sigma_px : assumed centroid noise; beta : tolerance factor
+    (eps_d = beta sqrt(2) sigma_px / f_px); k_min : confirmations beyond the triangle; sorted_sides,
+    brightest, centre_first, inside_only : the switches of the class parameters.
+    """
+
+    mag_limit: float
+    c_rmin: float
+    c_r: float
+    r_rad: float
+    sigma_px: float
+    beta: float
+    k_min: int
+    sorted_sides: bool
+    brightest: bool
+    centre_first: bool
+    inside_only: bool
+    max_stars: int
+    max_candidates: int
+    confirm_fraction: float
+    triangles_per_star: int
+    linear_search: bool
+    assign_all: bool
+    mag_margin: float
 
 
 @njit(cache=True)
@@ -89,7 +134,7 @@ def select_neighbours(v, mag, eligible, centre, c_rmin, c_r, brightest, x_px, y_
         if j == centre or not eligible[j]:
             continue
         d = chord_rows(v, centre, v, j)
-        if d < c_rmin or d > c_r:
+        if d < c_rmin or d > c_r or d <= 0.0:   # a coincident detection is never a neighbour
             continue
         k = mag[j] if brightest else d
         if best1 < 0 or _ranks_before(x_px, y_px, j, k, d, best1, k1, d1):
@@ -98,6 +143,54 @@ def select_neighbours(v, mag, eligible, centre, c_rmin, c_r, brightest, x_px, y_
         elif best2 < 0 or _ranks_before(x_px, y_px, j, k, d, best2, k2, d2):
             best2, k2, d2 = j, k, d
     return best1, best2
+
+
+@njit(cache=True)
+def select_top(v, mag, eligible, centre, c_rmin, c_r, brightest, x_px, y_px, out):
+    """The ``len(out)`` neighbours of star ``centre`` that form its triangles, best first; returns how many.
+
+    Same candidates and ranking as :func:`select_neighbours` (which is the ``len(out) == 2`` case).
+    """
+    k_max = out.shape[0]
+    keys = np.empty(k_max)
+    chords = np.empty(k_max)
+    m = 0
+    for j in range(v.shape[0]):
+        if j == centre or not eligible[j]:
+            continue
+        d = chord_rows(v, centre, v, j)
+        if d < c_rmin or d > c_r or d <= 0.0:
+            continue
+        k = mag[j] if brightest else d
+        pos = m
+        while pos > 0 and _ranks_before(x_px, y_px, j, k, d, out[pos - 1], keys[pos - 1], chords[pos - 1]):
+            pos -= 1
+        if pos >= k_max:
+            continue
+        last = min(m, k_max - 1)
+        for t in range(last, pos, -1):
+            out[t] = out[t - 1]
+            keys[t] = keys[t - 1]
+            chords[t] = chords[t - 1]
+        out[pos] = j
+        keys[pos] = k
+        chords[pos] = d
+        m = min(m + 1, k_max)
+    return m
+
+
+@njit(cache=True)
+def linear_range(values, lo, hi):
+    """``[start, stop)`` of ascending ``values`` in ``[lo, hi]`` by a linear scan from the start: the
+    search a sorted table without an index gets (``search='linear'``), O(m) per query."""
+    n = values.shape[0]
+    start = 0
+    while start < n and values[start] < lo:
+        start += 1
+    stop = start
+    while stop < n and values[stop] <= hi:
+        stop += 1
+    return start, stop
 
 
 @njit(cache=True)
@@ -165,10 +258,43 @@ def match_extras(oc, tri_obs, cat_rows, unit, eps, c_band, out_row):
 
 
 @njit(cache=True)
-def identify_rows(x_px, y_px, mag, f_px, cx_px, cy_px, width_px, height_px,
-                  p_axis, key, kv_k, kv_m, kv_q, tri_sides, tri_rows, unit, hip, params):
-    """``(hip, attitude, ok)``: catalog id per observed star (-1 = unidentified, input order),
-    the ICRS -> camera attitude and whether the image was identified.
+def assign_deep(x_px, y_px, frame, attitude, deep_unit, deep_hip, eps, hip):
+    """The standard final step (``assign_all``): ``attitude`` assigns every detection to the deep
+    catalog star predicted within chord ``eps`` (``starid.kernels.reproject_assign``, one-to-one).
+    A detection left unassigned keeps its id in ``hip`` unless that id went to another detection.
+    Updates ``hip`` in place."""
+    n = x_px.shape[0]
+    v_all = backproject_px(x_px, y_px, frame.f_px, frame.cx_px, frame.cy_px)
+    c_fov = 0.0
+    corners = backproject_px(np.array([0.0, frame.width_px, 0.0, frame.width_px]),
+                             np.array([0.0, 0.0, frame.height_px, frame.height_px]), frame.f_px, frame.cx_px,
+                             frame.cy_px)
+    for i in range(4):
+        c_fov = max(c_fov, math.sqrt(corners[i, 0] ** 2 + corners[i, 1] ** 2 + (corners[i, 2] - 1.0) ** 2))
+    deep_rows = np.empty(n, dtype=np.int64)
+    reproject_assign(attitude, v_all, deep_unit, c_fov + eps, eps, deep_rows, frame.f_px, frame.cx_px, frame.cy_px,
+                     frame.width_px, frame.height_px)
+    out = np.full(n, -1, dtype=np.int64)
+    for i in range(n):
+        if deep_rows[i] >= 0:
+            out[i] = deep_hip[deep_rows[i]]
+    for i in range(n):
+        if out[i] < 0 and hip[i] >= 0:
+            taken = False
+            for j in range(n):
+                if out[j] == hip[i]:
+                    taken = True
+            if not taken:
+                out[i] = hip[i]
+    for i in range(n):
+        hip[i] = out[i]
+
+
+@njit(cache=True)
+def identify_rows(x_px, y_px, mag, frame, db, tol):
+    """``(hip, attitude, ok, triangle)``: catalog id per observed star (-1 = unidentified, input
+    order), the ICRS -> camera attitude, whether the image was identified, and the input indices of
+    the accepted triangle (main star, N1, N2; -1 when none).
 
     Steps (the docstring of :class:`starid_algorithms.pvector.PVector` maps them to the paper):
     canonical star order; main stars in preference order; per main star its triangle, the
@@ -177,29 +303,34 @@ def identify_rows(x_px, y_px, mag, f_px, cx_px, cy_px, width_px, height_px,
     correspondence is verified (mutual consistency, attitude, re-identification from the
     attitude) and reported.
     """
-    n = x_px.shape[0]
-    out = np.full(n, -1, dtype=np.int64)
-    if n < 3:
-        return out, np.eye(3), False
+    f_px, cx_px, cy_px, width_px, height_px = frame.f_px, frame.cx_px, frame.cy_px, frame.width_px, frame.height_px
+    p_axis, tri_sides, tri_rows, unit, hip = db.p_axis, db.tri_sides, db.tri_rows, db.unit, db.hip
+    out = np.full(x_px.shape[0], -1, dtype=np.int64)
+    tri_found = np.full(3, -1, dtype=np.int64)
+    if x_px.shape[0] < 3:
+        return out, np.eye(3), False, tri_found
+    # only the max_stars brightest detections take part (ties by position)
+    sel = _sort_by(mag, x_px, y_px)[:min(x_px.shape[0], tol.max_stars)]
+    n = sel.shape[0]
     # canonical order: the answer cannot depend on the input order
-    canon = _sort_by(x_px, x_px, y_px)
+    canon = sel[_sort_by(x_px[sel], x_px[sel], y_px[sel])]
     xs = x_px[canon]
     ys = y_px[canon]
     ms = mag[canon]
     v = backproject_px(xs, ys, f_px, cx_px, cy_px)
 
-    mag_limit = params[P_MAG_LIMIT]
-    c_rmin = params[P_CHORD_RMIN]
-    c_r = params[P_CHORD_R]
+    mag_limit = tol.mag_limit
+    c_rmin = tol.c_rmin
+    c_r = tol.c_r
     # per-side tolerance: angle noise sqrt(2) sigma (notes 1.3); key tolerance ||p||_1 eps_d
-    eps = params[P_BETA] * math.sqrt(2.0) * params[P_SIGMA_PX] / f_px
+    eps = tol.beta * math.sqrt(2.0) * tol.sigma_px / f_px
     eps_key = (abs(p_axis[0]) + abs(p_axis[1]) + abs(p_axis[2])) * eps
-    k_min = int(params[P_K_MIN])
-    sorted_sides = params[P_SORTED] != 0.0
-    brightest = params[P_BRIGHTEST] != 0.0
-    centre_first = params[P_CENTRE] != 0.0
-    inside_only = params[P_INSIDE_ONLY] != 0.0
-    r_px = f_px * math.tan(params[P_R_RAD])
+    k_min = tol.k_min
+    sorted_sides = tol.sorted_sides
+    brightest = tol.brightest
+    centre_first = tol.centre_first
+    inside_only = tol.inside_only
+    r_px = f_px * math.tan(tol.r_rad)
     # chord from the boresight to the farthest image corner, plus the tolerance
     corners = backproject_px(np.array([0.0, width_px, 0.0, width_px]), np.array([0.0, 0.0, height_px, height_px]),
                              f_px, cx_px, cy_px)
@@ -208,7 +339,7 @@ def identify_rows(x_px, y_px, mag, f_px, cx_px, cy_px, width_px, height_px,
         c_fov = max(c_fov, math.sqrt(corners[i, 0] ** 2 + corners[i, 1] ** 2 + (corners[i, 2] - 1.0) ** 2))
     c_fov += eps
 
-    eligible = ms <= mag_limit
+    eligible = ms <= mag_limit + tol.mag_margin   # stars that can be in the database (flight precaution)
     # main-star preference: largest distance to the image edge first (R-disc inside), or brightest
     pref = np.empty(n)
     for i in range(n):
@@ -222,6 +353,7 @@ def identify_rows(x_px, y_px, mag, f_px, cx_px, cy_px, width_px, height_px,
     rows_try = np.empty(n, dtype=np.int64)
     rows_best = np.empty(n, dtype=np.int64)
     best_map = np.empty(3, dtype=np.int64)
+    nbs = np.empty(max(2, tol.triangles_per_star), dtype=np.int64)
     n_perm = 6 if sorted_sides else 1
 
     for oi in range(n):
@@ -232,87 +364,106 @@ def identify_rows(x_px, y_px, mag, f_px, cx_px, cy_px, width_px, height_px,
             edge = min(min(xs[s], width_px - xs[s]), min(ys[s], height_px - ys[s]))
             if edge < r_px:
                 continue
-        n1, n2 = select_neighbours(v, ms, eligible, s, c_rmin, c_r, brightest, xs, ys)
-        if n2 < 0:
-            continue
-        tri_obs[0] = s
-        tri_obs[1] = n1
-        tri_obs[2] = n2
-        c01 = chord_rows(v, s, v, n1)
-        c02 = chord_rows(v, s, v, n2)
-        c12 = chord_rows(v, n1, v, n2)
-        d_obs = triangle_feature(chord_to_rad(c01), chord_to_rad(c02), chord_to_rad(c12), sorted_sides)
-        p_obs = p_axis[0] * d_obs[0] + p_axis[1] * d_obs[1] + p_axis[2] * d_obs[2]
-        start, stop = kvector_range(key, kv_k, kv_m, kv_q, p_obs - eps_key, p_obs + eps_key)
-        if stop <= start:
-            continue
-        trip_obs = _triple(v[s], v[n1], v[n2])
-        chir_significant = abs(trip_obs) > eps * max(c01, max(c02, c12))
-        for i in range(n):
-            for j in range(3):
-                oc[i, j] = chord_rows(v, i, v, tri_obs[j])
-        c_band = 0.0
-        for i in range(n):
-            c_band = max(c_band, oc[i, 0])
-        c_band += eps
-        n_found = 0
-        ambiguous = False
-        for t in range(start, stop):
-            if (abs(tri_sides[t, 0] - d_obs[0]) > eps or abs(tri_sides[t, 1] - d_obs[1]) > eps
-                    or abs(tri_sides[t, 2] - d_obs[2]) > eps):
-                continue
-            for p in range(n_perm):
-                for j in range(3):
-                    cat_rows[j] = tri_rows[t, PERMS[p, j]]
-                if sorted_sides:
-                    if (abs(chord_rows(unit, cat_rows[0], unit, cat_rows[1]) - c01) > eps
-                            or abs(chord_rows(unit, cat_rows[0], unit, cat_rows[2]) - c02) > eps
-                            or abs(chord_rows(unit, cat_rows[1], unit, cat_rows[2]) - c12) > eps):
-                        continue
-                if chir_significant:
-                    trip_cat = _triple(unit[cat_rows[0]], unit[cat_rows[1]], unit[cat_rows[2]])
-                    if (trip_cat > 0) != (trip_obs > 0):
-                        continue
-                if n_found > 0 and cat_rows[0] == best_map[0] and cat_rows[1] == best_map[1] \
-                        and cat_rows[2] == best_map[2]:
-                    continue  # the same correspondence reached through another database entry
-                confirmed = match_extras(oc, tri_obs, cat_rows, unit, eps, c_band, rows_try)
-                if confirmed < k_min:
+        n_nb = select_top(v, ms, eligible, s, c_rmin, c_r, brightest, xs, ys, nbs)
+        # the triangles of the K brightest neighbours, brightest pair first: (0,1), (0,2), (1,2), (0,3), ...
+        for b_i in range(1, n_nb):
+            for a_i in range(b_i):
+                n1 = nbs[a_i]
+                n2 = nbs[b_i]
+                tri_obs[0] = s
+                tri_obs[1] = n1
+                tri_obs[2] = n2
+                c01 = chord_rows(v, s, v, n1)
+                c02 = chord_rows(v, s, v, n2)
+                c12 = chord_rows(v, n1, v, n2)
+                d_obs = triangle_feature(chord_to_rad(c01), chord_to_rad(c02), chord_to_rad(c12), sorted_sides)
+                p_obs = p_axis[0] * d_obs[0] + p_axis[1] * d_obs[1] + p_axis[2] * d_obs[2]
+                if tol.linear_search:
+                    start, stop = linear_range(db.kv.values, p_obs - eps_key, p_obs + eps_key)
+                else:
+                    start, stop = kvector_query(db.kv, p_obs - eps_key, p_obs + eps_key)
+                if stop <= start:
                     continue
-                if n_found == 0:
-                    n_found = 1
+                trip_obs = _triple(v[s], v[n1], v[n2])
+                chir_significant = abs(trip_obs) > eps * max(c01, max(c02, c12))
+                for i in range(n):
                     for j in range(3):
-                        best_map[j] = cat_rows[j]
+                        oc[i, j] = chord_rows(v, i, v, tri_obs[j])
+                c_band = 0.0
+                for i in range(n):
+                    c_band = max(c_band, oc[i, 0])
+                c_band += eps
+                n_side = 0
+                for t in range(start, stop):
+                    if (abs(tri_sides[t, 0] - d_obs[0]) <= eps and abs(tri_sides[t, 1] - d_obs[1]) <= eps
+                            and abs(tri_sides[t, 2] - d_obs[2]) <= eps):
+                        n_side += 1
+                if n_side > tol.max_candidates:
+                    continue    # an uninformative triangle: its window is far wider than the catalog's spacing
+                n_found = 0
+                ambiguous = False
+                for t in range(start, stop):
+                    if (abs(tri_sides[t, 0] - d_obs[0]) > eps or abs(tri_sides[t, 1] - d_obs[1]) > eps
+                            or abs(tri_sides[t, 2] - d_obs[2]) > eps):
+                        continue
+                    for p in range(n_perm):
+                        for j in range(3):
+                            cat_rows[j] = tri_rows[t, PERMS[p, j]]
+                        if sorted_sides:
+                            if (abs(chord_rows(unit, cat_rows[0], unit, cat_rows[1]) - c01) > eps
+                                    or abs(chord_rows(unit, cat_rows[0], unit, cat_rows[2]) - c02) > eps
+                                    or abs(chord_rows(unit, cat_rows[1], unit, cat_rows[2]) - c12) > eps):
+                                continue
+                        if chir_significant:
+                            trip_cat = _triple(unit[cat_rows[0]], unit[cat_rows[1]], unit[cat_rows[2]])
+                            if (trip_cat > 0) != (trip_obs > 0):
+                                continue
+                        if n_found > 0 and cat_rows[0] == best_map[0] and cat_rows[1] == best_map[1] \
+                                and cat_rows[2] == best_map[2]:
+                            continue  # the same correspondence reached through another database entry
+                        confirmed = match_extras(oc, tri_obs, cat_rows, unit, eps, c_band, rows_try)
+                        if confirmed < k_min:
+                            continue
+                        if n_found == 0:
+                            n_found = 1
+                            for j in range(3):
+                                best_map[j] = cat_rows[j]
+                            for i in range(n):
+                                rows_best[i] = rows_try[i]
+                        else:
+                            ambiguous = True
+                if n_found == 0 or ambiguous:
+                    continue
+                for j in range(3):
+                    rows_best[tri_obs[j]] = best_map[j]
+                keep = verify_pairwise(v, rows_best, unit, eps, 0, 1.0)   # every pair must agree
+                n_keep = 0
+                for i in range(n):
+                    if keep[i]:
+                        n_keep += 1
+                    else:
+                        rows_best[i] = -1
+                if n_keep < 3 + k_min:
+                    continue
+                # attitude from the consistent stars, then every star re-identified from it (twice, the
+                # second attitude using the larger, better spread set)
+                n_assigned = 0
+                n_predicted = 0
+                for _ in range(2):
+                    attitude = wahba_rows(v, rows_best, unit)
+                    n_assigned, n_predicted = reproject_assign(attitude, v, unit, c_fov, eps, rows_try, f_px, cx_px, cy_px,
+                                                               width_px, height_px)
                     for i in range(n):
                         rows_best[i] = rows_try[i]
-                else:
-                    ambiguous = True
-        if n_found == 0 or ambiguous:
-            continue
-        for j in range(3):
-            rows_best[tri_obs[j]] = best_map[j]
-        keep = verify_pairwise(v, rows_best, unit, eps, 0, 1.0)   # every pair must agree
-        n_keep = 0
-        for i in range(n):
-            if keep[i]:
-                n_keep += 1
-            else:
-                rows_best[i] = -1
-        if n_keep < 3 + k_min:
-            continue
-        # attitude from the consistent stars, then every star re-identified from it (twice, the
-        # second attitude using the larger, better spread set)
-        n_assigned = 0
-        for _ in range(2):
-            attitude = wahba_rows(v, rows_best, unit)
-            n_assigned, _ = reproject_assign(attitude, v, unit, c_fov, eps, rows_try, f_px, cx_px, cy_px,
-                                             width_px, height_px)
-            for i in range(n):
-                rows_best[i] = rows_try[i]
-        if n_assigned < 3 + k_min:
-            continue
-        for i in range(n):
-            if rows_best[i] >= 0:
-                out[canon[i]] = hip[rows_best[i]]
-        return out, wahba_rows(v, rows_best, unit), True
-    return out, np.eye(3), False
+                if n_assigned < 3 + k_min or n_assigned < tol.confirm_fraction * n_predicted:
+                    continue
+                for i in range(n):
+                    if rows_best[i] >= 0:
+                        out[canon[i]] = hip[rows_best[i]]
+                attitude = wahba_rows(v, rows_best, unit)
+                if tol.assign_all and db.deep_unit.shape[0] > 0:
+                    assign_deep(x_px, y_px, frame, attitude, db.deep_unit, db.deep_hip, eps, out)
+                for j in range(3):
+                    tri_found[j] = canon[tri_obs[j]]
+                return out, attitude, True, tri_found
+    return out, np.eye(3), False, tri_found

@@ -1,0 +1,208 @@
+import time
+
+import numpy as np
+import pytest
+
+from starid import Camera, Catalog, ConfigError, Observation, SimConfig, Simulator
+from starid.plugin import Explanation, check_identification
+from starid.testing import CHECKS, check_algorithm
+from starid import run, summarize
+from starid_algorithms.ptp import PTP
+from starid_algorithms.ptp.algorithm import CHORD_SCALE
+from starid_algorithms.ptp.kernels import nearest_slaves, projection_sigma
+
+
+@pytest.fixture(scope="module")
+def db(catalog, camera):
+    return PTP().build(catalog, camera)
+
+
+def test_database_layout(db, catalog):
+    n_guide = db.guide_hip.size
+    assert 4_900 <= n_guide <= 5_100                       # V <= 6 minus close doubles
+    assert 5.5 * n_guide < db.proj.size <= 6 * n_guide       # six triangles for (almost) every master
+    assert np.all(np.diff(db.proj) >= 0)
+    assert db.ids.dtype == np.uint16 and db.kv.k.dtype == np.uint16 and db.sides.dtype == np.float32
+    assert db.guide_hip.dtype == np.int64
+    assert db.nbytes / 1e6 <= 0.80                         # the paper's Table 6: 0.784 MB (+ int64 ids here)
+    assert np.linalg.norm(db.axis) == pytest.approx(1.0) and db.axis.sum() > 0
+    # recompute one triangle from the catalog
+    rows = catalog.index_of(db.guide_hip)                   # guide rows are in declination order
+    assert np.all(np.diff(db.guide_unit[:, 2]) >= 0)
+    assert np.allclose(db.guide_unit, catalog.unit_icrs[rows], atol=1e-7)
+    r = catalog.unit_icrs[rows[db.ids[123].astype(int)]]
+    a, b, c = (CHORD_SCALE * np.linalg.norm(r[i] - r[j]) for i, j in ((0, 1), (1, 2), (0, 2)))
+    assert np.allclose(db.sides[:, 123], [a, b, c], rtol=1e-6)
+    assert db.proj[123] == pytest.approx(db.axis @ (np.array([a, b, c]) - db.mean), abs=1e-3)
+    assert a <= c                                          # r2 is the nearer slave
+    assert 8.728 - 1e-6 <= min(a, c) and max(a, c) <= 872.8 + 1e-6
+
+
+def test_projection_sigma_matches_monte_carlo():
+    rng = np.random.default_rng(0)
+    t = np.array([[0.0, 0.0, 1.0], [0.02, 0.01, 1.0], [-0.01, 0.03, 1.0]])
+    t /= np.linalg.norm(t, axis=1, keepdims=True)
+    w = np.array([0.33, 0.86, 0.40])
+    w /= np.linalg.norm(w)
+    sigma = 1e-4
+
+    def proj(v):
+        a, b, c = (CHORD_SCALE * np.linalg.norm(v[i] - v[j]) for i, j in ((0, 1), (1, 2), (0, 2)))
+        return w @ [a, b, c], (a, b, c)
+
+    p0, (a, b, c) = proj(t)
+    samples = []
+    for _ in range(4000):
+        noise = rng.normal(0, sigma, (3, 3))
+        noise -= np.sum(noise * t, axis=1, keepdims=True) * t        # tangent-plane noise, eq. 10
+        v = t + noise
+        samples.append(proj(v / np.linalg.norm(v, axis=1, keepdims=True))[0])
+    analytic = projection_sigma(t, 0, 1, 2, a, b, c, w, sigma, CHORD_SCALE)
+    assert np.std(samples) == pytest.approx(analytic, rel=0.05)
+
+
+def test_nearest_slaves_respects_limits():
+    unit = np.array([[0, 0, 1.0], [1e-5, 0, 1], [0.01, 0, 1], [0.02, 0, 1], [0, 0.03, 1], [0.2, 0, 1]])
+    unit /= np.linalg.norm(unit, axis=1, keepdims=True)
+    dist = CHORD_SCALE * np.linalg.norm(unit[:, None] - unit[None], axis=2)
+    usable = np.ones(6, dtype=bool)
+    out = np.empty(4, dtype=np.int64)
+    k = nearest_slaves(dist[0], unit, usable, 0, 8.728, 872.8, 4, out)
+    assert out[:k].tolist() == [2, 3, 4]    # star 1 is closer than d_min, star 5 farther than d_max
+    usable[3] = False
+    k = nearest_slaves(dist[0], unit, usable, 0, 8.728, 872.8, 2, out)
+    assert out[:k].tolist() == [2, 4]
+
+
+def test_noise_free_identification(catalog, camera):
+    sim = Simulator(catalog, camera, SimConfig(), seed=99)
+    s = summarize(run([PTP()], sim.generate(300), catalog, sim)).iloc[0]
+    assert s["id_rate"] >= 0.96 and s["misid_rate"] <= 0.01
+
+
+def test_paper_literal_variant_runs(catalog, camera, db):
+    sim = Simulator(catalog, camera, SimConfig(sigma_px=1.0), seed=5)
+    obs = sim.observation(0)
+    literal = PTP(verify=False, majority=False, exclude_doubles=False, swap_slaves=False)
+    hip = literal.identify(literal.build(catalog, camera), obs).hip
+    assert hip.shape == (len(obs),)
+
+
+@pytest.mark.parametrize("kwargs", [{"sigma_px": -1}, {"sigma_px": "1"}, {"n_slaves": 1}, {"d_min_deg": 6.0}, {"min_shared": 4},
+                                    {"beta": -1}, {"verify_min_fraction": 2}, {"confirm_fraction": 1.5},
+                                    {"max_stars": 2}, {"max_candidates": 0}])
+def test_invalid_parameters(kwargs):
+    with pytest.raises(ConfigError):
+        PTP(**kwargs)
+
+
+def test_sigma_px_follows_the_simulator_with_a_floor():
+    assert PTP.follows == {"sigma_px": "sigma_px"} and PTP().sigma_px is None
+    assert PTP().resolved(SimConfig(sigma_px=2.5)).sigma_px == 2.5
+    assert PTP(sigma_px=0.3).resolved(SimConfig(sigma_px=2.5)).sigma_px == 0.3      # pinned stays
+    assert PTP().sigma_eff_px == 1.0 and PTP(sigma_px=0.0).sigma_eff_px == 1.0
+    assert PTP().resolved(SimConfig()).sigma_eff_px == 1.0                            # noise-free: floor
+    assert PTP(sigma_px=2.0).sigma_eff_px == 2.0
+
+
+# ------------------------------------------------------------------------------------ trust (issue 10)
+@pytest.fixture(scope="module")
+def offset_catalog(catalog):
+    """The catalog to V 6.5 with every id offset by 2^31 (ids that do not fit in int32)."""
+    cat = catalog.brighter_than(6.5)
+    return Catalog.from_arrays(cat.hip + 2**31, cat.ra_deg, cat.dec_deg, cat.v_mag, name="offset")
+
+
+def test_ids_beyond_int32(offset_catalog, camera):
+    db = PTP().build(offset_catalog, camera)
+    assert db.guide_hip.dtype == np.int64 and db.guide_hip.min() > 2**31
+    sim = Simulator(offset_catalog, camera, SimConfig(sigma_px=0.5), seed=4)
+    s = summarize(run([PTP()], sim.generate(30), offset_catalog, sim)).iloc[0]
+    assert s["error_rate"] == 0 and s["id_rate"] >= 0.8 and s["misid_rate"] == 0
+
+
+def test_random_fields_give_nothing(db, camera):
+    rng = np.random.default_rng(2024)
+    algo = PTP()
+    claimed = 0
+    for _ in range(40):
+        obs = Observation(rng.uniform(0, 1024, 30), rng.uniform(0, 1024, 30), rng.uniform(2, 6, 30), camera)
+        claimed += int(np.any(algo.identify(db, obs).hip >= 0))
+    assert claimed == 0
+
+
+def test_coincident_detections(db, catalog, camera):
+    sim = Simulator(catalog, camera, SimConfig(sigma_px=0.5), seed=8)
+    for d_min in (0.05, 0.0):
+        algo = PTP(d_min_deg=d_min, exclude_doubles=d_min > 0)
+        base = algo.build(catalog, camera) if d_min == 0 else db
+        for t in range(5):
+            o = sim.observation(t)
+            dup = Observation(np.append(o.x_px, o.x_px[:2]), np.append(o.y_px, o.y_px[:2]),
+                              np.append(o.mag, o.mag[:2]), camera)
+            hip = check_identification(algo.identify(base, dup), len(dup), catalog.hip).hip
+            truth = np.append(o.truth_hip, o.truth_hip[:2])
+            assert not np.any((hip >= 0) & (hip != truth))
+
+
+@pytest.mark.parametrize("fov_deg", [170.0, 60.0])
+def test_wide_field_finishes_quickly(catalog, fov_deg):
+    cam = Camera.from_fov(fov_deg)
+    algo = PTP()
+    db = algo.build(catalog, cam)
+    obs = Simulator(catalog, cam, SimConfig(sigma_px=1.0), seed=2).observation(0)
+    algo.identify(db, obs)                     # compile
+    t0 = time.perf_counter()
+    hip = algo.identify(db, obs).hip
+    assert time.perf_counter() - t0 < 2.0
+    assert not np.any((hip >= 0) & (hip != obs.truth_hip))
+
+
+@pytest.mark.parametrize("check", CHECKS)
+def test_conformance(check):
+    check_algorithm(PTP, checks=[check])
+
+
+def test_assign_all_raises_recall_without_wrong_ids(catalog, camera):
+    sim = Simulator(catalog, camera, SimConfig(sigma_px=1.0, sigma_mag=0.5), seed=22)
+    recall, wrong = {}, {}
+    for assign in (False, True):
+        algo = PTP(assign_all=assign)
+        db = algo.build(catalog, camera)
+        right = total = bad = 0
+        for t in range(40):
+            o = sim.observation(t)
+            hip = algo.identify(db, o).hip
+            right += int(np.sum((hip >= 0) & (hip == o.truth_hip)))
+            bad += int(np.sum((hip >= 0) & (hip != o.truth_hip)))
+            total += len(o)
+        recall[assign], wrong[assign] = right / total, bad
+    assert recall[True] > recall[False] + 0.05
+    assert wrong[True] <= 2
+
+
+def test_image_slaves_form_more_triangles(db, catalog, camera):
+    """Extra image slaves only add triangles: what 4 slaves identify, 6 identify too (noise-free)."""
+    sim = Simulator(catalog, camera, SimConfig(), seed=23)
+    for t in range(8):
+        o = sim.observation(t)
+        four = PTP(image_slaves=4).identify(db, o).hip
+        six = PTP(image_slaves=6).identify(db, o).hip
+        assert (six >= 0).sum() >= 3 or (four >= 0).sum() < 3
+        assert not np.any((six >= 0) & (six != o.truth_hip))
+
+
+def test_explain_draws_the_image_triangles(db, catalog, camera):
+    obs = Simulator(catalog, camera, SimConfig(sigma_px=1.0), seed=31).observation(0)
+    ex = PTP().explain(db, obs)
+    assert isinstance(ex, Explanation)
+    assert len(ex.segments) >= 3 * len(obs) and len(ex.highlight) == 3 and len(ex.polygons) == 1
+    hip = PTP().identify(db, obs).hip
+    tri = ex.polygons[0]
+    # the bold triangle's corners are identified detections
+    for px in tri:
+        i = np.flatnonzero((obs.x_px == px[0]) & (obs.y_px == px[1]))[0]
+        assert hip[i] >= 0
+    assert "matched" in ex.caption
+    few = Observation(obs.x_px[:2], obs.y_px[:2], obs.mag[:2], camera)
+    assert len(PTP().explain(db, few).segments) == 0
