@@ -106,7 +106,8 @@ class PTP(Algorithm):
     with sigma_p from eqs. 6-14 and sigma = ``sigma_px`` / f_px; candidates must pass the
     three-side check. Validation (section 2.3, Table 3): see :func:`identify_kernel`.
 
-    Choices the paper leaves open (notes "PTP" 1-6), each a parameter:
+    Choices the paper leaves open, each a parameter (method step by step, parameters, paper vs
+    reconstructed and every measurement: docs/algorithms/ptp.md):
 
     * double stars: the paper's lower limit d_min = 0.05 deg is there "to avoid double star
       interference". Two guide stars closer than that have near-identical triangles and cannot
@@ -144,7 +145,16 @@ class PTP(Algorithm):
       binding on the Table 4 camera); ``max_candidates``: an image triangle whose window holds more
       database triangles than this is skipped as uninformative (on very wide fields 1 px is degrees
       and every triangle matches everything; 64 never binds on the Table 4 camera). Coincident
-      detections (distance 0) are never slaves, whatever ``d_min_deg``.
+      detections (distance 0) are never slaves, whatever ``d_min_deg``;
+    * ``image_slaves`` (starid's extension, 6): the image side forms the triangles of each master's
+      6 nearest stars, a superset of the database's 4-slave triangles, so a star missing from the
+      database (a V > 6 star noise brought in) among the nearest does not break every triangle;
+      ``image_slaves=4`` is the paper's rule;
+    * ``mag_margin`` (flight precaution): detections measured fainter than ``mag_limit + mag_margin``
+      make no pattern; with ``max_stars`` the brightest are used first;
+    * ``assign_all`` (the standard final step, off by default): the attitude assigns every detection
+      to the deep catalog star (V <= ``deep_mag_limit``, stored in the database) predicted within
+      the tolerance. Tuned on seed 7, evaluated on seed 11.
     """
 
     name: ClassVar[str] = "ptp"

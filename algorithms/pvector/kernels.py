@@ -322,7 +322,7 @@ def identify_rows(x_px, y_px, mag, frame, db, tol):
     mag_limit = tol.mag_limit
     c_rmin = tol.c_rmin
     c_r = tol.c_r
-    # per-side tolerance: angle noise sqrt(2) sigma (notes 1.3); key tolerance ||p||_1 eps_d
+    # per-side tolerance: angle noise sqrt(2) sigma; key tolerance ||p||_1 eps_d
     eps = tol.beta * math.sqrt(2.0) * tol.sigma_px / f_px
     eps_key = (abs(p_axis[0]) + abs(p_axis[1]) + abs(p_axis[2])) * eps
     k_min = tol.k_min
