@@ -13,11 +13,11 @@ from starid.camera import Camera
 from starid.catalog import Catalog
 from starid.errors import ConfigError
 from starid.params import check_flag, check_number, check_whole
-from starid.kernels import backproject_px, rad_to_chord, verify_pairwise
+from starid.kernels import backproject_px, rad_to_chord
 from starid.observation import Observation
 from starid.plugin import Algorithm, Database, Identification
 
-from .kernels import best_hypothesis, build_triangles, confirm, select_candidates, sky_cell_of, vote
+from .kernels import Tables, Tolerance, build_triangles, identify_rows, sky_cell_of
 
 MAX_GUIDE_STARS = np.iinfo(np.uint16).max
 SKY_AXIS = 20  # sky grid cells per axis of [-1, 1]^3 (cell 0.1 ~ 5.7 deg), for reprojection
@@ -51,6 +51,12 @@ class TriangleVotingDatabase(Database):
     n_cells_h: int
     pattern_radius_chord: float
     d_min_chord: float
+
+    def tables(self) -> Tables:
+        """The arrays the kernels read, as one bundle."""
+        return Tables(self.base, self.height, self.main, self.n_i, self.n_j, self.cell_start, self.n_cells_b,
+                      self.n_cells_h, self.cell_b, self.cell_h, self.unit_icrs, self.sky_start, self.sky_axis,
+                      self.pattern_radius_chord, self.d_min_chord)
 
 
 @dataclass(frozen=True)
@@ -211,21 +217,15 @@ class TriangleVoting(Algorithm):
         # brightest first; ties broken on position so the result does not depend on input order
         order = np.lexsort((observation.y_px, observation.x_px, observation.mag))
         v_cam = backproject_px(observation.x_px[order], observation.y_px[order], cam.f_px, cam.cx_px, cam.cy_px)
+        sigma_chord = self.sigma_px / cam.f_px
+        tol = Tolerance(
+            sigma_chord=sigma_chord, k_sigma=float(self.k_sigma), eps_chord=self._tolerance_chord(cam.f_px),
+            radius_chord=self.k_sigma * sigma_chord, n_nbr=int(self.n_neighbours + self.lambda_extra),
+            side_check=bool(self.side_check), vote_neighbours=bool(self.vote_neighbours), v_min=int(self.v_min),
+            n_cand=int(self.n_candidates), min_support=int(self.min_support), min_stars=int(self.min_stars),
+            max_hypotheses=int(self.max_hypotheses))
         db = database
-        cand, cand_votes, hyp, score = vote(
-            v_cam, db.base, db.height, db.main, db.n_i, db.n_j, db.cell_start, db.n_cells_b, db.n_cells_h,
-            db.cell_b, db.cell_h, db.hip.size, db.unit_icrs, db.pattern_radius_chord, db.d_min_chord,
-            self.n_neighbours + self.lambda_extra, self.sigma_px / cam.f_px, self.k_sigma,
-            self.side_check, self.vote_neighbours, self.v_min, self.n_candidates)
-        tol_chord = self._tolerance_chord(cam.f_px)
-        radius_chord = self.k_sigma * self.sigma_px / cam.f_px  # reprojection: k_sigma x per-axis noise
-        chosen, chosen_votes = select_candidates(v_cam, cand, cand_votes, db.unit_icrs, tol_chord)
-        verified = verify_pairwise(v_cam, chosen, db.unit_icrs, tol_chord, self.min_support)
-        rows = confirm(v_cam, np.where(verified, chosen, -1), chosen_votes, db.unit_icrs, db.sky_start,
-                       db.sky_axis, tol_chord, radius_chord, self.min_stars)
-        if rows.max() < 0 and self.max_hypotheses > 0:
-            rows = best_hypothesis(v_cam, hyp, score, db.unit_icrs, db.sky_start, db.sky_axis, tol_chord,
-                                   radius_chord, self.min_stars + 1, self.max_hypotheses)
+        rows = identify_rows(v_cam, db.tables(), tol)
         found = rows >= 0
         out[order[found]] = db.hip[rows[found]]
         return Identification(out)

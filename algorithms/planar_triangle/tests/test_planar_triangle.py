@@ -9,7 +9,7 @@ import pytest
 
 from starid import ConfigError, Observation, SimConfig, Simulator
 from starid.harness import run, summarize
-from starid.kernels import kvector_range
+from starid.kernels import kvector_query
 from starid.registry import get_algorithm
 from starid_algorithms.planar_triangle import PlanarTriangle
 from starid_algorithms.planar_triangle.kernels import (
@@ -91,24 +91,25 @@ def test_signatures_describe_how_triangles_share_stars():
 def test_database_invariants(db, catalog):
     guide = catalog.brighter_than(6.0)
     assert db.guide_hip.shape == (len(guide),) and np.array_equal(db.guide_hip, guide.hip)
-    assert db.tri_stars.dtype == np.uint16 and db.tri_area.dtype == np.float32
-    assert db.tri_moment.dtype == np.float32 and db.kv_k.dtype == np.int32
-    n = db.tri_area.size
+    assert db.tri_stars.dtype == np.uint16
+    assert db.tri_area.values.dtype == np.float32
+    assert db.tri_moment.dtype == np.float32 and db.tri_area.k.dtype == np.int32
+    n = db.tri_area.values.size
     assert 500_000 < n < 5_000_000
-    assert np.all(np.diff(db.tri_area) >= 0)
+    assert np.all(np.diff(db.tri_area.values) >= 0)
     s = db.tri_stars.astype(np.int64)
     assert np.all(s[:, 0] < s[:, 1]) and np.all(s[:, 1] < s[:, 2]) and s.max() < len(guide)
     assert np.unique(s[:, 0] * 2**32 + s[:, 1] * 2**16 + s[:, 2]).size == n  # no duplicates
-    assert db.tri_area[0] >= np.float32(db.min_area) * (1 - 1e-6)
+    assert db.tri_area.values[0] >= np.float32(db.rules.min_area) * (1 - 1e-6)
     assert db.nbytes < 178e6 / 4
     # recompute a sample of triangles from the catalog in float64
     rng = np.random.default_rng(3)
     for t in rng.choice(n, 200, replace=False):
         u = db.guide_unit[s[t]]
         area, moment, diam = triangle_features(u[0], u[1], u[2])
-        assert db.tri_area[t] == pytest.approx(area, rel=1e-6)
+        assert db.tri_area.values[t] == pytest.approx(area, rel=1e-6)
         assert db.tri_moment[t] == pytest.approx(moment, rel=1e-6)
-        assert diam <= db.fov_db_rad + 1e-12
+        assert diam <= db.rules.fov_rad + 1e-12
 
 
 def test_database_is_complete_for_a_region(db):
@@ -125,7 +126,7 @@ def test_database_is_complete_for_a_region(db):
             for c in range(b + 1, near.size):
                 i, j, k = near[a], near[b], near[c]
                 area, _, diam = triangle_features(u[i], u[j], u[k])
-                if diam <= db.fov_db_rad and area >= db.min_area:
+                if diam <= db.rules.fov_rad and area >= db.rules.min_area:
                     expected.add((i, j, k))
     assert len(expected) > 50
     assert stored == expected
@@ -133,11 +134,12 @@ def test_database_is_complete_for_a_region(db):
 
 def test_kvector_query_is_exact(db):
     rng = np.random.default_rng(5)
-    for lo in rng.uniform(db.tri_area[0], db.tri_area[-1], 50):
+    area = db.tri_area.values
+    for lo in rng.uniform(area[0], area[-1], 50):
         hi = lo * 1.01
-        start, stop = kvector_range(db.tri_area, db.kv_k, db.kv_m, db.kv_q, lo, hi)
-        assert start == np.searchsorted(db.tri_area, lo, "left")
-        assert stop == np.searchsorted(db.tri_area, hi, "right")
+        start, stop = kvector_query(db.tri_area, lo, hi)
+        assert start == np.searchsorted(area, lo, "left")
+        assert stop == np.searchsorted(area, hi, "right")
 
 
 def test_float32_area_resolution_is_far_below_the_search_window(db, camera):
@@ -145,7 +147,7 @@ def test_float32_area_resolution_is_far_below_the_search_window(db, camera):
     sigma = 1.0 / camera.f_px
     u = db.guide_unit[db.tri_stars[-1].astype(np.int64)]  # largest area: coarsest spacing
     var_a, _ = triangle_variances(u[0], u[1], u[2], sigma)
-    spacing = np.spacing(db.tri_area[-1])
+    spacing = np.spacing(db.tri_area.values[-1])
     assert 3 * math.sqrt(var_a) > 1000 * spacing
 
 
