@@ -23,6 +23,9 @@ MAX_GUIDE_STARS = 65536  # star indices are stored as uint16
 DEG2_TO_CHORD2 = (math.pi / 180.0) ** 2
 
 
+SIGMA_FLOOR_PX = 1.0  # smallest centroid noise the windows assume (px)
+
+
 @dataclass(frozen=True, eq=False)
 class PlanarTriangleDatabase(Database):
     """Cole's triangle catalog plus what verification reads.
@@ -93,6 +96,11 @@ class PlanarTriangle(Algorithm):
 
     Parameters and the reconstructed / extension choices:
 
+    * ``sigma_px = None`` (follows the simulator's centroid noise, ``follows``): the noise the
+      windows assume; None outside the harness means 1 px, and the windows never assume less than
+      ``SIGMA_FLOOR_PX = 1`` px (a noise-free world still needs a window; at <= 1 px the results
+      are those of the former fixed 1 px).
+
     * ``fov_db_deg = 10``: the triangle must fit in the 10 x 10 deg square sensor; a circle of
       diameter 10 deg is the largest that fits at any roll. Cole's 6.94 deg (for an 8 deg
       circular FOV) came from his quad-tree level, not from the method.
@@ -126,10 +134,11 @@ class PlanarTriangle(Algorithm):
       93.25 %) against 90.75 % for ``restarts=0``, and 95.6 % vs 93.2 % noise-free.
     """
 
+    follows: ClassVar[dict] = {"sigma_px": "sigma_px"}
     name: ClassVar[str] = "planar_triangle"
 
     mag_limit: float = 6.0
-    sigma_px: float = 1.0
+    sigma_px: float | None = None
     fov_db_deg: float = 10.0
     min_area_deg2: float = 0.1
     beta: float = 3.0
@@ -142,9 +151,16 @@ class PlanarTriangle(Algorithm):
     min_support: int = 2
     min_verified: int = 4
 
+    @property
+    def sigma_window_px(self) -> float:
+        """The centroid noise the windows assume: ``sigma_px`` (the simulator's when None), at least
+        ``SIGMA_FLOOR_PX`` so that a noise-free world still gets a window."""
+        return max(self.sigma_px or 0.0, SIGMA_FLOOR_PX)
+
     def __post_init__(self):
         check_number("mag_limit", self.mag_limit)
-        check_number("sigma_px", self.sigma_px, lo=0, lo_open=True)
+        if self.sigma_px is not None:
+            check_number("sigma_px (or None: follow the simulator)", self.sigma_px, lo=0)
         check_number("fov_db_deg", self.fov_db_deg, lo=0, hi=90, lo_open=True, hi_open=True)
         check_number("min_area_deg2", self.min_area_deg2, lo=0)
         check_number("beta", self.beta, lo=0, lo_open=True)
@@ -192,7 +208,7 @@ class PlanarTriangle(Algorithm):
         cam = observation.camera
         v_cam = cam.backproject(observation.x_px[order], observation.y_px[order])
         tol = Tolerance(
-            sigma_rad=self.sigma_px / cam.f_px, beta=float(self.beta), climit=int(self.climit),
+            sigma_rad=self.sigma_window_px / cam.f_px, beta=float(self.beta), climit=int(self.climit),
             pivot_limit=-1 if self.pivot_limit is None else int(self.pivot_limit),
             abort_if_grow=bool(self.abort_if_finalists_grow), consistent_chain=bool(self.consistent_chain),
             restarts=int(self.restarts), extend=bool(self.extend), min_support=int(self.min_support),

@@ -23,6 +23,9 @@ MAX_GUIDE_STARS = np.iinfo(np.uint16).max
 SKY_AXIS = 20  # sky grid cells per axis of [-1, 1]^3 (cell 0.1 ~ 5.7 deg), for reprojection
 
 
+SIGMA_FLOOR_PX = 1.0  # smallest centroid noise the windows assume (px)
+
+
 @dataclass(frozen=True, eq=False)
 class TriangleVotingDatabase(Database):
     """Triangle records indexed on a 2-D (base, height) grid, plus the guide stars.
@@ -83,6 +86,9 @@ class TriangleVoting(Algorithm):
       (V <= ``mag_limit``), float32 features and uint16 rows, on a uniform 2-D grid of cell
       ``grid_cell_tol`` x eps_base (measured 2.7x faster than a k-vector on base plus a
       height filter, and smaller);
+    * ``sigma_px = None`` follows the simulator's centroid noise (``follows``); the windows assume
+      ``max(sigma_px, 1)`` px (``SIGMA_FLOOR_PX``: a noise-free world still needs a window, and at
+      <= 1 px the results are those of the former fixed 1 px);
     * tolerances from the centroid noise, sigma = ``sigma_px`` / f_px per axis (notes 1.3):
       eps_base = ``k_sigma`` sqrt(2) sigma (also for any separation), eps_height =
       ``k_sigma`` sigma sqrt(1 + t^2 + (1-t)^2) with ``t`` the foot of the height on the base;
@@ -110,10 +116,11 @@ class TriangleVoting(Algorithm):
     Only stars of the final consistent set get an id; the rest get -1.
     """
 
+    follows: ClassVar[dict] = {"sigma_px": "sigma_px"}
     name: ClassVar[str] = "triangle_voting"
 
     mag_limit: float = 6.0
-    sigma_px: float = 1.0
+    sigma_px: float | None = None
     pattern_radius_deg: float = 5.0
     d_min_deg: float = 0.3
     n_neighbours: int = 5
@@ -129,9 +136,16 @@ class TriangleVoting(Algorithm):
     min_stars: int = 4
     max_hypotheses: int = 32
 
+    @property
+    def sigma_window_px(self) -> float:
+        """The centroid noise the windows assume: ``sigma_px`` (the simulator's when None), at least
+        ``SIGMA_FLOOR_PX`` so that a noise-free world still gets a window."""
+        return max(self.sigma_px or 0.0, SIGMA_FLOOR_PX)
+
     def __post_init__(self):
         check_number("mag_limit", self.mag_limit)
-        check_number("sigma_px", self.sigma_px, lo=0, lo_open=True)
+        if self.sigma_px is not None:
+            check_number("sigma_px (or None: follow the simulator)", self.sigma_px, lo=0)
         check_number("pattern_radius_deg", self.pattern_radius_deg, lo=0, hi=90, lo_open=True)
         check_number("d_min_deg", self.d_min_deg, lo=0)
         if self.d_min_deg >= self.pattern_radius_deg:
@@ -152,7 +166,7 @@ class TriangleVoting(Algorithm):
 
     def _tolerance_chord(self, f_px: float) -> float:
         """eps_base = k_sigma sqrt(2) sigma: base, side and pairwise-distance tolerance (notes 1.3)."""
-        return self.k_sigma * math.sqrt(2.0) * self.sigma_px / f_px
+        return self.k_sigma * math.sqrt(2.0) * self.sigma_window_px / f_px
 
     # -- database ---------------------------------------------------------------------------
     def build(self, catalog: Catalog, camera: Camera) -> TriangleVotingDatabase:
@@ -217,7 +231,7 @@ class TriangleVoting(Algorithm):
         # brightest first; ties broken on position so the result does not depend on input order
         order = np.lexsort((observation.y_px, observation.x_px, observation.mag))
         v_cam = backproject_px(observation.x_px[order], observation.y_px[order], cam.f_px, cam.cx_px, cam.cy_px)
-        sigma_chord = self.sigma_px / cam.f_px
+        sigma_chord = self.sigma_window_px / cam.f_px
         tol = Tolerance(
             sigma_chord=sigma_chord, k_sigma=float(self.k_sigma), eps_chord=self._tolerance_chord(cam.f_px),
             radius_chord=self.k_sigma * sigma_chord, n_nbr=int(self.n_neighbours + self.lambda_extra),

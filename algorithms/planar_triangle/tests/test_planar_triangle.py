@@ -154,7 +154,7 @@ def test_float32_area_resolution_is_far_below_the_search_window(db, camera):
 # --- parameters -----------------------------------------------------------------------------
 
 @pytest.mark.parametrize("kwargs", [
-    {"sigma_px": 0}, {"sigma_px": float("nan")}, {"fov_db_deg": 0}, {"fov_db_deg": 120},
+    {"sigma_px": -1}, {"sigma_px": float("nan")}, {"fov_db_deg": 0}, {"fov_db_deg": 120},
     {"min_area_deg2": -1}, {"beta": 0}, {"climit": 0}, {"climit": 2.5}, {"pivot_limit": -1},
     {"pivot_limit": 1.5}, {"restarts": -1}, {"min_verified": 0}, {"extend": "yes"},
     {"abort_if_finalists_grow": 1}, {"mag_limit": float("inf")}, {"consistent_chain": None},
@@ -166,7 +166,7 @@ def test_parameter_validation(kwargs):
 
 def test_defaults_are_documented():
     alg = PlanarTriangle()
-    assert alg.mag_limit == 6.0 and alg.sigma_px == 1.0 and alg.restarts == 3
+    assert alg.mag_limit == 6.0 and alg.sigma_px is None and alg.restarts == 3
     for name in alg.params():
         assert name in PlanarTriangle.__doc__ or name in ("mag_limit", "sigma_px", "beta",
                                                            "min_support")
@@ -218,3 +218,13 @@ def test_noise_free_identification_rate(catalog, noise_free):
     assert paper["id_rate"] >= 0.90  # measured 0.9315 on 2,000 trials
     assert restarted["id_rate"] >= 0.94  # measured 0.956 on 2,000 trials
     assert restarted["id_rate"] >= paper["id_rate"]
+
+
+def test_sigma_px_follows_the_simulator_with_a_1px_floor():
+    assert PlanarTriangle.follows == {"sigma_px": "sigma_px"}
+    assert PlanarTriangle().sigma_px is None and PlanarTriangle().sigma_window_px == 1.0
+    for world, window in ((0.0, 1.0), (0.5, 1.0), (1.0, 1.0), (3.0, 3.0)):
+        alg = PlanarTriangle().resolved(SimConfig(sigma_px=world))
+        assert alg.sigma_px == world and alg.sigma_window_px == window
+    pinned = PlanarTriangle(sigma_px=2.0).resolved(SimConfig(sigma_px=0.0))
+    assert pinned.sigma_px == 2.0 and pinned.sigma_window_px == 2.0

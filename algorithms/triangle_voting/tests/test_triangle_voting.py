@@ -41,7 +41,7 @@ def test_registered_and_summary():
 
 
 @pytest.mark.parametrize("kwargs", [
-    {"sigma_px": 0.0}, {"sigma_px": -1.0}, {"sigma_px": float("nan")}, {"mag_limit": float("inf")},
+    {"sigma_px": -1.0}, {"sigma_px": float("nan")}, {"mag_limit": float("inf")},
     {"pattern_radius_deg": 0.0}, {"pattern_radius_deg": 91.0}, {"d_min_deg": -0.1},
     {"d_min_deg": 5.0, "pattern_radius_deg": 5.0}, {"n_neighbours": 1}, {"n_neighbours": 5.0},
     {"lambda_extra": -1}, {"k_sigma": 0.0}, {"double_star_deg": -1.0}, {"grid_cell_tol": 0.0},
@@ -211,3 +211,13 @@ def test_extensions_help(catalog, camera):
     assert rates["full"] > rates["no_neighbour_votes"]
     assert rates["full"] > rates["no_fallback"]
 
+
+
+def test_sigma_px_follows_the_simulator_with_a_1px_floor():
+    assert TriangleVoting.follows == {"sigma_px": "sigma_px"}
+    assert TriangleVoting().sigma_px is None and TriangleVoting().sigma_window_px == 1.0
+    for world, window in ((0.0, 1.0), (0.5, 1.0), (1.0, 1.0), (3.0, 3.0)):
+        alg = TriangleVoting().resolved(SimConfig(sigma_px=world))
+        assert alg.sigma_px == world and alg.sigma_window_px == window
+    pinned = TriangleVoting(sigma_px=2.0).resolved(SimConfig(sigma_px=0.0))
+    assert pinned.sigma_px == 2.0 and pinned.sigma_window_px == 2.0
