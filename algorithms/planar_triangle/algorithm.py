@@ -13,14 +13,17 @@ from starid.camera import Camera
 from starid.catalog import Catalog
 from starid.errors import ConfigError
 from starid.params import check_flag, check_number, check_whole
-from starid.kernels import kvector_build
+from starid.kernels import KVector, kvector_make, rad_to_chord
 from starid.observation import Observation
 from starid.plugin import Algorithm, Database, Identification
 
-from .kernels import PERMS, identify_rows, scan_triangles
+from .kernels import Rules, Tables, Tolerance, identify_rows, scan_triangles
 
 MAX_GUIDE_STARS = 65536  # star indices are stored as uint16
 DEG2_TO_CHORD2 = (math.pi / 180.0) ** 2
+
+
+SIGMA_FLOOR_PX = 1.0  # smallest centroid noise the windows assume (px)
 
 
 @dataclass(frozen=True, eq=False)
@@ -28,28 +31,29 @@ class PlanarTriangleDatabase(Database):
     """Cole's triangle catalog plus what verification reads.
 
     tri_stars : uint16 (N, 3) guide-star rows of each triangle, ascending within a row.
-    tri_area : float32 (N,) chord-triangle area, ascending (the k-vector key).
+    tri_area : KVector of float32 (N,) chord-triangle areas, ascending, and their int32
+        Mortari k-vector.
     tri_moment : float32 (N,) polar moment ``J`` of the same triangles.
-    kv_k : int32 (N,) Mortari k-vector over ``tri_area``; ``kv_m``, ``kv_q`` its line.
     guide_hip : int64 (n,) HIP of each guide star; guide_unit : float64 (n, 3) ICRS unit vectors.
     nbr_ptr : int32 (n + 1,), nbr_idx : uint16 -- guide-star neighbours within the sensor
         diagonal (read only by the distance extension).
-    chord_db : chord of ``fov_db_rad``; min_area : smallest stored area (chord units).
+    rules : what a stored triangle satisfies (chord of ``fov_db_rad``, ``fov_db_rad``, the
+        smallest stored area in chord units).
     """
 
     tri_stars: np.ndarray
-    tri_area: np.ndarray
+    tri_area: KVector
     tri_moment: np.ndarray
-    kv_k: np.ndarray
-    kv_m: float
-    kv_q: float
     guide_hip: np.ndarray
     guide_unit: np.ndarray
     nbr_ptr: np.ndarray
     nbr_idx: np.ndarray
-    fov_db_rad: float
-    chord_db: float
-    min_area: float
+    rules: Rules
+
+    def tables(self) -> Tables:
+        """The arrays the kernels read, as one bundle."""
+        return Tables(self.tri_stars, self.tri_area, self.tri_moment, self.guide_unit, self.nbr_ptr,
+                      self.nbr_idx, self.rules)
 
 
 def _neighbour_csr(unit: np.ndarray, chord_max: float, symmetric: bool) -> tuple[np.ndarray, np.ndarray]:
@@ -92,6 +96,11 @@ class PlanarTriangle(Algorithm):
 
     Parameters and the reconstructed / extension choices:
 
+    * ``sigma_px = None`` (follows the simulator's centroid noise, ``follows``): the noise the
+      windows assume; None outside the harness means 1 px, and the windows never assume less than
+      ``SIGMA_FLOOR_PX = 1`` px (a noise-free world still needs a window; at <= 1 px the results
+      are those of the former fixed 1 px).
+
     * ``fov_db_deg = 10``: the triangle must fit in the 10 x 10 deg square sensor; a circle of
       diameter 10 deg is the largest that fits at any roll. Cole's 6.94 deg (for an 8 deg
       circular FOV) came from his quad-tree level, not from the method.
@@ -125,10 +134,11 @@ class PlanarTriangle(Algorithm):
       93.25 %) against 90.75 % for ``restarts=0``, and 95.6 % vs 93.2 % noise-free.
     """
 
+    follows: ClassVar[dict] = {"sigma_px": "sigma_px"}
     name: ClassVar[str] = "planar_triangle"
 
     mag_limit: float = 6.0
-    sigma_px: float = 1.0
+    sigma_px: float | None = None
     fov_db_deg: float = 10.0
     min_area_deg2: float = 0.1
     beta: float = 3.0
@@ -141,9 +151,16 @@ class PlanarTriangle(Algorithm):
     min_support: int = 2
     min_verified: int = 4
 
+    @property
+    def sigma_window_px(self) -> float:
+        """The centroid noise the windows assume: ``sigma_px`` (the simulator's when None), at least
+        ``SIGMA_FLOOR_PX`` so that a noise-free world still gets a window."""
+        return max(self.sigma_px or 0.0, SIGMA_FLOOR_PX)
+
     def __post_init__(self):
         check_number("mag_limit", self.mag_limit)
-        check_number("sigma_px", self.sigma_px, lo=0, lo_open=True)
+        if self.sigma_px is not None:
+            check_number("sigma_px (or None: follow the simulator)", self.sigma_px, lo=0)
         check_number("fov_db_deg", self.fov_db_deg, lo=0, hi=90, lo_open=True, hi_open=True)
         check_number("min_area_deg2", self.min_area_deg2, lo=0)
         check_number("beta", self.beta, lo=0, lo_open=True)
@@ -163,33 +180,24 @@ class PlanarTriangle(Algorithm):
             raise ConfigError(f"{n} guide stars exceed the uint16 index limit of {MAX_GUIDE_STARS}")
         unit = np.ascontiguousarray(guide.unit_icrs)
         fov_db_rad = math.radians(self.fov_db_deg)
-        chord_db = 2.0 * math.sin(fov_db_rad / 2.0)
-        min_area = self.min_area_deg2 * DEG2_TO_CHORD2
-        ptr, idx = _neighbour_csr(unit, chord_db, symmetric=False)
-        none = np.empty(0)
-        counts = scan_triangles(unit, ptr, idx, chord_db, fov_db_rad, min_area, none.astype(np.int64),
-                                np.empty((0, 3), dtype=np.uint16), none, none, False)
+        rules = Rules(float(rad_to_chord(fov_db_rad)), fov_db_rad, self.min_area_deg2 * DEG2_TO_CHORD2)
+        ptr, idx = _neighbour_csr(unit, rules.chord_max, symmetric=False)
+        counts = scan_triangles(unit, ptr, idx, rules, np.zeros(1, dtype=np.int64), False)[0]
         offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
         total = int(offsets[-1])
-        stars = np.empty((total, 3), dtype=np.uint16)
-        area = np.empty(total, dtype=np.float64)
-        moment = np.empty(total, dtype=np.float64)
-        scan_triangles(unit, ptr, idx, chord_db, fov_db_rad, min_area, offsets, stars, area, moment, True)
-        area32 = area.astype(np.float32)
-        order = np.argsort(area32, kind="stable")
-        area32 = area32[order]
-        kv_k, kv_m, kv_q = kvector_build(area32)
         if total >= 2**31:
             raise ConfigError(f"{total} triangles exceed the int32 k-vector")
+        _, stars, area, moment = scan_triangles(unit, ptr, idx, rules, offsets, True)
+        area32 = area.astype(np.float32)
+        order = np.argsort(area32, kind="stable")
         # Neighbours for the distance extension: anything two observed stars can be apart.
-        diag_chord = 2.0 * math.sin(min(camera.half_diagonal_rad, math.pi / 2))
+        diag_chord = float(rad_to_chord(2.0 * min(camera.half_diagonal_rad, math.pi / 2)))
         nptr, nidx = _neighbour_csr(unit, diag_chord * 1.01, symmetric=True)
         return PlanarTriangleDatabase(
-            tri_stars=np.ascontiguousarray(stars[order]), tri_area=area32,
-            tri_moment=moment[order].astype(np.float32), kv_k=kv_k.astype(np.int32),
-            kv_m=kv_m, kv_q=kv_q, guide_hip=guide.hip.copy(), guide_unit=unit,
-            nbr_ptr=nptr.astype(np.int32), nbr_idx=nidx.astype(np.uint16),
-            fov_db_rad=fov_db_rad, chord_db=chord_db, min_area=min_area)
+            tri_stars=np.ascontiguousarray(stars[order]),
+            tri_area=kvector_make(area32[order], np.float32, np.int32),
+            tri_moment=moment[order].astype(np.float32), guide_hip=guide.hip.astype(np.int64),
+            guide_unit=unit, nbr_ptr=nptr.astype(np.int32), nbr_idx=nidx.astype(np.uint16), rules=rules)
 
     def identify(self, database: PlanarTriangleDatabase, observation: Observation) -> Identification:
         n = len(observation)
@@ -199,14 +207,14 @@ class PlanarTriangle(Algorithm):
         order = np.lexsort((observation.mag, observation.y_px, observation.x_px))
         cam = observation.camera
         v_cam = cam.backproject(observation.x_px[order], observation.y_px[order])
+        tol = Tolerance(
+            sigma_rad=self.sigma_window_px / cam.f_px, beta=float(self.beta), climit=int(self.climit),
+            pivot_limit=-1 if self.pivot_limit is None else int(self.pivot_limit),
+            abort_if_grow=bool(self.abort_if_finalists_grow), consistent_chain=bool(self.consistent_chain),
+            restarts=int(self.restarts), extend=bool(self.extend), min_support=int(self.min_support),
+            min_verified=int(self.min_verified))
         db = database
-        rows = identify_rows(
-            v_cam, db.tri_stars, db.tri_area, db.tri_moment, db.kv_k, db.kv_m, db.kv_q,
-            db.guide_unit, db.nbr_ptr, db.nbr_idx, db.chord_db, db.fov_db_rad, db.min_area,
-            self.sigma_px / cam.f_px, float(self.beta), int(self.climit),
-            -1 if self.pivot_limit is None else int(self.pivot_limit),
-            bool(self.abort_if_finalists_grow), bool(self.consistent_chain), int(self.restarts), bool(self.extend),
-            int(self.min_support), int(self.min_verified), PERMS)
+        rows = identify_rows(v_cam, db.tables(), tol)
         hip = np.full(n, -1, dtype=np.int64)
         found = rows >= 0
         hip[order[found]] = db.guide_hip[rows[found]]

@@ -11,13 +11,59 @@ stable cross-product form of notes 3.2.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 
-from starid.kernels import chord_rows, kvector_range, verify_pairwise
+from starid.kernels import KVector, chord_rows, kvector_query, verify_pairwise
 
 KEY_BASE = 65536  # star indices are < 65536 (uint16), so a sorted pair packs into lo * 65536 + hi
+
+
+class Rules(NamedTuple):
+    """What a star triple must satisfy to be a database triangle (chord units, radians)."""
+
+    chord_max: float  # every side at most this chord (``fov_db_rad`` as a chord)
+    fov_rad: float  # angular diameter of the smallest enclosing circle at most this
+    min_area: float  # chord-triangle area at least this
+
+
+class Tables(NamedTuple):
+    """The database as the kernels read it (see ``PlanarTriangleDatabase``)."""
+
+    stars: np.ndarray  # uint16 (N, 3) guide rows of each triangle, ascending within a row
+    area: KVector  # float32 areas, ascending, with their k-vector
+    moment: np.ndarray  # float32 (N,) polar moment of the same triangles
+    unit: np.ndarray  # float64 (n, 3) guide-star unit vectors, ICRS
+    nbr_ptr: np.ndarray  # int32 (n + 1,) CSR neighbours within the sensor diagonal
+    nbr_idx: np.ndarray  # uint16
+    rules: Rules
+
+
+class Tolerance(NamedTuple):
+    """Windows and switches of one identification (see ``PlanarTriangle``)."""
+
+    sigma_rad: float  # centroid noise per axis, radians
+    beta: float  # window half-width in standard deviations
+    climit: int  # drop image triangles with more area hits than this
+    pivot_limit: int  # at most this many pivots (-1: no limit)
+    abort_if_grow: bool
+    consistent_chain: bool
+    restarts: int
+    extend: bool
+    min_support: int
+    min_verified: int
+
+
+class ImageTriangles(NamedTuple):
+    """The image triangles of one identification and their area hits."""
+
+    v: np.ndarray  # (n, 3) camera-frame unit vectors of the stars
+    tri: np.ndarray  # int64 (m, 3) star indices of each triangle
+    area: np.ndarray  # (m,) chord-triangle area
+    start: np.ndarray  # int64 (m,) first area hit in the catalog
+    stop: np.ndarray  # int64 (m,) one past the last area hit
 
 
 @njit(cache=True)
@@ -103,15 +149,19 @@ def triangle_variances(r1, r2, r3, sigma_rad):
 
 
 @njit(cache=True)
-def scan_triangles(unit, nbr_ptr, nbr_idx, chord_max, diameter_max_rad, min_area, offsets,
-                   stars, area_out, moment_out, fill):
-    """Catalog triangles ``i < j < k`` that pass the database rules.
+def scan_triangles(unit, nbr_ptr, nbr_idx, rules, offsets, fill):
+    """Catalog triangles ``i < j < k`` that pass the database ``rules``.
 
-    With ``fill=False`` returns the count per star ``i`` (the other outputs untouched); with
-    ``fill=True`` writes star ``i``'s triangles at ``offsets[i]`` onwards (two passes, so the
-    arrays are allocated once at their exact size).
+    Returns ``(counts, stars, area, moment)``. With ``fill=False`` only ``counts`` (triangles per
+    star ``i``) is meaningful; with ``fill=True`` star ``i``'s triangles are written at
+    ``offsets[i]`` onwards of arrays of length ``offsets[-1]`` (two passes, so the arrays are
+    allocated once at their exact size).
     """
     n = unit.shape[0]
+    total = offsets[-1] if fill else 0
+    stars = np.empty((total, 3), dtype=np.uint16)
+    area_out = np.empty(total)
+    moment_out = np.empty(total)
     counts = np.zeros(n, dtype=np.int64)
     for i in range(n):
         c = 0
@@ -119,10 +169,10 @@ def scan_triangles(unit, nbr_ptr, nbr_idx, chord_max, diameter_max_rad, min_area
             j = nbr_idx[a]
             for b in range(a + 1, nbr_ptr[i + 1]):
                 k = nbr_idx[b]
-                if chord_rows(unit, j, unit, k) > chord_max:
+                if chord_rows(unit, j, unit, k) > rules.chord_max:
                     continue
                 area, moment, diam = triangle_features(unit[i], unit[j], unit[k])
-                if diam <= diameter_max_rad and area >= min_area:
+                if diam <= rules.fov_rad and area >= rules.min_area:
                     if fill:
                         p = offsets[i] + c
                         stars[p, 0] = i
@@ -132,7 +182,7 @@ def scan_triangles(unit, nbr_ptr, nbr_idx, chord_max, diameter_max_rad, min_area
                         moment_out[p] = moment
                     c += 1
         counts[i] = c
-    return counts
+    return counts, stars, area_out, moment_out
 
 
 @njit(cache=True)
@@ -156,14 +206,14 @@ def _moment_filter(tri_moment, start, stop, lo, hi):
 
 
 @njit(cache=True)
-def _moment_candidates(t, img_v, img_tri, img_start, img_stop, tri_moment, sigma_rad, beta):
-    """Area hits ``[img_start[t], img_stop[t])`` of image triangle ``t`` whose polar moment lies
+def _moment_candidates(t, img, tri_moment, tol):
+    """Area hits ``[img.start[t], img.stop[t])`` of image triangle ``t`` whose polar moment lies
     within ``beta`` standard deviations of its own (paper eqs. 16-20)."""
-    r1, r2, r3 = img_v[img_tri[t, 0]], img_v[img_tri[t, 1]], img_v[img_tri[t, 2]]
+    r1, r2, r3 = img.v[img.tri[t, 0]], img.v[img.tri[t, 1]], img.v[img.tri[t, 2]]
     _, moment, _ = triangle_features(r1, r2, r3)
-    _, var_j = triangle_variances(r1, r2, r3, sigma_rad)
-    half = beta * math.sqrt(var_j)
-    return _moment_filter(tri_moment, img_start[t], img_stop[t], moment - half, moment + half)
+    _, var_j = triangle_variances(r1, r2, r3, tol.sigma_rad)
+    half = tol.beta * math.sqrt(var_j)
+    return _moment_filter(tri_moment, img.start[t], img.stop[t], moment - half, moment + half)
 
 
 @njit(cache=True)
@@ -219,8 +269,7 @@ def _grow(arr, size):
 
 
 @njit(cache=True)
-def _pivot(first, img_v, img_tri, img_area, img_start, img_stop, pivot_limit, tri_stars,
-           tri_moment, sigma_rad, beta, abort_if_grow, consistent_chain):
+def _pivot(first, img, db, tol, pivot_limit):
     """The chain and pivot procedure of ``MatchStarsWPlanarTris.m``.
 
     The chain starts at image triangle ``first``; each pivot appends the unused triangle of
@@ -238,13 +287,18 @@ def _pivot(first, img_v, img_tri, img_area, img_start, img_stop, pivot_limit, tr
     Returns ``(chain, cat_chain, n_finalists)``: the image triangles used and, when exactly one
     finalist survives, its catalog triangles (else an empty array).
     """
+    img_tri = img.tri
+    img_area = img.area
+    tri_stars = db.stars
+    abort_if_grow = tol.abort_if_grow
+    consistent_chain = tol.consistent_chain
     m = img_tri.shape[0]
     used_tri = np.zeros(m, dtype=np.bool_)
     chain = np.empty(m, dtype=np.int64)
     chain[0] = first
     used_tri[first] = True
     # finalist tree: node = (catalog triangle, parent node); one layer per chain triangle
-    node_cat = _moment_candidates(first, img_v, img_tri, img_start, img_stop, tri_moment, sigma_rad, beta)
+    node_cat = _moment_candidates(first, img, db.moment, tol)
     n_nodes = node_cat.shape[0]
     node_parent = np.full(max(n_nodes, 1), -1, dtype=np.int64)
     layer_lo = 0
@@ -258,7 +312,7 @@ def _pivot(first, img_v, img_tri, img_area, img_start, img_stop, pivot_limit, tr
         chain[step] = t
         used_tri[t] = True
         length += 1
-        cand = _moment_candidates(t, img_v, img_tri, img_start, img_stop, tri_moment, sigma_rad, beta)
+        cand = _moment_candidates(t, img, db.moment, tol)
         nc = cand.shape[0]
         # index the candidates by each of their three star pairs
         keys = np.empty(3 * nc, dtype=np.int64)
@@ -360,7 +414,7 @@ def _triangle_consistent(img_v, cat_unit, i0, i1, i2, g0, g1, g2, tol_chord):
 
 
 @njit(cache=True)
-def recover_correspondence(img_v, img_tri, chain, cat_chain, tri_stars, cat_unit, tol_chord, perms):
+def recover_correspondence(img, chain, cat_chain, db, tol_chord):
     """Per-star catalog rows from the single surviving chain (notes 3.7.1), or all -1.
 
     Every vertex order of the start triangle is tried; the others follow from the stars each
@@ -368,6 +422,11 @@ def recover_correspondence(img_v, img_tri, chain, cat_chain, tri_stars, cat_unit
     matches in chords and chirality, no catalog star is used twice, and every pair of assigned
     stars agrees in chord. Exactly one surviving assignment is required.
     """
+    img_v = img.v
+    img_tri = img.tri
+    tri_stars = db.stars
+    cat_unit = db.unit
+    perms = PERMS
     n = img_v.shape[0]
     best = np.full(n, -1, dtype=np.int64)
     n_ok = 0
@@ -430,7 +489,7 @@ def recover_correspondence(img_v, img_tri, chain, cat_chain, tri_stars, cat_unit
 
 
 @njit(cache=True)
-def extend_by_distance(img_v, rows, cat_unit, nbr_ptr, nbr_idx, tol_chord):
+def extend_by_distance(img_v, rows, db, tol_chord):
     """Extension (not in the paper): identify further stars by angular distance.
 
     For each unassigned observed star, the guide stars near the first assigned star's catalog
@@ -439,6 +498,9 @@ def extend_by_distance(img_v, rows, cat_unit, nbr_ptr, nbr_idx, tol_chord):
     star both lose it. Candidates are judged against the chain's stars only, so the result does
     not depend on the order of the stars.
     """
+    cat_unit = db.unit
+    nbr_ptr = db.nbr_ptr
+    nbr_idx = db.nbr_idx
     n = img_v.shape[0]
     out = rows.copy()
     anchors = np.flatnonzero(rows >= 0)
@@ -483,14 +545,48 @@ def extend_by_distance(img_v, rows, cat_unit, nbr_ptr, nbr_idx, tol_chord):
 
 
 @njit(cache=True)
-def identify_rows(img_v, tri_stars, tri_area, tri_moment, kv_k, kv_m, kv_q, cat_unit, nbr_ptr,
-                  nbr_idx, chord_db, fov_db_rad, min_area, sigma_rad, beta, climit, pivot_limit,
-                  abort_if_grow, consistent_chain, restarts, extend, min_support, min_verified, perms):
+def image_triangles(img_v, db, tol):
+    """Step 1: every image triangle within ``fov_rad`` and of area >= ``min_area``, looked up in
+    the area-sorted catalog with the k-vector, ``[A - beta sA, A + beta sA]``; triangles with
+    more than ``climit`` hits are dropped (``MatchStarsWPlanarTris.m``)."""
+    n = img_v.shape[0]
+    rules = db.rules
+    max_t = n * (n - 1) * (n - 2) // 6
+    img_tri = np.empty((max_t, 3), dtype=np.int64)
+    img_area = np.empty(max_t)
+    img_start = np.empty(max_t, dtype=np.int64)
+    img_stop = np.empty(max_t, dtype=np.int64)
+    m = 0
+    for i in range(n):
+        for j in range(i + 1, n):
+            if chord_rows(img_v, i, img_v, j) > rules.chord_max:
+                continue
+            for k in range(j + 1, n):
+                if chord_rows(img_v, j, img_v, k) > rules.chord_max or chord_rows(img_v, i, img_v, k) > rules.chord_max:
+                    continue
+                area, mo, diam = triangle_features(img_v[i], img_v[j], img_v[k])
+                if diam > rules.fov_rad or area < rules.min_area:
+                    continue
+                var_a, _ = triangle_variances(img_v[i], img_v[j], img_v[k], tol.sigma_rad)
+                half = tol.beta * math.sqrt(var_a)
+                start, stop = kvector_query(db.area, area - half, area + half)
+                if stop - start > tol.climit:
+                    continue
+                img_tri[m, 0] = i
+                img_tri[m, 1] = j
+                img_tri[m, 2] = k
+                img_area[m] = area
+                img_start[m] = start
+                img_stop[m] = stop
+                m += 1
+    return ImageTriangles(img_v, img_tri[:m], img_area[:m], img_start[:m], img_stop[:m])
+
+
+@njit(cache=True)
+def identify_rows(img_v, db, tol):
     """The whole identification of one image: guide-star row per observed star, -1 if none.
 
-    1. every image triangle within ``fov_db_rad`` and of area >= ``min_area`` is looked up
-       in the area-sorted catalog with the k-vector, ``[A - beta sA, A + beta sA]``; triangles
-       with more than ``climit`` hits are dropped (``MatchStarsWPlanarTris.m``);
+    1. image triangles and their area hits (:func:`image_triangles`);
     2. start triangle = the one of largest area; chain of triangles sharing two stars, at
        most ``pivot_limit`` pivots; finalists filtered by the polar moment; pivot procedure;
     3. a unique finalist chain is turned into per-star rows (chords + chirality);
@@ -502,59 +598,29 @@ def identify_rows(img_v, tri_stars, tri_area, tri_moment, kv_k, kv_m, kv_q, cat_
     none = np.full(n, -1, dtype=np.int64)
     if n < 3:
         return none
-    tol_chord = beta * math.sqrt(2.0) * sigma_rad
-    max_t = n * (n - 1) * (n - 2) // 6
-    img_tri = np.empty((max_t, 3), dtype=np.int64)
-    img_area = np.empty(max_t)
-    img_start = np.empty(max_t, dtype=np.int64)
-    img_stop = np.empty(max_t, dtype=np.int64)
-    m = 0
-    for i in range(n):
-        for j in range(i + 1, n):
-            if chord_rows(img_v, i, img_v, j) > chord_db:
-                continue
-            for k in range(j + 1, n):
-                if chord_rows(img_v, j, img_v, k) > chord_db or chord_rows(img_v, i, img_v, k) > chord_db:
-                    continue
-                area, mo, diam = triangle_features(img_v[i], img_v[j], img_v[k])
-                if diam > fov_db_rad or area < min_area:
-                    continue
-                var_a, _ = triangle_variances(img_v[i], img_v[j], img_v[k], sigma_rad)
-                half = beta * math.sqrt(var_a)
-                start, stop = kvector_range(tri_area, kv_k, kv_m, kv_q, area - half, area + half)
-                if stop - start > climit:
-                    continue
-                img_tri[m, 0] = i
-                img_tri[m, 1] = j
-                img_tri[m, 2] = k
-                img_area[m] = area
-                img_start[m] = start
-                img_stop[m] = stop
-                m += 1
+    tol_chord = tol.beta * math.sqrt(2.0) * tol.sigma_rad
+    img = image_triangles(img_v, db, tol)
+    m = img.tri.shape[0]
     if m == 0:
         return none
-    img_tri = img_tri[:m]
-    img_area = img_area[:m]
+    pivot_limit = tol.pivot_limit
     if pivot_limit < 0:  # no limit: the chain may use every image triangle
         pivot_limit = m - 1
-    ranked = np.argsort(-img_area, kind="mergesort")
-    for attempt in range(min(restarts + 1, m)):
-        chain, cat_chain, n_fin = _pivot(ranked[attempt], img_v, img_tri, img_area, img_start,
-                                         img_stop, pivot_limit, tri_stars, tri_moment, sigma_rad,
-                                         beta, abort_if_grow, consistent_chain)
+    ranked = np.argsort(-img.area, kind="mergesort")
+    for attempt in range(min(tol.restarts + 1, m)):
+        chain, cat_chain, n_fin = _pivot(ranked[attempt], img, db, tol, pivot_limit)
         if n_fin != 1:
             continue
-        rows = recover_correspondence(img_v, img_tri, chain, cat_chain, tri_stars, cat_unit,
-                                      tol_chord, perms)
-        if extend:
-            rows = extend_by_distance(img_v, rows, cat_unit, nbr_ptr, nbr_idx, tol_chord)
-        keep = verify_pairwise(img_v, rows, cat_unit, tol_chord, min_support)
+        rows = recover_correspondence(img, chain, cat_chain, db, tol_chord)
+        if tol.extend:
+            rows = extend_by_distance(img_v, rows, db, tol_chord)
+        keep = verify_pairwise(img_v, rows, db.unit, tol_chord, tol.min_support)
         n_keep = 0
         for i in range(n):
             if not keep[i]:
                 rows[i] = -1
             else:
                 n_keep += 1
-        if n_keep >= min_verified:
+        if n_keep >= tol.min_verified:
             return rows
     return none

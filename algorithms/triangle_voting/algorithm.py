@@ -13,14 +13,17 @@ from starid.camera import Camera
 from starid.catalog import Catalog
 from starid.errors import ConfigError
 from starid.params import check_flag, check_number, check_whole
-from starid.kernels import backproject_px, rad_to_chord, verify_pairwise
+from starid.kernels import backproject_px, rad_to_chord
 from starid.observation import Observation
 from starid.plugin import Algorithm, Database, Identification
 
-from .kernels import best_hypothesis, build_triangles, confirm, select_candidates, sky_cell_of, vote
+from .kernels import Sensor, Tables, Tolerance, build_triangles, identify_rows, sky_cell_of
 
 MAX_GUIDE_STARS = np.iinfo(np.uint16).max
 SKY_AXIS = 20  # sky grid cells per axis of [-1, 1]^3 (cell 0.1 ~ 5.7 deg), for reprojection
+
+
+SIGMA_FLOOR_PX = 1.0  # smallest centroid noise the windows assume (px)
 
 
 @dataclass(frozen=True, eq=False)
@@ -30,7 +33,7 @@ class TriangleVotingDatabase(Database):
     Record ``r`` (sorted by grid cell, ``cell = cell_b_index * n_cells_h + cell_h_index``):
     ``base[r]``, ``height[r]`` (float32, chord units ~ radians), ``main[r]``, ``n_i[r]``,
     ``n_j[r]`` (uint16 rows of the guide arrays). The records of cell ``c`` are
-    ``cell_start[c]:cell_start[c + 1]``. ``unit_icrs`` (float32) and ``hip`` (int32) are the
+    ``cell_start[c]:cell_start[c + 1]``. ``unit_icrs`` (float32) and ``hip`` (int64) are the
     guide stars, sorted by cell of a uniform ``sky_axis``^3 grid over [-1, 1]^3 (ties by HIP);
     the stars of sky cell ``c`` are rows ``sky_start[c]:sky_start[c + 1]``.
     """
@@ -51,6 +54,13 @@ class TriangleVotingDatabase(Database):
     n_cells_h: int
     pattern_radius_chord: float
     d_min_chord: float
+    v_mag: np.ndarray
+
+    def tables(self) -> Tables:
+        """The arrays the kernels read, as one bundle."""
+        return Tables(self.base, self.height, self.main, self.n_i, self.n_j, self.cell_start, self.n_cells_b,
+                      self.n_cells_h, self.cell_b, self.cell_h, self.unit_icrs, self.sky_start, self.sky_axis,
+                      self.pattern_radius_chord, self.d_min_chord, self.v_mag)
 
 
 @dataclass(frozen=True)
@@ -77,6 +87,9 @@ class TriangleVoting(Algorithm):
       (V <= ``mag_limit``), float32 features and uint16 rows, on a uniform 2-D grid of cell
       ``grid_cell_tol`` x eps_base (measured 2.7x faster than a k-vector on base plus a
       height filter, and smaller);
+    * ``sigma_px = None`` follows the simulator's centroid noise (``follows``); the windows assume
+      ``max(sigma_px, 1)`` px (``SIGMA_FLOOR_PX``: a noise-free world still needs a window, and at
+      <= 1 px the results are those of the former fixed 1 px);
     * tolerances from the centroid noise, sigma = ``sigma_px`` / f_px per axis (notes 1.3):
       eps_base = ``k_sigma`` sqrt(2) sigma (also for any separation), eps_height =
       ``k_sigma`` sigma sqrt(1 + t^2 + (1-t)^2) with ``t`` the foot of the height on the base;
@@ -101,13 +114,21 @@ class TriangleVoting(Algorithm):
       least ``min_stars + 1`` stars (one more, as many hypotheses are tried) and beats every
       differing result.
 
+    * coverage check (this library's, against chance matches; ``max_missed_fraction = 1`` turns
+      it off): the attitude of the final set must explain the bright stars of its field -- of
+      the guide stars with V <= ``mag_limit - coverage_mag_margin`` it puts on the sensor, at most
+      ``max(1, max_missed_fraction x their number)`` may lack an identified star. Without it 4 of
+      40 fields of 30 uniform random points got a 4-star "identification", and a noise-free image
+      (seed 7, trial 222) a wrong one.
+
     Only stars of the final consistent set get an id; the rest get -1.
     """
 
+    follows: ClassVar[dict] = {"sigma_px": "sigma_px"}
     name: ClassVar[str] = "triangle_voting"
 
     mag_limit: float = 6.0
-    sigma_px: float = 1.0
+    sigma_px: float | None = None
     pattern_radius_deg: float = 5.0
     d_min_deg: float = 0.3
     n_neighbours: int = 5
@@ -122,10 +143,19 @@ class TriangleVoting(Algorithm):
     n_candidates: int = 3
     min_stars: int = 4
     max_hypotheses: int = 32
+    coverage_mag_margin: float = 0.75
+    max_missed_fraction: float = 1.0 / 3.0
+
+    @property
+    def sigma_window_px(self) -> float:
+        """The centroid noise the windows assume: ``sigma_px`` (the simulator's when None), at least
+        ``SIGMA_FLOOR_PX`` so that a noise-free world still gets a window."""
+        return max(self.sigma_px or 0.0, SIGMA_FLOOR_PX)
 
     def __post_init__(self):
         check_number("mag_limit", self.mag_limit)
-        check_number("sigma_px", self.sigma_px, lo=0, lo_open=True)
+        if self.sigma_px is not None:
+            check_number("sigma_px (or None: follow the simulator)", self.sigma_px, lo=0)
         check_number("pattern_radius_deg", self.pattern_radius_deg, lo=0, hi=90, lo_open=True)
         check_number("d_min_deg", self.d_min_deg, lo=0)
         if self.d_min_deg >= self.pattern_radius_deg:
@@ -143,10 +173,12 @@ class TriangleVoting(Algorithm):
         check_whole("n_candidates", self.n_candidates, 2)
         check_whole("min_stars", self.min_stars, 2)
         check_whole("max_hypotheses", self.max_hypotheses, 0)
+        check_number("coverage_mag_margin", self.coverage_mag_margin)
+        check_number("max_missed_fraction", self.max_missed_fraction, lo=0, hi=1)
 
     def _tolerance_chord(self, f_px: float) -> float:
         """eps_base = k_sigma sqrt(2) sigma: base, side and pairwise-distance tolerance (notes 1.3)."""
-        return self.k_sigma * math.sqrt(2.0) * self.sigma_px / f_px
+        return self.k_sigma * math.sqrt(2.0) * self.sigma_window_px / f_px
 
     # -- database ---------------------------------------------------------------------------
     def build(self, catalog: Catalog, camera: Camera) -> TriangleVotingDatabase:
@@ -196,10 +228,10 @@ class TriangleVoting(Algorithm):
         return TriangleVotingDatabase(
             base=base32[order], height=height32[order], main=main[order].astype(np.uint16),
             n_i=n_i[order].astype(np.uint16), n_j=n_j[order].astype(np.uint16),
-            cell_start=cell_start, unit_icrs=unit.astype(np.float32), hip=hip.astype(np.int32),
+            cell_start=cell_start, unit_icrs=unit.astype(np.float32), hip=hip.astype(np.int64),
             sky_start=sky_start, sky_axis=SKY_AXIS,
             cell_b=cell, cell_h=cell, n_cells_b=n_cells_b, n_cells_h=n_cells_h,
-            pattern_radius_chord=pr_chord, d_min_chord=dmin_chord)
+            pattern_radius_chord=pr_chord, d_min_chord=dmin_chord, v_mag=v_mag.astype(np.float32))
 
     # -- identification ---------------------------------------------------------------------
     def identify(self, database: TriangleVotingDatabase, observation: Observation) -> Identification:
@@ -211,21 +243,18 @@ class TriangleVoting(Algorithm):
         # brightest first; ties broken on position so the result does not depend on input order
         order = np.lexsort((observation.y_px, observation.x_px, observation.mag))
         v_cam = backproject_px(observation.x_px[order], observation.y_px[order], cam.f_px, cam.cx_px, cam.cy_px)
+        sigma_chord = self.sigma_window_px / cam.f_px
+        tol = Tolerance(
+            sigma_chord=sigma_chord, k_sigma=float(self.k_sigma), eps_chord=self._tolerance_chord(cam.f_px),
+            radius_chord=self.k_sigma * sigma_chord, n_nbr=int(self.n_neighbours + self.lambda_extra),
+            side_check=bool(self.side_check), vote_neighbours=bool(self.vote_neighbours), v_min=int(self.v_min),
+            n_cand=int(self.n_candidates), min_support=int(self.min_support), min_stars=int(self.min_stars),
+            max_hypotheses=int(self.max_hypotheses), coverage_mag=float(self.mag_limit - self.coverage_mag_margin),
+            max_missed_fraction=float(self.max_missed_fraction))
+        sensor = Sensor(float(cam.f_px), float(cam.cx_px), float(cam.cy_px), float(cam.width_px), float(cam.height_px),
+                        float(rad_to_chord(min(cam.half_diagonal_rad, math.pi / 2))))
         db = database
-        cand, cand_votes, hyp, score = vote(
-            v_cam, db.base, db.height, db.main, db.n_i, db.n_j, db.cell_start, db.n_cells_b, db.n_cells_h,
-            db.cell_b, db.cell_h, db.hip.size, db.unit_icrs, db.pattern_radius_chord, db.d_min_chord,
-            self.n_neighbours + self.lambda_extra, self.sigma_px / cam.f_px, self.k_sigma,
-            self.side_check, self.vote_neighbours, self.v_min, self.n_candidates)
-        tol_chord = self._tolerance_chord(cam.f_px)
-        radius_chord = self.k_sigma * self.sigma_px / cam.f_px  # reprojection: k_sigma x per-axis noise
-        chosen, chosen_votes = select_candidates(v_cam, cand, cand_votes, db.unit_icrs, tol_chord)
-        verified = verify_pairwise(v_cam, chosen, db.unit_icrs, tol_chord, self.min_support)
-        rows = confirm(v_cam, np.where(verified, chosen, -1), chosen_votes, db.unit_icrs, db.sky_start,
-                       db.sky_axis, tol_chord, radius_chord, self.min_stars)
-        if rows.max() < 0 and self.max_hypotheses > 0:
-            rows = best_hypothesis(v_cam, hyp, score, db.unit_icrs, db.sky_start, db.sky_axis, tol_chord,
-                                   radius_chord, self.min_stars + 1, self.max_hypotheses)
+        rows = identify_rows(v_cam, db.tables(), tol, sensor)
         found = rows >= 0
         out[order[found]] = db.hip[rows[found]]
         return Identification(out)

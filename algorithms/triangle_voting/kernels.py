@@ -10,11 +10,63 @@ falls on the line (``0`` at ``A``, ``1`` at ``B``); it only sets the height tole
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 
-from starid.kernels import chord, chord_rows, wahba_rows
+from starid.kernels import chord, chord_rows, verify_pairwise, wahba_rows
+
+
+class Tables(NamedTuple):
+    """The database as the kernels read it (see ``TriangleVotingDatabase``)."""
+
+    base: np.ndarray  # float32 (m,) triangle records sorted by 2-D grid cell
+    height: np.ndarray  # float32 (m,)
+    main: np.ndarray  # uint16 (m,) guide rows: main star (apex) and its two neighbours
+    n_i: np.ndarray
+    n_j: np.ndarray
+    cell_start: np.ndarray  # int32 records of grid cell c: cell_start[c]:cell_start[c + 1]
+    n_cells_b: int
+    n_cells_h: int
+    cell_b: float  # grid cell size in base and height (chord units)
+    cell_h: float
+    unit: np.ndarray  # float32 (n, 3) guide-star unit vectors, ICRS, sorted by sky cell
+    sky_start: np.ndarray  # int32 guide rows of sky cell c: sky_start[c]:sky_start[c + 1]
+    sky_axis: int
+    pr_chord: float  # pattern radius as a chord
+    dmin_chord: float  # D_min as a chord
+    v_mag: np.ndarray  # float32 (n,) guide-star V magnitudes (coverage check)
+
+
+class Sensor(NamedTuple):
+    """The camera of one image, in pixels (for predicting which guide stars it must show)."""
+
+    f_px: float
+    cx_px: float
+    cy_px: float
+    width_px: float
+    height_px: float
+    half_diagonal_chord: float
+
+
+class Tolerance(NamedTuple):
+    """Windows and switches of one identification (see ``TriangleVoting``)."""
+
+    sigma_chord: float  # centroid noise per axis, chord units
+    k_sigma: float
+    eps_chord: float  # k_sigma sqrt(2) sigma: base, side and pairwise-separation window
+    radius_chord: float  # k_sigma sigma: reprojection radius
+    n_nbr: int  # image neighbours per star (lambda + lambda_extra)
+    side_check: bool
+    vote_neighbours: bool
+    v_min: int
+    n_cand: int
+    min_support: int
+    min_stars: int
+    max_hypotheses: int
+    coverage_mag: float  # guide stars at most this bright must be seen (coverage check) ...
+    max_missed_fraction: float  # ... all but this fraction of them (and one star always may be missed)
 
 
 @njit(cache=True)
@@ -27,6 +79,8 @@ def triangle_features(s, a, b):
     say = s[1] - a[1]
     saz = s[2] - a[2]
     base2 = abx * abx + aby * aby + abz * abz
+    if base2 == 0.0:  # coincident neighbours: no triangle (callers reject base < D_min)
+        return 0.0, 0.0, 0.5
     base = math.sqrt(base2)
     cx = say * abz - saz * aby
     cy = saz * abx - sax * abz
@@ -86,9 +140,7 @@ def _grow(arr):
 
 
 @njit(cache=True)
-def vote(v_cam, base_db, height_db, main_db, ni_db, nj_db, cell_start, n_cells_b, n_cells_h, cell_b, cell_h,
-         n_guide, cat_unit, pr_chord, dmin_chord, n_nbr, sigma_chord, k_sigma, side_check, vote_neighbours,
-         v_min, n_cand):
+def vote(v_cam, db, tol):
     """Triangle voting (Fan & Zhong's double feature constraint) over a 2-D grid index.
 
     ``v_cam`` (n, 3) must be ordered brightest first (the neighbour ranking reads that order).
@@ -105,6 +157,13 @@ def vote(v_cam, base_db, height_db, main_db, ni_db, nj_db, cell_start, n_cells_b
     record whose sides matched too, as ``(i, row_i, a, row_a, b, row_b)``, and ``score`` (m,):
     the votes of its three assignments summed.
     """
+    base_db, height_db, main_db, ni_db, nj_db = db.base, db.height, db.main, db.n_i, db.n_j
+    cell_start, n_cells_b, n_cells_h, cell_b, cell_h = db.cell_start, db.n_cells_b, db.n_cells_h, db.cell_b, db.cell_h
+    cat_unit = db.unit
+    n_guide = cat_unit.shape[0]
+    pr_chord, dmin_chord = db.pr_chord, db.dmin_chord
+    n_nbr, sigma_chord, k_sigma = tol.n_nbr, tol.sigma_chord, tol.k_sigma
+    side_check, vote_neighbours, v_min, n_cand = tol.side_check, tol.vote_neighbours, tol.v_min, tol.n_cand
     n = v_cam.shape[0]
     eps_b = k_sigma * math.sqrt(2.0) * sigma_chord
     lo_d = dmin_chord - eps_b
@@ -286,8 +345,9 @@ def sky_cell_of(u, n_axis):
 
 
 @njit(cache=True)
-def _nearest_row(r, cat_unit, sky_start, n_axis, tol_chord):
+def _nearest_row(r, db, tol_chord):
     """The only catalog row within ``tol_chord`` of unit vector ``r`` (-1 if none or several)."""
+    cat_unit, sky_start, n_axis = db.unit, db.sky_start, db.sky_axis
     found = -1
     w = 2.0 / n_axis
     lo = np.empty(3, dtype=np.int64)
@@ -308,7 +368,7 @@ def _nearest_row(r, cat_unit, sky_start, n_axis, tol_chord):
 
 
 @njit(cache=True)
-def _extend(v_cam, row, cat_unit, sky_start, n_axis, tol_chord, radius_chord):
+def _extend(v_cam, row, db, tol):
     """Extend the consistent set ``row`` (-1 = not in it) by reprojection, in place; returns its size.
 
     The attitude is solved from the set (SVD, notes 7.5); every other star takes the only
@@ -317,6 +377,9 @@ def _extend(v_cam, row, cat_unit, sky_start, n_axis, tol_chord, radius_chord):
     sorted by cell of the ``n_axis``^3 sky grid, ``sky_start`` delimiting the cells) when
     that row also agrees in separation with every star of the set and no other star takes it.
     """
+    cat_unit = db.unit
+    tol_chord = tol.eps_chord
+    radius_chord = tol.radius_chord
     n = v_cam.shape[0]
     n_set = 0
     for i in range(n):
@@ -333,7 +396,7 @@ def _extend(v_cam, row, cat_unit, sky_start, n_axis, tol_chord, radius_chord):
             continue
         for p in range(3):
             r[p] = A[0, p] * v_cam[i, 0] + A[1, p] * v_cam[i, 1] + A[2, p] * v_cam[i, 2]
-        c = _nearest_row(r, cat_unit, sky_start, n_axis, radius)
+        c = _nearest_row(r, db, radius)
         if c < 0:
             continue
         ok = True
@@ -358,7 +421,7 @@ def _extend(v_cam, row, cat_unit, sky_start, n_axis, tol_chord, radius_chord):
 
 
 @njit(cache=True)
-def confirm(v_cam, proposed, weight, cat_unit, sky_start, n_axis, tol_chord, radius_chord, min_stars):
+def confirm(v_cam, proposed, weight, db, tol, min_stars):
     """Make the verified proposals one consistent set, extend it by reprojection, keep it if large enough.
 
     1. ``proposed`` (rows or -1, from :func:`starid.kernels.verify_pairwise`) is reduced to a
@@ -369,6 +432,8 @@ def confirm(v_cam, proposed, weight, cat_unit, sky_start, n_axis, tol_chord, rad
     3. Fewer than ``min_stars`` stars in the end: nothing is reported.
     Returns the catalog row per observed star (-1 = none).
     """
+    cat_unit = db.unit
+    tol_chord = tol.eps_chord
     n = v_cam.shape[0]
     row = proposed.copy()
     while True:
@@ -387,14 +452,13 @@ def confirm(v_cam, proposed, weight, cat_unit, sky_start, n_axis, tol_chord, rad
         if worst < 0:
             break
         row[worst] = -1
-    if _extend(v_cam, row, cat_unit, sky_start, n_axis, tol_chord, radius_chord) < min_stars:
+    if _extend(v_cam, row, db, tol) < min_stars:
         return np.full(n, -1, dtype=np.int64)
     return row
 
 
 @njit(cache=True)
-def best_hypothesis(v_cam, hyp, score, cat_unit, sky_start, n_axis, tol_chord, radius_chord, min_stars,
-                    max_hypotheses):
+def best_hypothesis(v_cam, hyp, score, db, tol, min_stars):
     """Fallback when voting and verification found no set: test single matched triangles.
 
     The ``max_hypotheses`` matched triangles ``hyp`` with the highest ``score`` (ties: lower
@@ -408,12 +472,12 @@ def best_hypothesis(v_cam, hyp, score, cat_unit, sky_start, n_axis, tol_chord, r
     best_size = 0
     rival_size = 0
     row = np.empty(n, dtype=np.int64)
-    for h in order[:max_hypotheses]:
+    for h in order[:tol.max_hypotheses]:
         row[:] = -1
         row[hyp[h, 0]] = hyp[h, 1]
         row[hyp[h, 2]] = hyp[h, 3]
         row[hyp[h, 4]] = hyp[h, 5]
-        size = _extend(v_cam, row, cat_unit, sky_start, n_axis, tol_chord, radius_chord)
+        size = _extend(v_cam, row, db, tol)
         same = True
         for i in range(n):
             if row[i] != best[i]:
@@ -430,3 +494,77 @@ def best_hypothesis(v_cam, hyp, score, cat_unit, sky_start, n_axis, tol_chord, r
     if best_size < min_stars or best_size <= rival_size:
         return np.full(n, -1, dtype=np.int64)
     return best
+
+
+@njit(cache=True)
+def identify_rows(v_cam, db, tol, sensor):
+    """The whole identification of one image (``v_cam`` brightest first): guide row per star or -1.
+
+    Voting (:func:`vote`), the best-supported candidate per star (:func:`select_candidates`),
+    pairwise verification (``starid.kernels.verify_pairwise``), one consistent set extended by
+    reprojection (:func:`confirm`), and when that yields nothing the single-triangle fallback
+    (:func:`best_hypothesis`); finally the coverage check (:func:`coverage`): the identification
+    is kept only if at most ``max(1, max_missed_fraction x predicted)`` of the bright guide stars
+    its attitude puts on the sensor are missing.
+    """
+    cand, cand_votes, hyp, score = vote(v_cam, db, tol)
+    chosen, chosen_votes = select_candidates(v_cam, cand, cand_votes, db.unit, tol.eps_chord)
+    verified = verify_pairwise(v_cam, chosen, db.unit, tol.eps_chord, tol.min_support)
+    for i in range(chosen.shape[0]):
+        if not verified[i]:
+            chosen[i] = -1
+    rows = confirm(v_cam, chosen, chosen_votes, db, tol, tol.min_stars)
+    if rows.max() < 0 and tol.max_hypotheses > 0:
+        rows = best_hypothesis(v_cam, hyp, score, db, tol, tol.min_stars + 1)
+    if rows.max() >= 0 and tol.max_missed_fraction < 1.0:
+        predicted, missed = coverage(v_cam, rows, db, tol, sensor)
+        if missed > 1 and missed > tol.max_missed_fraction * predicted:
+            rows[:] = -1
+    return rows
+
+
+@njit(cache=True)
+def coverage(v_cam, rows, db, tol, sensor):
+    """``(predicted, missed)``: guide stars with V <= ``tol.coverage_mag`` that the attitude solved
+    from ``rows`` puts on the sensor, and how many of them no identified star claims.
+
+    A true identification explains the bright stars of its field; a chance match among noise
+    points or wrong stars predicts bright stars that are not there.
+    """
+    n = v_cam.shape[0]
+    A = wahba_rows(v_cam, rows, db.unit)  # ICRS -> camera
+    n_axis = db.sky_axis
+    w = 2.0 / n_axis
+    c = sensor.half_diagonal_chord + w  # the sky cells that can hold a star on the sensor
+    lo = np.empty(3, dtype=np.int64)
+    hi = np.empty(3, dtype=np.int64)
+    for d in range(3):
+        b = A[2, d]  # the boresight in ICRS
+        lo[d] = max(int((b - c + 1.0) / w), 0)
+        hi[d] = min(int((b + c + 1.0) / w), n_axis - 1)
+    predicted = 0
+    missed = 0
+    for ix in range(lo[0], hi[0] + 1):
+        for iy in range(lo[1], hi[1] + 1):
+            for iz in range(lo[2], hi[2] + 1):
+                cell = (ix * n_axis + iy) * n_axis + iz
+                for g in range(db.sky_start[cell], db.sky_start[cell + 1]):
+                    if db.v_mag[g] > tol.coverage_mag:
+                        continue
+                    u0, u1, u2 = float(db.unit[g, 0]), float(db.unit[g, 1]), float(db.unit[g, 2])
+                    pz = A[2, 0] * u0 + A[2, 1] * u1 + A[2, 2] * u2
+                    if pz <= 0.0:
+                        continue
+                    x = sensor.cx_px + sensor.f_px * (A[0, 0] * u0 + A[0, 1] * u1 + A[0, 2] * u2) / pz
+                    y = sensor.cy_px + sensor.f_px * (A[1, 0] * u0 + A[1, 1] * u1 + A[1, 2] * u2) / pz
+                    if not (0.0 <= x < sensor.width_px and 0.0 <= y < sensor.height_px):
+                        continue
+                    predicted += 1
+                    seen = False
+                    for i in range(n):
+                        if rows[i] == g:
+                            seen = True
+                            break
+                    if not seen:
+                        missed += 1
+    return predicted, missed

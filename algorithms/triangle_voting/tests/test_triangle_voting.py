@@ -10,7 +10,9 @@ import pytest
 
 from starid import ConfigError, Observation, SimConfig, Simulator
 from starid import run, summarize
+from starid.catalog import Catalog
 from starid.harness import Prepared, score
+from starid.testing import CHECKS, check_algorithm
 from starid.kernels import chord
 from starid.plugin import check_identification
 from starid.registry import get_algorithm
@@ -42,7 +44,7 @@ def test_registered_and_summary():
 
 
 @pytest.mark.parametrize("kwargs", [
-    {"sigma_px": 0.0}, {"sigma_px": -1.0}, {"sigma_px": float("nan")}, {"mag_limit": float("inf")},
+    {"sigma_px": -1.0}, {"sigma_px": float("nan")}, {"mag_limit": float("inf")},
     {"pattern_radius_deg": 0.0}, {"pattern_radius_deg": 91.0}, {"d_min_deg": -0.1},
     {"d_min_deg": 5.0, "pattern_radius_deg": 5.0}, {"n_neighbours": 1}, {"n_neighbours": 5.0},
     {"lambda_extra": -1}, {"k_sigma": 0.0}, {"double_star_deg": -1.0}, {"grid_cell_tol": 0.0},
@@ -212,3 +214,57 @@ def test_extensions_help(catalog, camera):
     assert rates["full"] > rates["no_neighbour_votes"]
     assert rates["full"] > rates["no_fallback"]
 
+
+
+def test_sigma_px_follows_the_simulator_with_a_1px_floor():
+    assert TriangleVoting.follows == {"sigma_px": "sigma_px"}
+    assert TriangleVoting().sigma_px is None and TriangleVoting().sigma_window_px == 1.0
+    for world, window in ((0.0, 1.0), (0.5, 1.0), (1.0, 1.0), (3.0, 3.0)):
+        alg = TriangleVoting().resolved(SimConfig(sigma_px=world))
+        assert alg.sigma_px == world and alg.sigma_window_px == window
+    pinned = TriangleVoting(sigma_px=2.0).resolved(SimConfig(sigma_px=0.0))
+    assert pinned.sigma_px == 2.0 and pinned.sigma_window_px == 2.0
+
+
+# --- trust (issue 10) -----------------------------------------------------------------------
+
+@pytest.mark.parametrize("check", CHECKS)
+def test_conformance(check):
+    check_algorithm(TriangleVoting, checks=[check])
+
+
+def test_random_fields_give_no_identification(db, camera):
+    """40 fields of 30 uniform random points (no real star): nothing may be identified."""
+    rng = np.random.default_rng(2024)
+    alg = TriangleVoting()
+    hits = 0
+    for _ in range(40):
+        obs = Observation(rng.uniform(0, 1024, 30), rng.uniform(0, 1024, 30), rng.uniform(2, 8, 30), camera)
+        hits += int(np.any(alg.identify(db, obs).hip != -1))
+    assert hits == 0
+
+
+def test_coincident_detections(db, catalog, camera):
+    """Two detections at the same pixel: no exception, neither gets an id, the rest stays right."""
+    obs = Simulator(catalog, camera, SimConfig(), seed=5).observation(0)
+    dup = Observation(np.r_[obs.x_px, obs.x_px[0]], np.r_[obs.y_px, obs.y_px[0]], np.r_[obs.mag, obs.mag[0]],
+                      camera, np.r_[obs.truth_hip, obs.truth_hip[0]])
+    hip = TriangleVoting().identify(db, dup).hip
+    assert hip.shape == (len(dup),) and hip[0] == -1 and hip[-1] == -1
+    assert np.all((hip == -1) | (hip == dup.truth_hip))
+
+
+def test_ids_beyond_int32(catalog, camera):
+    """Catalog ids offset by 2^31 come back intact (int64 end to end)."""
+    big = Catalog.from_arrays(catalog.hip + 2**31, catalog.ra_deg, catalog.dec_deg, catalog.v_mag)
+    alg = TriangleVoting()
+    db_big = alg.build(big.brighter_than(6.5), camera)
+    sim = Simulator(big, camera, SimConfig(), seed=6)
+    n_ok = 0
+    for t in range(8):
+        obs = sim.observation(t)
+        hip = alg.identify(db_big, obs).hip
+        assert hip.dtype == np.int64
+        assert np.all((hip == -1) | (hip == obs.truth_hip))
+        n_ok += int((hip >= 2**31).sum() >= 3)
+    assert n_ok >= 6

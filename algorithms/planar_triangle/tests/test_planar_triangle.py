@@ -9,7 +9,9 @@ import pytest
 
 from starid import ConfigError, Observation, SimConfig, Simulator
 from starid import run, summarize
-from starid.kernels import kvector_range
+from starid.catalog import Catalog
+from starid.kernels import kvector_query
+from starid.testing import CHECKS, check_algorithm
 from starid.registry import get_algorithm
 from starid_algorithms.planar_triangle import PlanarTriangle
 from starid_algorithms.planar_triangle.kernels import (
@@ -91,24 +93,25 @@ def test_signatures_describe_how_triangles_share_stars():
 def test_database_invariants(db, catalog):
     guide = catalog.brighter_than(6.0)
     assert db.guide_hip.shape == (len(guide),) and np.array_equal(db.guide_hip, guide.hip)
-    assert db.tri_stars.dtype == np.uint16 and db.tri_area.dtype == np.float32
-    assert db.tri_moment.dtype == np.float32 and db.kv_k.dtype == np.int32
-    n = db.tri_area.size
+    assert db.tri_stars.dtype == np.uint16
+    assert db.tri_area.values.dtype == np.float32
+    assert db.tri_moment.dtype == np.float32 and db.tri_area.k.dtype == np.int32
+    n = db.tri_area.values.size
     assert 500_000 < n < 5_000_000
-    assert np.all(np.diff(db.tri_area) >= 0)
+    assert np.all(np.diff(db.tri_area.values) >= 0)
     s = db.tri_stars.astype(np.int64)
     assert np.all(s[:, 0] < s[:, 1]) and np.all(s[:, 1] < s[:, 2]) and s.max() < len(guide)
     assert np.unique(s[:, 0] * 2**32 + s[:, 1] * 2**16 + s[:, 2]).size == n  # no duplicates
-    assert db.tri_area[0] >= np.float32(db.min_area) * (1 - 1e-6)
+    assert db.tri_area.values[0] >= np.float32(db.rules.min_area) * (1 - 1e-6)
     assert db.nbytes < 178e6 / 4
     # recompute a sample of triangles from the catalog in float64
     rng = np.random.default_rng(3)
     for t in rng.choice(n, 200, replace=False):
         u = db.guide_unit[s[t]]
         area, moment, diam = triangle_features(u[0], u[1], u[2])
-        assert db.tri_area[t] == pytest.approx(area, rel=1e-6)
+        assert db.tri_area.values[t] == pytest.approx(area, rel=1e-6)
         assert db.tri_moment[t] == pytest.approx(moment, rel=1e-6)
-        assert diam <= db.fov_db_rad + 1e-12
+        assert diam <= db.rules.fov_rad + 1e-12
 
 
 def test_database_is_complete_for_a_region(db):
@@ -125,7 +128,7 @@ def test_database_is_complete_for_a_region(db):
             for c in range(b + 1, near.size):
                 i, j, k = near[a], near[b], near[c]
                 area, _, diam = triangle_features(u[i], u[j], u[k])
-                if diam <= db.fov_db_rad and area >= db.min_area:
+                if diam <= db.rules.fov_rad and area >= db.rules.min_area:
                     expected.add((i, j, k))
     assert len(expected) > 50
     assert stored == expected
@@ -133,11 +136,12 @@ def test_database_is_complete_for_a_region(db):
 
 def test_kvector_query_is_exact(db):
     rng = np.random.default_rng(5)
-    for lo in rng.uniform(db.tri_area[0], db.tri_area[-1], 50):
+    area = db.tri_area.values
+    for lo in rng.uniform(area[0], area[-1], 50):
         hi = lo * 1.01
-        start, stop = kvector_range(db.tri_area, db.kv_k, db.kv_m, db.kv_q, lo, hi)
-        assert start == np.searchsorted(db.tri_area, lo, "left")
-        assert stop == np.searchsorted(db.tri_area, hi, "right")
+        start, stop = kvector_query(db.tri_area, lo, hi)
+        assert start == np.searchsorted(area, lo, "left")
+        assert stop == np.searchsorted(area, hi, "right")
 
 
 def test_float32_area_resolution_is_far_below_the_search_window(db, camera):
@@ -145,14 +149,14 @@ def test_float32_area_resolution_is_far_below_the_search_window(db, camera):
     sigma = 1.0 / camera.f_px
     u = db.guide_unit[db.tri_stars[-1].astype(np.int64)]  # largest area: coarsest spacing
     var_a, _ = triangle_variances(u[0], u[1], u[2], sigma)
-    spacing = np.spacing(db.tri_area[-1])
+    spacing = np.spacing(db.tri_area.values[-1])
     assert 3 * math.sqrt(var_a) > 1000 * spacing
 
 
 # --- parameters -----------------------------------------------------------------------------
 
 @pytest.mark.parametrize("kwargs", [
-    {"sigma_px": 0}, {"sigma_px": float("nan")}, {"fov_db_deg": 0}, {"fov_db_deg": 120},
+    {"sigma_px": -1}, {"sigma_px": float("nan")}, {"fov_db_deg": 0}, {"fov_db_deg": 120},
     {"min_area_deg2": -1}, {"beta": 0}, {"climit": 0}, {"climit": 2.5}, {"pivot_limit": -1},
     {"pivot_limit": 1.5}, {"restarts": -1}, {"min_verified": 0}, {"extend": "yes"},
     {"abort_if_finalists_grow": 1}, {"mag_limit": float("inf")}, {"consistent_chain": None},
@@ -164,7 +168,7 @@ def test_parameter_validation(kwargs):
 
 def test_defaults_are_documented():
     alg = PlanarTriangle()
-    assert alg.mag_limit == 6.0 and alg.sigma_px == 1.0 and alg.restarts == 3
+    assert alg.mag_limit == 6.0 and alg.sigma_px is None and alg.restarts == 3
     for name in alg.params():
         assert name in PlanarTriangle.__doc__ or name in ("mag_limit", "sigma_px", "beta",
                                                            "min_support")
@@ -216,3 +220,57 @@ def test_noise_free_identification_rate(catalog, noise_free):
     assert paper["id_rate"] >= 0.90  # measured 0.9315 on 2,000 trials
     assert restarted["id_rate"] >= 0.94  # measured 0.956 on 2,000 trials
     assert restarted["id_rate"] >= paper["id_rate"]
+
+
+def test_sigma_px_follows_the_simulator_with_a_1px_floor():
+    assert PlanarTriangle.follows == {"sigma_px": "sigma_px"}
+    assert PlanarTriangle().sigma_px is None and PlanarTriangle().sigma_window_px == 1.0
+    for world, window in ((0.0, 1.0), (0.5, 1.0), (1.0, 1.0), (3.0, 3.0)):
+        alg = PlanarTriangle().resolved(SimConfig(sigma_px=world))
+        assert alg.sigma_px == world and alg.sigma_window_px == window
+    pinned = PlanarTriangle(sigma_px=2.0).resolved(SimConfig(sigma_px=0.0))
+    assert pinned.sigma_px == 2.0 and pinned.sigma_window_px == 2.0
+
+
+# --- trust (issue 10) -----------------------------------------------------------------------
+
+@pytest.mark.parametrize("check", CHECKS)
+def test_conformance(check):
+    check_algorithm(PlanarTriangle, checks=[check])
+
+
+def test_random_fields_give_no_identification(db, camera):
+    """40 fields of 30 uniform random points (no real star): nothing may be identified."""
+    rng = np.random.default_rng(2024)
+    alg = PlanarTriangle()
+    hits = 0
+    for _ in range(40):
+        obs = Observation(rng.uniform(0, 1024, 30), rng.uniform(0, 1024, 30), rng.uniform(2, 8, 30), camera)
+        hits += int(np.any(alg.identify(db, obs).hip != -1))
+    assert hits == 0
+
+
+def test_coincident_detections(db, catalog, camera):
+    """Two detections at the same pixel: no exception, neither gets an id, the rest stays right."""
+    obs = Simulator(catalog, camera, SimConfig(), seed=5).observation(0)
+    dup = Observation(np.r_[obs.x_px, obs.x_px[0]], np.r_[obs.y_px, obs.y_px[0]], np.r_[obs.mag, obs.mag[0]],
+                      camera, np.r_[obs.truth_hip, obs.truth_hip[0]])
+    hip = PlanarTriangle().identify(db, dup).hip
+    assert hip.shape == (len(dup),) and hip[0] == -1 and hip[-1] == -1
+    assert np.all((hip == -1) | (hip == dup.truth_hip))
+
+
+def test_ids_beyond_int32(catalog, camera):
+    """Catalog ids offset by 2^31 come back intact (int64 end to end)."""
+    big = Catalog.from_arrays(catalog.hip + 2**31, catalog.ra_deg, catalog.dec_deg, catalog.v_mag)
+    alg = PlanarTriangle()
+    db_big = alg.build(big.brighter_than(6.5), camera)
+    sim = Simulator(big, camera, SimConfig(), seed=6)
+    n_ok = 0
+    for t in range(8):
+        obs = sim.observation(t)
+        hip = alg.identify(db_big, obs).hip
+        assert hip.dtype == np.int64
+        assert np.all((hip == -1) | (hip == obs.truth_hip))
+        n_ok += int((hip >= 2**31).sum() >= 3)
+    assert n_ok >= 6
