@@ -127,3 +127,20 @@ def test_reproject_assign_counts_predicted_and_seen():
     assert len(visible) > 10
     assert n_predicted == len(visible) and n_seen == len(seen)
     assert np.allclose(sky[out], seen)
+
+
+def test_assign_all_gives_every_detection_its_star(catalog, camera):
+    from starid import SimConfig, Simulator
+    from starid.kernels import assign_all, camera_frame, deep_sky, rad_to_chord
+
+    sim = Simulator(catalog, camera, SimConfig(sigma_px=0.3), seed=8)
+    _, x, y, _, truth, _ = sim.draw(0)
+    attitude = sim.draw(0)[0]
+    hip = np.full(x.size, -1, dtype=np.int64)
+    hip[0] = truth[0]
+    deep = deep_sky(catalog)
+    n = assign_all(attitude, x, y, camera_frame(camera), deep, rad_to_chord(3 * camera.pixel_rad), hip)
+    known = truth >= 0
+    assert n == int((hip >= 0).sum()) and (hip[known] == truth[known]).mean() > 0.95
+    assert len(np.unique(hip[hip >= 0])) == int((hip >= 0).sum())
+    assert np.all(np.diff(deep.unit[:, 2]) >= 0) and deep.hip.dtype == np.int64

@@ -1,0 +1,104 @@
+"""The standard final step of a star tracker: once the attitude is known, assign every image star.
+
+An identification from guide stars gives an attitude; every other detection is then given the
+catalog star predicted within a tolerance of it, over a deeper star list than the guide stars
+(:class:`DeepSky`). Any plugin can offer it as a parameter (``assign_all``); star recall then
+measures the tracker, not only the pattern match.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+from .geometry import backproject_px
+from .verify import reproject_assign
+
+
+class DeepSky(NamedTuple):
+    """Catalog stars to assign: ``unit`` float32 (m, 3) ICRS unit vectors sorted by z (what
+    :func:`~starid.kernels.reproject_assign` reads), ``hip`` int64 (m,) their ids."""
+
+    unit: np.ndarray
+    hip: np.ndarray
+
+    @property
+    def nbytes(self) -> int:
+        return int(self.unit.nbytes + self.hip.nbytes)
+
+
+class Frame(NamedTuple):
+    """The camera as numbers a kernel reads: focal length and principal point in pixels, sensor size."""
+
+    f_px: float
+    cx_px: float
+    cy_px: float
+    width_px: float
+    height_px: float
+
+
+def camera_frame(camera) -> Frame:
+    """The :class:`Frame` of a :class:`starid.Camera`."""
+    return Frame(float(camera.f_px), float(camera.cx_px), float(camera.cy_px), float(camera.width_px),
+                 float(camera.height_px))
+
+
+def deep_sky(catalog, mag_limit: float | None = None) -> DeepSky:
+    """The stars of ``catalog`` (to ``mag_limit``; all when ``None``), z-sorted for assignment.
+
+    An empty :class:`DeepSky` (``mag_limit = -inf``) costs nothing when assignment is off.
+    """
+    if mag_limit is not None:
+        catalog_hip, unit = catalog.hip[catalog.v_mag <= mag_limit], catalog.unit_icrs[catalog.v_mag <= mag_limit]
+    else:
+        catalog_hip, unit = catalog.hip, catalog.unit_icrs
+    unit32 = np.ascontiguousarray(unit, dtype=np.float32)
+    order = np.lexsort((catalog_hip, unit32[:, 2]))     # by float32 z, then id: a strict order
+    return DeepSky(np.ascontiguousarray(unit32[order]), np.ascontiguousarray(catalog_hip[order], dtype=np.int64))
+
+
+@njit(cache=True)
+def field_chord(frame):
+    """Chord from the boresight to the farthest corner of the sensor."""
+    corners = backproject_px(np.array([0.0, frame.width_px, 0.0, frame.width_px]),
+                             np.array([0.0, 0.0, frame.height_px, frame.height_px]), frame.f_px, frame.cx_px,
+                             frame.cy_px)
+    c = 0.0
+    for i in range(4):
+        c = max(c, math.sqrt(corners[i, 0] ** 2 + corners[i, 1] ** 2 + (corners[i, 2] - 1.0) ** 2))
+    return c
+
+
+@njit(cache=True)
+def assign_all(attitude, x_px, y_px, frame, deep, eps_chord, hip):
+    """Assign every detection to the deep star ``attitude`` predicts within chord ``eps_chord`` of it.
+
+    One-to-one (:func:`~starid.kernels.reproject_assign`); a detection left unassigned keeps the id it
+    had in ``hip`` unless that id went to another detection. ``hip`` (int64, the plugin's answer so
+    far) is updated in place; returns how many detections have an id afterwards.
+    """
+    n = x_px.shape[0]
+    v_all = backproject_px(x_px, y_px, frame.f_px, frame.cx_px, frame.cy_px)
+    rows = np.empty(n, dtype=np.int64)
+    reproject_assign(attitude, v_all, deep.unit, field_chord(frame) + eps_chord, eps_chord, rows, frame.f_px,
+                     frame.cx_px, frame.cy_px, frame.width_px, frame.height_px)
+    out = np.full(n, -1, dtype=np.int64)
+    for i in range(n):
+        if rows[i] >= 0:
+            out[i] = deep.hip[rows[i]]
+    count = 0
+    for i in range(n):
+        if out[i] < 0 and hip[i] >= 0:
+            taken = False
+            for j in range(n):
+                if out[j] == hip[i]:
+                    taken = True
+            if not taken:
+                out[i] = hip[i]
+        hip[i] = out[i]
+        if out[i] >= 0:
+            count += 1
+    return count
