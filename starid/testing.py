@@ -35,7 +35,7 @@ from .scoring import CORRECT, MISIDENTIFIED, SuccessRule, score_trial
 from .simulate import SimConfig, Simulator
 
 CHECKS = ("default_constructible", "deterministic", "few_stars", "coincident_stars", "valid_ids", "order_invariant",
-          "noise_free_identified", "random_fields", "read_only_input", "explain")
+          "noise_free_identified", "random_fields", "read_only_input", "large_ids", "explain")
 
 #: Trials the checks use (fixed, so a failure can be reproduced with ``Simulator(..., seed=SEED)``).
 SEED = 20151
@@ -44,6 +44,8 @@ NOISE_FREE = SimConfig()
 RANDOM_FIELDS, RANDOM_POINTS = 40, 30
 #: Random fields with any identification that still pass (a chance alignment of 3+ stars is rare).
 RANDOM_FIELDS_ALLOWED = 1
+#: Catalog ids must survive beyond 32 bits.
+LARGE_ID_OFFSET = 2**31
 
 
 class ConformanceError(AssertionError):
@@ -148,6 +150,22 @@ def _check_read_only_input(cls, algorithm, db, catalog, camera):
     algorithm.identify(db, view)
     _require(all(np.array_equal(a, b) for a, b in zip(before, (view.x_px, view.y_px, view.mag))),
              "identify changed the observation it was handed")
+
+
+@lru_cache(maxsize=2)
+def _offset_catalog(catalog: Catalog) -> Catalog:
+    return Catalog.from_arrays(catalog.hip + LARGE_ID_OFFSET, catalog.ra_deg, catalog.dec_deg, catalog.v_mag,
+                               name=f"{catalog.name}+2^31")
+
+
+def _check_large_ids(cls, algorithm, db, catalog, camera):
+    big = _offset_catalog(catalog)
+    big_db = _database(cls, big, camera)
+    statuses = [score_trial(_identify(algorithm, big_db, obs, big), obs.truth_hip, SuccessRule())["status"]
+                for obs in _trials(big, camera, NOISE_FREE, 8)]
+    _require(MISIDENTIFIED not in statuses, f"with catalog ids offset by 2^31, misidentified: {statuses}")
+    _require(statuses.count(CORRECT) >= 6, f"with catalog ids offset by 2^31 fewer than 6 of 8 noise-free "
+                                           f"trials identified: {statuses} (ids must stay int64 end to end)")
 
 
 def _check_explain(cls, algorithm, db, catalog, camera):
