@@ -12,10 +12,15 @@ from __future__ import annotations
 
 from importlib import import_module
 
+import numpy as np
+import pandas as pd
+
 from ..errors import ConfigError
 from ..registry import available_algorithms
+from ..report.tables import Table, markdown, pct, rate_ci
+from ..stats import summarize
 
-MODULES = ("table6", "zhou2015")
+MODULES = ("table6", "zhou2015", "luo2015")
 
 
 def get(name: str):
@@ -32,3 +37,26 @@ def all_experiments():
 def registered_beyond(paper: tuple[str, ...]) -> tuple[str, ...]:
     """Every working registered algorithm not in ``paper`` (the "beyond the paper" rows), by name."""
     return tuple(i.name for i in available_algorithms() if i.status == "ok" and i.name not in paper)
+
+
+def sweep_table(frame: pd.DataFrame, study: str, axis: str, paper: dict, unit: str, title: str,
+                name: str) -> Table:
+    """Id rate (with its interval) of every label at every value of ``axis`` in ``study``; the
+    paper's printed ``{(value, algorithm): rate}`` beside ours where it gives one."""
+    part = frame[frame["study"] == study]
+    s = summarize(part, by=(f"grid_{axis}", "label")).rename(columns={f"grid_{axis}": axis})
+    s["paper_id_rate"] = [paper.get((float(v), a), np.nan) for v, a in zip(s[axis], s["algorithm"])]
+    cells = s.assign(cell=[rate_ci(r, lo, hi) + (f" (paper {pct(p)})" if not np.isnan(p) else "")
+                           for r, lo, hi, p in zip(s["id_rate"], s["id_rate_lo"], s["id_rate_hi"], s["paper_id_rate"])])
+    wide = cells.pivot(index="label", columns=axis, values="cell").reindex(index=list(dict.fromkeys(s["label"])))
+    wide.columns = [f"{unit} = {c:g}" for c in wide.columns]
+    return Table(name, title, s, markdown(wide.reset_index()))
+
+
+def sweep_points(sweeps: dict) -> pd.DataFrame:
+    """A module's ``SWEEPS`` (name -> (axis, values, fixed, paper, unit)) as paper points for plots."""
+    rows = []
+    for name, (axis, _, _, paper, _) in sweeps.items():
+        rows += [{"study": name, "axis": axis, "value": v, "algorithm": a, "paper_id_rate": r}
+                 for (v, a), r in paper.items()]
+    return pd.DataFrame(rows, columns=["study", "axis", "value", "algorithm", "paper_id_rate"])

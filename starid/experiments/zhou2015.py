@@ -22,7 +22,7 @@ import pandas as pd
 from ..experiment import Experiment, Grid, Study
 from ..report.tables import Table, markdown, pct, rate_ci
 from ..stats import split_by_stars, summarize, wilson_interval
-from . import registered_beyond, table6
+from . import registered_beyond, sweep_points, sweep_table, table6
 
 NAME = "zhou2015"
 TITLE = "Zhou & Ye (2015), section 3"
@@ -131,29 +131,20 @@ def fig11(frame: pd.DataFrame) -> Table:
                  df, markdown(wide.reset_index()), (note,))
 
 
+TITLES = {"fig12": "Fig. 12: id rate vs centroid noise", "fig13": "Fig. 13: id rate vs magnitude noise",
+          "false_stars": "Beyond the paper: id rate vs false stars",
+          "lost_stars": "Beyond the paper: id rate vs lost stars"}
+
+
 def sweep(frame: pd.DataFrame, name: str) -> Table:
-    axis, values, fixed, paper, unit = SWEEPS[name]
-    part = frame[frame["study"] == name]
-    s = summarize(part, by=(f"grid_{axis}", "label")).rename(columns={f"grid_{axis}": axis})
-    s["paper_id_rate"] = [paper.get((float(v), a), np.nan) for v, a in zip(s[axis], s["algorithm"])]
-    cells = s.assign(cell=[rate_ci(r, lo, hi) + (f" (paper {pct(p)})" if not np.isnan(p) else "")
-                           for r, lo, hi, p in zip(s["id_rate"], s["id_rate_lo"], s["id_rate_hi"], s["paper_id_rate"])])
-    wide = cells.pivot(index="label", columns=axis, values="cell").reindex(index=list(dict.fromkeys(s["label"])))
-    wide.columns = [f"{unit} = {c:g}" for c in wide.columns]
+    axis, _, fixed, paper, unit = SWEEPS[name]
     conditions = ", ".join(f"{k} = {v:g}" for k, v in fixed.items())
-    titles = {"fig12": "Fig. 12: id rate vs centroid noise", "fig13": "Fig. 13: id rate vs magnitude noise",
-              "false_stars": "Beyond the paper: id rate vs false stars",
-              "lost_stars": "Beyond the paper: id rate vs lost stars"}
-    return Table(name, f"{titles[name]} ({conditions}; paper's sky)", s, markdown(wide.reset_index()))
+    return sweep_table(frame, name, axis, paper, unit, f"{TITLES[name]} ({conditions}; paper's sky)", name)
 
 
 def paper_points() -> pd.DataFrame:
     """The paper's printed points of its swept figures: ``study, axis, value, algorithm, paper_id_rate``."""
-    rows = []
-    for name, (axis, _, _, paper, _) in SWEEPS.items():
-        rows += [{"study": name, "axis": axis, "value": v, "algorithm": a, "paper_id_rate": r}
-                 for (v, a), r in paper.items()]
-    return pd.DataFrame(rows, columns=["study", "axis", "value", "algorithm", "paper_id_rate"])
+    return sweep_points(SWEEPS)
 
 
 def tables(frame: pd.DataFrame, experiment: Experiment) -> list[Table]:
