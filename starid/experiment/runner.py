@@ -74,6 +74,7 @@ def plan(experiment: Experiment, catalog, rule: SuccessRule = SuccessRule()) -> 
             settings_key = _hash(settings)
             for variant in study.variants:
                 info = algorithm_info(variant.name)
+                variant.make()          # bad parameters are refused here, before any work
                 for start in range(0, experiment.trials, BLOCK):
                     stop = min(start + BLOCK, experiment.trials)
                     key = _hash({**common, "settings": settings, "algorithm": variant.name,

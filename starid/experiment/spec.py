@@ -127,7 +127,7 @@ class Variant:
         params = {k: coerce(cls, k, v) for k, v in self.params}
         try:
             return cls(**params)
-        except TypeError as exc:
+        except (TypeError, ConfigError) as exc:
             raise ConfigError(f"{self.label}: {exc}") from None
 
     def to_dict(self) -> dict:
