@@ -84,8 +84,8 @@ def execute_task(task: Task, beat=None) -> pd.DataFrame:
     catalog = _catalog(task.catalog_path)
     sim, trials = _trials(task, catalog)
     chunk = task.chunk
-    if beat is not None:
-        beat[0], beat[1], beat[2] = task.index, -1.0, time.monotonic()
+    if beat is not None:   # the time first: the parent never pairs a new position with an old start
+        beat[2], beat[0], beat[1] = time.monotonic(), task.index, -1.0
     try:
         algorithm = chunk.variant.make().resolved(sim.config)
         info = algorithm_info(chunk.variant.name)
@@ -112,7 +112,7 @@ def execute_task(task: Task, beat=None) -> pd.DataFrame:
             rows.append(failed_row(trials, i, status, error))
             continue
         if beat is not None:
-            beat[1], beat[2] = float(i), time.monotonic()
+            beat[2], beat[1] = time.monotonic(), float(i)
         rows.append(trial_row(prepared, trials, i, catalog, rule))
     if beat is not None:
         beat[1] = -2.0
