@@ -1,0 +1,265 @@
+"""Tetra: four-star pattern hashing (Brown 2017; the idea behind tetra3 / cedar-solve)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import cached_property
+from typing import ClassVar
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from starid.camera import Camera
+from starid.catalog import Catalog
+from starid.errors import ConfigError
+from starid.kernels import backproject_px, project_cam, rad_to_chord
+from starid.observation import Observation
+from starid.params import check_number, check_whole
+from starid.plugin import Algorithm, Database, Explanation, Identification
+
+from .kernels import EMPTY, PAIRS, Guide, HashTable, Sensor, Tolerance, field_patterns, identify_kernel, \
+    pattern_keys, table_insert
+
+#: Largest number of bins per ratio: keys (< bins^5) must stay below the uint32 EMPTY marker.
+MAX_BINS = 84
+#: Largest number of guide stars: pattern rows are packed 16 bits each while building.
+MAX_GUIDE = 65535
+
+
+@dataclass(frozen=True, eq=False)
+class TetraDatabase(Database):
+    """The pattern hash table and the guide stars.
+
+    table_key : uint32 (S,) key of each slot (``0xFFFFFFFF`` = free), S a power of two.
+    table_pattern : uint16 (S, 4) guide rows of each slot's pattern, in canonical order.
+    guide_unit : float32 (g, 3) ICRS unit vectors of the guide stars, sorted by z.
+    guide_hip : int32 or int64 (g,) catalog id of each guide row.
+    bins : bins per edge ratio; n_patterns : patterns stored; n_fields : lattice fields used;
+    longest_probe : longest linear-probe run while inserting (build diagnostics).
+    """
+
+    table_key: np.ndarray
+    table_pattern: np.ndarray
+    guide_unit: np.ndarray
+    guide_hip: np.ndarray
+    bins: int
+    n_patterns: int
+    n_fields: int
+    longest_probe: int
+
+
+def fibonacci_sphere(n: int) -> np.ndarray:
+    """``n`` nearly uniform unit vectors (the Fibonacci lattice), (n, 3)."""
+    i = np.arange(n, dtype=np.float64) + 0.5
+    z = 1.0 - 2.0 * i / n
+    phi = math.pi * (3.0 - math.sqrt(5.0)) * i
+    r = np.sqrt(np.maximum(0.0, 1.0 - z * z))
+    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
+
+
+@dataclass(frozen=True)
+class Tetra(Algorithm):
+    """Tetra: four-star patterns keyed by their five edge ratios in a hash table, first verified match wins.
+
+    Brown J., "Tetra: star identification with hash tables", Proceedings of the AIAA/USU
+    Conference on Small Satellites, 2017 (the method of the open-source tetra3 and its fork
+    cedar-solve). The paper gives the idea; every number below is this library's. Full
+    description and measurements: ``docs/algorithms/tetra.md``.
+
+    The published idea (Brown 2017, as tetra3 implements it):
+
+    * a pattern is four stars; its six edge lengths, sorted and divided by the largest, give
+      five ratios that do not depend on attitude or scale; quantised into ``bins`` bins they
+      form a key into a hash table (open addressing) of catalogue patterns, each stored as its
+      four star indices;
+    * catalogue patterns are built so that every field of view has its brightest stars
+      covered: fields are laid on a lattice over the sky and the brightest guide stars of each
+      contribute their 4-star patterns;
+    * the image side takes its brightest stars, forms their 4-star patterns brightest first,
+      looks up every key within the ratio tolerance (neighbouring bins), matches star to star
+      by a canonical order (distance from the pattern centroid), solves the attitude and
+      verifies it with the remaining stars; the first verified pattern is the answer.
+
+    Reconstructed (the choices the paper leaves to the implementation; each is a parameter):
+
+    * guide stars V <= ``mag_limit``; stars with another guide star within
+      ``double_star_deg`` are in no pattern (their edges would be ambiguous at 1 px) but stay
+      available for verification;
+    * lattice: a Fibonacci lattice with spacing ``lattice_step`` x the camera's half-width;
+      each field is the circle of ``field_radius`` x the camera's half-diagonal around a lattice
+      point; its ``field_stars`` brightest pattern stars give all their 4-subsets whose largest
+      edge lies between ``min_span`` x the image width and the image diagonal;
+    * hash: key = the five bin numbers as base-``bins`` digits, Fibonacci hashing into 2^k
+      slots at load factor <= ``load_factor``, linear probing; slots store the key so foreign
+      keys on a probe run are skipped without geometry;
+    * tolerance: each ratio's window is ``beta`` propagated sigmas, sigma_r = sqrt(2) sigma
+      sqrt(1 + r^2) / e_max with sigma = ``sigma_px`` / f_px (floored at 1 px), every key in
+      the product of the touched bins is looked up (at most ``max_keys``; more means a pattern
+      too small to be worth it); a candidate must then agree on all six edges within
+      ``beta`` sqrt(2) sigma, absolute (the focal length is known, unlike tetra3's setting);
+    * canonical order: ascending chord distance from the mean of the four unit vectors; image
+      stars whose distances agree within the edge tolerance may swap (noise can reorder them);
+    * image side: the ``image_stars`` brightest detections (noisy magnitudes; ties by
+      position), patterns in breadth-first order (the fainter the faintest member, the later);
+    * verification: Wahba on the four pairs (``starid.kernels.wahba_rows``), reprojection of
+      every guide star (``starid.kernels.reproject_assign``, radius ``beta`` sqrt(2) sigma);
+      the four must be re-found, at least ``min_extra`` more guide stars must be seen, and the
+      chance of seeing that many, Binomial(predicted - 4, q) with q the fraction of the sensor
+      within the radius of some detection, must be at most ``max_mismatch`` (tetra3's
+      mismatch-probability test in this library's terms); the attitude is then refined on all
+      confirmed stars and the stars are identified by reprojection.
+    """
+
+    name: ClassVar[str] = "tetra"
+    follows: ClassVar[dict] = {"sigma_px": "sigma_px"}
+
+    mag_limit: float = 6.0
+    sigma_px: float | None = None
+    double_star_deg: float = 0.05
+    field_stars: int = 10
+    field_radius: float = 1.0
+    lattice_step: float = 0.5
+    min_span: float = 0.1
+    bins: int = 50
+    load_factor: float = 0.5
+    image_stars: int = 10
+    beta: float = 3.0
+    max_keys: int = 256
+    min_extra: int = 1
+    max_mismatch: float = 1e-4
+
+    def __post_init__(self):
+        check_number("mag_limit", self.mag_limit)
+        if self.sigma_px is not None:
+            check_number("sigma_px", self.sigma_px, lo=0)
+        check_number("double_star_deg", self.double_star_deg, lo=0, hi=90)
+        check_whole("field_stars", self.field_stars, 4, 30)
+        check_number("field_radius", self.field_radius, lo=0, lo_open=True, hi=4)
+        check_number("lattice_step", self.lattice_step, lo=0.02, hi=4)
+        check_number("min_span", self.min_span, lo=0, hi=1, hi_open=True)
+        check_whole("bins", self.bins, 2, MAX_BINS)
+        check_number("load_factor", self.load_factor, lo=0.05, hi=0.95)
+        check_whole("image_stars", self.image_stars, 4, 40)
+        check_number("beta", self.beta, lo=0, lo_open=True)
+        check_whole("max_keys", self.max_keys, 1)
+        check_whole("min_extra", self.min_extra, 0)
+        check_number("max_mismatch", self.max_mismatch, lo=0, hi=1)
+
+    @cached_property
+    def _sigma_px(self) -> float:
+        """The centroid noise the windows assume: ``sigma_px`` floored at 1 px (noise-free worlds too)."""
+        return max(self.sigma_px or 0.0, 1.0)
+
+    # ------------------------------------------------------------------ build
+
+    def _spans(self, camera: Camera) -> tuple[float, float]:
+        """Smallest and largest allowed largest-edge of a pattern, as chords."""
+        width_rad = 2.0 * math.atan(min(camera.width_px, camera.height_px) / 2.0 / camera.f_px)
+        return rad_to_chord(self.min_span * width_rad), rad_to_chord(2.0 * camera.half_diagonal_rad)
+
+    def build(self, catalog: Catalog, camera: Camera) -> TetraDatabase:
+        guide = catalog.brighter_than(self.mag_limit)
+        if len(guide) < 4:
+            raise ConfigError(f"tetra: only {len(guide)} catalog stars have V <= {self.mag_limit}")
+        if len(guide) > MAX_GUIDE:
+            raise ConfigError(f"tetra: {len(guide)} guide stars exceed the {MAX_GUIDE} this database can index; "
+                              f"lower mag_limit")
+        by_z = np.argsort(guide.unit_icrs[:, 2], kind="stable")
+        unit = np.ascontiguousarray(guide.unit_icrs[by_z])
+        v_mag = guide.v_mag[by_z]
+        hip = guide.hip[by_z]
+        tree = cKDTree(unit)
+        pattern_ok = np.ones(len(unit), dtype=bool)
+        if self.double_star_deg > 0:
+            pairs = tree.query_pairs(rad_to_chord(math.radians(self.double_star_deg)), output_type="ndarray")
+            pattern_ok[pairs.ravel()] = False
+        half_width_rad = math.atan(min(camera.width_px, camera.height_px) / 2.0 / camera.f_px)
+        step_rad = self.lattice_step * half_width_rad
+        n_fields = int(min(2_000_000, max(12, math.ceil(4.0 * math.pi / step_rad ** 2))))
+        centres = fibonacci_sphere(n_fields)
+        radius_rad = min(math.pi, self.field_radius * camera.half_diagonal_rad)
+        members = tree.query_ball_point(centres, rad_to_chord(radius_rad))
+        # brightest pattern stars of each field (ties by row, so the build is deterministic)
+        rank = np.lexsort((np.arange(len(unit)), v_mag))
+        rank_of = np.empty(len(unit), dtype=np.int64)
+        rank_of[rank] = np.arange(len(unit))
+        chosen, offsets = [], [0]
+        for js in members:
+            js = np.asarray(js, dtype=np.int64)
+            js = js[pattern_ok[js]]
+            js = js[np.argsort(rank_of[js])][: self.field_stars]
+            chosen.append(js)
+            offsets.append(offsets[-1] + js.size)
+        field_rows = np.concatenate(chosen) if chosen else np.zeros(0, dtype=np.int64)
+        min_edge, max_edge = self._spans(camera)
+        packed = np.unique(field_patterns(unit, field_rows, np.asarray(offsets, dtype=np.int64), min_edge, max_edge))
+        if packed.size == 0:
+            raise ConfigError("tetra: the catalog yields no 4-star pattern that fits in the image")
+        patterns = np.stack([(packed >> s) & 0xFFFF for s in (48, 32, 16, 0)], axis=1).astype(np.int64)
+        keys = pattern_keys(unit, patterns, self.bins)
+        size = 1 << max(4, math.ceil(math.log2(packed.size / self.load_factor)))
+        table_key = np.full(size, EMPTY, dtype=np.uint32)
+        row_dtype = np.uint16 if len(unit) <= np.iinfo(np.uint16).max else np.int32
+        table_pattern = np.zeros((size, 4), dtype=row_dtype)
+        longest = table_insert(table_key, table_pattern, keys, patterns.astype(row_dtype))
+        hip_dtype = np.int32 if hip.max() <= np.iinfo(np.int32).max else np.int64
+        return TetraDatabase(table_key=table_key, table_pattern=table_pattern, guide_unit=unit.astype(np.float32),
+                             guide_hip=hip.astype(hip_dtype), bins=int(self.bins), n_patterns=int(packed.size),
+                             n_fields=n_fields, longest_probe=int(longest))
+
+    # ------------------------------------------------------------------ identify
+
+    def _bundles(self, database: TetraDatabase, camera: Camera):
+        f_px = camera.f_px
+        sigma = self._sigma_px / f_px
+        min_edge, max_edge = self._spans(camera)
+        tol = Tolerance(sigma=sigma, beta=float(self.beta), min_edge=min_edge, max_edge=max_edge,
+                        max_keys=int(self.max_keys), eps=self.beta * math.sqrt(2.0) * sigma,
+                        c_fov=rad_to_chord(camera.half_diagonal_rad), min_extra=int(self.min_extra),
+                        max_mismatch=float(self.max_mismatch), n_image=int(self.image_stars))
+        sensor = Sensor(float(f_px), float(camera.cx_px), float(camera.cy_px), int(camera.width_px),
+                        int(camera.height_px))
+        table = HashTable(database.table_key, database.table_pattern, int(database.bins))
+        return sensor, table, Guide(database.guide_unit), tol
+
+    def _run(self, database: TetraDatabase, observation: Observation):
+        sensor, table, guide, tol = self._bundles(database, observation.camera)
+        record = np.empty(9, dtype=np.int64)
+        rows = identify_kernel(observation.x_px, observation.y_px, observation.mag, sensor, table, guide, tol,
+                               record)
+        return rows, record
+
+    def identify(self, database: TetraDatabase, observation: Observation) -> Identification:
+        rows, _ = self._run(database, observation)
+        hip = np.where(rows >= 0, database.guide_hip[np.maximum(rows, 0)].astype(np.int64), -1)
+        return Identification(hip.astype(np.int64))
+
+    def explain(self, database: TetraDatabase, observation: Observation) -> Explanation:
+        """The 4-star pattern that matched (its six edges, bold) and the verified stars with their HIP."""
+        rows, record = self._run(database, observation)
+        x, y = observation.x_px, observation.y_px
+        found = np.flatnonzero(rows >= 0)
+        points = np.stack([x[found], y[found]], axis=1) if found.size else np.zeros((0, 2))
+        labels = tuple(f"HIP {int(database.guide_hip[rows[i]])}" for i in found)
+        if record[0] < 0:
+            return Explanation(points=points, labels=labels,
+                               caption=f"No 4-star pattern of the {min(len(observation), self.image_stars)} "
+                                       f"brightest stars was verified ({max(int(record[8]), 0)} patterns tried).")
+        img = record[:4]
+        seg = np.array([[[x[img[a]], y[img[a]]], [x[img[b]], y[img[b]]]] for a, b in PAIRS])
+        # the catalogue pattern, projected with the final attitude, as a polygon over the image pattern
+        cam = observation.camera
+        v = backproject_px(x, y, cam.f_px, cam.cx_px, cam.cy_px)
+        from starid.kernels import wahba_rows
+        A = wahba_rows(v, rows, database.guide_unit)
+        cat = database.guide_unit[record[4:8]].astype(np.float64) @ A.T
+        cx, cy = project_cam(np.ascontiguousarray(cat), cam.f_px, cam.cx_px, cam.cy_px)
+        centre = np.array([cx.mean(), cy.mean()])
+        angle = np.argsort(np.arctan2(cy - centre[1], cx - centre[0]))
+        polygon = np.stack([cx[angle], cy[angle]], axis=1)
+        hips = ", ".join(str(int(database.guide_hip[r])) for r in record[4:8])
+        caption = (f"Pattern {int(record[8])} tried of the brightest stars matched HIP {hips} "
+                   f"(six edges bold, catalogue pattern outlined); {found.size} stars verified by reprojection.")
+        return Explanation(segments=seg, polygons=(polygon,), points=points, labels=labels, caption=caption,
+                           highlight=np.arange(6))

@@ -1,0 +1,447 @@
+"""numba kernels of the Tetra plugin: four-star patterns, their hash table, identification.
+
+A pattern is four stars. Its six edges are chords of unit vectors; sorted ascending and divided
+by the largest they give five ratios in [0, 1] (the scale-free shape, Brown 2017), each
+quantised into ``bins`` bins; the five bin numbers, read as digits in base ``bins``, are the
+pattern's key. Catalogue patterns sit in an open-addressing hash table (linear probing) of
+``2^k`` slots, each slot holding a key and four guide-star rows in canonical order (ascending
+distance from the pattern's centroid).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+from starid.kernels import backproject_px, chord_rows, reproject_assign, wahba_rows
+
+#: Key of an empty slot (no pattern key reaches it: keys are < bins^5 <= 84^5 < 2^32 - 1).
+EMPTY = np.uint32(0xFFFFFFFF)
+#: Fibonacci hashing multiplier (2^64 / golden ratio, odd).
+_GOLDEN = np.uint64(0x9E3779B97F4A7C15)
+#: Pair order of the six edges of a pattern in canonical order 0..3.
+PAIRS = np.array([[0, 1], [0, 2], [0, 3], [1, 2], [1, 3], [2, 3]], dtype=np.int64)
+#: The 24 permutations of four stars (identity first).
+PERMS = np.array([[a, b, c, d] for a in range(4) for b in range(4) for c in range(4) for d in range(4)
+                  if len({a, b, c, d}) == 4], dtype=np.int64)
+
+
+class HashTable(NamedTuple):
+    """The pattern hash table as one bundle.
+
+    key : uint32 (S,) pattern key per slot, ``EMPTY`` where free; S is a power of two.
+    pattern : uint16/int32 (S, 4) guide rows of the slot's pattern, canonical order.
+    bins : number of bins per edge ratio.
+    """
+
+    key: np.ndarray
+    pattern: np.ndarray
+    bins: int
+
+
+class Guide(NamedTuple):
+    """Guide stars: ``unit`` float32 (g, 3) ICRS unit vectors sorted by z (for reprojection)."""
+
+    unit: np.ndarray
+
+
+class Tolerance(NamedTuple):
+    """What identify needs besides the database (all angles as chords of unit vectors).
+
+    sigma : per-axis centroid noise the windows assume (rad); beta : window width in sigmas.
+    min_edge, max_edge : the pattern's largest edge must lie between them.
+    max_keys : a pattern whose ratio windows span more keys than this is skipped.
+    eps : verification radius (chord); c_fov : boresight-to-corner chord of the camera.
+    min_extra : guide stars beyond the pattern's four that verification must see.
+    max_mismatch : largest accepted chance probability of the verification matches.
+    n_image : how many of the brightest image stars form patterns.
+    """
+
+    sigma: float
+    beta: float
+    min_edge: float
+    max_edge: float
+    max_keys: int
+    eps: float
+    c_fov: float
+    min_extra: int
+    max_mismatch: float
+    n_image: int
+
+
+class Sensor(NamedTuple):
+    """The camera as numbers: focal length, principal point, size (px)."""
+
+    f_px: float
+    cx_px: float
+    cy_px: float
+    width_px: int
+    height_px: int
+
+
+# --------------------------------------------------------------------------- hash table
+
+
+@njit(cache=True)
+def hash_slot(key, mask):
+    """Home slot of ``key`` in a table of ``mask + 1`` slots (Fibonacci hashing, high bits)."""
+    h = np.uint64(key) * _GOLDEN
+    return np.int64((h >> np.uint64(32)) & np.uint64(mask))
+
+
+@njit(cache=True)
+def table_insert(table_key, table_pattern, keys, patterns):
+    """Insert ``patterns[i]`` under ``keys[i]`` with linear probing; returns the longest probe run."""
+    mask = table_key.shape[0] - 1
+    longest = 0
+    for i in range(keys.shape[0]):
+        s = hash_slot(keys[i], mask)
+        run = 0
+        while table_key[s] != EMPTY:
+            s = (s + 1) & mask
+            run += 1
+        table_key[s] = keys[i]
+        for a in range(4):
+            table_pattern[s, a] = patterns[i, a]
+        longest = max(longest, run)
+    return longest
+
+
+@njit(cache=True)
+def table_lookup(table_key, key, out, n_out):
+    """Append to ``out[n_out:]`` the slots holding ``key`` (probe until a free slot); returns the new count."""
+    mask = table_key.shape[0] - 1
+    s = hash_slot(key, mask)
+    while table_key[s] != EMPTY:
+        if table_key[s] == key and n_out < out.shape[0]:
+            out[n_out] = s
+            n_out += 1
+        s = (s + 1) & mask
+    return n_out
+
+
+# --------------------------------------------------------------------------- patterns
+
+
+@njit(cache=True)
+def canonical_order(unit, rows, out):
+    """Rows of a 4-star pattern in ascending distance from its centroid (ties: smaller row first).
+
+    ``rows`` are 4 rows of ``unit``; writes them reordered to ``out`` and the distances (chords
+    to the mean of the four vectors) to a returned array, ascending.
+    """
+    cen = np.zeros(3)
+    for k in range(4):
+        for a in range(3):
+            cen[a] += float(unit[rows[k], a]) * 0.25
+    d = np.empty(4)
+    for k in range(4):
+        s = 0.0
+        for a in range(3):
+            t = float(unit[rows[k], a]) - cen[a]
+            s += t * t
+        d[k] = math.sqrt(s)
+    idx = np.arange(4)
+    for i in range(1, 4):   # insertion sort of 4
+        j = i
+        while j > 0 and (d[idx[j]] < d[idx[j - 1]] or (d[idx[j]] == d[idx[j - 1]] and rows[idx[j]] < rows[idx[j - 1]])):
+            t = idx[j]
+            idx[j] = idx[j - 1]
+            idx[j - 1] = t
+            j -= 1
+    dist = np.empty(4)
+    for k in range(4):
+        out[k] = rows[idx[k]]
+        dist[k] = d[idx[k]]
+    return dist
+
+
+@njit(cache=True)
+def sorted_edges(unit, rows, edges):
+    """The six chords among ``unit[rows[0..3]]``, sorted ascending into ``edges``; returns the largest."""
+    for p in range(6):
+        edges[p] = chord_rows(unit, rows[PAIRS[p, 0]], unit, rows[PAIRS[p, 1]])
+    edges.sort()
+    return edges[5]
+
+
+@njit(cache=True)
+def ratio_bin(r, bins):
+    """Bin of an edge ratio ``r`` in [0, 1] (``r = 1`` falls into the last bin)."""
+    b = int(math.floor(r * bins))
+    return min(max(b, 0), bins - 1)
+
+
+@njit(cache=True)
+def pattern_keys(unit, patterns, bins):
+    """Canonical order (in place) and hash key of each catalogue pattern ``(p, 4)``."""
+    n = patterns.shape[0]
+    keys = np.empty(n, dtype=np.uint32)
+    edges = np.empty(6)
+    rows = np.empty(4, dtype=np.int64)
+    out = np.empty(4, dtype=np.int64)
+    for i in range(n):
+        for k in range(4):
+            rows[k] = patterns[i, k]
+        emax = sorted_edges(unit, rows, edges)
+        key = 0
+        for p in range(5):
+            key = key * bins + ratio_bin(edges[4 - p] / emax, bins)
+        keys[i] = key
+        canonical_order(unit, rows, out)
+        for k in range(4):
+            patterns[i, k] = out[k]
+    return keys
+
+
+@njit(cache=True)
+def field_patterns(unit, field_rows, field_offsets, min_edge, max_edge):
+    """Every 4-subset of each field's stars whose largest edge lies in ``[min_edge, max_edge]``.
+
+    Field ``f`` holds guide rows ``field_rows[field_offsets[f]:field_offsets[f + 1]]``. Each
+    pattern is returned as one int64 packing its four rows sorted ascending (16 bits each), so
+    the caller can drop the patterns that several fields share with ``np.unique``.
+    """
+    total = 0
+    for f in range(field_offsets.shape[0] - 1):
+        m = field_offsets[f + 1] - field_offsets[f]
+        total += m * (m - 1) * (m - 2) * (m - 3) // 24
+    out = np.empty(total, dtype=np.int64)
+    n = 0
+    r = np.empty(4, dtype=np.int64)
+    for f in range(field_offsets.shape[0] - 1):
+        s0 = field_offsets[f]
+        m = field_offsets[f + 1] - s0
+        for a in range(m):
+            for b in range(a + 1, m):
+                for c in range(b + 1, m):
+                    for d in range(c + 1, m):
+                        r[0] = field_rows[s0 + a]
+                        r[1] = field_rows[s0 + b]
+                        r[2] = field_rows[s0 + c]
+                        r[3] = field_rows[s0 + d]
+                        r.sort()
+                        emax = 0.0
+                        for p in range(6):
+                            emax = max(emax, chord_rows(unit, r[PAIRS[p, 0]], unit, r[PAIRS[p, 1]]))
+                        if emax < min_edge or emax > max_edge:
+                            continue
+                        out[n] = ((r[0] * 65536 + r[1]) * 65536 + r[2]) * 65536 + r[3]
+                        n += 1
+    return out[:n]
+
+
+# --------------------------------------------------------------------------- identification
+
+
+@njit(cache=True)
+def brightness_order(x_px, y_px, mag):
+    """Star indices by increasing magnitude; exact ties by x then y (input-order free)."""
+    n = mag.shape[0]
+    idx = np.arange(n)
+    for i in range(1, n):
+        j = i
+        while j > 0:
+            a = idx[j]
+            b = idx[j - 1]
+            before = mag[a] < mag[b] or (mag[a] == mag[b] and (x_px[a] < x_px[b] or (x_px[a] == x_px[b]
+                                                                                    and y_px[a] < y_px[b])))
+            if not before:
+                break
+            idx[j] = b
+            idx[j - 1] = a
+            j -= 1
+    return idx
+
+
+@njit(cache=True)
+def binom_sf(k, m, q):
+    """P(X >= k) for X ~ Binomial(m, q)."""
+    if k <= 0:
+        return 1.0
+    if k > m:
+        return 0.0
+    if q <= 0.0:
+        return 0.0
+    if q >= 1.0:
+        return 1.0
+    total = 0.0
+    logq = math.log(q)
+    log1q = math.log1p(-q)
+    for j in range(k, m + 1):
+        total += math.exp(math.lgamma(m + 1) - math.lgamma(j + 1) - math.lgamma(m - j + 1) + j * logq
+                          + (m - j) * log1q)
+    return min(total, 1.0)
+
+
+@njit(cache=True)
+def _match_order(img_edge, img_dist, cat_unit, cat_rows, tol, perm_out):
+    """Star-to-star correspondence of an image pattern and a catalogue candidate, or False.
+
+    Both are in canonical order. A permutation ``p`` (image star ``p[k]`` <-> catalogue star
+    ``k``) is admissible when it only swaps image stars whose centroid distances agree within
+    ``tol`` (canonical order up to noise ties; the identity always is); it matches when all six
+    edges agree within ``tol``. The admissible match with the smallest largest edge residual
+    wins.
+    """
+    cat_edge = np.empty((4, 4))
+    for p in range(6):
+        a = PAIRS[p, 0]
+        b = PAIRS[p, 1]
+        e = chord_rows(cat_unit, cat_rows[a], cat_unit, cat_rows[b])
+        cat_edge[a, b] = e
+        cat_edge[b, a] = e
+    best = 1e300
+    for t in range(PERMS.shape[0]):
+        ok = True
+        for k in range(4):
+            if abs(img_dist[PERMS[t, k]] - img_dist[k]) > tol:
+                ok = False
+                break
+        if not ok:
+            continue
+        worst = 0.0
+        for p in range(6):
+            a = PAIRS[p, 0]
+            b = PAIRS[p, 1]
+            worst = max(worst, abs(img_edge[PERMS[t, a], PERMS[t, b]] - cat_edge[a, b]))
+        if worst <= tol and worst < best:
+            best = worst
+            for k in range(4):
+                perm_out[k] = PERMS[t, k]
+    return best <= tol
+
+
+@njit(cache=True)
+def _verify(unit, rows, guide_unit, tol, sensor, n_stars, out_row):
+    """Attitude from the stars with ``rows >= 0`` (Wahba), then every star by reprojection.
+
+    Returns ``(accepted, n_seen)``; ``out_row`` receives the reprojection's guide row per star.
+    The chance probability of seeing ``n_seen - 4`` or more of the other predicted guide stars,
+    each landing within ``eps`` of one of ``n_stars`` detections spread over the sensor, must
+    not exceed ``max_mismatch``, and at least ``min_extra`` must be seen.
+    """
+    A = wahba_rows(unit, rows, guide_unit)
+    n_seen, n_predicted = reproject_assign(A, unit, guide_unit, tol.c_fov + tol.eps, tol.eps, out_row,
+                                           sensor.f_px, sensor.cx_px, sensor.cy_px, sensor.width_px,
+                                           sensor.height_px)
+    for i in range(rows.shape[0]):   # the pattern's own stars must be confirmed as such
+        if rows[i] >= 0 and out_row[i] != rows[i]:
+            return False, n_seen
+    extra = n_seen - 4
+    if extra < tol.min_extra:
+        return False, n_seen
+    r_px = tol.eps * sensor.f_px
+    q = min(1.0, n_stars * math.pi * r_px * r_px / (sensor.width_px * sensor.height_px))
+    return binom_sf(extra, max(n_predicted - 4, extra), q) <= tol.max_mismatch, n_seen
+
+
+@njit(cache=True)
+def identify_kernel(x_px, y_px, mag, sensor, table, guide, tol, record):
+    """Tetra identification of one image: guide row per star (-1 = none).
+
+    1. The ``n_image`` brightest detections (``brightness_order``) form every 4-star pattern,
+       in breadth-first brightness order (all patterns of the 4 brightest, then those adding the
+       5th, ...), skipping patterns whose largest edge is outside ``[min_edge, max_edge]``.
+    2. Each pattern's sorted edge ratios, with a window of ``beta`` propagated sigmas around
+       each, select every key in the product of the bins they touch (tetra3's tolerance); the
+       slots holding those keys are the candidates.
+    3. A candidate matches when, in canonical order (ties within the tolerance tried both
+       ways), all six edges agree within ``beta sqrt(2) sigma``.
+    4. Its attitude (Wahba) must be confirmed by the other stars (``_verify``); the first
+       confirmed pattern wins, its attitude is refined on every confirmed star, and the stars
+       are identified by reprojection.
+
+    ``record`` (int64 (9,)) receives the winning pattern: 4 image stars, 4 guide rows in
+    matching order, and the number of patterns tried.
+    """
+    n = x_px.shape[0]
+    result = np.full(n, -1, dtype=np.int64)
+    for k in range(record.shape[0]):
+        record[k] = -1
+    if n < 4:
+        return result
+    unit = backproject_px(x_px, y_px, sensor.f_px, sensor.cx_px, sensor.cy_px)
+    order = brightness_order(x_px, y_px, mag)
+    m = min(n, tol.n_image)
+    edge_tol = tol.beta * math.sqrt(2.0) * tol.sigma
+    bins = table.bins
+    slots = np.empty(512, dtype=np.int64)
+    rows4 = np.empty(4, dtype=np.int64)
+    img4 = np.empty(4, dtype=np.int64)
+    edges = np.empty(6)
+    img_edge = np.empty((4, 4))
+    lo = np.empty(5, dtype=np.int64)
+    hi = np.empty(5, dtype=np.int64)
+    digit = np.empty(5, dtype=np.int64)
+    perm = np.empty(4, dtype=np.int64)
+    cat4 = np.empty(4, dtype=np.int64)
+    trial_rows = np.full(n, -1, dtype=np.int64)
+    out_row = np.empty(n, dtype=np.int64)
+    tried = 0
+    for l in range(3, m):               # breadth-first: the faintest member advances slowest
+        for kk in range(2, l):
+            for j in range(1, kk):
+                for i in range(0, j):
+                    rows4[0] = order[i]
+                    rows4[1] = order[j]
+                    rows4[2] = order[kk]
+                    rows4[3] = order[l]
+                    emax = sorted_edges(unit, rows4, edges)
+                    if emax < tol.min_edge - edge_tol or emax > tol.max_edge + edge_tol or emax <= 0.0:
+                        continue
+                    tried += 1
+                    n_keys = 1
+                    for p in range(5):
+                        r = edges[4 - p] / emax
+                        t = tol.beta * math.sqrt(2.0) * tol.sigma * math.sqrt(1.0 + r * r) / emax
+                        lo[p] = ratio_bin(r - t, bins)
+                        hi[p] = ratio_bin(r + t, bins)
+                        n_keys *= hi[p] - lo[p] + 1
+                    if n_keys > tol.max_keys:
+                        continue
+                    img_dist = canonical_order(unit, rows4, img4)
+                    for a in range(4):
+                        for b in range(4):
+                            img_edge[a, b] = chord_rows(unit, img4[a], unit, img4[b])
+                    for p in range(5):
+                        digit[p] = lo[p]
+                    n_slot = 0
+                    while True:             # every key of the window (odometer over the digits)
+                        key = 0
+                        for p in range(5):
+                            key = key * bins + digit[p]
+                        n_slot = table_lookup(table.key, key, slots, n_slot)
+                        p = 4
+                        while p >= 0 and digit[p] == hi[p]:
+                            digit[p] = lo[p]
+                            p -= 1
+                        if p < 0:
+                            break
+                        digit[p] += 1
+                    for s in range(n_slot):
+                        for a in range(4):
+                            cat4[a] = table.pattern[slots[s], a]
+                        if not _match_order(img_edge, img_dist, guide.unit, cat4, edge_tol, perm):
+                            continue
+                        for a in range(n):
+                            trial_rows[a] = -1
+                        for a in range(4):
+                            trial_rows[img4[perm[a]]] = cat4[a]
+                        ok, n_seen = _verify(unit, trial_rows, guide.unit, tol, sensor, n, out_row)
+                        if not ok:
+                            continue
+                        # refine on every confirmed star, then identify by reprojection again
+                        A = wahba_rows(unit, out_row, guide.unit)
+                        reproject_assign(A, unit, guide.unit, tol.c_fov + tol.eps, tol.eps, result, sensor.f_px,
+                                         sensor.cx_px, sensor.cy_px, sensor.width_px, sensor.height_px)
+                        for a in range(4):
+                            record[a] = img4[perm[a]]
+                            record[4 + a] = cat4[a]
+                        record[8] = tried
+                        return result
+    record[8] = tried
+    return result
