@@ -35,6 +35,8 @@ class TetraDatabase(Database):
     table_pattern : uint16 (S, 4) guide rows of each slot's pattern, in canonical order.
     guide_unit : float32 (g, 3) ICRS unit vectors of the guide stars, sorted by z.
     guide_hip : int32 or int64 (g,) catalog id of each guide row.
+    reportable : bool (g,) guide stars without a catalog companion within ``double_star_deg``:
+        only these form patterns and are reported (the others still count in verification).
     bins : bins per edge ratio; n_patterns : patterns stored; n_fields : lattice fields used;
     longest_probe : longest linear-probe run while inserting (build diagnostics).
     """
@@ -43,6 +45,7 @@ class TetraDatabase(Database):
     table_pattern: np.ndarray
     guide_unit: np.ndarray
     guide_hip: np.ndarray
+    reportable: np.ndarray
     bins: int
     n_patterns: int
     n_fields: int
@@ -114,9 +117,10 @@ class Tetra(Algorithm):
     name: ClassVar[str] = "tetra"
     follows: ClassVar[dict] = {"sigma_px": "sigma_px"}
 
-    mag_limit: float = 6.0
+    mag_limit: float = 6.5
     sigma_px: float | None = None
     double_star_deg: float = 0.05
+    companion_margin_mag: float = 1.0
     field_stars: int = 10
     field_radius: float = 1.0
     lattice_step: float = 0.5
@@ -134,6 +138,7 @@ class Tetra(Algorithm):
         if self.sigma_px is not None:
             check_number("sigma_px", self.sigma_px, lo=0)
         check_number("double_star_deg", self.double_star_deg, lo=0, hi=90)
+        check_number("companion_margin_mag", self.companion_margin_mag, lo=0)
         check_whole("field_stars", self.field_stars, 4, 30)
         check_number("field_radius", self.field_radius, lo=0, lo_open=True, hi=4)
         check_number("lattice_step", self.lattice_step, lo=0.02, hi=4)
@@ -170,10 +175,13 @@ class Tetra(Algorithm):
         v_mag = guide.v_mag[by_z]
         hip = guide.hip[by_z]
         tree = cKDTree(unit)
+        # guide stars with a catalog companion that may be detected instead of them or beside them
         pattern_ok = np.ones(len(unit), dtype=bool)
         if self.double_star_deg > 0:
-            pairs = tree.query_pairs(rad_to_chord(math.radians(self.double_star_deg)), output_type="ndarray")
-            pattern_ok[pairs.ravel()] = False
+            deep = catalog.brighter_than(self.mag_limit + self.companion_margin_mag)
+            near = cKDTree(deep.unit_icrs).query_ball_point(unit, rad_to_chord(math.radians(self.double_star_deg)),
+                                                            return_length=True)
+            pattern_ok = near <= 1   # only itself
         half_width_rad = math.atan(min(camera.width_px, camera.height_px) / 2.0 / camera.f_px)
         step_rad = self.lattice_step * half_width_rad
         n_fields = int(min(2_000_000, max(12, math.ceil(4.0 * math.pi / step_rad ** 2))))
@@ -205,7 +213,7 @@ class Tetra(Algorithm):
         longest = table_insert(table_key, table_pattern, keys, patterns.astype(row_dtype))
         hip_dtype = np.int32 if hip.max() <= np.iinfo(np.int32).max else np.int64
         return TetraDatabase(table_key=table_key, table_pattern=table_pattern, guide_unit=unit.astype(np.float32),
-                             guide_hip=hip.astype(hip_dtype), bins=int(self.bins), n_patterns=int(packed.size),
+                             guide_hip=hip.astype(hip_dtype), reportable=pattern_ok, bins=int(self.bins), n_patterns=int(packed.size),
                              n_fields=n_fields, longest_probe=int(longest))
 
     # ------------------------------------------------------------------ identify
@@ -221,7 +229,7 @@ class Tetra(Algorithm):
         sensor = Sensor(float(f_px), float(camera.cx_px), float(camera.cy_px), int(camera.width_px),
                         int(camera.height_px))
         table = HashTable(database.table_key, database.table_pattern, int(database.bins))
-        return sensor, table, Guide(database.guide_unit), tol
+        return sensor, table, Guide(database.guide_unit, database.reportable), tol
 
     def _run(self, database: TetraDatabase, observation: Observation):
         sensor, table, guide, tol = self._bundles(database, observation.camera)

@@ -43,9 +43,11 @@ class HashTable(NamedTuple):
 
 
 class Guide(NamedTuple):
-    """Guide stars: ``unit`` float32 (g, 3) ICRS unit vectors sorted by z (for reprojection)."""
+    """Guide stars: ``unit`` float32 (g, 3) ICRS unit vectors sorted by z (for reprojection);
+    ``reportable`` bool (g,) False for stars with a catalog companion (never reported)."""
 
     unit: np.ndarray
+    reportable: np.ndarray
 
 
 class Tolerance(NamedTuple):
@@ -438,6 +440,9 @@ def identify_kernel(x_px, y_px, mag, sensor, table, guide, tol, record):
                         A = wahba_rows(unit, out_row, guide.unit)
                         reproject_assign(A, unit, guide.unit, tol.c_fov + tol.eps, tol.eps, result, sensor.f_px,
                                          sensor.cx_px, sensor.cy_px, sensor.width_px, sensor.height_px)
+                        for a in range(n):
+                            if result[a] >= 0 and not guide.reportable[result[a]]:
+                                result[a] = -1
                         for a in range(4):
                             record[a] = img4[perm[a]]
                             record[4 + a] = cat4[a]
