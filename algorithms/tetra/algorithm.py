@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from functools import cached_property
+from functools import cached_property, lru_cache
 from typing import ClassVar
 
 import numpy as np
@@ -13,13 +13,12 @@ from scipy.spatial import cKDTree
 from starid.camera import Camera
 from starid.catalog import Catalog
 from starid.errors import ConfigError
-from starid.kernels import backproject_px, project_cam, rad_to_chord
+from starid.kernels import backproject_px, project_cam, rad_to_chord, wahba_rows
 from starid.observation import Observation
 from starid.params import check_number, check_whole
 from starid.plugin import Algorithm, Database, Explanation, Identification
 
-from .kernels import EMPTY, PAIRS, Guide, HashTable, Sensor, Tolerance, field_patterns, identify_kernel, \
-    pattern_keys, table_insert
+from .kernels import EMPTY, PAIRS, Settings, Tables, field_patterns, identify_kernel, pattern_keys, table_insert
 
 #: Largest number of bins per ratio: keys (< bins^5) must stay below the uint32 EMPTY marker.
 MAX_BINS = 84
@@ -110,8 +109,8 @@ class Tetra(Algorithm):
       the four must be re-found, at least ``min_extra`` more guide stars must be seen, and the
       chance of seeing that many, Binomial(predicted - 4, q) with q the fraction of the sensor
       within the radius of some detection, must be at most ``max_mismatch`` (tetra3's
-      mismatch-probability test in this library's terms); the attitude is then refined on all
-      confirmed stars and the stars are identified by reprojection.
+      mismatch-probability test in this library's terms); that reprojection is the
+      identification (guide stars with a companion are not reported).
     """
 
     name: ClassVar[str] = "tetra"
@@ -126,7 +125,7 @@ class Tetra(Algorithm):
     lattice_step: float = 0.5
     min_span: float = 0.1
     bins: int = 50
-    load_factor: float = 0.5
+    load_factor: float = 0.75
     image_stars: int = 10
     beta: float = 3.0
     max_keys: int = 256
@@ -218,34 +217,22 @@ class Tetra(Algorithm):
 
     # ------------------------------------------------------------------ identify
 
-    def _bundles(self, database: TetraDatabase, camera: Camera):
-        f_px = camera.f_px
-        sigma = self._sigma_px / f_px
-        min_edge, max_edge = self._spans(camera)
-        tol = Tolerance(sigma=sigma, beta=float(self.beta), min_edge=min_edge, max_edge=max_edge,
-                        max_keys=int(self.max_keys), eps=self.beta * math.sqrt(2.0) * sigma,
-                        c_fov=rad_to_chord(camera.half_diagonal_rad), min_extra=int(self.min_extra),
-                        max_mismatch=float(self.max_mismatch), n_image=int(self.image_stars))
-        sensor = Sensor(float(f_px), float(camera.cx_px), float(camera.cy_px), int(camera.width_px),
-                        int(camera.height_px))
-        table = HashTable(database.table_key, database.table_pattern, int(database.bins))
-        return sensor, table, Guide(database.guide_unit, database.reportable), tol
+    def _bundles(self, database: TetraDatabase, camera: Camera) -> tuple[Tables, Settings]:
+        return _bundles(self, database, camera)
 
     def _run(self, database: TetraDatabase, observation: Observation):
-        sensor, table, guide, tol = self._bundles(database, observation.camera)
+        tables, settings = _bundles(self, database, observation.camera)
         record = np.empty(9, dtype=np.int64)
-        rows = identify_kernel(observation.x_px, observation.y_px, observation.mag, sensor, table, guide, tol,
-                               record)
-        return rows, record
+        hip, rows = identify_kernel(observation.x_px, observation.y_px, observation.mag, tables, settings, record)
+        return hip, rows, record
 
     def identify(self, database: TetraDatabase, observation: Observation) -> Identification:
-        rows, _ = self._run(database, observation)
-        hip = np.where(rows >= 0, database.guide_hip[np.maximum(rows, 0)].astype(np.int64), -1)
-        return Identification(hip.astype(np.int64))
+        hip, _, _ = self._run(database, observation)
+        return Identification(hip)
 
     def explain(self, database: TetraDatabase, observation: Observation) -> Explanation:
         """The 4-star pattern that matched (its six edges, bold) and the verified stars with their HIP."""
-        rows, record = self._run(database, observation)
+        _, rows, record = self._run(database, observation)
         x, y = observation.x_px, observation.y_px
         found = np.flatnonzero(rows >= 0)
         points = np.stack([x[found], y[found]], axis=1) if found.size else np.zeros((0, 2))
@@ -259,7 +246,6 @@ class Tetra(Algorithm):
         # the catalogue pattern, projected with the final attitude, as a polygon over the image pattern
         cam = observation.camera
         v = backproject_px(x, y, cam.f_px, cam.cx_px, cam.cy_px)
-        from starid.kernels import wahba_rows
         A = wahba_rows(v, rows, database.guide_unit)
         cat = database.guide_unit[record[4:8]].astype(np.float64) @ A.T
         cx, cy = project_cam(np.ascontiguousarray(cat), cam.f_px, cam.cx_px, cam.cy_px)
@@ -271,3 +257,20 @@ class Tetra(Algorithm):
                    f"(six edges bold, catalogue pattern outlined); {found.size} stars verified by reprojection.")
         return Explanation(segments=seg, polygons=(polygon,), points=points, labels=labels, caption=caption,
                            highlight=np.arange(6))
+
+
+@lru_cache(maxsize=4)
+def _bundles(algorithm: Tetra, database: TetraDatabase, camera: Camera) -> tuple[Tables, Settings]:
+    """The kernel bundles of one (algorithm, database, camera), built once."""
+    f_px = camera.f_px
+    sigma = algorithm._sigma_px / f_px
+    min_edge, max_edge = algorithm._spans(camera)
+    settings = Settings(sigma=sigma, beta=float(algorithm.beta), min_edge=min_edge, max_edge=max_edge,
+                        max_keys=int(algorithm.max_keys), eps=algorithm.beta * math.sqrt(2.0) * sigma,
+                        c_fov=rad_to_chord(camera.half_diagonal_rad), min_extra=int(algorithm.min_extra),
+                        max_mismatch=float(algorithm.max_mismatch), n_image=int(algorithm.image_stars),
+                        f_px=float(f_px), cx_px=float(camera.cx_px), cy_px=float(camera.cy_px),
+                        width_px=int(camera.width_px), height_px=int(camera.height_px))
+    tables = Tables(database.table_key, database.table_pattern, int(database.bins), database.guide_unit,
+                    database.reportable, database.guide_hip)
+    return tables, settings

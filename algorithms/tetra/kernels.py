@@ -29,29 +29,27 @@ PERMS = np.array([[a, b, c, d] for a in range(4) for b in range(4) for c in rang
                   if len({a, b, c, d}) == 4], dtype=np.int64)
 
 
-class HashTable(NamedTuple):
-    """The pattern hash table as one bundle.
+class Tables(NamedTuple):
+    """The database as one bundle: the pattern hash table and the guide stars.
 
     key : uint32 (S,) pattern key per slot, ``EMPTY`` where free; S is a power of two.
     pattern : uint16/int32 (S, 4) guide rows of the slot's pattern, canonical order.
     bins : number of bins per edge ratio.
+    unit : float32 (g, 3) ICRS unit vectors of the guide stars, sorted by z (for reprojection).
+    reportable : bool (g,) False for guide stars with a catalog companion (never reported).
+    hip : int32/int64 (g,) catalog id of each guide star.
     """
 
     key: np.ndarray
     pattern: np.ndarray
     bins: int
-
-
-class Guide(NamedTuple):
-    """Guide stars: ``unit`` float32 (g, 3) ICRS unit vectors sorted by z (for reprojection);
-    ``reportable`` bool (g,) False for stars with a catalog companion (never reported)."""
-
     unit: np.ndarray
     reportable: np.ndarray
+    hip: np.ndarray
 
 
-class Tolerance(NamedTuple):
-    """What identify needs besides the database (all angles as chords of unit vectors).
+class Settings(NamedTuple):
+    """Everything identify needs besides the database and the stars (angles as chords).
 
     sigma : per-axis centroid noise the windows assume (rad); beta : window width in sigmas.
     min_edge, max_edge : the pattern's largest edge must lie between them.
@@ -60,6 +58,7 @@ class Tolerance(NamedTuple):
     min_extra : guide stars beyond the pattern's four that verification must see.
     max_mismatch : largest accepted chance probability of the verification matches.
     n_image : how many of the brightest image stars form patterns.
+    f_px, cx_px, cy_px, width_px, height_px : the camera (focal length, principal point, size).
     """
 
     sigma: float
@@ -72,11 +71,6 @@ class Tolerance(NamedTuple):
     min_extra: int
     max_mismatch: float
     n_image: int
-
-
-class Sensor(NamedTuple):
-    """The camera as numbers: focal length, principal point, size (px)."""
-
     f_px: float
     cx_px: float
     cy_px: float
@@ -261,7 +255,7 @@ def brightness_order(x_px, y_px, mag):
 
 @njit(cache=True)
 def binom_sf(k, m, q):
-    """P(X >= k) for X ~ Binomial(m, q)."""
+    """P(X >= k) for X ~ Binomial(m, q) (terms by recurrence from the k-th)."""
     if k <= 0:
         return 1.0
     if k > m:
@@ -270,12 +264,13 @@ def binom_sf(k, m, q):
         return 0.0
     if q >= 1.0:
         return 1.0
+    term = math.exp(math.lgamma(m + 1) - math.lgamma(k + 1) - math.lgamma(m - k + 1) + k * math.log(q)
+                    + (m - k) * math.log1p(-q))
     total = 0.0
-    logq = math.log(q)
-    log1q = math.log1p(-q)
+    odds = q / (1.0 - q)
     for j in range(k, m + 1):
-        total += math.exp(math.lgamma(m + 1) - math.lgamma(j + 1) - math.lgamma(m - j + 1) + j * logq
-                          + (m - j) * log1q)
+        total += term
+        term *= (m - j) / (j + 1.0) * odds
     return min(total, 1.0)
 
 
@@ -318,7 +313,7 @@ def _match_order(img_edge, img_dist, cat_unit, cat_rows, tol, perm_out):
 
 
 @njit(cache=True)
-def _verify(unit, rows, guide_unit, tol, sensor, n_stars, out_row):
+def _verify(unit, rows, guide_unit, tol, n_stars, out_row):
     """Attitude from the stars with ``rows >= 0`` (Wahba), then every star by reprojection.
 
     Returns ``(accepted, n_seen)``; ``out_row`` receives the reprojection's guide row per star.
@@ -328,22 +323,22 @@ def _verify(unit, rows, guide_unit, tol, sensor, n_stars, out_row):
     """
     A = wahba_rows(unit, rows, guide_unit)
     n_seen, n_predicted = reproject_assign(A, unit, guide_unit, tol.c_fov + tol.eps, tol.eps, out_row,
-                                           sensor.f_px, sensor.cx_px, sensor.cy_px, sensor.width_px,
-                                           sensor.height_px)
+                                           tol.f_px, tol.cx_px, tol.cy_px, tol.width_px,
+                                           tol.height_px)
     for i in range(rows.shape[0]):   # the pattern's own stars must be confirmed as such
         if rows[i] >= 0 and out_row[i] != rows[i]:
             return False, n_seen
     extra = n_seen - 4
     if extra < tol.min_extra:
         return False, n_seen
-    r_px = tol.eps * sensor.f_px
-    q = min(1.0, n_stars * math.pi * r_px * r_px / (sensor.width_px * sensor.height_px))
+    r_px = tol.eps * tol.f_px
+    q = min(1.0, n_stars * math.pi * r_px * r_px / (tol.width_px * tol.height_px))
     return binom_sf(extra, max(n_predicted - 4, extra), q) <= tol.max_mismatch, n_seen
 
 
 @njit(cache=True)
-def identify_kernel(x_px, y_px, mag, sensor, table, guide, tol, record):
-    """Tetra identification of one image: guide row per star (-1 = none).
+def identify_kernel(x_px, y_px, mag, table, tol, record):
+    """Tetra identification of one image: ``(hip, row)`` per star (catalog id and guide row, -1 = none).
 
     1. The ``n_image`` brightest detections (``brightness_order``) form every 4-star pattern,
        in breadth-first brightness order (all patterns of the 4 brightest, then those adding the
@@ -353,20 +348,21 @@ def identify_kernel(x_px, y_px, mag, sensor, table, guide, tol, record):
        slots holding those keys are the candidates.
     3. A candidate matches when, in canonical order (ties within the tolerance tried both
        ways), all six edges agree within ``beta sqrt(2) sigma``.
-    4. Its attitude (Wahba) must be confirmed by the other stars (``_verify``); the first
-       confirmed pattern wins, its attitude is refined on every confirmed star, and the stars
-       are identified by reprojection.
+    4. Its attitude (Wahba on the four pairs) must be confirmed by the other stars
+       (``_verify``); the first confirmed pattern wins and that reprojection identifies the
+       stars (guide stars with a catalog companion are not reported).
 
     ``record`` (int64 (9,)) receives the winning pattern: 4 image stars, 4 guide rows in
     matching order, and the number of patterns tried.
     """
     n = x_px.shape[0]
     result = np.full(n, -1, dtype=np.int64)
+    hip = np.full(n, -1, dtype=np.int64)
     for k in range(record.shape[0]):
         record[k] = -1
     if n < 4:
-        return result
-    unit = backproject_px(x_px, y_px, sensor.f_px, sensor.cx_px, sensor.cy_px)
+        return hip, result
+    unit = backproject_px(x_px, y_px, tol.f_px, tol.cx_px, tol.cy_px)
     order = brightness_order(x_px, y_px, mag)
     m = min(n, tol.n_image)
     edge_tol = tol.beta * math.sqrt(2.0) * tol.sigma
@@ -427,26 +423,26 @@ def identify_kernel(x_px, y_px, mag, sensor, table, guide, tol, record):
                     for s in range(n_slot):
                         for a in range(4):
                             cat4[a] = table.pattern[slots[s], a]
-                        if not _match_order(img_edge, img_dist, guide.unit, cat4, edge_tol, perm):
+                        if not _match_order(img_edge, img_dist, table.unit, cat4, edge_tol, perm):
                             continue
                         for a in range(n):
                             trial_rows[a] = -1
                         for a in range(4):
                             trial_rows[img4[perm[a]]] = cat4[a]
-                        ok, n_seen = _verify(unit, trial_rows, guide.unit, tol, sensor, n, out_row)
+                        ok, n_seen = _verify(unit, trial_rows, table.unit, tol, n, out_row)
                         if not ok:
                             continue
-                        # refine on every confirmed star, then identify by reprojection again
-                        A = wahba_rows(unit, out_row, guide.unit)
-                        reproject_assign(A, unit, guide.unit, tol.c_fov + tol.eps, tol.eps, result, sensor.f_px,
-                                         sensor.cx_px, sensor.cy_px, sensor.width_px, sensor.height_px)
+                        # the verification's reprojection is the identification
                         for a in range(n):
-                            if result[a] >= 0 and not guide.reportable[result[a]]:
+                            result[a] = out_row[a]
+                            if result[a] >= 0 and not table.reportable[result[a]]:
                                 result[a] = -1
+                            if result[a] >= 0:
+                                hip[a] = table.hip[result[a]]
                         for a in range(4):
                             record[a] = img4[perm[a]]
                             record[4 + a] = cat4[a]
                         record[8] = tried
-                        return result
+                        return hip, result
     record[8] = tried
-    return result
+    return hip, result
