@@ -195,12 +195,13 @@ class Tetra(Algorithm):
         for js in members:
             js = np.asarray(js, dtype=np.int64)
             js = js[pattern_ok[js]]
-            js = js[np.argsort(rank_of[js])][: self.field_stars]
+            js = np.sort(js[np.argsort(rank_of[js])][: self.field_stars])
             chosen.append(js)
             offsets.append(offsets[-1] + js.size)
         field_rows = np.concatenate(chosen) if chosen else np.zeros(0, dtype=np.int64)
         min_edge, max_edge = self._spans(camera)
-        packed = np.unique(field_patterns(unit, field_rows, np.asarray(offsets, dtype=np.int64), min_edge, max_edge))
+        packed = np.sort(field_patterns(unit, field_rows, np.asarray(offsets, dtype=np.int64), min_edge, max_edge))
+        packed = packed[np.concatenate(([True], packed[1:] != packed[:-1]))] if packed.size else packed
         if packed.size == 0:
             raise ConfigError("tetra: the catalog yields no 4-star pattern that fits in the image")
         patterns = np.stack([(packed >> s) & 0xFFFF for s in (48, 32, 16, 0)], axis=1).astype(np.int64)

@@ -123,44 +123,47 @@ def table_lookup(table_key, key, out, n_out):
 
 
 @njit(cache=True)
-def canonical_order(unit, rows, out):
+def canonical_order(unit, rows, out, dist):
     """Rows of a 4-star pattern in ascending distance from its centroid (ties: smaller row first).
 
-    ``rows`` are 4 rows of ``unit``; writes them reordered to ``out`` and the distances (chords
-    to the mean of the four vectors) to a returned array, ascending.
+    ``rows`` are 4 rows of ``unit``; writes them reordered to ``out`` and their distances (chords
+    to the mean of the four vectors) to ``dist``, ascending. No allocation (hot in the build).
     """
-    cen = np.zeros(3)
+    c0 = 0.0
+    c1 = 0.0
+    c2 = 0.0
     for k in range(4):
-        for a in range(3):
-            cen[a] += float(unit[rows[k], a]) * 0.25
-    d = np.empty(4)
+        c0 += 0.25 * float(unit[rows[k], 0])
+        c1 += 0.25 * float(unit[rows[k], 1])
+        c2 += 0.25 * float(unit[rows[k], 2])
     for k in range(4):
-        s = 0.0
-        for a in range(3):
-            t = float(unit[rows[k], a]) - cen[a]
-            s += t * t
-        d[k] = math.sqrt(s)
-    idx = np.arange(4)
-    for i in range(1, 4):   # insertion sort of 4
+        t0 = float(unit[rows[k], 0]) - c0
+        t1 = float(unit[rows[k], 1]) - c1
+        t2 = float(unit[rows[k], 2]) - c2
+        dist[k] = math.sqrt(t0 * t0 + t1 * t1 + t2 * t2)
+        out[k] = rows[k]
+    for i in range(1, 4):   # insertion sort of 4, carrying the rows along
         j = i
-        while j > 0 and (d[idx[j]] < d[idx[j - 1]] or (d[idx[j]] == d[idx[j - 1]] and rows[idx[j]] < rows[idx[j - 1]])):
-            t = idx[j]
-            idx[j] = idx[j - 1]
-            idx[j - 1] = t
+        while j > 0 and (dist[j] < dist[j - 1] or (dist[j] == dist[j - 1] and out[j] < out[j - 1])):
+            td = dist[j]
+            dist[j] = dist[j - 1]
+            dist[j - 1] = td
+            tr = out[j]
+            out[j] = out[j - 1]
+            out[j - 1] = tr
             j -= 1
-    dist = np.empty(4)
-    for k in range(4):
-        out[k] = rows[idx[k]]
-        dist[k] = d[idx[k]]
-    return dist
 
 
 @njit(cache=True)
 def sorted_edges(unit, rows, edges):
     """The six chords among ``unit[rows[0..3]]``, sorted ascending into ``edges``; returns the largest."""
     for p in range(6):
-        edges[p] = chord_rows(unit, rows[PAIRS[p, 0]], unit, rows[PAIRS[p, 1]])
-    edges.sort()
+        e = chord_rows(unit, rows[PAIRS[p, 0]], unit, rows[PAIRS[p, 1]])
+        j = p
+        while j > 0 and edges[j - 1] > e:   # insertion sort of 6
+            edges[j] = edges[j - 1]
+            j -= 1
+        edges[j] = e
     return edges[5]
 
 
@@ -179,6 +182,7 @@ def pattern_keys(unit, patterns, bins):
     edges = np.empty(6)
     rows = np.empty(4, dtype=np.int64)
     out = np.empty(4, dtype=np.int64)
+    dist = np.empty(4)
     for i in range(n):
         for k in range(4):
             rows[k] = patterns[i, k]
@@ -187,7 +191,7 @@ def pattern_keys(unit, patterns, bins):
         for p in range(5):
             key = key * bins + ratio_bin(edges[4 - p] / emax, bins)
         keys[i] = key
-        canonical_order(unit, rows, out)
+        canonical_order(unit, rows, out, dist)
         for k in range(4):
             patterns[i, k] = out[k]
     return keys
@@ -197,35 +201,38 @@ def pattern_keys(unit, patterns, bins):
 def field_patterns(unit, field_rows, field_offsets, min_edge, max_edge):
     """Every 4-subset of each field's stars whose largest edge lies in ``[min_edge, max_edge]``.
 
-    Field ``f`` holds guide rows ``field_rows[field_offsets[f]:field_offsets[f + 1]]``. Each
-    pattern is returned as one int64 packing its four rows sorted ascending (16 bits each), so
-    the caller can drop the patterns that several fields share with ``np.unique``.
+    Field ``f`` holds guide rows ``field_rows[field_offsets[f]:field_offsets[f + 1]]``, ascending.
+    Each pattern is returned as one int64 packing its four rows in ascending order (16 bits
+    each), so the caller can drop the patterns that several fields share (sort, keep the first
+    of equals).
     """
     total = 0
+    longest = 0
     for f in range(field_offsets.shape[0] - 1):
         m = field_offsets[f + 1] - field_offsets[f]
         total += m * (m - 1) * (m - 2) * (m - 3) // 24
+        longest = max(longest, m)
     out = np.empty(total, dtype=np.int64)
+    e = np.zeros((longest, longest))
     n = 0
-    r = np.empty(4, dtype=np.int64)
     for f in range(field_offsets.shape[0] - 1):
         s0 = field_offsets[f]
         m = field_offsets[f + 1] - s0
         for a in range(m):
             for b in range(a + 1, m):
+                e[a, b] = chord_rows(unit, field_rows[s0 + a], unit, field_rows[s0 + b])
+        for a in range(m):
+            for b in range(a + 1, m):
                 for c in range(b + 1, m):
+                    e3 = max(e[a, b], e[a, c], e[b, c])
+                    if e3 > max_edge:
+                        continue
                     for d in range(c + 1, m):
-                        r[0] = field_rows[s0 + a]
-                        r[1] = field_rows[s0 + b]
-                        r[2] = field_rows[s0 + c]
-                        r[3] = field_rows[s0 + d]
-                        r.sort()
-                        emax = 0.0
-                        for p in range(6):
-                            emax = max(emax, chord_rows(unit, r[PAIRS[p, 0]], unit, r[PAIRS[p, 1]]))
+                        emax = max(e3, e[a, d], e[b, d], e[c, d])
                         if emax < min_edge or emax > max_edge:
                             continue
-                        out[n] = ((r[0] * 65536 + r[1]) * 65536 + r[2]) * 65536 + r[3]
+                        out[n] = ((field_rows[s0 + a] * 65536 + field_rows[s0 + b]) * 65536
+                                  + field_rows[s0 + c]) * 65536 + field_rows[s0 + d]
                         n += 1
     return out[:n]
 
@@ -377,6 +384,7 @@ def identify_kernel(x_px, y_px, mag, table, tol, record):
     digit = np.empty(5, dtype=np.int64)
     perm = np.empty(4, dtype=np.int64)
     cat4 = np.empty(4, dtype=np.int64)
+    img_dist = np.empty(4)
     trial_rows = np.full(n, -1, dtype=np.int64)
     out_row = np.empty(n, dtype=np.int64)
     tried = 0
@@ -401,7 +409,7 @@ def identify_kernel(x_px, y_px, mag, table, tol, record):
                         n_keys *= hi[p] - lo[p] + 1
                     if n_keys > tol.max_keys:
                         continue
-                    img_dist = canonical_order(unit, rows4, img4)
+                    canonical_order(unit, rows4, img4, img_dist)
                     for a in range(4):
                         for b in range(4):
                             img_edge[a, b] = chord_rows(unit, img4[a], unit, img4[b])

@@ -92,7 +92,8 @@ def test_pattern_key_and_canonical_order_ignore_star_order():
         assert np.array_equal(p, ref)          # canonical order written in place
     d = np.linalg.norm(unit - unit.mean(axis=0), axis=1)
     out = np.empty(4, dtype=np.int64)
-    dist = canonical_order(unit, np.arange(4), out)
+    dist = np.empty(4)
+    canonical_order(unit, np.arange(4), out, dist)
     assert np.array_equal(out, np.argsort(d)) and np.allclose(dist, np.sort(d))
     assert ratio_bin(1.0, 50) == 49 and ratio_bin(-0.1, 50) == 0 and ratio_bin(0.5, 50) == 25
 
