@@ -30,7 +30,7 @@ MAX_GUIDE = 65535
 class TetraDatabase(Database):
     """The pattern hash table and the guide stars.
 
-    table_key : uint32 (S,) key of each slot (``0xFFFFFFFF`` = free), S a power of two.
+    table_key : uint32 (S,) key of each slot (``0xFFFFFFFF`` = free), S = patterns / ``load_factor``.
     table_pattern : uint16 (S, 4) guide rows of each slot's pattern, in canonical order.
     guide_unit : float32 (g, 3) ICRS unit vectors of the guide stars, sorted by z.
     guide_hip : int32 or int64 (g,) catalog id of each guide row.
@@ -92,9 +92,9 @@ class Tetra(Algorithm):
       each field is the circle of ``field_radius`` x the camera's half-diagonal around a lattice
       point; its ``field_stars`` brightest pattern stars give all their 4-subsets whose largest
       edge lies between ``min_span`` x the image width and the image diagonal;
-    * hash: key = the five bin numbers as base-``bins`` digits, Fibonacci hashing into 2^k
-      slots at load factor <= ``load_factor``, linear probing; slots store the key so foreign
-      keys on a probe run are skipped without geometry;
+    * hash: key = the five bin numbers as base-``bins`` digits, Fibonacci hashing onto
+      ``patterns / load_factor`` slots (multiply-shift), linear probing; slots store the key
+      so foreign keys on a probe run are skipped without geometry;
     * tolerance: each ratio's window is ``beta`` propagated sigmas, sigma_r = sqrt(2) sigma
       sqrt(1 + r^2) / e_max with sigma = ``sigma_px`` / f_px (floored at 1 px), every key in
       the product of the touched bins is looked up (at most ``max_keys``; more means a pattern
@@ -121,7 +121,7 @@ class Tetra(Algorithm):
     double_star_deg: float = 0.05
     companion_margin_mag: float = 1.0
     field_stars: int = 10
-    field_radius: float = 1.0
+    field_radius: float = 0.8
     lattice_step: float = 0.5
     min_span: float = 0.1
     bins: int = 50
@@ -206,7 +206,7 @@ class Tetra(Algorithm):
             raise ConfigError("tetra: the catalog yields no 4-star pattern that fits in the image")
         patterns = np.stack([(packed >> s) & 0xFFFF for s in (48, 32, 16, 0)], axis=1).astype(np.int64)
         keys = pattern_keys(unit, patterns, self.bins)
-        size = 1 << max(4, math.ceil(math.log2(packed.size / self.load_factor)))
+        size = max(packed.size + 1, math.ceil(packed.size / self.load_factor))
         table_key = np.full(size, EMPTY, dtype=np.uint32)
         row_dtype = np.uint16 if len(unit) <= np.iinfo(np.uint16).max else np.int32
         table_pattern = np.zeros((size, 4), dtype=row_dtype)

@@ -3,8 +3,8 @@
 A pattern is four stars. Its six edges are chords of unit vectors; sorted ascending and divided
 by the largest they give five ratios in [0, 1] (the scale-free shape, Brown 2017), each
 quantised into ``bins`` bins; the five bin numbers, read as digits in base ``bins``, are the
-pattern's key. Catalogue patterns sit in an open-addressing hash table (linear probing) of
-``2^k`` slots, each slot holding a key and four guide-star rows in canonical order (ascending
+pattern's key. Catalogue patterns sit in an open-addressing hash table (linear probing),
+each slot holding a key and four guide-star rows in canonical order (ascending
 distance from the pattern's centroid).
 """
 
@@ -32,7 +32,7 @@ PERMS = np.array([[a, b, c, d] for a in range(4) for b in range(4) for c in rang
 class Tables(NamedTuple):
     """The database as one bundle: the pattern hash table and the guide stars.
 
-    key : uint32 (S,) pattern key per slot, ``EMPTY`` where free; S is a power of two.
+    key : uint32 (S,) pattern key per slot, ``EMPTY`` where free (at least one slot is free).
     pattern : uint16/int32 (S, 4) guide rows of the slot's pattern, canonical order.
     bins : number of bins per edge ratio.
     unit : float32 (g, 3) ICRS unit vectors of the guide stars, sorted by z (for reprojection).
@@ -82,22 +82,25 @@ class Settings(NamedTuple):
 
 
 @njit(cache=True)
-def hash_slot(key, mask):
-    """Home slot of ``key`` in a table of ``mask + 1`` slots (Fibonacci hashing, high bits)."""
-    h = np.uint64(key) * _GOLDEN
-    return np.int64((h >> np.uint64(32)) & np.uint64(mask))
+def hash_slot(key, size):
+    """Home slot of ``key`` in a table of ``size`` slots: Fibonacci hashing, then the high 32
+    bits scaled to ``[0, size)`` by a multiply-shift (any size up to 2^32, no power of two needed)."""
+    h = (np.uint64(key) * _GOLDEN) >> np.uint64(32)
+    return np.int64((h * np.uint64(size)) >> np.uint64(32))
 
 
 @njit(cache=True)
 def table_insert(table_key, table_pattern, keys, patterns):
     """Insert ``patterns[i]`` under ``keys[i]`` with linear probing; returns the longest probe run."""
-    mask = table_key.shape[0] - 1
+    size = table_key.shape[0]
     longest = 0
     for i in range(keys.shape[0]):
-        s = hash_slot(keys[i], mask)
+        s = hash_slot(keys[i], size)
         run = 0
         while table_key[s] != EMPTY:
-            s = (s + 1) & mask
+            s += 1
+            if s == size:
+                s = 0
             run += 1
         table_key[s] = keys[i]
         for a in range(4):
@@ -109,13 +112,15 @@ def table_insert(table_key, table_pattern, keys, patterns):
 @njit(cache=True)
 def table_lookup(table_key, key, out, n_out):
     """Append to ``out[n_out:]`` the slots holding ``key`` (probe until a free slot); returns the new count."""
-    mask = table_key.shape[0] - 1
-    s = hash_slot(key, mask)
+    size = table_key.shape[0]
+    s = hash_slot(key, size)
     while table_key[s] != EMPTY:
         if table_key[s] == key and n_out < out.shape[0]:
             out[n_out] = s
             n_out += 1
-        s = (s + 1) & mask
+        s += 1
+        if s == size:
+            s = 0
     return n_out
 
 
