@@ -20,7 +20,7 @@ from starid.plugin import Algorithm, Database, Explanation, Identification
 
 from .kernels import EMPTY, PAIRS, Settings, Tables, field_patterns, identify_kernel, pattern_keys, table_insert
 
-#: Largest number of bins per ratio: keys (< bins^5) must stay below the uint32 EMPTY marker.
+#: Largest number of bins per ratio: keys (< bins^5) must fit in 32 bits.
 MAX_BINS = 84
 #: Largest number of guide stars: pattern rows are packed 16 bits each while building.
 MAX_GUIDE = 65535
@@ -30,22 +30,26 @@ MAX_GUIDE = 65535
 class TetraDatabase(Database):
     """The pattern hash table and the guide stars.
 
-    table_key : uint32 (S,) key of each slot (``0xFFFFFFFF`` = free), S = patterns / ``load_factor``.
+    table_word : uint64 (S,) per slot ``key << 16 | edge`` (all ones = free), S = patterns /
+        ``load_factor``; ``edge`` is the pattern's largest edge as a fraction of ``edge_scale``
+        times 65535.
     table_pattern : uint16 (S, 4) guide rows of each slot's pattern, in canonical order.
     guide_unit : float32 (g, 3) ICRS unit vectors of the guide stars, sorted by z.
     guide_hip : int32 or int64 (g,) catalog id of each guide row.
     reportable : bool (g,) guide stars without a catalog companion within ``double_star_deg``:
         only these form patterns and are reported (the others still count in verification).
-    bins : bins per edge ratio; n_patterns : patterns stored; n_fields : lattice fields used;
+    bins : bins per edge ratio; edge_scale : the chord an edge of 65535 stands for;
+    n_patterns : patterns stored; n_fields : lattice fields used;
     longest_probe : longest linear-probe run while inserting (build diagnostics).
     """
 
-    table_key: np.ndarray
+    table_word: np.ndarray
     table_pattern: np.ndarray
     guide_unit: np.ndarray
     guide_hip: np.ndarray
     reportable: np.ndarray
     bins: int
+    edge_scale: float
     n_patterns: int
     n_fields: int
     longest_probe: int
@@ -94,7 +98,9 @@ class Tetra(Algorithm):
       edge lies between ``min_span`` x the image width and the image diagonal;
     * hash: key = the five bin numbers as base-``bins`` digits, Fibonacci hashing onto
       ``patterns / load_factor`` slots (multiply-shift), linear probing; slots store the key
-      so foreign keys on a probe run are skipped without geometry;
+      (one 64-bit word with the pattern's largest edge, quantised to 16 bits), so foreign keys
+      on a probe run and patterns of the wrong absolute size are skipped without geometry (the
+      focal length is known, unlike in tetra3's setting);
     * tolerance: each ratio's window is ``beta`` propagated sigmas, sigma_r = sqrt(2) sigma
       sqrt(1 + r^2) / e_max with sigma = ``sigma_px`` / f_px (floored at 1 px), every key in
       the product of the touched bins is looked up (at most ``max_keys``; more means a pattern
@@ -207,13 +213,17 @@ class Tetra(Algorithm):
         patterns = np.stack([(packed >> s) & 0xFFFF for s in (48, 32, 16, 0)], axis=1).astype(np.int64)
         keys = pattern_keys(unit, patterns, self.bins)
         size = max(packed.size + 1, math.ceil(packed.size / self.load_factor))
-        table_key = np.full(size, EMPTY, dtype=np.uint32)
+        largest = np.max([np.linalg.norm(unit[patterns[:, a]] - unit[patterns[:, b]], axis=1) for a, b in PAIRS],
+                         axis=0)
+        edges = np.round(np.minimum(largest / max_edge, 1.0) * 65535).astype(np.uint16)
+        table_word = np.full(size, EMPTY, dtype=np.uint64)
         row_dtype = np.uint16 if len(unit) <= np.iinfo(np.uint16).max else np.int32
         table_pattern = np.zeros((size, 4), dtype=row_dtype)
-        longest = table_insert(table_key, table_pattern, keys, patterns.astype(row_dtype))
+        longest = table_insert(table_word, table_pattern, keys, edges, patterns.astype(row_dtype))
         hip_dtype = np.int32 if hip.max() <= np.iinfo(np.int32).max else np.int64
-        return TetraDatabase(table_key=table_key, table_pattern=table_pattern, guide_unit=unit.astype(np.float32),
-                             guide_hip=hip.astype(hip_dtype), reportable=pattern_ok, bins=int(self.bins), n_patterns=int(packed.size),
+        return TetraDatabase(table_word=table_word, table_pattern=table_pattern, guide_unit=unit.astype(np.float32),
+                             guide_hip=hip.astype(hip_dtype), reportable=pattern_ok, bins=int(self.bins),
+                             edge_scale=float(max_edge), n_patterns=int(packed.size),
                              n_fields=n_fields, longest_probe=int(longest))
 
     # ------------------------------------------------------------------ identify
@@ -272,6 +282,6 @@ def _bundles(algorithm: Tetra, database: TetraDatabase, camera: Camera) -> tuple
                         max_mismatch=float(algorithm.max_mismatch), n_image=int(algorithm.image_stars),
                         f_px=float(f_px), cx_px=float(camera.cx_px), cy_px=float(camera.cy_px),
                         width_px=int(camera.width_px), height_px=int(camera.height_px))
-    tables = Tables(database.table_key, database.table_pattern, int(database.bins), database.guide_unit,
-                    database.reportable, database.guide_hip)
+    tables = Tables(database.table_word, database.table_pattern, int(database.bins),
+                    float(database.edge_scale), database.guide_unit, database.reportable, database.guide_hip)
     return tables, settings

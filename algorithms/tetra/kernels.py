@@ -18,8 +18,11 @@ from numba import njit
 
 from starid.kernels import backproject_px, chord_rows, reproject_assign, wahba_rows
 
-#: Key of an empty slot (no pattern key reaches it: keys are < bins^5 <= 84^5 < 2^32 - 1).
-EMPTY = np.uint32(0xFFFFFFFF)
+#: An empty slot (no slot word reaches it: keys are < bins^5 <= 84^5 < 2^32 - 1).
+EMPTY = np.uint64(0xFFFFFFFFFFFFFFFF)
+#: A slot word is ``key << EDGE_BITS | edge``: the pattern key and its largest edge, quantised.
+EDGE_BITS = np.uint64(16)
+EDGE_MASK = np.uint64(0xFFFF)
 #: Fibonacci hashing multiplier (2^64 / golden ratio, odd).
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 #: Pair order of the six edges of a pattern in canonical order 0..3.
@@ -32,17 +35,20 @@ PERMS = np.array([[a, b, c, d] for a in range(4) for b in range(4) for c in rang
 class Tables(NamedTuple):
     """The database as one bundle: the pattern hash table and the guide stars.
 
-    key : uint32 (S,) pattern key per slot, ``EMPTY`` where free (at least one slot is free).
+    word : uint64 (S,) per slot ``key << 16 | edge``, ``EMPTY`` where free (at least one slot is
+        free); ``edge`` is the pattern's largest edge in units of ``edge_scale`` / 65535, an
+        absolute-scale filter read from the same cache line as the key.
     pattern : uint16/int32 (S, 4) guide rows of the slot's pattern, canonical order.
-    bins : number of bins per edge ratio.
+    bins : number of bins per edge ratio; edge_scale : the chord an ``edge`` of 65535 stands for.
     unit : float32 (g, 3) ICRS unit vectors of the guide stars, sorted by z (for reprojection).
     reportable : bool (g,) False for guide stars with a catalog companion (never reported).
     hip : int32/int64 (g,) catalog id of each guide star.
     """
 
-    key: np.ndarray
+    word: np.ndarray
     pattern: np.ndarray
     bins: int
+    edge_scale: float
     unit: np.ndarray
     reportable: np.ndarray
     hip: np.ndarray
@@ -90,19 +96,20 @@ def hash_slot(key, size):
 
 
 @njit(cache=True)
-def table_insert(table_key, table_pattern, keys, patterns):
-    """Insert ``patterns[i]`` under ``keys[i]`` with linear probing; returns the longest probe run."""
-    size = table_key.shape[0]
+def table_insert(table_word, table_pattern, keys, edges, patterns):
+    """Insert ``patterns[i]`` under ``keys[i]`` (with its quantised largest edge ``edges[i]``) by
+    linear probing; returns the longest probe run."""
+    size = table_word.shape[0]
     longest = 0
     for i in range(keys.shape[0]):
         s = hash_slot(keys[i], size)
         run = 0
-        while table_key[s] != EMPTY:
+        while table_word[s] != EMPTY:
             s += 1
             if s == size:
                 s = 0
             run += 1
-        table_key[s] = keys[i]
+        table_word[s] = (np.uint64(keys[i]) << EDGE_BITS) | (np.uint64(edges[i]) & EDGE_MASK)
         for a in range(4):
             table_pattern[s, a] = patterns[i, a]
         longest = max(longest, run)
@@ -110,12 +117,13 @@ def table_insert(table_key, table_pattern, keys, patterns):
 
 
 @njit(cache=True)
-def table_lookup(table_key, key, out, n_out):
+def table_lookup(table_word, key, out, n_out):
     """Append to ``out[n_out:]`` the slots holding ``key`` (probe until a free slot); returns the new count."""
-    size = table_key.shape[0]
+    size = table_word.shape[0]
     s = hash_slot(key, size)
-    while table_key[s] != EMPTY:
-        if table_key[s] == key and n_out < out.shape[0]:
+    k = np.uint64(key)
+    while table_word[s] != EMPTY:
+        if (table_word[s] >> EDGE_BITS) == k and n_out < out.shape[0]:
             out[n_out] = s
             n_out += 1
         s += 1
@@ -287,16 +295,15 @@ def binom_sf(k, m, q):
 
 
 @njit(cache=True)
-def _match_order(img_edge, img_dist, cat_unit, cat_rows, tol, perm_out):
+def _match_order(img_edge, img_dist, cat_unit, cat_rows, tol, perm_out, cat_edge):
     """Star-to-star correspondence of an image pattern and a catalogue candidate, or False.
 
     Both are in canonical order. A permutation ``p`` (image star ``p[k]`` <-> catalogue star
     ``k``) is admissible when it only swaps image stars whose centroid distances agree within
     ``tol`` (canonical order up to noise ties; the identity always is); it matches when all six
     edges agree within ``tol``. The admissible match with the smallest largest edge residual
-    wins.
+    wins. ``cat_edge`` is (4, 4) scratch.
     """
-    cat_edge = np.empty((4, 4))
     for p in range(6):
         a = PAIRS[p, 0]
         b = PAIRS[p, 1]
@@ -357,7 +364,8 @@ def identify_kernel(x_px, y_px, mag, table, tol, record):
        5th, ...), skipping patterns whose largest edge is outside ``[min_edge, max_edge]``.
     2. Each pattern's sorted edge ratios, with a window of ``beta`` propagated sigmas around
        each, select every key in the product of the bins they touch (tetra3's tolerance); the
-       slots holding those keys are the candidates.
+       slots holding those keys whose stored largest edge agrees within the edge tolerance are
+       the candidates.
     3. A candidate matches when, in canonical order (ties within the tolerance tried both
        ways), all six edges agree within ``beta sqrt(2) sigma``.
     4. Its attitude (Wahba on the four pairs) must be confirmed by the other stars
@@ -379,7 +387,7 @@ def identify_kernel(x_px, y_px, mag, table, tol, record):
     m = min(n, tol.n_image)
     edge_tol = tol.beta * math.sqrt(2.0) * tol.sigma
     bins = table.bins
-    slots = np.empty(512, dtype=np.int64)
+    slots = np.empty(4096, dtype=np.int64)
     rows4 = np.empty(4, dtype=np.int64)
     img4 = np.empty(4, dtype=np.int64)
     edges = np.empty(6)
@@ -390,6 +398,9 @@ def identify_kernel(x_px, y_px, mag, table, tol, record):
     perm = np.empty(4, dtype=np.int64)
     cat4 = np.empty(4, dtype=np.int64)
     img_dist = np.empty(4)
+    cat_edge = np.empty((4, 4))
+    edge_unit = table.edge_scale / 65535.0
+    edge_window = edge_tol + edge_unit
     trial_rows = np.full(n, -1, dtype=np.int64)
     out_row = np.empty(n, dtype=np.int64)
     tried = 0
@@ -425,7 +436,14 @@ def identify_kernel(x_px, y_px, mag, table, tol, record):
                         key = 0
                         for p in range(5):
                             key = key * bins + digit[p]
-                        n_slot = table_lookup(table.key, key, slots, n_slot)
+                        first = n_slot
+                        n_slot = table_lookup(table.word, key, slots, n_slot)
+                        kept = first
+                        for s in range(first, n_slot):   # absolute scale: the largest edge
+                            if abs(float(table.word[slots[s]] & EDGE_MASK) * edge_unit - emax) <= edge_window:
+                                slots[kept] = slots[s]
+                                kept += 1
+                        n_slot = kept
                         p = 4
                         while p >= 0 and digit[p] == hi[p]:
                             digit[p] = lo[p]
@@ -436,7 +454,7 @@ def identify_kernel(x_px, y_px, mag, table, tol, record):
                     for s in range(n_slot):
                         for a in range(4):
                             cat4[a] = table.pattern[slots[s], a]
-                        if not _match_order(img_edge, img_dist, table.unit, cat4, edge_tol, perm):
+                        if not _match_order(img_edge, img_dist, table.unit, cat4, edge_tol, perm, cat_edge):
                             continue
                         for a in range(n):
                             trial_rows[a] = -1

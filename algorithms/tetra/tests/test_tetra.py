@@ -29,9 +29,9 @@ def _database(catalog, camera):
 # ------------------------------------------------------------------ hash table
 
 
-def _lookup_all(table_key, table_pattern, key):
+def _lookup_all(table_word, table_pattern, key):
     out = np.empty(64, dtype=np.int64)
-    n = table_lookup(table_key, np.uint32(key), out, 0)
+    n = table_lookup(table_word, np.uint32(key), out, 0)
     return sorted(tuple(int(v) for v in table_pattern[s]) for s in out[:n])
 
 
@@ -41,23 +41,28 @@ def test_hash_table_matches_dict_oracle(size, load):
     n = int(load * size)
     keys = rng.integers(0, 40, n).astype(np.uint32) * np.uint32(7919)   # many repeated keys
     patterns = rng.integers(0, 60000, (n, 4)).astype(np.uint16)
-    table_key = np.full(size, EMPTY, dtype=np.uint32)
+    edges = rng.integers(0, 65536, n).astype(np.uint16)
+    table_word = np.full(size, EMPTY, dtype=np.uint64)
     table_pattern = np.zeros((size, 4), dtype=np.uint16)
-    table_insert(table_key, table_pattern, keys, patterns)
+    table_insert(table_word, table_pattern, keys, edges, patterns)
     oracle = {}
     for k, p in zip(keys.tolist(), patterns.tolist()):
         oracle.setdefault(k, []).append(tuple(p))
-    assert (table_key != EMPTY).sum() == n
+    assert (table_word != EMPTY).sum() == n
     for k, values in oracle.items():
-        assert _lookup_all(table_key, table_pattern, k) == sorted(values)
+        assert _lookup_all(table_word, table_pattern, k) == sorted(values)
     for k in (1, 7918, 40 * 7919):            # absent keys find nothing
         assert k not in oracle
-        assert _lookup_all(table_key, table_pattern, k) == []
+        assert _lookup_all(table_word, table_pattern, k) == []
+    # each slot keeps its pattern's edge beside the key
+    stored = {(int(w >> 16), int(w & 0xFFFF), tuple(int(v) for v in table_pattern[s]))
+              for s, w in enumerate(table_word) if w != EMPTY}
+    assert stored == set(zip(keys.tolist(), edges.tolist(), map(tuple, patterns.tolist())))
 
 
 def test_database_table_holds_every_pattern_under_its_key(catalog, camera):
     db = _database(catalog, camera)
-    used = np.flatnonzero(db.table_key != EMPTY)
+    used = np.flatnonzero(db.table_word != EMPTY)
     assert used.size == db.n_patterns
     assert db.nbytes < 40e6
     rng = np.random.default_rng(0)
@@ -75,7 +80,8 @@ def test_database_table_holds_every_pattern_under_its_key(catalog, camera):
         key = 0
         for d in digits:
             key = key * db.bins + d
-        assert _lookup_all(db.table_key, db.table_pattern, key).count(tuple(int(v) for v in rows)) == 1
+        assert _lookup_all(db.table_word, db.table_pattern, key).count(tuple(int(v) for v in rows)) == 1
+        assert abs(int(db.table_word[s] & 0xFFFF) / 65535 * db.edge_scale - e[5]) < 1e-4
 
 
 def test_pattern_key_and_canonical_order_ignore_star_order():
