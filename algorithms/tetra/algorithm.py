@@ -137,6 +137,7 @@ class Tetra(Algorithm):
     max_keys: int = 256
     min_extra: int = 1
     max_mismatch: float = 1e-4
+    report_beta: float = 3.0
 
     def __post_init__(self):
         check_number("mag_limit", self.mag_limit)
@@ -155,6 +156,7 @@ class Tetra(Algorithm):
         check_whole("max_keys", self.max_keys, 1)
         check_whole("min_extra", self.min_extra, 0)
         check_number("max_mismatch", self.max_mismatch, lo=0, hi=1)
+        check_number("report_beta", self.report_beta, lo=0)
 
     @cached_property
     def _sigma_px(self) -> float:
@@ -278,6 +280,7 @@ def _bundles(algorithm: Tetra, database: TetraDatabase, camera: Camera) -> tuple
     min_edge, max_edge = algorithm._spans(camera)
     settings = Settings(sigma=sigma, beta=float(algorithm.beta), min_edge=min_edge, max_edge=max_edge,
                         max_keys=int(algorithm.max_keys), eps=algorithm.beta * math.sqrt(2.0) * sigma,
+                        report_eps=algorithm.report_beta * sigma,
                         c_fov=rad_to_chord(camera.half_diagonal_rad), min_extra=int(algorithm.min_extra),
                         max_mismatch=float(algorithm.max_mismatch), n_image=int(algorithm.image_stars),
                         f_px=float(f_px), cx_px=float(camera.cx_px), cy_px=float(camera.cy_px),

@@ -61,6 +61,8 @@ class Settings(NamedTuple):
     min_edge, max_edge : the pattern's largest edge must lie between them.
     max_keys : a pattern whose ratio windows span more keys than this is skipped.
     eps : verification radius (chord); c_fov : boresight-to-corner chord of the camera.
+    report_eps : radius (chord) of the final assignment on the refined attitude; 0 = report the
+        verification's assignment.
     min_extra : guide stars beyond the pattern's four that verification must see.
     max_mismatch : largest accepted chance probability of the verification matches.
     n_image : how many of the brightest image stars form patterns.
@@ -73,6 +75,7 @@ class Settings(NamedTuple):
     max_edge: float
     max_keys: int
     eps: float
+    report_eps: float
     c_fov: float
     min_extra: int
     max_mismatch: float
@@ -369,8 +372,10 @@ def identify_kernel(x_px, y_px, mag, table, tol, record):
     3. A candidate matches when, in canonical order (ties within the tolerance tried both
        ways), all six edges agree within ``beta sqrt(2) sigma``.
     4. Its attitude (Wahba on the four pairs) must be confirmed by the other stars
-       (``_verify``); the first confirmed pattern wins and that reprojection identifies the
-       stars (guide stars with a catalog companion are not reported).
+       (``_verify``); the first confirmed pattern wins. With ``report_eps`` > 0 the attitude is
+       refined on every confirmed star and the stars are assigned again within that radius;
+       otherwise the verification's assignment stands. Guide stars with a catalog companion
+       are not reported.
 
     ``record`` (int64 (9,)) receives the winning pattern: 4 image stars, 4 guide rows in
     matching order, and the number of patterns tried.
@@ -463,9 +468,14 @@ def identify_kernel(x_px, y_px, mag, table, tol, record):
                         ok, n_seen = _verify(unit, trial_rows, table.unit, tol, n, out_row)
                         if not ok:
                             continue
-                        # the verification's reprojection is the identification
+                        if tol.report_eps > 0:   # refine on every confirmed star, assign again
+                            A = wahba_rows(unit, out_row, table.unit)
+                            reproject_assign(A, unit, table.unit, tol.c_fov + tol.report_eps, tol.report_eps, result,
+                                             tol.f_px, tol.cx_px, tol.cy_px, tol.width_px, tol.height_px)
+                        else:                    # the verification's reprojection is the identification
+                            for a in range(n):
+                                result[a] = out_row[a]
                         for a in range(n):
-                            result[a] = out_row[a]
                             if result[a] >= 0 and not table.reportable[result[a]]:
                                 result[a] = -1
                             if result[a] >= 0:
