@@ -69,54 +69,57 @@ class Tetra(Algorithm):
     """Tetra: four-star patterns keyed by their five edge ratios in a hash table, first verified match wins.
 
     Brown J., "Tetra: star identification with hash tables", Proceedings of the AIAA/USU
-    Conference on Small Satellites, 2017 (the method of the open-source tetra3 and its fork
-    cedar-solve). The paper gives the idea; every number below is this library's. Full
-    description and measurements: ``docs/algorithms/tetra.md``.
+    Conference on Small Satellites, 2017 (the method behind the open-source tetra3 and its fork
+    cedar-solve). The paper itself was not at hand, so no equation numbers are quoted: this is a
+    reconstruction from the published idea, written from scratch in numba (no tetra3 code).
+    Method, parameters and measurements: ``docs/algorithms/tetra.md``.
 
-    The published idea (Brown 2017, as tetra3 implements it):
+    The published idea:
 
     * a pattern is four stars; its six edge lengths, sorted and divided by the largest, give
-      five ratios that do not depend on attitude or scale; quantised into ``bins`` bins they
-      form a key into a hash table (open addressing) of catalogue patterns, each stored as its
+      five ratios that depend on neither attitude nor scale; quantised into ``bins`` bins they
+      form the key of an open-addressing hash table of catalogue patterns, each stored as its
       four star indices;
-    * catalogue patterns are built so that every field of view has its brightest stars
-      covered: fields are laid on a lattice over the sky and the brightest guide stars of each
-      contribute their 4-star patterns;
-    * the image side takes its brightest stars, forms their 4-star patterns brightest first,
-      looks up every key within the ratio tolerance (neighbouring bins), matches star to star
-      by a canonical order (distance from the pattern centroid), solves the attitude and
-      verifies it with the remaining stars; the first verified pattern is the answer.
+    * the catalogue patterns are chosen so that every field of view has its brightest stars
+      covered: fields on a lattice over the sky, the brightest guide stars of each contributing
+      their 4-star patterns;
+    * the image side forms the 4-star patterns of its brightest stars, brightest first, looks
+      up every key within the ratio tolerance (neighbouring bins), matches star to star in a
+      canonical order (distance from the pattern centroid), solves the attitude and verifies
+      it with the other stars; the first verified pattern is the answer.
 
-    Reconstructed (the choices the paper leaves to the implementation; each is a parameter):
+    Reconstructed (this library's choices, each a parameter):
 
-    * guide stars V <= ``mag_limit``; stars with another guide star within
-      ``double_star_deg`` are in no pattern (their edges would be ambiguous at 1 px) but stay
-      available for verification;
-    * lattice: a Fibonacci lattice with spacing ``lattice_step`` x the camera's half-width;
-      each field is the circle of ``field_radius`` x the camera's half-diagonal around a lattice
-      point; its ``field_stars`` brightest pattern stars give all their 4-subsets whose largest
-      edge lies between ``min_span`` x the image width and the image diagonal;
-    * hash: key = the five bin numbers as base-``bins`` digits, Fibonacci hashing onto
-      ``patterns / load_factor`` slots (multiply-shift), linear probing; slots store the key
-      (one 64-bit word with the pattern's largest edge, quantised to 16 bits), so foreign keys
-      on a probe run and patterns of the wrong absolute size are skipped without geometry (the
-      focal length is known, unlike in tetra3's setting);
-    * tolerance: each ratio's window is ``beta`` propagated sigmas, sigma_r = sqrt(2) sigma
-      sqrt(1 + r^2) / e_max with sigma = ``sigma_px`` / f_px (floored at 1 px), every key in
-      the product of the touched bins is looked up (at most ``max_keys``; more means a pattern
-      too small to be worth it); a candidate must then agree on all six edges within
-      ``beta`` sqrt(2) sigma, absolute (the focal length is known, unlike tetra3's setting);
-    * canonical order: ascending chord distance from the mean of the four unit vectors; image
-      stars whose distances agree within the edge tolerance may swap (noise can reorder them);
-    * image side: the ``image_stars`` brightest detections (noisy magnitudes; ties by
-      position), patterns in breadth-first order (the fainter the faintest member, the later);
+    * guide stars: V <= ``mag_limit`` = 6.5, half a magnitude deeper than the 6.0 detection
+      limit, so that the stars magnitude noise pushes into the image (V 6-6.5) are in patterns
+      and count in verification (the "magnitude margin"); a guide star with any catalog star
+      brighter than ``mag_limit + companion_margin_mag`` within ``double_star_deg`` is in no
+      pattern and never reported (either may be the detection), but still counts when verifying;
+    * lattice: Fibonacci lattice, spacing ``lattice_step`` x the camera's half-width; each field
+      is the circle of ``field_radius`` x the half-diagonal around a lattice point; its
+      ``field_stars`` brightest pattern stars give every 4-subset whose largest edge lies
+      between ``min_span`` x the image width and the image diagonal;
+    * hash: key = the five bin numbers as base-``bins`` digits (largest ratio most significant),
+      Fibonacci hashing multiply-shifted onto ``patterns / load_factor`` slots, linear probing;
+      a slot holds one 64-bit word, key and the pattern's largest edge quantised to 16 bits,
+      so foreign keys and patterns of the wrong absolute size are skipped without geometry (the
+      focal length is known here, unlike in tetra3's setting);
+    * tolerance: ratio window +-``beta`` propagated sigmas, sigma_r = sqrt(2) sigma
+      sqrt(1 + r^2) / e_max, sigma = ``sigma_px`` / f_px (``sigma_px`` follows the simulator,
+      floored at 1 px so a noise-free world still gets a window); every key of the product of
+      touched bins is looked up (a pattern touching more than ``max_keys`` keys is skipped);
+      candidates must agree on all six edges within ``beta`` sqrt(2) sigma;
+    * canonical order: ascending chord to the mean of the four unit vectors (ties by row);
+      image stars whose distances agree within the edge tolerance may swap;
+    * image side: the ``image_stars`` brightest detections by noisy magnitude (ties by
+      position), patterns breadth-first (all of the 4 brightest, then those adding the 5th...);
     * verification: Wahba on the four pairs (``starid.kernels.wahba_rows``), reprojection of
-      every guide star (``starid.kernels.reproject_assign``, radius ``beta`` sqrt(2) sigma);
-      the four must be re-found, at least ``min_extra`` more guide stars must be seen, and the
-      chance of seeing that many, Binomial(predicted - 4, q) with q the fraction of the sensor
-      within the radius of some detection, must be at most ``max_mismatch`` (tetra3's
-      mismatch-probability test in this library's terms); that reprojection is the
-      identification (guide stars with a companion are not reported).
+      the guide stars (``starid.kernels.reproject_assign``, radius ``beta`` sqrt(2) sigma); the
+      four must be re-found, at least ``min_extra`` more seen, and the chance of seeing that
+      many by accident, Binomial(predicted - 4, q) with q the fraction of the sensor within the
+      radius of a detection, at most ``max_mismatch`` (tetra3-style mismatch probability);
+    * report: the attitude refined on every confirmed star, stars assigned again within
+      ``report_beta`` sigma (0: keep the verification's assignment).
     """
 
     name: ClassVar[str] = "tetra"
@@ -266,8 +269,9 @@ class Tetra(Algorithm):
         angle = np.argsort(np.arctan2(cy - centre[1], cx - centre[0]))
         polygon = np.stack([cx[angle], cy[angle]], axis=1)
         hips = ", ".join(str(int(database.guide_hip[r])) for r in record[4:8])
-        caption = (f"Pattern {int(record[8])} tried of the brightest stars matched HIP {hips} "
-                   f"(six edges bold, catalogue pattern outlined); {found.size} stars verified by reprojection.")
+        caption = (f"4-star pattern no. {int(record[8])} of the {min(len(observation), self.image_stars)} brightest "
+                   f"stars matched HIP {hips} (its six edges bold, the catalogue pattern outlined); "
+                   f"{found.size} stars identified by reprojection.")
         return Explanation(segments=seg, polygons=(polygon,), points=points, labels=labels, caption=caption,
                            highlight=np.arange(6))
 
