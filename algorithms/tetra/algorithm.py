@@ -38,6 +38,7 @@ class TetraDatabase(Database):
     guide_hip : int32 or int64 (g,) catalog id of each guide row.
     reportable : bool (g,) guide stars without a catalog companion within ``double_star_deg``:
         only these form patterns and are reported (the others still count in verification).
+    guide_mag : float32 (g,) catalog magnitude of each guide row (the report's magnitude check).
     bins : bins per edge ratio; edge_scale : the chord an edge of 65535 stands for;
     n_patterns : patterns stored; n_fields : lattice fields used;
     longest_probe : longest linear-probe run while inserting (build diagnostics).
@@ -48,6 +49,7 @@ class TetraDatabase(Database):
     guide_unit: np.ndarray
     guide_hip: np.ndarray
     reportable: np.ndarray
+    guide_mag: np.ndarray
     bins: int
     edge_scale: float
     n_patterns: int
@@ -119,11 +121,14 @@ class Tetra(Algorithm):
       many by accident, Binomial(predicted - 4, q) with q the fraction of the sensor within the
       radius of a detection, at most ``max_mismatch`` (tetra3-style mismatch probability);
     * report: the attitude refined on every confirmed star, stars assigned again within
-      ``report_beta`` sigma (0: keep the verification's assignment).
+      ``report_beta`` sigma (0: keep the verification's assignment); a star is reported only
+      if its measured magnitude is within ``mag_beta`` x ``sigma_mag`` (follows the simulator,
+      floored at 0.3 mag; ``mag_beta`` = 0 switches the check off) of the catalog's, so a
+      false star or an intruder that lands on an undetected guide star is not labelled.
     """
 
     name: ClassVar[str] = "tetra"
-    follows: ClassVar[dict] = {"sigma_px": "sigma_px"}
+    follows: ClassVar[dict] = {"sigma_px": "sigma_px", "sigma_mag": "sigma_mag"}
 
     mag_limit: float = 6.5
     sigma_px: float | None = None
@@ -141,6 +146,8 @@ class Tetra(Algorithm):
     min_extra: int = 1
     max_mismatch: float = 1e-4
     report_beta: float = 3.0
+    sigma_mag: float | None = None
+    mag_beta: float = 3.0
 
     def __post_init__(self):
         check_number("mag_limit", self.mag_limit)
@@ -160,11 +167,20 @@ class Tetra(Algorithm):
         check_whole("min_extra", self.min_extra, 0)
         check_number("max_mismatch", self.max_mismatch, lo=0, hi=1)
         check_number("report_beta", self.report_beta, lo=0)
+        if self.sigma_mag is not None:
+            check_number("sigma_mag", self.sigma_mag, lo=0)
+        check_number("mag_beta", self.mag_beta, lo=0)
 
     @cached_property
     def _sigma_px(self) -> float:
         """The centroid noise the windows assume: ``sigma_px`` floored at 1 px (noise-free worlds too)."""
         return max(self.sigma_px or 0.0, 1.0)
+
+    @cached_property
+    def _sigma_mag(self) -> float:
+        """The magnitude noise the report check assumes: ``sigma_mag`` floored at 0.3 mag (a merged
+        pair of equal stars is 0.75 mag brighter than either)."""
+        return max(self.sigma_mag or 0.0, 0.3)
 
     # ------------------------------------------------------------------ build
 
@@ -227,7 +243,8 @@ class Tetra(Algorithm):
         longest = table_insert(table_word, table_pattern, keys, edges, patterns.astype(row_dtype))
         hip_dtype = np.int32 if hip.max() <= np.iinfo(np.int32).max else np.int64
         return TetraDatabase(table_word=table_word, table_pattern=table_pattern, guide_unit=unit.astype(np.float32),
-                             guide_hip=hip.astype(hip_dtype), reportable=pattern_ok, bins=int(self.bins),
+                             guide_hip=hip.astype(hip_dtype), reportable=pattern_ok,
+                             guide_mag=v_mag.astype(np.float32), bins=int(self.bins),
                              edge_scale=float(max_edge), n_patterns=int(packed.size),
                              n_fields=n_fields, longest_probe=int(longest))
 
@@ -285,10 +302,12 @@ def _bundles(algorithm: Tetra, database: TetraDatabase, camera: Camera) -> tuple
     settings = Settings(sigma=sigma, beta=float(algorithm.beta), min_edge=min_edge, max_edge=max_edge,
                         max_keys=int(algorithm.max_keys), eps=algorithm.beta * math.sqrt(2.0) * sigma,
                         report_eps=algorithm.report_beta * sigma,
+                        mag_window=algorithm.mag_beta * algorithm._sigma_mag,
                         c_fov=rad_to_chord(camera.half_diagonal_rad), min_extra=int(algorithm.min_extra),
                         max_mismatch=float(algorithm.max_mismatch), n_image=int(algorithm.image_stars),
                         f_px=float(f_px), cx_px=float(camera.cx_px), cy_px=float(camera.cy_px),
                         width_px=int(camera.width_px), height_px=int(camera.height_px))
     tables = Tables(database.table_word, database.table_pattern, int(database.bins),
-                    float(database.edge_scale), database.guide_unit, database.reportable, database.guide_hip)
+                    float(database.edge_scale), database.guide_unit, database.reportable, database.guide_hip,
+                    database.guide_mag)
     return tables, settings

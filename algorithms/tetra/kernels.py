@@ -43,6 +43,7 @@ class Tables(NamedTuple):
     unit : float32 (g, 3) ICRS unit vectors of the guide stars, sorted by z (for reprojection).
     reportable : bool (g,) False for guide stars with a catalog companion (never reported).
     hip : int32/int64 (g,) catalog id of each guide star.
+    v_mag : float32 (g,) catalog magnitude of each guide star.
     """
 
     word: np.ndarray
@@ -52,6 +53,7 @@ class Tables(NamedTuple):
     unit: np.ndarray
     reportable: np.ndarray
     hip: np.ndarray
+    v_mag: np.ndarray
 
 
 class Settings(NamedTuple):
@@ -63,6 +65,8 @@ class Settings(NamedTuple):
     eps : verification radius (chord); c_fov : boresight-to-corner chord of the camera.
     report_eps : radius (chord) of the final assignment on the refined attitude; 0 = report the
         verification's assignment.
+    mag_window : a star is reported only if its measured magnitude is within this of the
+        catalog's (<= 0: no magnitude check).
     min_extra : guide stars beyond the pattern's four that verification must see.
     max_mismatch : largest accepted chance probability of the verification matches.
     n_image : how many of the brightest image stars form patterns.
@@ -76,6 +80,7 @@ class Settings(NamedTuple):
     max_keys: int
     eps: float
     report_eps: float
+    mag_window: float
     c_fov: float
     min_extra: int
     max_mismatch: float
@@ -374,8 +379,9 @@ def identify_kernel(x_px, y_px, mag, table, tol, record):
     4. Its attitude (Wahba on the four pairs) must be confirmed by the other stars
        (``_verify``); the first confirmed pattern wins. With ``report_eps`` > 0 the attitude is
        refined on every confirmed star and the stars are assigned again within that radius;
-       otherwise the verification's assignment stands. Guide stars with a catalog companion
-       are not reported.
+       otherwise the verification's assignment stands. Guide stars with a catalog companion,
+       and stars whose measured magnitude is more than ``mag_window`` from the catalog's, are
+       not reported.
 
     ``record`` (int64 (9,)) receives the winning pattern: 4 image stars, 4 guide rows in
     matching order, and the number of patterns tried.
@@ -477,6 +483,9 @@ def identify_kernel(x_px, y_px, mag, table, tol, record):
                                 result[a] = out_row[a]
                         for a in range(n):
                             if result[a] >= 0 and not table.reportable[result[a]]:
+                                result[a] = -1
+                            if (result[a] >= 0 and tol.mag_window > 0
+                                    and abs(mag[a] - float(table.v_mag[result[a]])) > tol.mag_window):
                                 result[a] = -1
                             if result[a] >= 0:
                                 hip[a] = table.hip[result[a]]

@@ -134,8 +134,8 @@ def test_random_fields_give_no_identification(catalog, camera):
         obs = starid.Observation(rng.uniform(0, camera.width_px, 30), rng.uniform(0, camera.height_px, 30),
                                  rng.uniform(2.0, 6.0, 30), camera)
         identified += np.any(alg.identify(db, obs).hip >= 0)
-        # the same fields with a wide window and no verification do find look-alike patterns
-        loose += np.any(Tetra(beta=15.0, min_extra=0, max_mismatch=1.0).identify(db, obs).hip >= 0)
+        # the same fields with a wide window and no checks do find look-alike patterns
+        loose += np.any(Tetra(beta=15.0, min_extra=0, max_mismatch=1.0, mag_beta=0.0).identify(db, obs).hip >= 0)
     assert identified <= 1
     assert loose >= 5
 
@@ -213,3 +213,13 @@ def test_sigma_follows_the_simulator():
     assert Tetra().resolved(starid.SimConfig(sigma_px=2.5)).sigma_px == 2.5
     assert Tetra(sigma_px=0.5).resolved(starid.SimConfig(sigma_px=2.5)).sigma_px == 0.5
     assert Tetra(sigma_px=0.0)._sigma_px == 1.0        # the floor
+
+
+def test_magnitude_check_keeps_implausible_stars_unreported(catalog, camera):
+    db = _database(catalog, camera)
+    obs = starid.Simulator(catalog, camera, starid.SimConfig(), seed=6).observation(0)
+    dim = starid.Observation(obs.x_px, obs.y_px, obs.mag + 2.0, camera)   # 2 mag off: beyond 3 x 0.3
+    assert np.all(Tetra().identify(db, dim).hip == -1)
+    hip = Tetra(mag_beta=0.0).identify(db, dim).hip                       # check off: identified
+    assert np.sum((hip >= 0) & (hip == obs.truth_hip)) >= 3
+    assert np.sum((hip >= 0) & (hip == obs.truth_hip)) == np.sum(Tetra().identify(db, obs).hip >= 0)
