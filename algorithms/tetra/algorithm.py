@@ -123,7 +123,7 @@ class Tetra(Algorithm):
     * report: the attitude refined on every confirmed star, stars assigned again within
       ``report_beta`` sigma (0: keep the verification's assignment); a star is reported only
       if its measured magnitude is within ``mag_beta`` x ``sigma_mag`` (follows the simulator,
-      floored at 0.3 mag; ``mag_beta`` = 0 switches the check off) of the catalog's, so a
+      floored at 0.5 mag; ``mag_beta`` = 0 switches the check off) of the catalog's, so a
       false star or an intruder that lands on an undetected guide star is not labelled.
     """
 
@@ -178,9 +178,9 @@ class Tetra(Algorithm):
 
     @cached_property
     def _sigma_mag(self) -> float:
-        """The magnitude noise the report check assumes: ``sigma_mag`` floored at 0.3 mag (a merged
-        pair of equal stars is 0.75 mag brighter than either)."""
-        return max(self.sigma_mag or 0.0, 0.3)
+        """The magnitude noise the report check assumes: ``sigma_mag`` floored at 0.5 mag (the
+        Table 6 noise; a noise-free world still merges pairs, 0.75 mag brighter for equal stars)."""
+        return max(self.sigma_mag or 0.0, 0.5)
 
     # ------------------------------------------------------------------ build
 
