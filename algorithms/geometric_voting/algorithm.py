@@ -1,0 +1,138 @@
+"""The geometric-voting plugin class (Kolomenkin et al. 2008): parameters, build, identify, explain."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+
+from starid.camera import Camera
+from starid.catalog import Catalog
+from starid.kernels import rad_to_chord
+from starid.observation import Observation
+from starid.params import check_flag, check_number, check_whole
+from starid.plugin import Algorithm, Explanation, Identification
+from starid_algorithms.pyramid.algorithm import (SIGMA_FLOOR_PX, PairDatabase, build_pair_database,
+                                                 check_pair_params, hip_of, sensor_of)
+from starid_algorithms.pyramid.kernels import PairTol
+
+from .kernels import voting_kernel
+
+
+@dataclass(frozen=True)
+class GeometricVoting(Algorithm):
+    """Geometric voting: every image pair's angle votes for catalog stars, then pairwise verification.
+
+    Kolomenkin M., Pollak S., Shimshoni I., Lindenbaum M., "Geometric voting algorithm for star
+    trackers", IEEE Transactions on Aerospace and Electronic Systems 44(2):441-456, 2008. Full
+    description, parameters and measurements: ``docs/algorithms/geometric_voting.md``.
+
+    Database: every pair of guide stars (V <= ``mag_limit``) closer than the field's diagonal,
+    keyed by its chord 2 sin(theta/2), with Mortari's k-vector -- the Pyramid plugin's database
+    without the per-star lists.
+
+    Identification (the paper's two rounds):
+
+    1. voting: for every pair of image stars (i, j) the catalog pairs (I, J) whose angle lies
+       within +-eps of theta_ij are found by a k-vector range query, and each adds a vote for I
+       and for J to both i and j (``once_per_pair``: at most one vote per catalog star per
+       image pair); each image star takes the catalog star with most votes (ties: the first
+       maximum, left to verification);
+    2. verification: two assignments (i -> I, j -> J) agree when |theta_ij - theta_IJ| <= eps;
+       assignments with too little agreement are dropped (``starid.kernels.verify_pairwise``:
+       each kept one agrees with at least ``min_support`` others and a fraction
+       ``min_fraction`` of them);
+    3. the attitude of the verified stars by Wahba's problem (``starid.kernels.wahba_rows``).
+
+    Choices the paper leaves open or that are starid's (each a parameter):
+
+    * eps = ``beta`` sqrt(2) sigma, sigma = max(``sigma_px``, 1 px) / f_px (reconstructed from
+      the usual 3-sigma rule on an angle between two noisy directions; the 1 px floor gives a
+      noise-free world a window; ``sigma_px`` follows the simulator when left None);
+    * verification threshold: the paper keeps stars whose verification votes exceed a
+      threshold; starid drops the least supported repeatedly until ``min_support`` = 2 and a
+      majority (``min_fraction`` = 0.5) agree (reconstructed: one rule shared with the other
+      plugins, and strict enough that random fields yield nothing);
+    * ``once_per_pair`` (reconstructed, on by default; off = every matching catalog pair votes,
+      as in LOST's implementation): in starid's 10 deg field at 1 px a window holds ~1,000
+      catalog pairs, and a catalog star with many neighbours at about that distance collects
+      several votes from one image pair; counted every time, such stars outvote the true one for
+      4 image stars in 5, counted once per image pair for about 1 in 5;
+    * detections closer than ``d_min_deg`` to another, and guide stars with such a neighbour,
+      are not used; only the ``max_stars`` brightest detections vote (reconstructed: both keep
+      the cost bounded, the second also keeps wide-angle cameras fast, with ``max_window``);
+    * ``confirm_fraction``, ``min_extra`` (starid's extension; 0 and 0 switch it off): the
+      verified stars' attitude must see this fraction of the guide stars it puts on the sensor
+      and 3 + ``min_extra`` stars in all, else nothing is reported.
+    """
+
+    name: ClassVar[str] = "geometric_voting"
+    follows: ClassVar[dict] = {"sigma_px": "sigma_px"}
+
+    mag_limit: float = 6.0
+    sigma_px: float | None = None
+    beta: float = 3.0
+    d_min_deg: float = 0.05
+    max_pair_deg: float = 20.0
+    max_stars: int = 40
+    max_window: int = 10000
+    min_support: int = 2
+    min_fraction: float = 0.5
+    confirm_fraction: float = 0.5
+    min_extra: int = 1
+    once_per_pair: bool = True
+    n_candidates: int = 16
+
+    def __post_init__(self):
+        check_pair_params(self)
+        check_flag("once_per_pair", self.once_per_pair)
+        check_whole("n_candidates", self.n_candidates, 1, 1000)
+        check_whole("min_support", self.min_support, 1)
+        check_number("min_fraction", self.min_fraction, lo=0, hi=1)
+
+    def tolerances(self, camera: Camera, database: PairDatabase) -> PairTol:
+        sigma = max(self.sigma_px or 0.0, SIGMA_FLOOR_PX) / camera.f_px
+        return PairTol(eps=self.beta * math.sqrt(2.0) * sigma, d_min=rad_to_chord(math.radians(self.d_min_deg)),
+                       c_max=database.c_max, c_fov=rad_to_chord(camera.half_diagonal_rad),
+                       max_window=int(self.max_window), max_stars=int(self.max_stars), max_triads=0,
+                       confirm_fraction=float(self.confirm_fraction), min_extra=int(self.min_extra))
+
+    def build(self, catalog: Catalog, camera: Camera) -> PairDatabase:
+        return build_pair_database(catalog, camera, self.mag_limit, self.d_min_deg, self.max_pair_deg, self.name,
+                                   neighbour_lists=False)
+
+    def _run(self, database: PairDatabase, observation: Observation):
+        cam = observation.camera
+        return voting_kernel(observation.x_px, observation.y_px, observation.mag, database.kv, database.pairs,
+                             database.guide_unit, self.tolerances(cam, database), sensor_of(cam),
+                             int(self.min_support), float(self.min_fraction), self.once_per_pair,
+                             int(self.n_candidates))
+
+    def identify(self, database: PairDatabase, observation: Observation) -> Identification:
+        rows, _, attitude = self._run(database, observation)
+        found = rows.max(initial=-1) >= 0
+        return Identification(hip_of(database, rows), attitude if found else None)
+
+    def explain(self, database: PairDatabase, observation: Observation) -> Explanation:
+        """Every voting star labelled with the votes of its chosen catalog star (and the id if it
+        survived verification); segments join the verified stars whose pair angle matches their
+        catalog stars' within eps (the verification votes)."""
+        rows, votes, _ = self._run(database, observation)
+        hip = hip_of(database, rows)
+        xy = np.stack([observation.x_px, observation.y_px], axis=1)
+        voters = np.flatnonzero(votes >= 0)
+        labels = tuple(f"{votes[s]} votes: HIP {hip[s]}" if hip[s] >= 0 else f"{votes[s]} votes: rejected"
+                       for s in voters.tolist())
+        found = np.flatnonzero(rows >= 0)
+        eps = self.tolerances(observation.camera, database).eps
+        v = observation.unit_cam()
+        unit = database.guide_unit.astype(np.float64)
+        segments = [[xy[a], xy[b]] for i, a in enumerate(found.tolist()) for b in found[i + 1:].tolist()
+                    if abs(np.linalg.norm(v[a] - v[b]) - np.linalg.norm(unit[rows[a]] - unit[rows[b]])) <= eps]
+        caption = (f"{voters.size} stars voted; {found.size} survived the pairwise verification "
+                   f"(segments: the {len(segments)} agreeing pairs)." if found.size else
+                   f"{voters.size} stars voted; no consistent set survived verification: nothing identified.")
+        return Explanation(segments=np.asarray(segments, dtype=np.float64).reshape(-1, 2, 2),
+                           points=xy[voters], labels=labels, caption=caption)

@@ -1,0 +1,140 @@
+"""Tests of the geometric-voting plugin: conformance, voting against a numpy oracle, random fields, explain."""
+
+import time
+
+import numpy as np
+import pytest
+
+from starid import Camera, Catalog, ConfigError, Observation, SimConfig, Simulator
+from starid.plugin import Explanation
+from starid.testing import CHECKS, check_algorithm
+from starid_algorithms.geometric_voting import GeometricVoting
+from starid_algorithms.geometric_voting.kernels import pick_candidates, vote
+from starid_algorithms.pyramid.kernels import pair_windows, select_stars
+
+
+@pytest.fixture(scope="module")
+def algo():
+    return GeometricVoting()
+
+
+@pytest.fixture(scope="module")
+def db(algo, catalog, camera):
+    return algo.build(catalog, camera)
+
+
+@pytest.mark.parametrize("check", CHECKS)
+def test_conformance(check):
+    check_algorithm(GeometricVoting, checks=[check])
+
+
+@pytest.fixture(scope="module")
+def voted(algo, db, catalog, camera):
+    obs = Simulator(catalog, camera, SimConfig(sigma_px=1.0), seed=6).observation(2)
+    tol = algo.tolerances(camera, db)
+    v = camera.backproject(obs.x_px, obs.y_px)
+    sel = select_stars(obs.x_px, obs.y_px, obs.mag, v, tol.d_min, tol.max_stars)
+    start, stop = pair_windows(v, sel, db.kv, tol)
+    return obs, tol, v, sel, start, stop
+
+
+@pytest.mark.parametrize("once", [True, False])
+def test_votes_match_numpy_oracle(db, voted, once):
+    obs, tol, v, sel, start, stop = voted
+    n_guide = db.guide_hip.size
+    rows, got = vote(sel, start, stop, db.pairs, n_guide, once, 5)
+    chords = db.kv.values.astype(np.float64)
+    for a in range(len(sel)):
+        votes = np.zeros(n_guide, dtype=np.int64)
+        for b in range(len(sel)):
+            if b != a:
+                c = np.linalg.norm(v[sel[a]] - v[sel[b]])
+                hits = db.pairs[(chords >= c - tol.eps) & (chords <= c + tol.eps)].astype(np.int64).ravel()
+                if once:
+                    hits = np.unique(hits)
+                np.add.at(votes, hits, 1)
+        order = np.lexsort((np.arange(n_guide), -votes))[:5]          # most votes, then lowest row
+        assert np.array_equal(rows[a], order) and np.array_equal(got[a], votes[order])
+
+
+def test_shortlist_recovers_true_stars(db, voted):
+    obs, tol, v, sel, start, stop = voted
+    rows, got = vote(sel, start, stop, db.pairs, db.guide_hip.size, True, 16)
+    pick, _ = pick_candidates(v, sel, rows, got, db.guide_unit, tol.eps)
+    truth = obs.truth_hip[sel]
+    assert np.sum(db.guide_hip[pick] == truth) >= np.sum(db.guide_hip[rows[:, 0]] == truth)
+    assert np.mean(db.guide_hip[pick] == truth) >= 0.8
+
+
+def test_database_has_no_neighbour_lists_but_the_pairs(db):
+    assert db.nbr.size == 0 and db.pairs.shape[0] > 100_000 and db.guide_hip.dtype == np.int64
+
+
+def test_random_fields_give_no_identification(algo, db, camera):
+    rng = np.random.default_rng(2024)
+    identified = 0
+    for _ in range(40):
+        obs = Observation(rng.uniform(0, camera.width_px, 30), rng.uniform(0, camera.height_px, 30),
+                          rng.uniform(2, 6, 30), camera)
+        identified += bool(np.any(algo.identify(db, obs).hip >= 0))
+    assert identified <= 1
+
+
+def test_noisy_trials_no_misidentification(algo, db, catalog, camera):
+    sim = Simulator(catalog.brighter_than(6.0), camera, SimConfig(sigma_px=1.0, sigma_mag=0.5), seed=12)
+    correct = 0
+    for t in range(30):
+        obs = sim.observation(t)
+        result = algo.identify(db, obs)
+        found = result.hip >= 0
+        assert np.all(result.hip[found] == obs.truth_hip[found])
+        if found.sum() >= 3:
+            correct += 1
+            assert result.attitude is not None
+    assert correct >= 24
+
+
+def test_large_ids(catalog, camera):
+    offset = 2**31
+    big = Catalog.from_arrays(catalog.hip + offset, catalog.ra_deg, catalog.dec_deg, catalog.v_mag)
+    algo = GeometricVoting()
+    db = algo.build(big, camera)
+    obs = Simulator(big, camera, SimConfig(), seed=1).observation(0)
+    hip = algo.identify(db, obs).hip
+    assert hip.dtype == np.int64 and np.sum(hip >= offset) >= 3
+    assert np.all(hip[hip >= 0] == obs.truth_hip[hip >= 0])
+
+
+def test_wide_field_camera_finishes_quickly(catalog):
+    cam = Camera.from_fov(170.0)
+    algo = GeometricVoting()
+    db = algo.build(catalog, cam)
+    rng = np.random.default_rng(5)
+    obs = Observation(rng.uniform(0, 1024, 300), rng.uniform(0, 1024, 300), rng.uniform(0, 6, 300), cam)
+    t0 = time.perf_counter()
+    assert algo.identify(db, obs).hip.shape == (300,) and time.perf_counter() - t0 < 5.0
+
+
+def test_explain_shows_votes_and_verified_pairs(algo, db, catalog, camera):
+    obs = Simulator(catalog, camera, SimConfig(sigma_px=1.0), seed=3).observation(1)
+    ex = algo.explain(db, obs)
+    assert isinstance(ex, Explanation)
+    hip = algo.identify(db, obs).hip
+    k = int(np.sum(hip >= 0))
+    assert k >= 3 and sum("HIP" in label for label in ex.labels) == k
+    assert all("votes" in label for label in ex.labels)
+    assert k - 1 <= len(ex.segments) <= k * (k - 1) // 2
+
+
+def test_paper_literal_variant_runs(db, catalog, camera):
+    obs = Simulator(catalog, camera, SimConfig(), seed=8).observation(0)
+    hip = GeometricVoting(n_candidates=1, once_per_pair=False).identify(db, obs).hip
+    assert np.all(hip[hip >= 0] == obs.truth_hip[hip >= 0])
+
+
+@pytest.mark.parametrize("kwargs", [{"sigma_px": -1}, {"beta": 0}, {"max_stars": 2}, {"min_support": 0},
+                                    {"min_fraction": 2}, {"n_candidates": 0}, {"once_per_pair": "yes"},
+                                    {"min_extra": -1}])
+def test_invalid_parameters(kwargs):
+    with pytest.raises(ConfigError):
+        GeometricVoting(**kwargs)

@@ -1,0 +1,240 @@
+"""The Pyramid plugin class (Mortari et al. 2004): parameters, star-pair database, identify, explain.
+
+The star-pair database (:class:`PairDatabase`, :func:`build_pair_database`) is shared with the
+geometric-voting plugin.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from starid.camera import Camera
+from starid.catalog import Catalog
+from starid.errors import ConfigError
+from starid.kernels import KVector, kvector_make, rad_to_chord
+from starid.observation import Observation
+from starid.params import check_flag, check_number, check_whole
+from starid.plugin import Algorithm, Database, Explanation, Identification
+
+from .kernels import PairTol, Sensor, pyramid_kernel
+
+#: centroid-noise floor of every window: a noise-free world still gets a 1 px tolerance
+SIGMA_FLOOR_PX = 1.0
+
+
+@dataclass(frozen=True, eq=False)
+class PairDatabase(Database):
+    """Every pair of guide stars closer than the field's diagonal, by chord, with its k-vector.
+
+    kv : :class:`~starid.kernels.KVector` over the ascending pair chords (float32 keys, int32 k).
+    pairs : uint16 (p, 2) guide rows of each pair (int32 beyond 65,535 guide stars), row order
+        ``pairs[p, 0] < pairs[p, 1]``.
+    guide_unit : float32 (g, 3) ICRS unit vectors of the guide stars, sorted by z (declination),
+        as :func:`starid.kernels.reproject_assign` requires.
+    guide_hip : int64 (g,) catalog id of each guide row.
+    nbr, nbr_chord, nbr_start : the same pairs per star (``neighbour_lists``; empty otherwise):
+        the partners of guide row g are ``nbr[nbr_start[g]:nbr_start[g + 1]]`` (uint16/int32),
+        sorted by their chord ``nbr_chord`` (float32); int32 offsets ``nbr_start`` (g + 1,).
+    c_max : the largest pair chord stored (not read by identify as an array).
+    """
+
+    kv: KVector
+    pairs: np.ndarray
+    guide_unit: np.ndarray
+    guide_hip: np.ndarray
+    nbr: np.ndarray
+    nbr_chord: np.ndarray
+    nbr_start: np.ndarray
+    c_max: float
+
+
+def build_pair_database(catalog: Catalog, camera: Camera, mag_limit: float, d_min_deg: float,
+                        max_pair_deg: float, who: str, neighbour_lists: bool = True) -> PairDatabase:
+    """Guide stars with V <= ``mag_limit`` (both stars of a pair closer than ``d_min_deg``
+    dropped), and every pair of them closer than min(field diagonal, ``max_pair_deg``); with
+    ``neighbour_lists`` also each star's partners sorted by chord."""
+    guide = catalog.brighter_than(mag_limit)
+    if d_min_deg > 0 and len(guide) >= 2:
+        close = cKDTree(guide.unit_icrs).query_pairs(rad_to_chord(math.radians(d_min_deg)), output_type="ndarray")
+        double = np.zeros(len(guide), dtype=bool)
+        double[close.ravel()] = True
+        guide = guide.subset(~double)
+    if len(guide) < 3:
+        raise ConfigError(f"{who}: only {len(guide)} usable catalog stars have V <= {mag_limit}")
+    by_z = np.lexsort((guide.hip, guide.unit_icrs[:, 2]))
+    unit = np.ascontiguousarray(guide.unit_icrs[by_z])
+    theta_max = min(2.0 * camera.half_diagonal_rad, math.radians(max_pair_deg))
+    c_max = rad_to_chord(theta_max)
+    pairs = cKDTree(unit).query_pairs(c_max, output_type="ndarray").astype(np.int64)
+    if len(pairs) < 2:
+        raise ConfigError(f"{who}: fewer than two catalog pairs fit in the field of view")
+    pairs.sort(axis=1)
+    chord = np.linalg.norm(unit[pairs[:, 0]] - unit[pairs[:, 1]], axis=1).astype(np.float32)
+    order = np.lexsort((pairs[:, 1], pairs[:, 0], chord))
+    row_dtype = np.uint16 if len(guide) <= np.iinfo(np.uint16).max else np.int32
+    if neighbour_lists:
+        star = np.concatenate([pairs[:, 0], pairs[:, 1]])
+        other = np.concatenate([pairs[:, 1], pairs[:, 0]])
+        both = np.concatenate([chord, chord])
+        by_star = np.lexsort((other, both, star))
+        nbr, nbr_chord = other[by_star].astype(row_dtype), both[by_star]
+        nbr_start = np.searchsorted(star[by_star], np.arange(len(guide) + 1)).astype(np.int32)
+    else:
+        nbr, nbr_chord, nbr_start = np.zeros(0, row_dtype), np.zeros(0, np.float32), np.zeros(1, np.int32)
+    return PairDatabase(kv=kvector_make(chord[order], np.float32, np.int32),
+                        pairs=np.ascontiguousarray(pairs[order].astype(row_dtype)),
+                        guide_unit=unit.astype(np.float32), guide_hip=guide.hip[by_z].astype(np.int64),
+                        nbr=nbr, nbr_chord=nbr_chord, nbr_start=nbr_start, c_max=float(c_max))
+
+
+def check_pair_params(algo) -> None:
+    """Checks of the parameters both pair-angle plugins share."""
+    check_number("mag_limit", algo.mag_limit)
+    if algo.sigma_px is not None:
+        check_number("sigma_px", algo.sigma_px, lo=0)
+    check_number("beta", algo.beta, lo=0, lo_open=True)
+    check_number("d_min_deg", algo.d_min_deg, lo=0, hi=1)
+    check_number("max_pair_deg", algo.max_pair_deg, lo=0, lo_open=True, hi=180)
+    check_whole("max_stars", algo.max_stars, 3)
+    check_whole("max_window", algo.max_window, 1)
+    check_number("confirm_fraction", algo.confirm_fraction, lo=0, hi=1)
+    check_whole("min_extra", algo.min_extra, 0)
+
+
+def hip_of(database: PairDatabase, rows: np.ndarray) -> np.ndarray:
+    """Catalog ids of guide rows (-1 stays -1)."""
+    return np.where(rows >= 0, database.guide_hip[np.maximum(rows, 0)], -1).astype(np.int64)
+
+
+def sensor_of(camera: Camera) -> Sensor:
+    return Sensor(float(camera.f_px), float(camera.cx_px), float(camera.cy_px), float(camera.width_px),
+                  float(camera.height_px))
+
+
+@dataclass(frozen=True)
+class Pyramid(Algorithm):
+    """Pyramid: star-pair k-vector, Mortari's triad order, chirality, a fourth star confirming the triangle.
+
+    Mortari D., Samaan M. A., Bruccoleri C., Junkins J. L., "The Pyramid star identification
+    technique", Navigation 51(3):171-183, 2004; the k-vector from the same paper's appendix
+    (Mortari & Neta 2000). Full description, parameters and measurements:
+    ``docs/algorithms/pyramid.md``.
+
+    Database: every guide star (V <= ``mag_limit``) pair closer than the field's diagonal
+    (capped at ``max_pair_deg``), keyed by its chord 2 sin(theta/2) and searched with the
+    k-vector (``starid.kernels.KVector``).
+
+    Identification (the paper's algorithm; its numbered steps):
+
+    1. every image pair's angle selects the catalog pairs within +-eps (k-vector range query);
+    2. triads (i, j, k) are taken in the paper's order ``for dj, for dk, for i: j = i + dj,
+       k = j + dk`` (stars indexed brightest first), which moves all three stars between
+       consecutive triads so one spurious star cannot spoil a long run of them; iteration
+       cutoff ``max_triads``;
+    3. catalog triangles (I, J, K) with (I, J), (J, K), (I, K) in the three windows, and the
+       same sign of the triple products b_i.(b_j x b_k) and r_I.(r_J x r_K) (chirality,
+       "spectral" test); the triangle must be unique (``unique_triangle``);
+    4. a fourth star r with exactly one catalog star R at the right distance from I, J and K
+       confirms the triangle: the pyramid;
+    5. the remaining stars are identified from the pyramid's attitude (Wahba,
+       ``starid.kernels.wahba_rows``) by reprojection (``starid.kernels.reproject_assign``,
+       the same +-eps), and the attitude is re-solved from all of them.
+
+    Choices the paper leaves open or that are starid's (each a parameter):
+
+    * eps = ``beta`` sqrt(2) sigma, sigma = max(``sigma_px``, 1 px) / f_px (reconstructed: the
+      paper sets eps from the centroid accuracy; the 1 px floor gives noise-free worlds a window;
+      ``sigma_px`` follows the simulator's centroid noise when left None);
+    * detections closer than ``d_min_deg`` to another, and guide stars with such a neighbour,
+      are not used (double stars; reconstructed, as in starid's PTP);
+    * triads are formed from the ``max_stars`` brightest detections (reconstructed; the paper
+      uses its input order, starid needs an order independent of the input's);
+    * ``unique_triangle=False`` (LOST's reading) tries every candidate triangle of a triad and
+      accepts the triad when exactly one of them completes a pyramid;
+    * ``confirm_fraction`` and ``min_extra`` (starid's extension, both 0 switch it off): of the
+      guide stars the pyramid's attitude puts on the sensor besides its own four, at least
+      ``min_extra`` and this fraction must be seen, else the pyramid is discarded and the search
+      goes on -- the safeguard that keeps random fields unidentified;
+    * ``accept_triangle`` (the paper's n = 3 case): with exactly three usable stars a unique
+      triangle is reported without a fourth star (off by default: no confirmation possible);
+    * ``max_window``: an image pair whose window holds more catalog pairs is not used (keeps
+      wide-angle cameras fast).
+    """
+
+    name: ClassVar[str] = "pyramid"
+    follows: ClassVar[dict] = {"sigma_px": "sigma_px"}
+
+    mag_limit: float = 6.0
+    sigma_px: float | None = None
+    beta: float = 3.0
+    d_min_deg: float = 0.05
+    max_pair_deg: float = 20.0
+    max_stars: int = 40
+    max_triads: int = 1000
+    max_window: int = 10000
+    unique_triangle: bool = False
+    confirm_fraction: float = 0.5
+    min_extra: int = 1
+    accept_triangle: bool = False
+
+    def __post_init__(self):
+        check_pair_params(self)
+        check_whole("max_triads", self.max_triads, 1)
+        check_flag("unique_triangle", self.unique_triangle)
+        check_flag("accept_triangle", self.accept_triangle)
+
+    def tolerances(self, camera: Camera, database: PairDatabase) -> PairTol:
+        sigma = max(self.sigma_px or 0.0, SIGMA_FLOOR_PX) / camera.f_px
+        half_diag = camera.half_diagonal_rad
+        return PairTol(eps=self.beta * math.sqrt(2.0) * sigma, d_min=rad_to_chord(math.radians(self.d_min_deg)),
+                       c_max=database.c_max, c_fov=rad_to_chord(half_diag), max_window=int(self.max_window),
+                       max_stars=int(self.max_stars), max_triads=int(self.max_triads),
+                       confirm_fraction=float(self.confirm_fraction), min_extra=int(self.min_extra))
+
+    def build(self, catalog: Catalog, camera: Camera) -> PairDatabase:
+        return build_pair_database(catalog, camera, self.mag_limit, self.d_min_deg, self.max_pair_deg, self.name)
+
+    def _run(self, database: PairDatabase, observation: Observation):
+        cam = observation.camera
+        db = database
+        return pyramid_kernel(observation.x_px, observation.y_px, observation.mag, db.kv, db.pairs, db.nbr,
+                              db.nbr_chord, db.nbr_start, db.guide_unit, self.tolerances(cam, database), sensor_of(cam),
+                              self.unique_triangle, self.accept_triangle)
+
+    def identify(self, database: PairDatabase, observation: Observation) -> Identification:
+        rows, attitude, _, _ = self._run(database, observation)
+        found = rows.max(initial=-1) >= 0
+        return Identification(hip_of(database, rows), attitude if found else None)
+
+    def explain(self, database: PairDatabase, observation: Observation) -> Explanation:
+        """The pyramid found: its six edges (the three to the confirming fourth star in bold),
+        the triad's triangle as a polygon, and each identified star labelled with its id."""
+        rows, _, pyramid, n_triads = self._run(database, observation)
+        hip = hip_of(database, rows)
+        xy = np.stack([observation.x_px, observation.y_px], axis=1)
+        found = np.flatnonzero(hip >= 0)
+        role = {int(s): name for s, name in zip(pyramid, ("i", "j", "k", "r (4th)")) if s >= 0}
+        points = xy[found]
+        labels = tuple(f"{role[s]}: HIP {hip[s]}" if s in role else f"HIP {hip[s]}" for s in found.tolist())
+        corners = [int(s) for s in pyramid if s >= 0]
+        segments, highlight = [], []
+        for a in range(len(corners)):
+            for b in range(a + 1, len(corners)):
+                if b == 3:
+                    highlight.append(len(segments))
+                segments.append([xy[corners[a]], xy[corners[b]]])
+        polygons = (xy[corners[:3]],) if len(corners) >= 3 else ()
+        if len(corners) == 4:
+            caption = (f"Pyramid found after {n_triads} triad(s): triangle i-j-k matched uniquely, confirmed by "
+                       f"the fourth star r (bold edges); {found.size} stars identified by reprojection.")
+        elif len(corners) == 3:
+            caption = f"Three stars only: the unique triangle i-j-k was accepted after {n_triads} triad(s)."
+        else:
+            caption = f"No confirmed pyramid after {n_triads} triad(s): nothing identified."
+        return Explanation(segments=np.asarray(segments, dtype=np.float64).reshape(-1, 2, 2), polygons=polygons,
+                           points=points, labels=labels, caption=caption, highlight=np.asarray(highlight))

@@ -1,0 +1,397 @@
+"""numba kernels of the Pyramid algorithm (Mortari, Samaan, Bruccoleri & Junkins 2004).
+
+The pair-angle helpers at the top (:func:`brightness_order`, :func:`isolated`,
+:func:`pair_windows`) are shared with the geometric-voting plugin, which searches the same kind
+of star-pair k-vector.
+
+Bundles (``typing.NamedTuple``, passed to numba as tuples):
+
+* ``kv`` -- :class:`starid.kernels.KVector` over the sorted chords of the catalog pairs;
+* :class:`PairTol` -- the tolerances and work limits of one identification;
+* :class:`Sensor` -- the camera geometry reprojection needs.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+from starid.kernels import backproject_px, chord_rows, kvector_query, reproject_assign, wahba_rows
+
+#: at most this many catalog triangles are kept per image triad (more = ambiguous anyway)
+TRIANGLE_CAP = 64
+
+
+class PairTol(NamedTuple):
+    """Tolerances and limits (chords of unit vectors, i.e. ~radians).
+
+    eps : half-width of every pair-angle window (and of the reprojection match radius).
+    d_min : detections closer than this to another detection are not used (double stars).
+    c_max : largest catalog pair chord stored (no image pair beyond it can match).
+    c_fov : chord from the boresight to the farthest image corner.
+    max_window : an image pair whose window holds more catalog pairs than this is not used.
+    max_stars : only the ``max_stars`` brightest usable detections form triads / vote.
+    max_triads : iteration cutoff (triads examined).
+    confirm_fraction : reprojection confirmation: fraction of the guide stars predicted on the
+        sensor that must be seen.
+    min_extra : stars besides the pattern's own that reprojection must identify.
+    """
+
+    eps: float
+    d_min: float
+    c_max: float
+    c_fov: float
+    max_window: int
+    max_stars: int
+    max_triads: int
+    confirm_fraction: float
+    min_extra: int
+
+
+class Sensor(NamedTuple):
+    """Pinhole geometry: focal length and principal point in px, sensor size in px."""
+
+    f_px: float
+    cx_px: float
+    cy_px: float
+    width_px: float
+    height_px: float
+
+
+# --------------------------------------------------------------------------------------------
+# shared pair-angle helpers
+
+
+@njit(cache=True)
+def _brighter(mag, x_px, y_px, i, j):
+    """Strict order: brighter first, exact ties by x then y (independent of input order)."""
+    if mag[i] != mag[j]:
+        return mag[i] < mag[j]
+    if x_px[i] != x_px[j]:
+        return x_px[i] < x_px[j]
+    return y_px[i] < y_px[j]
+
+
+@njit(cache=True)
+def brightness_order(x_px, y_px, mag):
+    """Indices of the detections, brightest first (ties broken on position)."""
+    order = np.argsort(mag, kind="mergesort")
+    for a in range(1, order.shape[0]):          # insertion pass: fixes the (rare) exact ties
+        cur = order[a]
+        b = a - 1
+        while b >= 0 and _brighter(mag, x_px, y_px, cur, order[b]):
+            order[b + 1] = order[b]
+            b -= 1
+        order[b + 1] = cur
+    return order
+
+
+@njit(cache=True)
+def isolated(v_cam, d_min):
+    """True for detections with no other detection within chord ``d_min`` (doubles, coincident)."""
+    n = v_cam.shape[0]
+    ok = np.ones(n, dtype=np.bool_)
+    for i in range(n):
+        for j in range(i + 1, n):
+            if chord_rows(v_cam, i, v_cam, j) < d_min:
+                ok[i] = False
+                ok[j] = False
+    return ok
+
+
+@njit(cache=True)
+def select_stars(x_px, y_px, mag, v_cam, d_min, max_stars):
+    """The usable detections (isolated), brightest first, at most ``max_stars`` of them."""
+    order = brightness_order(x_px, y_px, mag)
+    ok = isolated(v_cam, d_min)
+    sel = np.empty(min(order.shape[0], max_stars), dtype=np.int64)
+    m = 0
+    for a in range(order.shape[0]):
+        if m == sel.shape[0]:
+            break
+        if ok[order[a]]:
+            sel[m] = order[a]
+            m += 1
+    return sel[:m]
+
+
+@njit(cache=True)
+def pair_windows(v_cam, sel, kv, tol):
+    """k-vector window ``[start, stop)`` of every pair of selected stars (symmetric (m, m) arrays).
+
+    The catalog pairs whose chord lies within ``tol.eps`` of the observed chord; a window is
+    left empty when it holds more than ``tol.max_window`` pairs (a too-wide tolerance, e.g. a
+    fish-eye camera: such a pair carries no information and would only cost time).
+    """
+    m = sel.shape[0]
+    start = np.zeros((m, m), dtype=np.int64)
+    stop = np.zeros((m, m), dtype=np.int64)
+    for a in range(m):
+        for b in range(a + 1, m):
+            c = chord_rows(v_cam, sel[a], v_cam, sel[b])
+            if c - tol.eps > tol.c_max:
+                continue
+            lo, hi = kvector_query(kv, c - tol.eps, c + tol.eps)
+            if hi - lo > tol.max_window:
+                continue
+            start[a, b] = lo
+            start[b, a] = lo
+            stop[a, b] = hi
+            stop[b, a] = hi
+    return start, stop
+
+
+# --------------------------------------------------------------------------------------------
+# Pyramid
+
+
+@njit(cache=True)
+def triple(u, i, v, j, w, k):
+    """Triple product ``u_i . (v_j x w_k)`` of rows of three (n, 3) arrays (float64)."""
+    ax, ay, az = float(u[i, 0]), float(u[i, 1]), float(u[i, 2])
+    bx, by, bz = float(v[j, 0]), float(v[j, 1]), float(v[j, 2])
+    cx, cy, cz = float(w[k, 0]), float(w[k, 1]), float(w[k, 2])
+    return ax * (by * cz - bz * cy) + ay * (bz * cx - bx * cz) + az * (bx * cy - by * cx)
+
+
+@njit(cache=True)
+def _adjacency(pairs, start, stop, head, stamp, tick, nxt, val):
+    """Linked lists of the catalog pairs in ``[start, stop)``: partners of each guide row.
+
+    ``head[g]`` is valid only where ``stamp[g] == tick`` (no clearing between triads).
+    """
+    cnt = 0
+    for p in range(start, stop):
+        for o in range(2):
+            x = np.int64(pairs[p, o])
+            if stamp[x] != tick:
+                stamp[x] = tick
+                head[x] = -1
+            val[cnt] = pairs[p, 1 - o]
+            nxt[cnt] = head[x]
+            head[x] = cnt
+            cnt += 1
+
+
+@njit(cache=True)
+def triad_triangles(v_cam, si, sj, sk, win_ij, win_ik, pairs, guide_unit, eps, work, tick, out):
+    """Catalog triangles (I, J, K) matching the image triad (i, j, k) (the paper's triangle step).
+
+    (I, J) runs over the k-vector window of side ij, K over the partners of I in the window of
+    side ik (linked lists built in ``work`` = (head, stamp, next, partner) scratch arrays, valid
+    where ``stamp == tick``), and the third side must agree too:
+    ``|chord(r_J, r_K) - chord(b_j, b_k)| <= eps`` -- the same as (J, K) lying in the window of
+    side jk, without building it. The triple products ``b_i . (b_j x b_k)`` and
+    ``r_I . (r_J x r_K)`` must have the same sign (the chirality or "spectral" test that rejects
+    mirror images). Writes up to ``out.shape[0]`` triangles into ``out`` and returns their count
+    (``out.shape[0] + 1`` when there were more).
+    """
+    head, stamp, nxt, val = work
+    _adjacency(pairs, win_ik[0], win_ik[1], head, stamp, tick, nxt, val)
+    c_jk = chord_rows(v_cam, sj, v_cam, sk)
+    t_obs = triple(v_cam, si, v_cam, sj, v_cam, sk)
+    count = 0
+    for p in range(win_ij[0], win_ij[1]):
+        for o in range(2):
+            big_i = np.int64(pairs[p, o])
+            big_j = np.int64(pairs[p, 1 - o])
+            if stamp[big_i] != tick:
+                continue
+            e = head[big_i]
+            while e >= 0:
+                big_k = np.int64(val[e])
+                e = nxt[e]
+                if big_k == big_j:
+                    continue
+                if abs(chord_rows(guide_unit, big_j, guide_unit, big_k) - c_jk) > eps:
+                    continue
+                if triple(guide_unit, big_i, guide_unit, big_j, guide_unit, big_k) * t_obs <= 0.0:
+                    continue
+                if count == out.shape[0]:
+                    return count + 1
+                out[count, 0] = big_i
+                out[count, 1] = big_j
+                out[count, 2] = big_k
+                count += 1
+    return count
+
+
+@njit(cache=True)
+def neighbours_within(nbr_chord, nbr_start, big_i, lo, hi):
+    """Index range of guide row ``big_i``'s neighbours whose chord lies in ``[lo, hi]`` (bisection)."""
+    a = nbr_start[big_i]
+    b = nbr_start[big_i + 1]
+    x, y = a, b
+    while x < y:
+        mid = (x + y) // 2
+        if nbr_chord[mid] < lo:
+            x = mid + 1
+        else:
+            y = mid
+    first = x
+    y = b
+    while x < y:
+        mid = (x + y) // 2
+        if nbr_chord[mid] <= hi:
+            x = mid + 1
+        else:
+            y = mid
+    return first, x
+
+
+@njit(cache=True)
+def fourth_star(v_cam, sel, tri_pos, tri_rows, nbr, nbr_chord, nbr_start, guide_unit, eps):
+    """The pyramid's confirming star: the first selected star r (brightness order) with exactly
+    one catalog star R at the right distance (+- ``eps``) from all three triangle stars.
+
+    R runs over the neighbours of I (``nbr``: every guide star's pair partners sorted by chord,
+    the same pairs as the k-vector's) at distance chord(b_i, b_r) +- eps; its distances to J and
+    K are then checked. Returns ``(position of r in sel, R)`` or ``(-1, -1)``.
+    """
+    pi, pj, pk = tri_pos[0], tri_pos[1], tri_pos[2]
+    big_i, big_j, big_k = tri_rows[0], tri_rows[1], tri_rows[2]
+    for r in range(sel.shape[0]):
+        if r == pi or r == pj or r == pk:
+            continue
+        sr = sel[r]
+        ci = chord_rows(v_cam, sel[pi], v_cam, sr)
+        cj = chord_rows(v_cam, sel[pj], v_cam, sr)
+        ck = chord_rows(v_cam, sel[pk], v_cam, sr)
+        found = -1
+        n_found = 0
+        lo, hi = neighbours_within(nbr_chord, nbr_start, big_i, ci - eps, ci + eps)
+        for e in range(lo, hi):
+            big_r = np.int64(nbr[e])
+            if big_r == big_j or big_r == big_k:
+                continue
+            if abs(chord_rows(guide_unit, big_j, guide_unit, big_r) - cj) > eps:
+                continue
+            if abs(chord_rows(guide_unit, big_k, guide_unit, big_r) - ck) > eps:
+                continue
+            found = big_r
+            n_found += 1
+        if n_found == 1:
+            return r, found
+    return -1, -1
+
+
+@njit(cache=True)
+def _confirm(v_cam, pyr_star, pyr_row, guide_unit, tol, cam, rows):
+    """Attitude of the pyramid, the other stars by reprojection, and the confirmation test.
+
+    Wahba on the four pyramid stars; ``reproject_assign`` identifies every detection lying
+    within ``tol.eps`` of exactly one predicted guide star; repeated once with the attitude of
+    all stars found. The pyramid stands when every pyramid star keeps its row, at least
+    ``tol.min_extra`` stars besides the pyramid's four are identified, and at least a fraction
+    ``tol.confirm_fraction`` of the guide stars the attitude puts on the sensor are seen.
+    Fills ``rows`` and returns True, or returns False (``rows`` then undefined).
+    """
+    sub = np.empty((4, 3))
+    for a in range(4):
+        for c in range(3):
+            sub[a, c] = v_cam[pyr_star[a], c]
+    attitude = wahba_rows(sub, pyr_row, guide_unit)
+    for _ in range(2):
+        n_seen, n_predicted = reproject_assign(attitude, v_cam, guide_unit, tol.c_fov + tol.eps, tol.eps, rows,
+                                               cam.f_px, cam.cx_px, cam.cy_px, cam.width_px, cam.height_px)
+        for a in range(4):
+            if rows[pyr_star[a]] != pyr_row[a]:
+                return False
+        if n_seen - 4 < tol.min_extra or n_seen < tol.confirm_fraction * n_predicted:
+            return False
+        attitude = wahba_rows(v_cam, rows, guide_unit)
+    return True
+
+
+@njit(cache=True)
+def pyramid_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_unit, tol, cam, unique_triangle,
+                   accept_triangle):
+    """Pyramid identification of one image. Returns ``(rows, attitude, pyramid, n_triads)``.
+
+    ``rows[s]`` is the guide row of detection ``s`` (-1 = unidentified); ``attitude`` the ICRS ->
+    camera rotation of the identified stars (Wahba; all zeros when none); ``pyramid`` the four
+    detections of the accepted pyramid (i, j, k, r; -1 when none; with ``accept_triangle`` and
+    three stars, r = -1); ``n_triads`` how many triads were examined.
+
+    1. detections with a neighbour closer than ``tol.d_min`` are set aside; the others are
+       sorted brightest first and the first ``tol.max_stars`` kept;
+    2. every pair gets its k-vector window of catalog pairs (chord +- ``tol.eps``);
+    3. triads in Mortari's order: ``for dj: for dk: for i: j = i + dj, k = j + dk``, so that
+       consecutive triads share few stars and a spurious star does not spoil a whole run;
+       at most ``tol.max_triads`` of them;
+    4. the triad's catalog triangles (:func:`triad_triangles`, with the chirality test);
+       ``unique_triangle``: go on only if exactly one survives (the paper); otherwise each
+       candidate is tried and the triad is accepted when exactly one completes a pyramid;
+    5. the fourth star (:func:`fourth_star`) completes the pyramid;
+    6. attitude, the remaining stars by reprojection and the confirmation test
+       (:func:`_confirm`); a pyramid that fails it is discarded and the search goes on.
+    """
+    n = x_px.shape[0]
+    rows = np.full(n, -1, dtype=np.int64)
+    pyramid = np.full(4, -1, dtype=np.int64)
+    if n < 3:
+        return rows, np.zeros((3, 3)), pyramid, 0
+    v_cam = backproject_px(x_px, y_px, cam.f_px, cam.cx_px, cam.cy_px)
+    sel = select_stars(x_px, y_px, mag, v_cam, tol.d_min, tol.max_stars)
+    m = sel.shape[0]
+    if m < 3:
+        return rows, np.zeros((3, 3)), pyramid, 0
+    start, stop = pair_windows(v_cam, sel, kv, tol)
+    n_guide = guide_unit.shape[0]
+    cap = 2 * max(tol.max_window, 1)
+    work = (np.full(n_guide, -1, dtype=np.int32), np.zeros(n_guide, dtype=np.int32),
+            np.empty(cap, dtype=np.int32), np.empty(cap, dtype=np.int32))
+    tri = np.empty((TRIANGLE_CAP, 3), dtype=np.int64)
+    tri_pos = np.empty(3, dtype=np.int64)
+    pyr_star = np.empty(4, dtype=np.int64)
+    pyr_row = np.empty(4, dtype=np.int64)
+    trial_rows = np.empty(n, dtype=np.int64)
+    n_triads = 0
+    for dj in range(1, m - 1):
+        for dk in range(1, m - dj):
+            for i in range(0, m - dj - dk):
+                if n_triads >= tol.max_triads:
+                    return rows, np.zeros((3, 3)), pyramid, n_triads
+                j = i + dj
+                k = j + dk
+                n_triads += 1
+                if stop[i, j] == start[i, j] or stop[j, k] == start[j, k] or stop[i, k] == start[i, k]:
+                    continue
+                n_tri = triad_triangles(v_cam, sel[i], sel[j], sel[k], (start[i, j], stop[i, j]),
+                                        (start[i, k], stop[i, k]), pairs, guide_unit, tol.eps, work, n_triads, tri)
+                if n_tri == 0 or n_tri > TRIANGLE_CAP or (unique_triangle and n_tri != 1):
+                    continue
+                tri_pos[0] = i
+                tri_pos[1] = j
+                tri_pos[2] = k
+                if m == 3:
+                    if accept_triangle and n_tri == 1:
+                        for a in range(3):
+                            rows[sel[tri_pos[a]]] = tri[0, a]
+                            pyramid[a] = sel[tri_pos[a]]
+                    if rows.max() < 0:
+                        return rows, np.zeros((3, 3)), pyramid, n_triads
+                    return rows, wahba_rows(v_cam, rows, guide_unit), pyramid, n_triads
+                n_pyr = 0
+                for t in range(n_tri):
+                    r, big_r = fourth_star(v_cam, sel, tri_pos, tri[t], nbr, nbr_chord, nbr_start, guide_unit,
+                                           tol.eps)
+                    if r < 0:
+                        continue
+                    n_pyr += 1
+                    if n_pyr > 1:
+                        break
+                    for a in range(3):
+                        pyr_star[a] = sel[tri_pos[a]]
+                        pyr_row[a] = tri[t, a]
+                    pyr_star[3] = sel[r]
+                    pyr_row[3] = big_r
+                if n_pyr != 1:
+                    continue
+                if _confirm(v_cam, pyr_star, pyr_row, guide_unit, tol, cam, trial_rows):
+                    rows[:] = trial_rows
+                    pyramid[:] = pyr_star
+                    return rows, wahba_rows(v_cam, rows, guide_unit), pyramid, n_triads
+    return rows, np.zeros((3, 3)), pyramid, n_triads

@@ -1,0 +1,206 @@
+"""Tests of the Pyramid plugin: conformance, kernels against numpy oracles, random fields, explain."""
+
+import math
+import time
+
+import numpy as np
+import pytest
+
+from starid import Camera, Catalog, ConfigError, Observation, SimConfig, Simulator
+from starid.plugin import Explanation
+from starid.testing import CHECKS, check_algorithm
+from starid_algorithms.pyramid import Pyramid
+from starid_algorithms.pyramid.kernels import brightness_order, neighbours_within, select_stars, triad_triangles
+
+
+@pytest.fixture(scope="module")
+def algo():
+    return Pyramid()
+
+
+@pytest.fixture(scope="module")
+def db(algo, catalog, camera):
+    return algo.build(catalog, camera)
+
+
+@pytest.mark.parametrize("check", CHECKS)
+def test_conformance(check):
+    check_algorithm(Pyramid, checks=[check])
+
+
+def test_database_layout(db, camera):
+    unit = db.guide_unit.astype(np.float64)
+    assert 4_900 <= unit.shape[0] <= 5_100 and db.pairs.dtype == np.uint16 and db.guide_hip.dtype == np.int64
+    assert np.all(np.diff(unit[:, 2]) >= 0)                                   # z-sorted, as reproject_assign needs
+    chord = np.linalg.norm(unit[db.pairs[:, 0]] - unit[db.pairs[:, 1]], axis=1)
+    assert np.all(np.diff(db.kv.values) >= 0) and np.allclose(chord, db.kv.values, atol=1e-6)
+    assert chord.max() <= db.c_max + 1e-6
+    assert db.c_max == pytest.approx(2 * math.sin(camera.half_diagonal_rad))    # the field's diagonal
+    assert np.all(db.pairs[:, 0] < db.pairs[:, 1])
+    # per-star neighbour lists hold every pair twice, sorted by chord within each star
+    assert db.nbr.size == 2 * db.pairs.shape[0] and db.nbr_start[-1] == db.nbr.size
+    g = 1234
+    seg = slice(db.nbr_start[g], db.nbr_start[g + 1])
+    partners = np.sort(db.nbr[seg].astype(np.int64))
+    expect = np.sort(np.concatenate([db.pairs[db.pairs[:, 0] == g, 1], db.pairs[db.pairs[:, 1] == g, 0]]))
+    assert np.array_equal(partners, expect.astype(np.int64))
+    assert np.all(np.diff(db.nbr_chord[seg]) >= 0)
+
+
+def test_neighbours_within_matches_searchsorted(db):
+    rng = np.random.default_rng(3)
+    for g in rng.integers(0, db.guide_hip.size, 20):
+        seg = db.nbr_chord[db.nbr_start[g]:db.nbr_start[g + 1]].astype(np.float64)
+        lo = rng.uniform(0, 0.2)
+        hi = lo + rng.uniform(0, 0.05)
+        a, b = neighbours_within(db.nbr_chord, db.nbr_start, g, lo, hi)
+        assert (a - db.nbr_start[g], b - db.nbr_start[g]) == (np.searchsorted(seg, lo, "left"),
+                                                             np.searchsorted(seg, hi, "right"))
+
+
+def test_brightness_order_is_lexsort():
+    rng = np.random.default_rng(0)
+    mag = rng.integers(0, 4, 50).astype(float)                   # many exact ties
+    x = rng.integers(0, 5, 50).astype(float)
+    y = rng.uniform(0, 100, 50)
+    assert np.array_equal(brightness_order(x, y, mag), np.lexsort((y, x, mag)))
+
+
+def _triangles_oracle(db, v, i, j, k, eps):
+    """All (I, J, K) by plain numpy joins over the three pair windows, with the chirality test."""
+    unit = db.guide_unit.astype(np.float64)
+    chords = db.kv.values.astype(np.float64)
+
+    def window(a, b):
+        c = np.linalg.norm(v[a] - v[b])
+        sel = db.pairs[(chords >= c - eps) & (chords <= c + eps)].astype(np.int64)
+        return np.concatenate([sel, sel[:, ::-1]])                           # both orientations
+
+    ij, ik, jk = window(i, j), window(i, k), window(j, k)
+    jk_set = {(a, b) for a, b in jk.tolist()}
+    t_obs = np.dot(v[i], np.cross(v[j], v[k]))
+    out = set()
+    for big_i, big_j in ij.tolist():
+        for big_k in ik[ik[:, 0] == big_i, 1].tolist():
+            if big_k != big_j and (big_j, big_k) in jk_set:
+                if np.dot(unit[big_i], np.cross(unit[big_j], unit[big_k])) * t_obs > 0:
+                    out.add((big_i, big_j, big_k))
+    return out
+
+
+def test_triad_triangles_match_numpy_oracle(algo, db, catalog, camera):
+    sim = Simulator(catalog, camera, SimConfig(sigma_px=1.0), seed=4)
+    obs = sim.observation(0)
+    tol = algo.tolerances(camera, db)
+    v = camera.backproject(obs.x_px, obs.y_px)
+    sel = select_stars(obs.x_px, obs.y_px, obs.mag, v, tol.d_min, tol.max_stars)
+    n_guide = db.guide_hip.size
+    work = (np.full(n_guide, -1, np.int32), np.zeros(n_guide, np.int32), np.empty(2 * tol.max_window, np.int32),
+            np.empty(2 * tol.max_window, np.int32))
+    out = np.empty((64, 3), dtype=np.int64)
+    chords = db.kv.values.astype(np.float64)
+    truth_rows = {h: r for r, h in enumerate(db.guide_hip.tolist())}
+    seen_true = 0
+    for tick, (a, b, c) in enumerate([(0, 1, 2), (1, 2, 3), (0, 2, 4), (2, 3, 5)], start=1):
+        i, j, k = sel[a], sel[b], sel[c]
+
+        def win(p, q):
+            cc = np.linalg.norm(v[p] - v[q])
+            return np.searchsorted(chords, cc - tol.eps, "left"), np.searchsorted(chords, cc + tol.eps, "right")
+
+        count = triad_triangles(v, i, j, k, win(i, j), win(i, k), db.pairs, db.guide_unit, tol.eps, work, tick, out)
+        got = {tuple(t) for t in out[:count].tolist()}
+        # the kernel checks side jk on the unit vectors, the oracle on the stored float32 keys
+        assert got == _triangles_oracle(db, v, i, j, k, tol.eps)
+        true = tuple(truth_rows.get(int(obs.truth_hip[s]), -1) for s in (i, j, k))
+        seen_true += true in got
+    assert seen_true >= 3
+
+
+def test_random_fields_give_no_identification(algo, db, camera):
+    rng = np.random.default_rng(2024)
+    identified = 0
+    for _ in range(40):
+        obs = Observation(rng.uniform(0, camera.width_px, 30), rng.uniform(0, camera.height_px, 30),
+                          rng.uniform(2, 6, 30), camera)
+        identified += bool(np.any(algo.identify(db, obs).hip >= 0))
+    assert identified <= 1
+
+
+def test_noisy_trials_no_misidentification_and_attitude(algo, db, catalog, camera):
+    sim = Simulator(catalog.brighter_than(6.0), camera, SimConfig(sigma_px=1.0, sigma_mag=0.5), seed=12)
+    trials = sim.generate(40)
+    correct = 0
+    for t in range(len(trials)):
+        obs = trials.observation(t)
+        result = algo.identify(db, obs)
+        found = result.hip >= 0
+        assert np.all(result.hip[found] == obs.truth_hip[found])
+        if found.sum() >= 3:
+            correct += 1
+            err = result.attitude @ trials.attitude[t].T        # ~identity (roll is the loosest: arcminutes)
+            assert math.degrees(math.acos(min(1.0, (np.trace(err) - 1) / 2))) * 3600 < 900
+    assert correct >= 38
+
+
+def test_large_ids(catalog, camera):
+    offset = 2**31
+    big = Catalog.from_arrays(catalog.hip + offset, catalog.ra_deg, catalog.dec_deg, catalog.v_mag)
+    algo = Pyramid()
+    db = algo.build(big, camera)
+    sim = Simulator(big, camera, SimConfig(), seed=1)
+    obs = sim.observation(0)
+    hip = algo.identify(db, obs).hip
+    assert hip.dtype == np.int64 and np.sum(hip >= offset) >= 3
+    assert np.all(hip[hip >= 0] == obs.truth_hip[hip >= 0])
+
+
+def test_wide_field_camera_finishes_quickly(catalog):
+    cam = Camera.from_fov(170.0)
+    algo = Pyramid()
+    db = algo.build(catalog, cam)
+    rng = np.random.default_rng(5)
+    obs = Observation(rng.uniform(0, 1024, 300), rng.uniform(0, 1024, 300), rng.uniform(0, 6, 300), cam)
+    t0 = time.perf_counter()
+    hip = algo.identify(db, obs).hip
+    assert hip.shape == (300,) and time.perf_counter() - t0 < 5.0
+
+
+def test_explain_draws_the_pyramid(algo, db, catalog, camera):
+    obs = Simulator(catalog, camera, SimConfig(sigma_px=1.0), seed=3).observation(1)
+    ex = algo.explain(db, obs)
+    assert isinstance(ex, Explanation)
+    assert ex.segments.shape == (6, 2, 2) and len(ex.highlight) == 3 and len(ex.polygons) == 1
+    assert any(label.startswith("r (4th)") for label in ex.labels)
+    hip = algo.identify(db, obs).hip
+    assert len(ex.points) == np.sum(hip >= 0) and "Pyramid" in ex.caption
+    # the three bold edges all end at the fourth star
+    fourth = ex.points[[label.startswith("r (4th)") for label in ex.labels]][0]
+    assert all(np.allclose(ex.segments[h, 1], fourth) for h in ex.highlight)
+
+
+def test_three_stars_and_paper_literal_variant(catalog, camera, db):
+    obs = Simulator(catalog, camera, SimConfig(), seed=8).observation(0)
+    order = np.argsort(obs.mag)[:3]
+    three = Observation(obs.x_px[order], obs.y_px[order], obs.mag[order], camera)
+    assert np.all(Pyramid().identify(db, three).hip == -1)          # no fourth star, no result by default
+    hip = Pyramid(accept_triangle=True).identify(db, three).hip
+    assert np.all((hip == -1) | (hip == obs.truth_hip[order]))
+    literal = Pyramid(unique_triangle=True)
+    hip = literal.identify(db, obs).hip
+    assert np.all(hip[hip >= 0] == obs.truth_hip[hip >= 0])
+
+
+@pytest.mark.parametrize("kwargs", [{"sigma_px": -1}, {"beta": 0}, {"max_stars": 2}, {"max_triads": 0},
+                                    {"unique_triangle": 1}, {"confirm_fraction": 1.5}, {"max_pair_deg": 0},
+                                    {"d_min_deg": "x"}])
+def test_invalid_parameters(kwargs):
+    with pytest.raises(ConfigError):
+        Pyramid(**kwargs)
+
+
+def test_follows_the_simulator(camera):
+    assert Pyramid().resolved(SimConfig(sigma_px=2.0)).sigma_px == 2.0
+    assert Pyramid(sigma_px=0.5).resolved(SimConfig(sigma_px=2.0)).sigma_px == 0.5
+    db_like = type("D", (), {"c_max": 0.2})()
+    assert Pyramid(sigma_px=0.0).tolerances(camera, db_like).eps == pytest.approx(3 * math.sqrt(2) / camera.f_px)
