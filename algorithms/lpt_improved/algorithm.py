@@ -10,14 +10,13 @@ import numpy as np
 
 from starid.camera import Camera
 from starid.catalog import Catalog
-from starid.errors import ConfigError
 from starid.observation import Observation
 from starid.params import check_number, check_whole
 from starid.plugin import Algorithm, Database, Explanation, Identification
 
 from .kernels import FeatureTable, Search, build_features, feature_vector, identify_kernel
-from .planar import (acceptance, default_radius_deg, effective_double_px, image_neighbours, neighbour_lists, plane_polar,
-                     prepare_image, rows_to_hip, select_guides, sensor_of)
+from .planar import (acceptance, check_common, effective_double_px, explain_pattern, image_neighbours, neighbour_lists,
+                     plane_polar, prepare_image, radius_for, rows_to_hip, select_guides, sensor_of)
 
 
 @dataclass(frozen=True, eq=False)
@@ -52,66 +51,6 @@ class ImprovedLPTDatabase(Database):
 
 def _row_dtype(n: int):
     return np.int16 if n <= np.iinfo(np.int16).max else np.int32
-
-
-def check_common(alg) -> None:
-    """Checks of the parameters the three log-polar / grid plugins share."""
-    check_number("mag_limit", alg.mag_limit)
-    if alg.radius_deg is not None:
-        check_number("radius_deg", alg.radius_deg, lo=0, hi=60, lo_open=True)
-    if alg.sigma_px is not None:
-        check_number("sigma_px", alg.sigma_px, lo=0)
-    check_number("double_px", alg.double_px, lo=0)
-    check_number("beta", alg.beta, lo=0, lo_open=True)
-    check_whole("max_refs", alg.max_refs, 1)
-    check_whole("n_candidates", alg.n_candidates, 1)
-    check_whole("min_matches", alg.min_matches, 3)
-    check_number("confirm_fraction", alg.confirm_fraction, lo=0, hi=1)
-
-
-def radius_for(alg, camera: Camera) -> float:
-    """R in degrees: the parameter, or the field-of-view default (:func:`planar.default_radius_deg`)."""
-    return float(alg.radius_deg) if alg.radius_deg is not None else default_radius_deg(camera)
-
-
-def explain_pattern(observation: Observation, rows: np.ndarray, guide_hip: np.ndarray, ref: int, align: int,
-                    radius_px: float, double_px: float, rays: np.ndarray, caption: str) -> Explanation:
-    """Explanation of a reference-star pattern on the image.
-
-    Segments: the reference star to each usable neighbour within R (the one to the alignment
-    star highlighted), then rays from the reference star at the given angles (radians from the
-    direction of the alignment star, counter-clockwise in the tangent plane, which is clockwise
-    on screen with y down: the same sense as ``atan2(dy, dx)`` in pixels) of length ``radius_px``.
-    Points: the reference star, its alignment star and every identified star, labelled.
-    """
-    x, y = observation.x_px, observation.y_px
-    sensor = sensor_of(observation.camera)
-    segments, labels, points = [], [], []
-    highlight = []
-    if ref >= 0:
-        unit, usable, _ = prepare_image(x, y, sensor, double_px)
-        nbrs = np.empty(len(x), dtype=np.int64)
-        k = image_neighbours(unit, usable, x, y, ref, math.cos(radius_px / sensor.f_px), nbrs)
-        for j in nbrs[:k]:
-            if j == align:
-                highlight.append(len(segments))
-            segments.append([[x[ref], y[ref]], [x[j], y[j]]])
-        base = math.atan2(y[align] - y[ref], x[align] - x[ref]) if align >= 0 else 0.0
-        for a in rays:
-            segments.append([[x[ref], y[ref]], [x[ref] + radius_px * math.cos(base + a),
-                                                y[ref] + radius_px * math.sin(base + a)]])
-        points.append([x[ref], y[ref]])
-        labels.append(f"reference{'' if rows[ref] < 0 else ' HIP ' + str(int(guide_hip[rows[ref]]))}")
-        if align >= 0:
-            points.append([x[align], y[align]])
-            labels.append(f"alignment{'' if rows[align] < 0 else ' HIP ' + str(int(guide_hip[rows[align]]))}")
-    for i in np.flatnonzero(rows >= 0):
-        if i not in (ref, align):
-            points.append([x[i], y[i]])
-            labels.append(f"HIP {int(guide_hip[rows[i]])}")
-    return Explanation(segments=np.asarray(segments, dtype=np.float64).reshape(-1, 2, 2),
-                       points=np.asarray(points, dtype=np.float64).reshape(-1, 2), labels=tuple(labels),
-                       caption=caption, highlight=np.asarray(highlight, dtype=np.int64))
 
 
 @dataclass(frozen=True)
@@ -190,7 +129,7 @@ class ImprovedLPT(Algorithm):
         check_whole("db_alignments", self.db_alignments, 1)
 
     def build(self, catalog: Catalog, camera: Camera) -> ImprovedLPTDatabase:
-        radius = radius_for(self, camera)
+        radius = radius_for(self, catalog, camera)
         double_px = effective_double_px(self.double_px, radius, camera)
         guides = select_guides(catalog, self.mag_limit, double_px, camera, self.name)
         nbr, off = neighbour_lists(guides.unit, math.radians(radius))

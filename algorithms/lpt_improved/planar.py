@@ -35,18 +35,27 @@ from starid.camera import Camera
 from starid.catalog import Catalog
 from starid.errors import ConfigError
 from starid.kernels import backproject_px, reproject_assign, verify_pairwise, wahba_rows
+from starid.observation import Observation
+from starid.params import check_number, check_whole
+from starid.plugin import Explanation
 
-#: Default neighbourhood radius R as a fraction of the smaller field of view (6 deg at 20 deg,
-#: Luo et al.'s set-up; 3 deg on the 10 deg Table 4 camera), capped at :data:`MAX_DEFAULT_RADIUS_DEG`.
+#: Default neighbourhood radius R: 0.3 x the smaller field of view (6 deg at 20 deg, Luo et al.'s
+#: set-up), but at least the radius that holds :data:`NEIGHBOURS_TARGET` guide stars on average
+#: (sparse skies, small fields: 4.0 deg for V <= 6 guide stars on the 10 deg Table 4 camera), at
+#: most half the field of view and :data:`MAX_DEFAULT_RADIUS_DEG`.
 RADIUS_FOV_FRACTION = 0.3
+NEIGHBOURS_TARGET = 6.0
 MAX_DEFAULT_RADIUS_DEG = 20.0
 #: Floor of the centroid noise the tolerances assume (px): a noise-free world still needs a window.
 SIGMA_FLOOR_PX = 1.0
+SKY_DEG2 = 4.0 * math.pi * (180.0 / math.pi) ** 2
 
 
-def default_radius_deg(camera: Camera) -> float:
-    """R = 0.3 x the smaller field of view, at most 20 deg (6 deg for a 20 x 20 deg camera)."""
-    return min(RADIUS_FOV_FRACTION * min(camera.fov_x_deg, camera.fov_y_deg), MAX_DEFAULT_RADIUS_DEG)
+def default_radius_deg(camera: Camera, n_guides: int) -> float:
+    """R for a camera and a guide list of ``n_guides`` stars (see :data:`RADIUS_FOV_FRACTION`)."""
+    fov = min(camera.fov_x_deg, camera.fov_y_deg)
+    dense = math.sqrt(NEIGHBOURS_TARGET / (math.pi * max(n_guides, 1) / SKY_DEG2))
+    return min(max(RADIUS_FOV_FRACTION * fov, min(dense, 0.5 * fov)), MAX_DEFAULT_RADIUS_DEG)
 
 
 class Sensor(NamedTuple):
@@ -360,3 +369,67 @@ def rows_to_hip(rows, hip):
         if rows[i] >= 0:
             out[i] = hip[rows[i]]
     return out
+
+
+# ---- Python helpers shared by the three plugin classes ----
+
+def check_common(alg) -> None:
+    """Checks of the parameters the three log-polar / grid plugins share."""
+    check_number("mag_limit", alg.mag_limit)
+    if alg.radius_deg is not None:
+        check_number("radius_deg", alg.radius_deg, lo=0, hi=60, lo_open=True)
+    if alg.sigma_px is not None:
+        check_number("sigma_px", alg.sigma_px, lo=0)
+    check_number("double_px", alg.double_px, lo=0)
+    check_number("beta", alg.beta, lo=0, lo_open=True)
+    check_whole("max_refs", alg.max_refs, 1)
+    check_whole("n_candidates", alg.n_candidates, 1)
+    check_whole("min_matches", alg.min_matches, 3)
+    check_number("confirm_fraction", alg.confirm_fraction, lo=0, hi=1)
+
+
+def radius_for(alg, catalog: Catalog, camera: Camera) -> float:
+    """R in degrees: the parameter, or the default of :func:`planar.default_radius_deg`."""
+    if alg.radius_deg is not None:
+        return float(alg.radius_deg)
+    return default_radius_deg(camera, int(np.count_nonzero(catalog.v_mag <= alg.mag_limit)))
+
+
+def explain_pattern(observation: Observation, rows: np.ndarray, guide_hip: np.ndarray, ref: int, align: int,
+                    radius_px: float, double_px: float, rays: np.ndarray, caption: str) -> Explanation:
+    """Explanation of a reference-star pattern on the image.
+
+    Segments: the reference star to each usable neighbour within R (the one to the alignment
+    star highlighted), then rays from the reference star at the given angles (radians from the
+    direction of the alignment star, counter-clockwise in the tangent plane, which is clockwise
+    on screen with y down: the same sense as ``atan2(dy, dx)`` in pixels) of length ``radius_px``.
+    Points: the reference star, its alignment star and every identified star, labelled.
+    """
+    x, y = observation.x_px, observation.y_px
+    sensor = sensor_of(observation.camera)
+    segments, labels, points = [], [], []
+    highlight = []
+    if ref >= 0:
+        unit, usable, _ = prepare_image(x, y, sensor, double_px)
+        nbrs = np.empty(len(x), dtype=np.int64)
+        k = image_neighbours(unit, usable, x, y, ref, math.cos(radius_px / sensor.f_px), nbrs)
+        for j in nbrs[:k]:
+            if j == align:
+                highlight.append(len(segments))
+            segments.append([[x[ref], y[ref]], [x[j], y[j]]])
+        base = math.atan2(y[align] - y[ref], x[align] - x[ref]) if align >= 0 else 0.0
+        for a in rays:
+            segments.append([[x[ref], y[ref]], [x[ref] + radius_px * math.cos(base + a),
+                                                y[ref] + radius_px * math.sin(base + a)]])
+        points.append([x[ref], y[ref]])
+        labels.append(f"reference{'' if rows[ref] < 0 else ' HIP ' + str(int(guide_hip[rows[ref]]))}")
+        if align >= 0:
+            points.append([x[align], y[align]])
+            labels.append(f"alignment{'' if rows[align] < 0 else ' HIP ' + str(int(guide_hip[rows[align]]))}")
+    for i in np.flatnonzero(rows >= 0):
+        if i not in (ref, align):
+            points.append([x[i], y[i]])
+            labels.append(f"HIP {int(guide_hip[rows[i]])}")
+    return Explanation(segments=np.asarray(segments, dtype=np.float64).reshape(-1, 2, 2),
+                       points=np.asarray(points, dtype=np.float64).reshape(-1, 2), labels=tuple(labels),
+                       caption=caption, highlight=np.asarray(highlight, dtype=np.int64))

@@ -22,7 +22,7 @@ def db(catalog, camera):
 
 
 def test_database_layout(db, camera):
-    assert db.radius_deg == pytest.approx(0.3 * camera.fov_x_deg)
+    assert 3.9 < db.radius_deg < 4.0       # 6 guide stars (V <= 6) within R on average; 0.3 x FOV = 3 deg is less
     assert db.feature.dtype == np.uint8 and db.feature.shape[1] == 100
     nz = (db.feature > 0).sum(axis=1)
     assert np.all(np.diff(nz) >= 0)                                  # rows sorted by non-zero count
