@@ -79,8 +79,11 @@ class ImprovedLPT(Algorithm):
        of the farthest neighbour (largest r) in interval i, r the plane distance in px; 0 when
        the interval is empty. Paper, with ``log_scale`` = 1 (the paper's plain ln);
     5. Search (eqs. 9-10): the sum of absolute differences to every database row whose count of
-       non-zero entries lies within ``count_tol`` (epsilon1 = epsilon2 = 1) of the image's;
-       the smallest wins. Paper. starid evaluates the same sum over the image's non-zero entries
+       non-zero entries L_c lies in [L_s - ``count_tol``, L_s + ``count_tol_above``]; the
+       smallest wins. Paper, with epsilon1 = 1; the paper's epsilon2 = 1 is
+       ``count_tol_above=None`` (= ``count_tol``). starid's default epsilon2 = 3 (reconstruction):
+       guide stars lost to magnitude noise or the image edge leave the image with fewer
+       non-zero entries than its database row far more often than with more. starid evaluates the same sum over the image's non-zero entries
        only (an exact identity, see :func:`kernels.sad_search`).
     6. Reference stars near the image centre first (paper), at most ``max_refs``.
 
@@ -111,6 +114,7 @@ class ImprovedLPT(Algorithm):
     n_sectors: int = 100
     log_scale: float = 1.0
     count_tol: int = 1
+    count_tol_above: int | None = 3
     max_refs: int = 10
     image_alignments: int = 2
     db_alignments: int = 1
@@ -125,6 +129,8 @@ class ImprovedLPT(Algorithm):
         check_whole("n_sectors", self.n_sectors, 4, 4096)
         check_number("log_scale", self.log_scale, lo=0, hi=1000, lo_open=True)
         check_whole("count_tol", self.count_tol, 0)
+        if self.count_tol_above is not None:
+            check_whole("count_tol_above", self.count_tol_above, 0)
         check_whole("image_alignments", self.image_alignments, 1)
         check_whole("db_alignments", self.db_alignments, 1)
 
@@ -149,6 +155,7 @@ class ImprovedLPT(Algorithm):
 
     def _search(self, db: ImprovedLPTDatabase) -> Search:
         return Search(self.n_sectors, float(self.log_scale), math.cos(math.radians(db.radius_deg)), self.count_tol,
+                      self.count_tol if self.count_tol_above is None else self.count_tol_above,
                       self.max_refs, self.image_alignments, self.n_candidates, float(db.double_px))
 
     def _run(self, db: ImprovedLPTDatabase, observation: Observation):

@@ -34,6 +34,7 @@ class Search(NamedTuple):
     log_scale: float
     cos_radius: float
     count_tol: int
+    count_tol_above: int
     max_refs: int
     image_alignments: int
     n_candidates: int
@@ -111,18 +112,19 @@ def build_features(unit, nbr, nbr_off, f_px, n_sectors, log_scale, db_alignments
 
 
 @njit(cache=True)
-def sad_search(table, vec, nz_idx, nz, count_tol, n_best, best_row, best_sad):
+def sad_search(table, vec, nz_idx, nz, count_tol, n_best, best_row, best_sad, count_tol_above=-1):
     """The ``n_best`` rows of smallest sum of absolute differences to ``vec`` (Luo et al. eq. 9).
 
-    Only rows whose number of non-zero entries ``L_c`` satisfies ``|L_c - L_s| <= count_tol``
-    are compared (their eq. 10, epsilon1 = epsilon2 = ``count_tol``). The sum is evaluated on the
+    Only rows whose number of non-zero entries ``L_c`` satisfies
+    ``L_s - count_tol <= L_c <= L_s + count_tol_above`` are compared (their eq. 10, epsilon1 =
+    ``count_tol``, epsilon2 = ``count_tol_above``, which defaults to ``count_tol``). The sum is evaluated on the
     image's ``nz`` non-zero entries ``nz_idx`` only, by the exact identity
     ``sum_i |a_i - c_i| = sum_i c_i + sum_{a_i != 0} (|a_i - c_i| - c_i)``. Writes the best rows
     (ascending difference, ties by row) to ``best_row``/``best_sad`` and returns how many.
     """
     m = table.feature.shape[1]
     lo = max(nz - count_tol, 0)
-    hi = min(nz + count_tol, m)
+    hi = min(nz + (count_tol if count_tol_above < 0 else count_tol_above), m)
     found = 0
     for r in range(table.count_start[lo], table.count_start[hi + 1]):
         s = int(table.total[r])
@@ -187,7 +189,8 @@ def identify_kernel(x_px, y_px, sensor, table, guides_unit, search, acc, trace):
                 if vec[i] != 0:
                     nz_idx[q] = i
                     q += 1
-            found = sad_search(table, vec, nz_idx, nz, search.count_tol, search.n_candidates, best_row, best_sad)
+            found = sad_search(table, vec, nz_idx, nz, search.count_tol, search.n_candidates, best_row, best_sad,
+                               search.count_tol_above)
             for c in range(found):
                 r = best_row[c]
                 seed[s] = table.guide[r]

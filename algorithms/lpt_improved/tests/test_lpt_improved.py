@@ -75,7 +75,8 @@ def test_feature_vector_matches_numpy_oracle():
         assert nz == np.count_nonzero(expect)
 
 
-def test_sad_search_matches_brute_force():
+@pytest.mark.parametrize("above", [1, 3])
+def test_sad_search_matches_brute_force(above):
     rng = np.random.default_rng(5)
     m = 100
     feat = np.zeros((400, m), dtype=np.uint8)
@@ -93,9 +94,9 @@ def test_sad_search_matches_brute_force():
         vec[rng.integers(m)] = rng.integers(0, 7)
         idx = np.flatnonzero(vec)
         best_row, best_sad = np.empty(3, dtype=np.int64), np.empty(3, dtype=np.int64)
-        found = sad_search(table, vec, idx, idx.size, 1, 3, best_row, best_sad)
+        found = sad_search(table, vec, idx, idx.size, 1, 3, best_row, best_sad, above)
         sad = np.abs(feat.astype(np.int64) - vec).sum(axis=1)
-        ok = np.abs(nz - idx.size) <= 1
+        ok = (nz >= idx.size - 1) & (nz <= idx.size + above)
         expect = np.lexsort((np.arange(400), sad))
         expect = expect[ok[expect]][:3]
         assert found == min(3, ok.sum())
