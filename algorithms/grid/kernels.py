@@ -1,0 +1,248 @@
+"""numba kernels of the grid algorithm (Padgett & Kreutz-Delgado 1997) and its modified-grid options.
+
+Geometry shared with the log-polar plugins (tangent plane, image preparation, acceptance by
+reprojection) comes from :mod:`starid_algorithms.lpt_improved.planar`.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+from starid.kernels import wahba_rows
+
+from ..lpt_improved.planar import confirm, image_neighbours, plane_polar, prepare_image
+
+
+class GridSpec(NamedTuple):
+    """Pattern and search parameters as a kernel bundle."""
+
+    g: int                 # cells per side
+    half_px: float         # half side of the pattern square (px in the tangent plane)
+    buffer_px: float       # orientation star: nearest neighbour at least this far (px)
+    cos_radius: float      # neighbours considered: within this angle (covers the square's corners)
+    soft_edge: float       # credit of an image star one cell away (edge-adjacent); 0 = Padgett
+    soft_diag: float       # credit of an image star diagonally adjacent
+    normalise: bool        # score / sqrt(n_image n_pattern) instead of the matched count
+    min_score: float       # least (unnormalised) matched cells to be a candidate
+    max_refs: int
+    image_orientations: int
+    n_candidates: int
+    double_px: float
+
+
+class GridTable(NamedTuple):
+    """Database patterns as a kernel bundle: cells of pattern p are ``cells[start[p]:start[p+1]]``."""
+
+    cells: np.ndarray      # uint16 sorted cell indices (row * g + col)
+    start: np.ndarray      # int64 (k + 1,)
+    guide: np.ndarray      # guide row of each pattern's reference star
+    orient: np.ndarray     # guide row of its orientation star
+
+
+@njit(cache=True)
+def orientation_candidates(r_px, n, buffer_px, half_px, out):
+    """Indices (into the nearest-first neighbour list) of neighbours ``buffer_px`` to ``half_px`` away."""
+    k = 0
+    for i in range(n):
+        if buffer_px <= r_px[i] < half_px:
+            out[k] = i
+            k += 1
+    return k
+
+
+@njit(cache=True)
+def grid_cells(r_px, phi, n, o, spec, out):
+    """Occupied cells of the pattern oriented on neighbour ``o`` (Padgett's grid).
+
+    The pattern plane is rotated so that the orientation star lies on +x; a ``g`` x ``g`` grid
+    covers ``[-half, half]^2``; every neighbour inside sets its cell. Writes the sorted distinct
+    cells to ``out`` and returns how many.
+    """
+    w = 2.0 * spec.half_px / spec.g
+    k = 0
+    for i in range(n):
+        a = phi[i] - phi[o]
+        x = r_px[i] * math.cos(a)
+        y = r_px[i] * math.sin(a)
+        if abs(x) >= spec.half_px or abs(y) >= spec.half_px:
+            continue
+        col = min(int((x + spec.half_px) / w), spec.g - 1)
+        row = min(int((y + spec.half_px) / w), spec.g - 1)
+        out[k] = row * spec.g + col
+        k += 1
+    if k > 1:
+        out[:k] = np.sort(out[:k])
+    m = 0
+    for i in range(k):
+        if m == 0 or out[i] != out[m - 1]:
+            out[m] = out[i]
+            m += 1
+    return m
+
+
+@njit(cache=True)
+def build_patterns(unit, nbr, nbr_off, f_px, spec, db_orientations):
+    """Grid patterns of every guide star, one per orientation choice (``db_orientations``; Padgett: 1).
+
+    Returns ``(cells, start, guide, orient)`` (see :class:`GridTable`).
+    """
+    n_guide = unit.shape[0]
+    longest = 1
+    for g in range(n_guide):
+        longest = max(longest, nbr_off[g + 1] - nbr_off[g])
+    r_px = np.empty(longest)
+    phi = np.empty(longest)
+    cand = np.empty(longest, dtype=np.int64)
+    buf = np.empty(longest, dtype=np.int64)
+    cap = 16 * n_guide + 16
+    cells = np.empty(cap, dtype=np.int64)
+    start = [0]
+    guide = []
+    orient = []
+    total = 0
+    for g in range(n_guide):
+        s0 = nbr_off[g]
+        n = nbr_off[g + 1] - s0
+        if n == 0:
+            continue
+        plane_polar(unit, g, nbr[s0:], n, f_px, r_px, phi)
+        n_or = orientation_candidates(r_px, n, spec.buffer_px, spec.half_px, cand)
+        for a in range(min(db_orientations, n_or)):
+            k = grid_cells(r_px, phi, n, cand[a], spec, buf)
+            while total + k > cap:
+                cap *= 2
+                bigger = np.empty(cap, dtype=np.int64)
+                bigger[:total] = cells[:total]
+                cells = bigger
+            cells[total:total + k] = buf[:k]
+            total += k
+            start.append(total)
+            guide.append(g)
+            orient.append(nbr[s0 + cand[a]])
+    return cells[:total].copy(), np.array(start), np.array(guide), np.array(orient)
+
+
+@njit(cache=True)
+def _mark(weight, touched, nt, cell, value):
+    if weight[cell] == 0.0:
+        touched[nt] = cell
+        nt += 1
+    if value > weight[cell]:
+        weight[cell] = value
+    return nt
+
+
+@njit(cache=True)
+def image_weights(cells, nc, spec, weight, touched):
+    """Credit of every grid cell for one image pattern (modified grid: soft neighbour credit).
+
+    An image star's own cell gets 1; with ``soft_edge``/``soft_diag`` > 0 its 4 edge-adjacent
+    and 4 diagonal cells get that credit (the largest credit wins). Returns the touched cells'
+    count (``touched`` lists them, for a cheap reset).
+    """
+    g = spec.g
+    nt = 0
+    for i in range(nc):
+        c = cells[i]
+        row = c // g
+        col = c % g
+        nt = _mark(weight, touched, nt, c, 1.0)
+        for dr in range(-1, 2):
+            for dc in range(-1, 2):
+                if dr == 0 and dc == 0:
+                    continue
+                v = spec.soft_diag if (dr != 0 and dc != 0) else spec.soft_edge
+                if v <= 0.0:
+                    continue
+                r2 = row + dr
+                c2 = col + dc
+                if 0 <= r2 < g and 0 <= c2 < g:
+                    nt = _mark(weight, touched, nt, r2 * g + c2, v)
+    return nt
+
+
+@njit(cache=True)
+def identify_kernel(x_px, y_px, sensor, table, guides_unit, spec, acc, trace):
+    """Grid identification of one image; returns ``(rows, attitude, accepted)``.
+
+    For reference stars from the image centre outwards (at most ``max_refs``) and each of its
+    ``image_orientations`` nearest neighbours beyond the buffer as orientation star: the image
+    pattern's cell credits; every database pattern is scored by the credit of its cells (the
+    bitwise AND of Padgett's binary grids when there is no soft credit), the whole database
+    as in the paper; the ``n_candidates`` best with at least ``min_score`` seed an attitude
+    (reference and orientation star to their guide stars, Wahba) that :func:`confirm` must
+    accept. ``trace`` (int64, 4): reference star, orientation star, pattern, 1000 x score.
+    """
+    n = x_px.shape[0]
+    rows = np.full(n, -1, dtype=np.int64)
+    for t in range(4):
+        trace[t] = -1
+    attitude = np.eye(3)
+    if n < 3:
+        return rows, attitude, False
+    unit, usable, order = prepare_image(x_px, y_px, sensor, spec.double_px)
+    nbrs = np.empty(n, dtype=np.int64)
+    r_px = np.empty(n)
+    phi = np.empty(n)
+    cand = np.empty(n, dtype=np.int64)
+    cells = np.empty(n, dtype=np.int64)
+    weight = np.zeros(spec.g * spec.g)
+    touched = np.empty(spec.g * spec.g, dtype=np.int64)
+    n_pat = table.guide.shape[0]
+    n_best = spec.n_candidates
+    best_p = np.empty(n_best, dtype=np.int64)
+    best_sc = np.empty(n_best)
+    seed = np.full(n, -1, dtype=np.int64)
+    for t in range(min(spec.max_refs, order.shape[0])):
+        s = order[t]
+        k = image_neighbours(unit, usable, x_px, y_px, s, spec.cos_radius, nbrs)
+        if k < 1:
+            continue
+        plane_polar(unit, s, nbrs, k, sensor.f_px, r_px, phi)
+        n_or = orientation_candidates(r_px, k, spec.buffer_px, spec.half_px, cand)
+        for a in range(min(spec.image_orientations, n_or)):
+            o = cand[a]
+            nc = grid_cells(r_px, phi, k, o, spec, cells)
+            nt = image_weights(cells, nc, spec, weight, touched)
+            found = 0
+            for p in range(n_pat):
+                raw = 0.0
+                for q in range(table.start[p], table.start[p + 1]):
+                    raw += weight[table.cells[q]]
+                if raw < spec.min_score:
+                    continue
+                sc = raw / math.sqrt(nc * (table.start[p + 1] - table.start[p])) if spec.normalise else raw
+                if found == n_best and sc <= best_sc[found - 1]:
+                    continue
+                i = found if found < n_best else n_best - 1
+                while i > 0 and best_sc[i - 1] < sc:
+                    best_sc[i] = best_sc[i - 1]
+                    best_p[i] = best_p[i - 1]
+                    i -= 1
+                best_sc[i] = sc
+                best_p[i] = p
+                if found < n_best:
+                    found += 1
+            for i in range(nt):
+                weight[touched[i]] = 0.0
+            for c in range(found):
+                p = best_p[c]
+                seed[s] = table.guide[p]
+                seed[nbrs[o]] = table.orient[p]
+                A = wahba_rows(unit, seed, guides_unit)
+                seed[s] = -1
+                seed[nbrs[o]] = -1
+                ok, A = confirm(unit, rows, A, guides_unit, sensor, acc)
+                if ok:
+                    trace[0] = s
+                    trace[1] = nbrs[o]
+                    trace[2] = p
+                    trace[3] = int(1000 * best_sc[c])
+                    return rows, A, True
+    for i in range(n):
+        rows[i] = -1
+    return rows, attitude, False

@@ -1,0 +1,168 @@
+"""Log-polar-transform star identification with circular string matching (Wei, Zhang & Jiang 2009)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+
+from starid.camera import Camera
+from starid.catalog import Catalog
+from starid.observation import Observation
+from starid.params import check_whole
+from starid.plugin import Algorithm, Database, Explanation, Identification
+
+from ..lpt_improved.planar import (acceptance, check_common, effective_double_px, explain_pattern, image_neighbours,
+                                   neighbour_lists, plane_polar, prepare_image, radius_for, rows_to_hip,
+                                   select_guides, sensor_of)
+from .kernels import StringSearch, build_strings, identify_kernel, lpt_string
+
+
+@dataclass(frozen=True, eq=False)
+class LPTDatabase(Database):
+    """One LPT string per guide star.
+
+    strings : uint8 (g, m) character k = log-radius row (1..n_levels) of the nearest neighbour
+        in angle sector k of the reference star's log-polar plane, 0 = empty; row = guide row.
+    guide_unit : float32 (g, 3) ICRS unit vectors of the guide stars, sorted by z.
+    guide_hip : int64 (g,) their catalog ids.
+    radius_deg, f_px, double_px, r_min_px : the geometry the strings were built with.
+    """
+
+    strings: np.ndarray
+    guide_unit: np.ndarray
+    guide_hip: np.ndarray
+    radius_deg: float
+    f_px: float
+    double_px: float
+    r_min_px: float
+
+
+@dataclass(frozen=True)
+class LPT(Algorithm):
+    """Log-polar transform (Wei, Zhang & Jiang, JACIC 2009): LPT strings matched under every circular shift.
+
+    Wei X., Zhang G., Jiang J., "Star identification algorithm based on log-polar transform",
+    Journal of Aerospace Computing, Information, and Communication 6(8):483-490 (2009),
+    doi:10.2514/1.30393. Only the abstract and Luo et al.'s (2015) description of it were at
+    hand: the method below is a reconstruction, every choice a parameter
+    (``docs/algorithms/lpt.md``).
+
+    1. Guide stars V <= ``mag_limit``, pairs closer than ``double_px`` dropped (as in
+       ``lpt_improved``, for a like-for-like comparison).
+    2. For a reference star, its neighbours within R (``radius_deg``; default as in
+       ``lpt_improved``: 6 deg at 20 deg, 4 deg on the 10 deg Table 4 camera) in the plane
+       tangent at it (algorithm notes 1.4), in polar coordinates (r, phi) and log-polar
+       coordinates (ln r, phi) (paper: the LPT of the star image around the reference star; a
+       sensor rotation becomes a circular shift along phi).
+    3. String (paper: the LPT result coded as a string, one byte per character, Luo et al.:
+       "row numbers" of the LPT image, 0.65 MB for 6685 stars, i.e. ~100 characters):
+       ``n_sectors`` = 100 angle sectors; character k = the ln r row (1..``n_levels``, rows
+       equal in ln r over [ln ``r_min_px``, ln R]) of the nearest neighbour in sector k, 0 if
+       none. Number of rows and the nearest-star rule: reconstructed.
+    4. Matching (paper: a modified KMP string match under circular shifts against the whole
+       database): the score of a guide star is the largest, over the m circular shifts, number
+       of image characters matched by a non-zero database character within ``level_tol`` rows
+       and ``sector_tol`` sectors (tolerant matching is not an equality, so KMP cannot be used
+       as such; all shifts are scored at once by voting, which gives exactly the brute-force
+       circular comparison's scores). Among equal scores the database string with fewer
+       unmatched characters ranks first (a sparse pattern otherwise ties with every string
+       that contains it). Reconstructed.
+    5. The ``n_candidates`` best guide stars with at least ``min_score`` matched characters
+       seed an attitude (the reference star and the roll the shift gives, refined by the
+       matched characters) that must be confirmed by reprojection exactly as in
+       ``lpt_improved`` (``min_matches``, ``confirm_fraction``, ``beta``, ``sigma_px`` with a
+       1 px floor, following the simulator). Reference stars from the image centre outwards,
+       at most ``max_refs``. starid's verification, not the paper's.
+    """
+
+    name: ClassVar[str] = "lpt"
+    follows: ClassVar[dict] = {"sigma_px": "sigma_px"}
+
+    mag_limit: float = 6.0
+    radius_deg: float | None = None
+    double_px: float = 20.0
+    n_sectors: int = 100
+    n_levels: int = 16
+    level_tol: int = 1
+    sector_tol: int = 1
+    min_score: int = 2
+    max_refs: int = 10
+    n_candidates: int = 3
+    sigma_px: float | None = None
+    beta: float = 3.0
+    min_matches: int = 4
+    confirm_fraction: float = 0.5
+
+    def __post_init__(self):
+        check_common(self)
+        check_whole("n_sectors", self.n_sectors, 4, 1024)
+        check_whole("n_levels", self.n_levels, 1, 255)
+        check_whole("level_tol", self.level_tol, 0)
+        check_whole("sector_tol", self.sector_tol, 0, self.n_sectors // 4)
+        check_whole("min_score", self.min_score, 1)
+
+    def _search(self, db: LPTDatabase) -> StringSearch:
+        r_max_px = db.f_px * math.tan(math.radians(db.radius_deg))
+        return StringSearch(self.n_sectors, self.n_levels, math.log(db.r_min_px), math.log(r_max_px),
+                            math.cos(math.radians(db.radius_deg)), self.level_tol, self.sector_tol, self.min_score,
+                            self.max_refs, self.n_candidates, float(db.double_px))
+
+    def build(self, catalog: Catalog, camera: Camera) -> LPTDatabase:
+        radius = radius_for(self, catalog, camera)
+        double_px = effective_double_px(self.double_px, radius, camera)
+        guides = select_guides(catalog, self.mag_limit, double_px, camera, self.name)
+        nbr, off = neighbour_lists(guides.unit, math.radians(radius))
+        db = LPTDatabase(np.zeros((0, self.n_sectors), dtype=np.uint8), guides.unit, guides.hip, radius,
+                         float(camera.f_px), double_px, max(double_px, 1.0))
+        strings = build_strings(guides.unit.astype(np.float64), nbr, off, float(camera.f_px), self._search(db))
+        return LPTDatabase(strings, guides.unit, guides.hip, radius, float(camera.f_px), double_px, db.r_min_px)
+
+    def _run(self, db: LPTDatabase, observation: Observation):
+        cam = observation.camera
+        search = self._search(db)
+        eps0_extra = math.pi / self.n_sectors * (1 + self.sector_tol) * math.tan(math.radians(db.radius_deg))
+        acc = acceptance(cam, self.sigma_px, self.beta, self.min_matches, self.confirm_fraction, eps0_extra)
+        trace = np.full(4, -1, dtype=np.int64)
+        rows, attitude, ok = identify_kernel(observation.x_px, observation.y_px, sensor_of(cam), db.strings,
+                                             db.guide_unit, search, acc, trace)
+        return rows, attitude, ok, trace
+
+    def identify(self, database: LPTDatabase, observation: Observation) -> Identification:
+        rows, attitude, ok, _ = self._run(database, observation)
+        return Identification(rows_to_hip(rows, database.guide_hip), attitude if ok else None)
+
+    def explain(self, database: LPTDatabase, observation: Observation) -> Explanation:
+        """The reference star, its neighbours within R and the boundaries of its occupied sectors."""
+        rows, _, ok, trace = self._run(database, observation)
+        x, y = observation.x_px, observation.y_px
+        sensor = sensor_of(observation.camera)
+        unit, usable, order = prepare_image(x, y, sensor, database.double_px)
+        cos_r = math.cos(math.radians(database.radius_deg))
+        nbrs = np.empty(len(x), dtype=np.int64)
+        ref, k = -1, 0
+        for s in ([int(trace[0])] if trace[0] >= 0 else [int(v) for v in order]):
+            k = image_neighbours(unit, usable, x, y, s, cos_r, nbrs)
+            if k:
+                ref = s
+                break
+        rays = np.zeros(0)
+        align = -1
+        if ref >= 0:
+            align = int(nbrs[0])   # drawn as the angle origin only: LPT needs no alignment star
+            r_px, phi = np.empty(k), np.empty(k)
+            plane_polar(unit, ref, nbrs, k, database.f_px, r_px, phi)
+            chars, owner = np.zeros(self.n_sectors, dtype=np.int64), np.zeros(self.n_sectors, dtype=np.int64)
+            lpt_string(r_px, phi, k, self._search(database), chars, owner)
+            width = 2 * math.pi / self.n_sectors
+            occupied = np.flatnonzero(chars)
+            rays = np.unique(np.concatenate([occupied * width, (occupied + 1) * width])) - phi[0]
+        radius_px = observation.camera.f_px * math.tan(math.radians(database.radius_deg))
+        caption = (f"LPT: reference star matched {int(trace[3])} string characters under the best circular shift; "
+                   f"{int((rows >= 0).sum())} stars confirmed by reprojection. Rays bound the occupied "
+                   f"{360 / self.n_sectors:g} deg sectors." if ok else
+                   "LPT: no match was confirmed; the first reference star's sectors are shown.")
+        return explain_pattern(observation, rows, database.guide_hip, ref, align, radius_px, database.double_px,
+                               rays, caption)

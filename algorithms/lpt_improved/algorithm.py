@@ -1,0 +1,209 @@
+"""Improved log-polar star identification (Luo, Xu, Zhang & Sun 2015)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+
+from starid.camera import Camera
+from starid.catalog import Catalog
+from starid.observation import Observation
+from starid.params import check_number, check_whole
+from starid.plugin import Algorithm, Database, Explanation, Identification
+
+from .kernels import FeatureTable, Search, build_features, feature_vector, identify_kernel
+from .planar import (acceptance, check_common, effective_double_px, explain_pattern, image_neighbours, neighbour_lists,
+                     plane_polar, prepare_image, radius_for, rows_to_hip, select_guides, sensor_of)
+
+
+@dataclass(frozen=True, eq=False)
+class ImprovedLPTDatabase(Database):
+    """The feature database (Luo et al., their eq. 11: one record per navigation star).
+
+    feature : uint8 (k, m) feature vectors, rows sorted by their number of non-zero entries.
+    total : int32 (k,) sum of each row (for the sparse difference).
+    count_start : int32 (m + 2,) first row with 0, 1, ..., m + 1 non-zero entries.
+    guide, align : int16/int32 (k,) guide rows of each row's reference and alignment star.
+    guide_unit : float32 (g, 3) ICRS unit vectors of the guide stars, sorted by z.
+    guide_hip : int64 (g,) their catalog ids.
+    radius_deg : the neighbourhood radius R; f_px : focal length (px) the plane distances use;
+    double_px : the double-star separation applied (``double_px``, at most R / 10).
+    """
+
+    feature: np.ndarray
+    total: np.ndarray
+    count_start: np.ndarray
+    guide: np.ndarray
+    align: np.ndarray
+    guide_unit: np.ndarray
+    guide_hip: np.ndarray
+    radius_deg: float
+    f_px: float
+    double_px: float
+
+    @property
+    def table(self) -> FeatureTable:
+        return FeatureTable(self.feature, self.total, self.count_start, self.guide, self.align)
+
+
+def _row_dtype(n: int):
+    return np.int16 if n <= np.iinfo(np.int16).max else np.int32
+
+
+@dataclass(frozen=True)
+class ImprovedLPT(Algorithm):
+    """Improved log-polar (Luo et al., Chin. Phys. B 2015): alignment star, log plane distance per angle sector, no shift.
+
+    Luo L.-Y., Xu L.-P., Zhang H., Sun J.-R., "Improved autonomous star identification
+    algorithm", Chinese Physics B 24(6), 064202 (2015). Equation numbers below follow the order
+    of the paper's section 3 (eq. 3 rotation onto the alignment star, eq. 7 alignment star,
+    eq. 8 feature entry, eq. 9 similarity, eq. 10 search window, eq. 11 database record).
+
+    Method, as implemented (``docs/algorithms/lpt_improved.md`` has the details and numbers):
+
+    1. Guide (navigation) stars: V <= ``mag_limit``; stars closer than ``double_px`` to another
+       are binaries and dropped (paper: 20 px = 0.39 deg, 6.5 mag). Paper; starid caps the
+       separation at R / 10 so that very wide cameras keep guide stars.
+    2. Every pattern is built in the plane tangent at its reference star, in pixels
+       (``f tan(angle)``), the same way for catalog and image vectors. Reconstruction: the paper
+       works on raw image coordinates; the tangent plane makes database and image agree exactly
+       (algorithm notes 1.4).
+    3. Neighbours: stars within ``radius_deg`` R of the reference star (paper: 6 deg; default
+       0.3 x the smaller field of view, at most 20 deg: 6 deg at 20 deg, 3 deg on the 10 deg
+       Table 4 camera). The nearest is the alignment star (eq. 7), and angles are measured
+       counter-clockwise from it (eq. 3). Paper.
+    4. Feature (eq. 8): ``n_sectors`` m = 100 angle intervals; entry i = ceil(``log_scale`` ln r)
+       of the farthest neighbour (largest r) in interval i, r the plane distance in px; 0 when
+       the interval is empty. Paper, with ``log_scale`` = 1 (the paper's plain ln);
+    5. Search (eqs. 9-10): the sum of absolute differences to every database row whose count of
+       non-zero entries L_c lies in [L_s - ``count_tol``, L_s + ``count_tol_above``]; the
+       smallest wins. Paper, with epsilon1 = 1; the paper's epsilon2 = 1 is
+       ``count_tol_above=None`` (= ``count_tol``). starid's default epsilon2 = 3 (reconstruction):
+       guide stars lost to magnitude noise or the image edge leave the image with fewer
+       non-zero entries than its database row far more often than with more. starid evaluates the same sum over the image's non-zero entries
+       only (an exact identity, see :func:`kernels.sad_search`).
+    6. Reference stars near the image centre first (paper), at most ``max_refs``.
+
+    starid's additions (reconstructions; the paper stops at step 5 and, with a single
+    reference star, cannot reject a wrong best match):
+
+    * the ``n_candidates`` best rows, not only the best, are tried, and each is accepted only
+      when the attitude it implies (reference and alignment star, Wahba) is confirmed by
+      reprojection: at least ``min_matches`` observed stars, and ``confirm_fraction`` of the
+      guide stars it puts on the sensor, found within ``beta`` sqrt(2) sigma, sigma =
+      max(``sigma_px``, 1 px) (the 1 px floor gives a noise-free world a window); otherwise
+      the next candidate, alignment star or reference star is tried. Random fields give no
+      result;
+    * ``image_alignments`` (default 2): the k-th nearest image neighbour is also tried as the
+      alignment star (nearer ones left out of the pattern), which survives a false or
+      non-guide star nearer than the true alignment star; 1 is the paper;
+    * ``db_alignments`` (default 1 = paper): database rows for the k nearest catalog neighbours
+      as alignment stars, against a missing alignment star (k times the memory);
+    * ``sigma_px`` follows the simulator's centroid noise (``None`` = follow).
+    """
+
+    name: ClassVar[str] = "lpt_improved"
+    follows: ClassVar[dict] = {"sigma_px": "sigma_px"}
+
+    mag_limit: float = 6.0
+    radius_deg: float | None = None
+    double_px: float = 20.0
+    n_sectors: int = 100
+    log_scale: float = 1.0
+    count_tol: int = 1
+    count_tol_above: int | None = 3
+    max_refs: int = 10
+    image_alignments: int = 2
+    db_alignments: int = 1
+    n_candidates: int = 3
+    sigma_px: float | None = None
+    beta: float = 3.0
+    min_matches: int = 4
+    confirm_fraction: float = 0.5
+
+    def __post_init__(self):
+        check_common(self)
+        check_whole("n_sectors", self.n_sectors, 4, 4096)
+        check_number("log_scale", self.log_scale, lo=0, hi=1000, lo_open=True)
+        check_whole("count_tol", self.count_tol, 0)
+        if self.count_tol_above is not None:
+            check_whole("count_tol_above", self.count_tol_above, 0)
+        check_whole("image_alignments", self.image_alignments, 1)
+        check_whole("db_alignments", self.db_alignments, 1)
+
+    def build(self, catalog: Catalog, camera: Camera) -> ImprovedLPTDatabase:
+        radius = radius_for(self, catalog, camera)
+        double_px = effective_double_px(self.double_px, radius, camera)
+        guides = select_guides(catalog, self.mag_limit, double_px, camera, self.name)
+        nbr, off = neighbour_lists(guides.unit, math.radians(radius))
+        max_value = 255 if self.log_scale * math.log(camera.f_px * math.tan(math.radians(radius))) < 255 else 65535
+        feature, count, guide, align = build_features(guides.unit.astype(np.float64), nbr, off, float(camera.f_px),
+                                                      self.n_sectors, float(self.log_scale),
+                                                      self.db_alignments, max_value)
+        order = np.argsort(count, kind="stable")
+        feature, count, guide, align = feature[order], count[order], guide[order], align[order]
+        count_start = np.searchsorted(count, np.arange(self.n_sectors + 2)).astype(np.int32)
+        rd = _row_dtype(len(guides.hip))
+        return ImprovedLPTDatabase(
+            feature=np.ascontiguousarray(feature, dtype=np.uint8 if max_value == 255 else np.uint16),
+            total=feature.sum(axis=1).astype(np.int32), count_start=count_start, guide=guide.astype(rd),
+            align=align.astype(rd), guide_unit=guides.unit, guide_hip=guides.hip, radius_deg=radius,
+            f_px=float(camera.f_px), double_px=double_px)
+
+    def _search(self, db: ImprovedLPTDatabase) -> Search:
+        return Search(self.n_sectors, float(self.log_scale), math.cos(math.radians(db.radius_deg)), self.count_tol,
+                      self.count_tol if self.count_tol_above is None else self.count_tol_above,
+                      self.max_refs, self.image_alignments, self.n_candidates, float(db.double_px))
+
+    def _run(self, db: ImprovedLPTDatabase, observation: Observation):
+        cam = observation.camera
+        sensor = sensor_of(cam)._replace(f_px=float(cam.f_px))
+        acc = acceptance(cam, self.sigma_px, self.beta, self.min_matches, self.confirm_fraction)
+        trace = np.full(4, -1, dtype=np.int64)
+        rows, attitude, ok = identify_kernel(observation.x_px, observation.y_px, sensor, db.table, db.guide_unit,
+                                             self._search(db), acc, trace)
+        return rows, attitude, ok, trace
+
+    def identify(self, database: ImprovedLPTDatabase, observation: Observation) -> Identification:
+        rows, attitude, ok, _ = self._run(database, observation)
+        return Identification(rows_to_hip(rows, database.guide_hip), attitude if ok else None)
+
+    def explain(self, database: ImprovedLPTDatabase, observation: Observation) -> Explanation:
+        """The accepted reference star, its alignment star, its neighbours within R and its non-empty sectors."""
+        rows, _, ok, trace = self._run(database, observation)
+        ref, align = int(trace[0]), int(trace[1])
+        x, y = observation.x_px, observation.y_px
+        sensor = sensor_of(observation.camera)
+        unit, usable, order = prepare_image(x, y, sensor, database.double_px)
+        cos_r = math.cos(math.radians(database.radius_deg))
+        if ref < 0:   # nothing accepted: show the first reference star's pattern
+            nbrs = np.empty(len(x), dtype=np.int64)
+            for s in order:
+                k = image_neighbours(unit, usable, x, y, int(s), cos_r, nbrs)
+                if k:
+                    ref, align = int(s), int(nbrs[0])
+                    break
+        rays = np.zeros(0)
+        if ref >= 0:
+            nbrs = np.empty(len(x), dtype=np.int64)
+            k = image_neighbours(unit, usable, x, y, ref, cos_r, nbrs)
+            a = int(np.flatnonzero(nbrs[:k] == align)[0])
+            r_px, phi = np.empty(k), np.empty(k)
+            plane_polar(unit, ref, nbrs, k, database.f_px, r_px, phi)
+            vec = np.zeros(self.n_sectors, dtype=np.int64)
+            feature_vector(r_px, phi, k, a, self.n_sectors, float(self.log_scale), vec)
+            width = 2 * math.pi / self.n_sectors
+            occupied = np.flatnonzero(vec)
+            rays = np.unique(np.concatenate([occupied * width, (occupied + 1) * width]))
+        radius_px = observation.camera.f_px * math.tan(math.radians(database.radius_deg))
+        if ok:
+            caption = (f"Improved LPT: reference star matched with difference {int(trace[3])} (feature row "
+                       f"{int(trace[2])}); {int((rows >= 0).sum())} stars confirmed by reprojection. Rays bound the "
+                       f"non-empty {360 / self.n_sectors:g} deg sectors, measured from the alignment star.")
+        else:
+            caption = "Improved LPT: no match was confirmed; the first reference star's pattern is shown."
+        return explain_pattern(observation, rows, database.guide_hip, ref, align, radius_px, database.double_px,
+                               rays, caption)

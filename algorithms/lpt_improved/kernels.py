@@ -1,0 +1,210 @@
+"""numba kernels of the improved log-polar algorithm (Luo, Xu, Zhang & Sun 2015).
+
+The shared geometry (tangent plane, image preparation, acceptance by reprojection) is in
+:mod:`.planar`; this module holds the feature vector and its search.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+from starid.kernels import wahba_rows
+
+from .planar import confirm, image_neighbours, plane_polar, prepare_image, relative_angle
+
+
+class FeatureTable(NamedTuple):
+    """The feature database as a kernel bundle (see ``ImprovedLPTDatabase``)."""
+
+    feature: np.ndarray       # uint8/uint16 (k, m), rows sorted by their number of non-zero entries
+    total: np.ndarray         # int32 (k,) sum of each row
+    count_start: np.ndarray   # int32 (m + 2,) first row with that many non-zero entries
+    guide: np.ndarray         # int32 (k,) guide row of the reference star of each feature row
+    align: np.ndarray         # int32 (k,) guide row of its alignment star
+
+
+class Search(NamedTuple):
+    """Search parameters as a kernel bundle."""
+
+    n_sectors: int
+    log_scale: float
+    cos_radius: float
+    count_tol: int
+    count_tol_above: int
+    max_refs: int
+    image_alignments: int
+    n_candidates: int
+    double_px: float
+
+
+@njit(cache=True)
+def log_level(r_px, log_scale):
+    """Entry of a feature vector for plane distance ``r_px``: ``ceil(log_scale ln r_px)``, at least 1."""
+    v = math.ceil(log_scale * math.log(max(r_px, 1.0)))
+    return max(int(v), 1)
+
+
+@njit(cache=True)
+def feature_vector(r_px, phi, n, align, n_sectors, log_scale, out):
+    """Luo et al.'s feature (their eqs. 7-8) of the neighbours ``align..n-1`` relative to ``phi[align]``.
+
+    Entry ``i`` is the largest ``ceil(log_scale ln r)`` of the neighbours whose angle from the
+    alignment star (counter-clockwise) falls in ``[i, i + 1) 360 / m`` degrees, 0 if none.
+    Neighbours nearer than the alignment star (``0..align-1``) are left out. Returns the number
+    of non-zero entries.
+    """
+    for i in range(n_sectors):
+        out[i] = 0
+    width = 2.0 * math.pi / n_sectors
+    nz = 0
+    for k in range(align, n):
+        b = int(relative_angle(phi[k], phi[align]) / width)
+        if b >= n_sectors:
+            b = n_sectors - 1
+        v = log_level(r_px[k], log_scale)
+        if out[b] == 0:
+            nz += 1
+        if v > out[b]:
+            out[b] = v
+    return nz
+
+
+@njit(cache=True)
+def build_features(unit, nbr, nbr_off, f_px, n_sectors, log_scale, db_alignments, max_value):
+    """Feature rows of every guide star, one per alignment choice (``db_alignments``; paper: 1).
+
+    ``nbr[nbr_off[g]:nbr_off[g+1]]`` are the guide rows within R of guide ``g``, nearest
+    first; alignment choice ``a`` is the ``a``-th nearest. Returns
+    ``(feature (k, m) int64, count (k,), guide (k,), align (k,))`` in guide order.
+    """
+    n_guide = unit.shape[0]
+    k_max = 0
+    for g in range(n_guide):
+        k_max += min(db_alignments, nbr_off[g + 1] - nbr_off[g])
+    feature = np.zeros((k_max, n_sectors), dtype=np.int64)
+    count = np.zeros(k_max, dtype=np.int64)
+    guide = np.zeros(k_max, dtype=np.int64)
+    align = np.zeros(k_max, dtype=np.int64)
+    longest = 1
+    for g in range(n_guide):
+        longest = max(longest, nbr_off[g + 1] - nbr_off[g])
+    r_px = np.empty(longest)
+    phi = np.empty(longest)
+    row = 0
+    for g in range(n_guide):
+        start = nbr_off[g]
+        n = nbr_off[g + 1] - start
+        if n == 0:
+            continue
+        plane_polar(unit, g, nbr[start:], n, f_px, r_px, phi)
+        for a in range(min(db_alignments, n)):
+            count[row] = feature_vector(r_px, phi, n, a, n_sectors, log_scale, feature[row])
+            for i in range(n_sectors):
+                feature[row, i] = min(feature[row, i], max_value)
+            guide[row] = g
+            align[row] = nbr[start + a]
+            row += 1
+    return feature, count, guide, align
+
+
+@njit(cache=True)
+def sad_search(table, vec, nz_idx, nz, count_tol, n_best, best_row, best_sad, count_tol_above=-1):
+    """The ``n_best`` rows of smallest sum of absolute differences to ``vec`` (Luo et al. eq. 9).
+
+    Only rows whose number of non-zero entries ``L_c`` satisfies
+    ``L_s - count_tol <= L_c <= L_s + count_tol_above`` are compared (their eq. 10, epsilon1 =
+    ``count_tol``, epsilon2 = ``count_tol_above``, which defaults to ``count_tol``). The sum is evaluated on the
+    image's ``nz`` non-zero entries ``nz_idx`` only, by the exact identity
+    ``sum_i |a_i - c_i| = sum_i c_i + sum_{a_i != 0} (|a_i - c_i| - c_i)``. Writes the best rows
+    (ascending difference, ties by row) to ``best_row``/``best_sad`` and returns how many.
+    """
+    m = table.feature.shape[1]
+    lo = max(nz - count_tol, 0)
+    hi = min(nz + (count_tol if count_tol_above < 0 else count_tol_above), m)
+    found = 0
+    for r in range(table.count_start[lo], table.count_start[hi + 1]):
+        s = int(table.total[r])
+        for t in range(nz):
+            i = nz_idx[t]
+            c = int(table.feature[r, i])
+            s += abs(int(vec[i]) - c) - c
+        if found == n_best and s >= best_sad[found - 1]:
+            continue
+        p = found if found < n_best else n_best - 1
+        while p > 0 and best_sad[p - 1] > s:
+            best_sad[p] = best_sad[p - 1]
+            best_row[p] = best_row[p - 1]
+            p -= 1
+        best_sad[p] = s
+        best_row[p] = r
+        if found < n_best:
+            found += 1
+    return found
+
+
+@njit(cache=True)
+def identify_kernel(x_px, y_px, sensor, table, guides_unit, search, acc, trace):
+    """Improved-LPT identification of one image; returns ``(rows, attitude, accepted)``.
+
+    For reference stars taken from the image centre outwards (at most ``search.max_refs``):
+    the neighbours within R, nearest first; for each of the ``search.image_alignments`` nearest
+    as alignment star (the paper: the nearest), the feature vector relative to it, the best
+    ``search.n_candidates`` database rows by :func:`sad_search`; each candidate seeds an
+    attitude (reference star and alignment star to their guide stars, Wahba) that
+    :func:`confirm` must accept. The first accepted candidate is the answer.
+    ``trace`` (int64, 4) receives the reference star, its alignment star, the feature row and the
+    difference of the accepted match (-1 when none), for ``explain``.
+    """
+    n = x_px.shape[0]
+    rows = np.full(n, -1, dtype=np.int64)
+    for t in range(4):
+        trace[t] = -1
+    attitude = np.eye(3)
+    if n < 3:
+        return rows, attitude, False
+    unit, usable, order = prepare_image(x_px, y_px, sensor, search.double_px)
+    m = search.n_sectors
+    nbrs = np.empty(n, dtype=np.int64)
+    r_px = np.empty(n)
+    phi = np.empty(n)
+    vec = np.zeros(m, dtype=np.int64)
+    nz_idx = np.empty(m, dtype=np.int64)
+    best_row = np.empty(search.n_candidates, dtype=np.int64)
+    best_sad = np.empty(search.n_candidates, dtype=np.int64)
+    seed = np.full(n, -1, dtype=np.int64)
+    for t in range(min(search.max_refs, order.shape[0])):
+        s = order[t]
+        k = image_neighbours(unit, usable, x_px, y_px, s, search.cos_radius, nbrs)
+        if k < 1:
+            continue
+        plane_polar(unit, s, nbrs, k, sensor.f_px, r_px, phi)
+        for a in range(min(search.image_alignments, k)):
+            nz = feature_vector(r_px, phi, k, a, m, search.log_scale, vec)
+            q = 0
+            for i in range(m):
+                if vec[i] != 0:
+                    nz_idx[q] = i
+                    q += 1
+            found = sad_search(table, vec, nz_idx, nz, search.count_tol, search.n_candidates, best_row, best_sad,
+                               search.count_tol_above)
+            for c in range(found):
+                r = best_row[c]
+                seed[s] = table.guide[r]
+                seed[nbrs[a]] = table.align[r]
+                A = wahba_rows(unit, seed, guides_unit)
+                seed[s] = -1
+                seed[nbrs[a]] = -1
+                ok, A = confirm(unit, rows, A, guides_unit, sensor, acc)
+                if ok:
+                    trace[0] = s
+                    trace[1] = nbrs[a]
+                    trace[2] = r
+                    trace[3] = best_sad[c]
+                    return rows, A, True
+    for i in range(n):
+        rows[i] = -1
+    return rows, attitude, False

@@ -1,0 +1,435 @@
+"""Shared code of the log-polar / grid family (``lpt_improved``, ``lpt``, ``grid``).
+
+Everything the three plugins do alike lives here once:
+
+* guide-star selection (V limit, close pairs dropped as unresolvable doubles, rows sorted by z
+  so the core's reprojection kernels can band-search them) and the neighbour lists of the
+  database (:func:`select_guides`, :func:`neighbour_lists`);
+* the tangent-plane re-centring of the algorithm notes, section 1.4: every pattern, in the
+  database and in the image, is built from unit vectors projected onto the gnomonic plane
+  tangent at the reference star, scaled to pixels by the camera's focal length
+  (:func:`plane_polar`), so both sides agree up to a rotation about the reference star;
+* the image side: back-projection, the "double" mask, reference stars ordered from the image
+  centre outwards, neighbours within R nearest first (:func:`prepare_image`,
+  :func:`image_neighbours`);
+* the acceptance step: an attitude seeded by the matched reference star (and its alignment
+  star, or the roll a circular shift gave), refined by reprojecting the guide stars
+  (``starid.kernels.reproject_assign``) and Wahba (``wahba_rows``), accepted only when enough
+  guide stars it puts in the image are observed (:func:`confirm`);
+* the default neighbourhood radius, which scales with the field of view
+  (:func:`default_radius_deg`).
+
+Angles in radians unless a name says ``_deg``; plane distances in pixels (``_px``).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+from scipy.spatial import cKDTree
+
+from starid.camera import Camera
+from starid.catalog import Catalog
+from starid.errors import ConfigError
+from starid.kernels import backproject_px, reproject_assign, verify_pairwise, wahba_rows
+from starid.observation import Observation
+from starid.params import check_number, check_whole
+from starid.plugin import Explanation
+
+#: Default neighbourhood radius R: 0.3 x the smaller field of view (6 deg at 20 deg, Luo et al.'s
+#: set-up), but at least the radius that holds :data:`NEIGHBOURS_TARGET` guide stars on average
+#: (sparse skies, small fields: 4.0 deg for V <= 6 guide stars on the 10 deg Table 4 camera), at
+#: most half the field of view and :data:`MAX_DEFAULT_RADIUS_DEG`.
+RADIUS_FOV_FRACTION = 0.3
+NEIGHBOURS_TARGET = 6.0
+MAX_DEFAULT_RADIUS_DEG = 20.0
+#: Floor of the centroid noise the tolerances assume (px): a noise-free world still needs a window.
+SIGMA_FLOOR_PX = 1.0
+SKY_DEG2 = 4.0 * math.pi * (180.0 / math.pi) ** 2
+
+
+def default_radius_deg(camera: Camera, n_guides: int) -> float:
+    """R for a camera and a guide list of ``n_guides`` stars (see :data:`RADIUS_FOV_FRACTION`)."""
+    fov = min(camera.fov_x_deg, camera.fov_y_deg)
+    dense = math.sqrt(NEIGHBOURS_TARGET / (math.pi * max(n_guides, 1) / SKY_DEG2))
+    return min(max(RADIUS_FOV_FRACTION * fov, min(dense, 0.5 * fov)), MAX_DEFAULT_RADIUS_DEG)
+
+
+class Sensor(NamedTuple):
+    """The camera as a kernel bundle."""
+
+    f_px: float
+    cx_px: float
+    cy_px: float
+    width_px: float
+    height_px: float
+
+
+def sensor_of(camera: Camera) -> Sensor:
+    return Sensor(float(camera.f_px), float(camera.cx_px), float(camera.cy_px), float(camera.width_px),
+                  float(camera.height_px))
+
+
+class Guides(NamedTuple):
+    """Guide stars as a kernel bundle: ``unit`` float32 (g, 3) ICRS, sorted by z; ``hip`` int64 (g,)."""
+
+    unit: np.ndarray
+    hip: np.ndarray
+
+
+class Acceptance(NamedTuple):
+    """Tolerances of :func:`confirm`.
+
+    eps0 : chord window of the first reprojection pass (wider when the seed attitude is coarse).
+    eps : chord window of the later passes (``beta sqrt(2) sigma``).
+    c_fov : chord from the boresight to the farthest image corner.
+    min_matches : guide stars that must be observed where the attitude puts them.
+    fraction : of the guide stars the attitude puts on the sensor, the part that must be observed.
+    """
+
+    eps0: float
+    eps: float
+    c_fov: float
+    min_matches: int
+    fraction: float
+
+
+def acceptance(camera: Camera, sigma_px: float | None, beta: float, min_matches: int, fraction: float,
+               eps0_extra_rad: float = 0.0) -> Acceptance:
+    """Tolerance bundle: ``eps = beta sqrt(2) max(sigma_px, 1 px) / f``; ``eps0 = eps + eps0_extra_rad``."""
+    sigma = max(sigma_px or 0.0, SIGMA_FLOOR_PX) / camera.f_px
+    eps = beta * math.sqrt(2.0) * sigma
+    c_fov = 2.0 * math.sin(camera.half_diagonal_rad / 2.0)
+    return Acceptance(eps + eps0_extra_rad, eps, c_fov, int(min_matches), float(fraction))
+
+
+def effective_double_px(double_px: float, radius_deg: float, camera: Camera) -> float:
+    """The double-star separation in px, at most a tenth of R (a 170 deg camera's 20 px are 40 deg)."""
+    return min(float(double_px), camera.f_px * math.tan(math.radians(radius_deg) / 10.0))
+
+
+def select_guides(catalog: Catalog, mag_limit: float, double_px: float, camera: Camera, name: str) -> Guides:
+    """Guide stars: V <= ``mag_limit``, both stars of every pair closer than ``double_px`` dropped.
+
+    Luo et al. treat stars closer than 20 px (0.39 deg at 20 deg / 1024 px) as binaries the
+    sensor cannot resolve and leave them out of the navigation list (pass the separation
+    through :func:`effective_double_px`). Rows are sorted by z.
+    """
+    guide = catalog.brighter_than(mag_limit)
+    if double_px > 0 and len(guide):
+        chord = 2.0 * math.sin(0.5 * math.atan(double_px / camera.f_px))
+        pairs = cKDTree(guide.unit_icrs).query_pairs(chord, output_type="ndarray")
+        double = np.zeros(len(guide), dtype=bool)
+        double[pairs.ravel()] = True
+        guide = guide.subset(~double)
+    if len(guide) < 3:
+        raise ConfigError(f"{name}: only {len(guide)} usable catalog stars have V <= {mag_limit}")
+    by_z = np.argsort(guide.unit_icrs[:, 2], kind="stable")
+    return Guides(np.ascontiguousarray(guide.unit_icrs[by_z], dtype=np.float32),
+                  np.ascontiguousarray(guide.hip[by_z], dtype=np.int64))
+
+
+def neighbour_lists(unit: np.ndarray, radius_rad: float) -> tuple[np.ndarray, np.ndarray]:
+    """CSR neighbour lists: guide rows within ``radius_rad`` of each guide star, nearest first.
+
+    Returns ``(rows int32, offsets int64)``; ties in distance are broken by row (deterministic).
+    """
+    u = np.asarray(unit, dtype=np.float64)
+    tree = cKDTree(u)
+    lists = tree.query_ball_point(u, 2.0 * math.sin(radius_rad / 2.0))
+    rows, offsets = [], [0]
+    for i, js in enumerate(lists):
+        js = np.asarray(js, dtype=np.int64)
+        js = js[js != i]
+        d = np.linalg.norm(u[js] - u[i], axis=1)
+        order = np.lexsort((js, d))
+        rows.append(js[order])
+        offsets.append(offsets[-1] + js.size)
+    flat = np.concatenate(rows) if rows else np.zeros(0, dtype=np.int64)
+    return flat.astype(np.int32), np.asarray(offsets, dtype=np.int64)
+
+
+@njit(cache=True)
+def tangent_basis(unit, s):
+    """Right-handed orthonormal ``e1, e2`` perpendicular to ``unit[s]`` (``e2 = s x e1``)."""
+    sx = float(unit[s, 0])
+    sy = float(unit[s, 1])
+    sz = float(unit[s, 2])
+    # e1 = normalise(a x s) with a the coordinate axis least aligned with s
+    if abs(sx) <= abs(sy) and abs(sx) <= abs(sz):
+        e1 = np.array([0.0, -sz, sy])
+    elif abs(sy) <= abs(sz):
+        e1 = np.array([sz, 0.0, -sx])
+    else:
+        e1 = np.array([-sy, sx, 0.0])
+    e1 /= math.sqrt(e1[0] ** 2 + e1[1] ** 2 + e1[2] ** 2)
+    e2 = np.array([sy * e1[2] - sz * e1[1], sz * e1[0] - sx * e1[2], sx * e1[1] - sy * e1[0]])
+    return e1, e2
+
+
+@njit(cache=True)
+def plane_polar(unit, s, rows, n_rows, f_px, r_px, phi):
+    """Polar coordinates of ``unit[rows[:n_rows]]`` in the plane tangent at ``unit[s]`` (notes 1.4).
+
+    ``r_px = f tan(angle to s)`` (the plane distance, px) and ``phi`` in ``[0, 2 pi)``
+    counter-clockwise from ``e1`` of :func:`tangent_basis` about ``s``. Rotation about ``s`` only
+    shifts every ``phi`` by the same amount; the same code serves catalog (ICRS) and image
+    (camera-frame) vectors.
+    """
+    e1, e2 = tangent_basis(unit, s)
+    sx = float(unit[s, 0])
+    sy = float(unit[s, 1])
+    sz = float(unit[s, 2])
+    for k in range(n_rows):
+        j = rows[k]
+        vx = float(unit[j, 0])
+        vy = float(unit[j, 1])
+        vz = float(unit[j, 2])
+        d = vx * sx + vy * sy + vz * sz
+        a = vx * e1[0] + vy * e1[1] + vz * e1[2]
+        b = vx * e2[0] + vy * e2[1] + vz * e2[2]
+        r_px[k] = f_px * math.sqrt(a * a + b * b) / d
+        p = math.atan2(b, a)
+        phi[k] = p + 2.0 * math.pi if p < 0 else p
+
+
+@njit(cache=True)
+def relative_angle(phi, phi0):
+    """``phi - phi0`` wrapped to ``[0, 2 pi)``."""
+    d = phi - phi0
+    while d < 0:
+        d += 2.0 * math.pi
+    while d >= 2.0 * math.pi:
+        d -= 2.0 * math.pi
+    return d
+
+
+@njit(cache=True)
+def _before(key, x_px, y_px, i, j):
+    """Strict order: by ``key``, exact ties by position (so the input order never matters)."""
+    if key[i] != key[j]:
+        return key[i] < key[j]
+    if x_px[i] != x_px[j]:
+        return x_px[i] < x_px[j]
+    return y_px[i] < y_px[j]
+
+
+@njit(cache=True)
+def _sort_rows(rows, n, key, x_px, y_px):
+    """Insertion sort of ``rows[:n]`` by :func:`_before` (short lists)."""
+    for a in range(1, n):
+        r = rows[a]
+        b = a - 1
+        while b >= 0 and _before(key, x_px, y_px, r, rows[b]):
+            rows[b + 1] = rows[b]
+            b -= 1
+        rows[b + 1] = r
+
+
+@njit(cache=True)
+def prepare_image(x_px, y_px, sensor, double_px):
+    """Back-projected unit vectors, the usable mask and the reference order of one image.
+
+    A detection closer than ``double_px`` to another is unusable (the database dropped such
+    guide pairs too; coincident detections are such pairs). Usable stars are ordered by their
+    distance to the principal point, nearest first: their neighbourhoods are the most complete
+    (Luo et al. take reference stars near the image centre). Returns ``(unit, usable, order)``.
+    """
+    n = x_px.shape[0]
+    unit = backproject_px(x_px, y_px, sensor.f_px, sensor.cx_px, sensor.cy_px)
+    usable = np.ones(n, dtype=np.bool_)
+    d2 = double_px * double_px
+    for i in range(n):
+        for j in range(i + 1, n):
+            dx = x_px[i] - x_px[j]
+            dy = y_px[i] - y_px[j]
+            if dx * dx + dy * dy < d2:
+                usable[i] = False
+                usable[j] = False
+    key = np.empty(n)
+    m = 0
+    for i in range(n):
+        key[i] = (x_px[i] - sensor.cx_px) ** 2 + (y_px[i] - sensor.cy_px) ** 2
+        if usable[i]:
+            m += 1
+    order = np.empty(m, dtype=np.int64)
+    m = 0
+    for i in range(n):
+        if usable[i]:
+            order[m] = i
+            m += 1
+    if m > 64:   # long lists: argsort first, then fix exact-tie runs
+        pre = np.argsort(key[order], kind="mergesort")
+        order = order[pre]
+    _sort_rows(order, m, key, x_px, y_px)
+    return unit, usable, order
+
+
+@njit(cache=True)
+def image_neighbours(unit, usable, x_px, y_px, s, cos_radius, out):
+    """Usable stars within the angle whose cosine is ``cos_radius`` of star ``s``, nearest first.
+
+    Writes their indices to ``out`` and returns how many; exact ties ordered by position.
+    """
+    n = unit.shape[0]
+    key = np.empty(n)
+    k = 0
+    for j in range(n):
+        if j == s or not usable[j]:
+            continue
+        c = unit[j, 0] * unit[s, 0] + unit[j, 1] * unit[s, 1] + unit[j, 2] * unit[s, 2]
+        if c >= cos_radius:
+            key[j] = -c
+            out[k] = j
+            k += 1
+    if k > 64:
+        sub = np.empty(k)
+        for a in range(k):
+            sub[a] = key[out[a]]
+        pre = np.argsort(sub, kind="mergesort")
+        tmp = out[:k].copy()
+        for a in range(k):
+            out[a] = tmp[pre[a]]
+    _sort_rows(out, k, key, x_px, y_px)
+    return k
+
+
+@njit(cache=True)
+def seed_attitude_roll(unit, s, guides_unit, g, roll):
+    """Attitude taking guide row ``g`` to image star ``s`` with a roll about it.
+
+    The roll is the angle ``delta`` with ``phi_catalog = phi_image + delta``, both measured in
+    the :func:`tangent_basis` of their own star (a circular shift of an LPT string).
+    """
+    e1s, e2s = tangent_basis(unit, s)
+    e1g, e2g = tangent_basis(guides_unit, g)
+    c = math.cos(roll)
+    sn = math.sin(roll)
+    u1 = c * e1s - sn * e2s
+    u2 = sn * e1s + c * e2s
+    A = np.zeros((3, 3))
+    for a in range(3):
+        for b in range(3):
+            A[a, b] = (float(unit[s, a]) * float(guides_unit[g, b]) + u1[a] * e1g[b] + u2[a] * e2g[b])
+    return A
+
+
+@njit(cache=True)
+def confirm(unit, rows, attitude, guides_unit, sensor, acc):
+    """Accept or reject a seed attitude by reprojection; fills ``rows`` (guide row per star or -1).
+
+    Passes of ``reproject_assign`` (first with ``acc.eps0``, then ``acc.eps``) and Wahba
+    (``wahba_rows``) refine the attitude until the number of assigned stars stops growing
+    (at most 4 passes); the assigned stars must then agree pairwise (``verify_pairwise``,
+    majority). The identification stands when at least ``acc.min_matches`` stars are assigned
+    and they are at least ``acc.fraction`` of the guide stars the attitude puts on the sensor;
+    a random field, whose seed attitudes predict guide stars where none are seen, fails here.
+    Returns ``(accepted, attitude)``.
+    """
+    n = unit.shape[0]
+    A = attitude
+    eps = acc.eps0
+    n_prev = -1
+    n_seen = 0
+    n_pred = 0
+    for it in range(5):
+        n_seen, n_pred = reproject_assign(A, unit, guides_unit, acc.c_fov + eps, eps, rows, sensor.f_px,
+                                          sensor.cx_px, sensor.cy_px, sensor.width_px, sensor.height_px)
+        if n_seen < 2:
+            return False, A
+        A = wahba_rows(unit, rows, guides_unit)
+        if it > 0 and n_seen <= n_prev and eps == acc.eps:
+            break
+        n_prev = n_seen
+        eps = acc.eps
+    n_seen, n_pred = reproject_assign(A, unit, guides_unit, acc.c_fov + eps, eps, rows, sensor.f_px,
+                                      sensor.cx_px, sensor.cy_px, sensor.width_px, sensor.height_px)
+    keep = verify_pairwise(unit, rows, guides_unit, acc.eps, 2, 0.5)
+    n_keep = 0
+    for i in range(n):
+        if not keep[i]:
+            rows[i] = -1
+        else:
+            n_keep += 1
+    if n_keep < acc.min_matches or n_keep < acc.fraction * n_pred:
+        for i in range(n):
+            rows[i] = -1
+        return False, A
+    return True, wahba_rows(unit, rows, guides_unit)
+
+
+@njit(cache=True)
+def rows_to_hip(rows, hip):
+    """Catalog ids of guide ``rows`` (-1 stays -1)."""
+    out = np.full(rows.shape[0], -1, dtype=np.int64)
+    for i in range(rows.shape[0]):
+        if rows[i] >= 0:
+            out[i] = hip[rows[i]]
+    return out
+
+
+# ---- Python helpers shared by the three plugin classes ----
+
+def check_common(alg) -> None:
+    """Checks of the parameters the three log-polar / grid plugins share."""
+    check_number("mag_limit", alg.mag_limit)
+    if alg.radius_deg is not None:
+        check_number("radius_deg", alg.radius_deg, lo=0, hi=60, lo_open=True)
+    if alg.sigma_px is not None:
+        check_number("sigma_px", alg.sigma_px, lo=0)
+    check_number("double_px", alg.double_px, lo=0)
+    check_number("beta", alg.beta, lo=0, lo_open=True)
+    check_whole("max_refs", alg.max_refs, 1)
+    check_whole("n_candidates", alg.n_candidates, 1)
+    check_whole("min_matches", alg.min_matches, 3)
+    check_number("confirm_fraction", alg.confirm_fraction, lo=0, hi=1)
+
+
+def radius_for(alg, catalog: Catalog, camera: Camera) -> float:
+    """R in degrees: the parameter, or the default of :func:`planar.default_radius_deg`."""
+    if alg.radius_deg is not None:
+        return float(alg.radius_deg)
+    return default_radius_deg(camera, int(np.count_nonzero(catalog.v_mag <= alg.mag_limit)))
+
+
+def explain_pattern(observation: Observation, rows: np.ndarray, guide_hip: np.ndarray, ref: int, align: int,
+                    radius_px: float, double_px: float, rays: np.ndarray, caption: str) -> Explanation:
+    """Explanation of a reference-star pattern on the image.
+
+    Segments: the reference star to each usable neighbour within R (the one to the alignment
+    star highlighted), then rays from the reference star at the given angles (radians from the
+    direction of the alignment star, counter-clockwise in the tangent plane, which is clockwise
+    on screen with y down: the same sense as ``atan2(dy, dx)`` in pixels) of length ``radius_px``.
+    Points: the reference star, its alignment star and every identified star, labelled.
+    """
+    x, y = observation.x_px, observation.y_px
+    sensor = sensor_of(observation.camera)
+    segments, labels, points = [], [], []
+    highlight = []
+    if ref >= 0:
+        unit, usable, _ = prepare_image(x, y, sensor, double_px)
+        nbrs = np.empty(len(x), dtype=np.int64)
+        k = image_neighbours(unit, usable, x, y, ref, math.cos(radius_px / sensor.f_px), nbrs)
+        for j in nbrs[:k]:
+            if j == align:
+                highlight.append(len(segments))
+            segments.append([[x[ref], y[ref]], [x[j], y[j]]])
+        base = math.atan2(y[align] - y[ref], x[align] - x[ref]) if align >= 0 else 0.0
+        for a in rays:
+            segments.append([[x[ref], y[ref]], [x[ref] + radius_px * math.cos(base + a),
+                                                y[ref] + radius_px * math.sin(base + a)]])
+        points.append([x[ref], y[ref]])
+        labels.append(f"reference{'' if rows[ref] < 0 else ' HIP ' + str(int(guide_hip[rows[ref]]))}")
+        if align >= 0:
+            points.append([x[align], y[align]])
+            labels.append(f"alignment{'' if rows[align] < 0 else ' HIP ' + str(int(guide_hip[rows[align]]))}")
+    for i in np.flatnonzero(rows >= 0):
+        if i not in (ref, align):
+            points.append([x[i], y[i]])
+            labels.append(f"HIP {int(guide_hip[rows[i]])}")
+    return Explanation(segments=np.asarray(segments, dtype=np.float64).reshape(-1, 2, 2),
+                       points=np.asarray(points, dtype=np.float64).reshape(-1, 2), labels=tuple(labels),
+                       caption=caption, highlight=np.asarray(highlight, dtype=np.int64))
