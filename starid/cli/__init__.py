@@ -15,7 +15,7 @@ import warnings
 
 from ..errors import StarIDError, StarIDWarning
 from ..provenance import versions
-from . import experiments, identify, plugins
+from . import experiments, identify, plugins, report
 from .options import Formatter
 
 
@@ -34,6 +34,7 @@ def build_parser() -> argparse.ArgumentParser:
     plugins.add_parsers(sub, Formatter)
     experiments.add_parsers(sub, Formatter)
     identify.add_parsers(sub, Formatter)
+    report.add_parsers(sub, Formatter)
     return parser
 
 
