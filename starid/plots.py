@@ -17,6 +17,7 @@ Trial-row frames are the engine's (``starid.experiment.run_experiment`` or
 
 from __future__ import annotations
 
+import functools
 import math
 import textwrap
 
@@ -79,9 +80,17 @@ def _styles(labels, styles):
     return base
 
 
+def _styled(fn):
+    """Draw the whole figure under :data:`STYLE` (rcParams are read as artists are made)."""
+    @functools.wraps(fn)
+    def wrapper(*args, **kwargs):
+        with matplotlib.rc_context(STYLE):
+            return fn(*args, **kwargs)
+    return wrapper
+
+
 def _figure(width_in: float, height_in: float) -> Figure:
-    with matplotlib.rc_context(STYLE):
-        return Figure(figsize=(width_in, height_in), layout="constrained")
+    return Figure(figsize=(width_in, height_in), layout="constrained")
 
 
 def axis_name(axis: str) -> str:
@@ -107,6 +116,7 @@ def _numeric(values) -> bool:
         return False
 
 
+@_styled
 def rate_curve(frame: pd.DataFrame, axis: str, paper: pd.DataFrame | None = None, title: str = "",
                styles: dict | None = None, paper_name: str = "paper") -> Figure:
     """Id rate (%) vs one swept axis, one line per label with its 95 % Wilson band.
@@ -127,7 +137,8 @@ def rate_curve(frame: pd.DataFrame, axis: str, paper: pd.DataFrame | None = None
     cats = list(dict.fromkeys(frame[col])) if not numeric else None
     lines = list(dict.fromkeys(r["_line"]))
     st = _styles(lines, styles if not others else None)
-    fig = _figure(6.4, 4.0)
+    n_paper = paper["algorithm"].nunique() if paper is not None and len(paper) else 0
+    fig = _figure(6.4, 4.2 + 0.2 * math.ceil((len(lines) + n_paper) / 2))
     ax = fig.add_subplot()
     n = len(lines)
     for i, line in enumerate(lines):
@@ -138,7 +149,7 @@ def rate_curve(frame: pd.DataFrame, axis: str, paper: pd.DataFrame | None = None
             order = np.argsort(x)
             x = x[order]
             y, lo, hi = (100 * g[c].to_numpy()[order] for c in ("rate", "lo", "hi"))
-            ax.fill_between(x, lo, hi, color=s["color"], alpha=0.12, linewidth=0)
+            ax.fill_between(x, lo, hi, color=s["color"], alpha=0.09, linewidth=0)
             ax.plot(x, lo, color=s["color"], linewidth=0.5, alpha=0.5, linestyle=s["linestyle"])
             ax.plot(x, hi, color=s["color"], linewidth=0.5, alpha=0.5, linestyle=s["linestyle"])
             ax.plot(x, y, color=s["color"], marker=s["marker"], linestyle=s["linestyle"], label=line,
@@ -168,12 +179,13 @@ def rate_curve(frame: pd.DataFrame, axis: str, paper: pd.DataFrame | None = None
     ax.set_ylabel("identification rate (%), 95 % Wilson band")
     lo_y = min(100 * r["lo"].min(), 100 * paper["paper_id_rate"].astype(float).min()
                if paper is not None and len(paper) else 100)
-    ax.set_ylim(max(0.0, math.floor(lo_y / 5) * 5 - 2), 100.5)
+    ax.set_ylim(max(0.0, math.floor(lo_y / 5) * 5 - 2), 101.8)
     ax.set_title(title or f"identification rate vs {axis_name(axis)}")
-    ax.legend(handles, names, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    fig.legend(handles, names, loc="outside lower center", ncol=2 if len(names) > 3 else len(names))
     return fig
 
 
+@_styled
 def time_distributions(frame: pd.DataFrame, title: str = "", styles: dict | None = None) -> Figure:
     """Identify time per image (µs, log axis), one box per label: box 25-75 %, whiskers 5-95 %,
     the median printed beside it. Failed images (error, timeout, crash) are left out."""
@@ -203,7 +215,7 @@ def time_distributions(frame: pd.DataFrame, title: str = "", styles: dict | None
     ax.set_ylim(-0.7, len(labels) - 0.3)
     ax.set_xlabel("identify time per image (µs, log scale); box 25-75 %, whiskers 5-95 %")
     ax.grid(axis="y", visible=False)
-    ax.set_title(title or "identify time per image")
+    ax.set_title("\n".join(textwrap.wrap(title or "identify time per image", 75)))
     return fig
 
 
@@ -211,6 +223,7 @@ def _us(v: float) -> str:
     return f"{v / 1e3:.3g} ms" if v >= 1000 else f"{v:.3g} µs"
 
 
+@_styled
 def tradeoff(summary: pd.DataFrame, title: str = "", styles: dict | None = None) -> Figure:
     """Two panels: id rate vs median identify time and vs database size (both log), one marker per
     label with its Wilson interval. ``summary``: :func:`starid.stats.summarize` rows."""
@@ -237,7 +250,7 @@ def tradeoff(summary: pd.DataFrame, title: str = "", styles: dict | None = None)
     axes[0].set_title("rate vs time (up-left is better)", fontsize=9)
     axes[1].set_title("rate vs memory (up-left is better)", fontsize=9)
     if title:
-        fig.suptitle(title)
+        fig.suptitle("\n".join(textwrap.wrap(title, 90)))
     return fig
 
 
@@ -249,12 +262,15 @@ def _pad_log(ax) -> None:
 
 
 def _plain_log(ax) -> None:
-    """Log x axis ticked at 1, 2, 5 x 10^k with plain numbers (not 2 x 10^1)."""
-    ax.xaxis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
+    """Log x axis ticked at 1, 2, 5 x 10^k (1 x 10^k over more than three decades), plain numbers."""
+    lo, hi = ax.get_xlim()
+    wide = lo > 0 and hi / lo > 2000
+    ax.xaxis.set_major_locator(LogLocator(base=10, subs=(1.0,) if wide else (1.0, 2.0, 5.0)))
     ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
     ax.xaxis.set_minor_formatter(NullFormatter())
 
 
+@_styled
 def star_histogram(frame: pd.DataFrame, by: str | None = None, paper: dict | None = None, title: str = "") -> Figure:
     """Fig. 10: how many true stars the images hold (``n_true_stars``, one count per image).
 
@@ -289,6 +305,7 @@ def star_histogram(frame: pd.DataFrame, by: str | None = None, paper: dict | Non
     return fig
 
 
+@_styled
 def rate_by_stars(frame: pd.DataFrame, bins=((6, 8), (9, 10), (11, 13), (14, 17), (18, 1000)), title: str = "",
                   styles: dict | None = None) -> Figure:
     """Fig. 11: id rate vs the number of true stars in the image (binned), one line per label."""
@@ -310,12 +327,13 @@ def rate_by_stars(frame: pd.DataFrame, bins=((6, 8), (9, 10), (11, 13), (14, 17)
     ax.set_xticks(range(len(bins)), names)
     ax.set_xlabel("true stars in the image (count)")
     ax.set_ylabel("identification rate (%), 95 % Wilson interval")
-    ax.set_ylim(max(0.0, math.floor(100 * r["lo"].min() / 5) * 5 - 2), 100.5)
+    ax.set_ylim(max(0.0, math.floor(100 * r["lo"].min() / 5) * 5 - 2), 101.8)
     ax.set_title(title or "identification rate vs stars in the field")
-    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    fig.legend(*ax.get_legend_handles_labels(), loc="outside lower center", ncol=min(len(labels), 4))
     return fig
 
 
+@_styled
 def mcnemar_matrix(frame: pd.DataFrame, title: str = "") -> Figure:
     """Pairwise McNemar tests on the same images: cell (row A, column B) prints A's rate minus B's in
     percentage points and the exact p-value; the shade deepens with significance (−log10 p)."""
@@ -342,6 +360,12 @@ def mcnemar_matrix(frame: pd.DataFrame, title: str = "") -> Figure:
     ax.set_xticks(range(n), labels, rotation=30, ha="right")
     ax.set_yticks(range(n), labels)
     ax.grid(False)
+    ax.set_xticks(np.arange(n + 1) - 0.5, minor=True)
+    ax.set_yticks(np.arange(n + 1) - 0.5, minor=True)
+    ax.grid(which="minor", color="0.6", linewidth=0.6)
+    ax.tick_params(which="minor", length=0)
+    for spine in ax.spines.values():
+        spine.set_visible(False)
     ax.set_xlabel("B")
     ax.set_ylabel("A")
     fig.suptitle("\n".join(textwrap.wrap(title or "McNemar's exact test on the same images", 50)), fontsize=9)
@@ -350,6 +374,7 @@ def mcnemar_matrix(frame: pd.DataFrame, title: str = "") -> Figure:
     return fig
 
 
+@_styled
 def regression(diff: pd.DataFrame, title: str = "") -> Figure:
     """Rate differences new − old (pp) per label and point with their 95 % interval; filled markers
     where McNemar's exact test gives p < 0.05. ``diff``: :func:`starid.report.build.compare` rows."""
@@ -375,6 +400,7 @@ def _status_of(hip: np.ndarray, truth: np.ndarray) -> np.ndarray:
     return out
 
 
+@_styled
 def show_figure(stars: pd.DataFrame, ids: pd.DataFrame, explanations: dict | None = None,
                 width_px: int = 1024, height_px: int = 1024, titles: dict | None = None,
                 label_stars: bool = True) -> Figure:
@@ -391,12 +417,12 @@ def show_figure(stars: pd.DataFrame, ids: pd.DataFrame, explanations: dict | Non
     n = max(len(labels), 1)
     cols = min(n, 3)
     rows = math.ceil(n / cols)
-    fig = _figure(4.6 * cols, 5.3 * rows + 0.5)
+    fig = _figure(4.6 * cols, 5.0 * rows + 0.6)
     axes = np.atleast_1d(fig.subplots(rows, cols, squeeze=False)).ravel()
     x, y, mag = (stars[c].to_numpy(dtype=float) for c in ("x_px", "y_px", "mag"))
     truth = stars["truth_hip"].to_numpy(dtype=np.int64)
-    # magnitude -> dot area: brighter is bigger (mag 0 -> ~110 pt^2, mag 6 -> ~8 pt^2)
-    size = np.clip(8.0 * 10 ** (0.4 * (6.0 - mag)) ** 0.45, 4, 150)
+    # magnitude -> dot area (pt^2): brighter is bigger (mag 6 -> 9, mag 3 -> 72, mag 0 -> 260)
+    size = np.clip(9.0 * (10 ** (0.4 * (6.0 - mag))) ** 0.75, 5, 260)
     for ax, label in zip(axes, labels):
         got = ids[ids["label"] == label].set_index("star")["hip"].reindex(stars["star"]).fillna(-1)
         hip = got.to_numpy(dtype=np.int64)

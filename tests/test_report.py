@@ -135,7 +135,7 @@ def test_rate_curve_overlays_the_papers_points_and_styles_are_greyscale_safe():
     paper = pd.DataFrame({"value": [0.0, 2.0], "algorithm": ["ptp", "ptp"], "paper_id_rate": [0.993, 0.955]})
     fig = plots.rate_curve(pd.DataFrame(rows), "sigma_px", paper)
     ax = fig.axes[0]
-    legend = [t.get_text() for t in ax.get_legend().get_texts()]
+    legend = [t.get_text() for t in fig.legends[0].get_texts()]
     assert "ptp: paper's printed value" in legend and "pvector" in legend
     assert ax.get_xlabel() == "centroid noise σ (px)" and "%" in ax.get_ylabel()
     styles = plots.label_styles(["a", "b", "c", "d"])

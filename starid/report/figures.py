@@ -33,6 +33,14 @@ class ReportFigure:
     figure: Figure
 
 
+def label_order(frame: pd.DataFrame) -> list[str]:
+    """Labels by the number of studies they run in (most first), then first appearance: the
+    algorithms compared everywhere get the first (plainest) styles."""
+    first = list(dict.fromkeys(frame["label"]))
+    count = frame.groupby("label")["study"].nunique()
+    return sorted(first, key=lambda x: (-count[x], first.index(x)))
+
+
 def grid_axes(frame: pd.DataFrame) -> list[str]:
     """The swept axes of a frame (``grid_<axis>`` columns with more than one value), as axis names."""
     return [c[5:] for c in frame.columns if c.startswith("grid_") and frame[c].nunique(dropna=True) > 1]
@@ -57,7 +65,7 @@ def main_condition(frame: pd.DataFrame) -> pd.DataFrame:
 def report_figures(frame: pd.DataFrame, paper: pd.DataFrame | None = None, paper_fig10: dict | None = None,
                    paper_name: str = "paper") -> list[ReportFigure]:
     """Every picture of the report of ``frame`` (see the module docstring)."""
-    styles = plots.label_styles(frame["label"])
+    styles = plots.label_styles(label_order(frame))
     out: list[ReportFigure] = []
     for study, part in frame.groupby("study", sort=False):
         part = part.dropna(axis=1, how="all")
