@@ -417,8 +417,11 @@ def show_figure(stars: pd.DataFrame, ids: pd.DataFrame, explanations: dict | Non
     n = max(len(labels), 1)
     cols = min(n, 3)
     rows = math.ceil(n / cols)
-    fig = _figure(4.6 * cols, 5.0 * rows + 0.6)
-    axes = np.atleast_1d(fig.subplots(rows, cols, squeeze=False)).ravel()
+    fig = _figure(4.6 * cols, 5.0 * rows + 0.8)
+    grid = fig.add_gridspec(rows + 1, cols, height_ratios=[1.0] * rows + [0.12])
+    axes = np.array([fig.add_subplot(grid[i // cols, i % cols]) for i in range(rows * cols)])
+    legend_ax = fig.add_subplot(grid[rows, :])
+    legend_ax.axis("off")
     x, y, mag = (stars[c].to_numpy(dtype=float) for c in ("x_px", "y_px", "mag"))
     truth = stars["truth_hip"].to_numpy(dtype=np.int64)
     # magnitude -> dot area (pt^2): brighter is bigger (mag 6 -> 9, mag 3 -> 72, mag 0 -> 260)
@@ -451,13 +454,12 @@ def show_figure(stars: pd.DataFrame, ids: pd.DataFrame, explanations: dict | Non
         ax.set_ylim(height_px, 0)
         ax.set_aspect("equal")
         ax.grid(False)
-        ax.set_xlabel("x (px)")
         ax.set_ylabel("y (px)")
         caption = ex.caption if ex is not None and ex.caption else (
             "no explain(): identification only" if ex is None else "")
-        if caption:
-            ax.text(0.0, -0.13, "\n".join(textwrap.wrap(caption, 62)), transform=ax.transAxes, fontsize=7,
-                    va="top", ha="left", style="italic")
+        # the caption goes under the x label (part of it, so the layout keeps room for it)
+        ax.set_xlabel("x (px)" + ("\n\n" + "\n".join(textwrap.wrap(caption, 70)) if caption else ""), fontsize=8,
+                      loc="left" if caption else "center")
     for ax in axes[len(labels):]:
         ax.set_visible(False)
     handles = [Line2D([], [], linestyle="none", marker="o", markersize=5, color="black", label="star (size ~ brightness)")]
@@ -467,7 +469,7 @@ def show_figure(stars: pd.DataFrame, ids: pd.DataFrame, explanations: dict | Non
                               label=m["text"]))
     handles += [Line2D([], [], color="#7F7F7F", linewidth=0.8, linestyle="--", label="explain: considered"),
                 Line2D([], [], color="#CC79A7", linewidth=2.2, label="explain: decisive / matched")]
-    fig.legend(handles=handles, loc="outside lower center", ncol=4, fontsize=7)
+    legend_ax.legend(handles=handles, loc="center", ncol=4, fontsize=7)
     return fig
 
 

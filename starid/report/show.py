@@ -52,9 +52,13 @@ def explain(algorithm, database, observation) -> tuple[Explanation | None, str]:
 
 
 def show(algorithms, trial: int, seed: int = 0, world: dict | None = None, camera: Camera | None = None,
-         catalog: Catalog | None = None, label_stars: bool = True) -> Shown:
+         catalog: Catalog | None = None, label_stars: bool = True, databases: dict | None = None) -> Shown:
     """Trial ``trial`` of ``seed`` in the world ``world`` (SimConfig fields, or ``sky``), one panel per
-    algorithm (names or variants such as ``"ptp[n_slaves=3]"``)."""
+    algorithm (names or variants such as ``"ptp[n_slaves=3]"``).
+
+    ``databases`` (label -> database built for the same catalog and camera) skips the builds, e.g.
+    when a notebook draws several images.
+    """
     if not algorithms:
         raise ConfigError("show needs at least one algorithm")
     if int(trial) != trial or trial < 0:
@@ -75,7 +79,9 @@ def show(algorithms, trial: int, seed: int = 0, world: dict | None = None, camer
         algorithm = variant.make().resolved(config)
         hip, error, elapsed_ms = None, "", float("nan")
         try:
-            database = algorithm.build(catalog, camera)
+            database = (databases or {}).get(variant.label)
+            if database is None:
+                database = algorithm.build(catalog, camera)
             algorithm.identify(database, view)          # warm the JIT up, as the harness does
             t0 = time.perf_counter()
             result = algorithm.identify(database, view)
