@@ -388,10 +388,11 @@ def regression(diff: pd.DataFrame, title: str = "") -> Figure:
         ax.plot([100 * r.diff], [yi], marker="o", markersize=6, color="black",
                 markerfacecolor="black" if sig else "white", markeredgewidth=1.2)
     ax.axvline(0, color="0.2", linewidth=0.8)
-    ax.set_yticks(y, [f"{r.label} @ {r.where}" for r in d.itertuples()])
+    studies = d["study"].nunique() > 1 if "study" in d.columns else False
+    ax.set_yticks(y, [(f"{r.study}: " if studies else "") + f"{r.label} @ {r.where}" for r in d.itertuples()])
     ax.grid(axis="y", visible=False)
-    ax.set_xlabel("identification rate new − old (percentage points), 95 % interval; filled: McNemar p < 0.05")
-    ax.set_title(title or "regression: new vs old on the same images")
+    ax.set_xlabel("identification rate new − old (percentage points), 95 % interval")
+    ax.set_title((title or "regression: new vs old on the same images") + "\nfilled: McNemar's exact p < 0.05")
     return fig
 
 

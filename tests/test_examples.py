@@ -9,7 +9,7 @@ EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "teaching.py"
 
 
 def test_teaching_example_runs(tmp_path):
-    env = {**os.environ, "STARID_EXAMPLE_OUT": str(tmp_path), "STARID_EXAMPLE_TRIALS": "12", "MPLBACKEND": "Agg"}
+    env = {**os.environ, "STARID_EXAMPLE_OUT": str(tmp_path), "STARID_EXAMPLE_TRIALS": "8", "MPLBACKEND": "Agg"}
     done = subprocess.run([sys.executable, str(EXAMPLE)], env=env, cwd=tmp_path, capture_output=True, text=True,
                           timeout=600)
     assert done.returncode == 0, done.stderr[-3000:]

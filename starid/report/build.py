@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from scipy.stats import binomtest, norm
+from scipy.stats import binomtest
 
 from .. import experiments as builtin
 from .. import plots
@@ -365,8 +365,8 @@ def _where_text(row: pd.Series, grid: list[str]) -> str:
 
 
 def compare(old: pd.DataFrame, new: pd.DataFrame) -> pd.DataFrame:
-    """Per study, point and label: both rates, their difference (new − old) with an approximate 95 %
-    interval for paired proportions, and McNemar's exact test on the trials both ran (matched by
+    """Per study, point and label: both rates, their difference (new − old) with a 95 % interval for
+    paired proportions (exact, conditional on the discordant images), and McNemar's exact test on the trials both ran (matched by
     study, grid values, label and trial index). A row ``where = all points`` per study and label pools
     the points."""
     grid = sorted({c for c in old.columns if c.startswith("grid_")} & {c for c in new.columns if c.startswith("grid_")})
@@ -397,11 +397,17 @@ def _paired(old_ok: np.ndarray, new_ok: np.ndarray) -> dict:
     only_old = int((old_ok & ~new_ok).sum())
     only_new = int((new_ok & ~old_ok).sum())
     diff = (only_new - only_old) / n
-    var = ((only_new + only_old) - (only_new - only_old) ** 2 / n) / n ** 2
-    half = norm.ppf(0.975) * math.sqrt(max(var, 0.0))
-    p = binomtest(only_new, only_new + only_old, 0.5).pvalue if only_new + only_old else 1.0
+    m = only_new + only_old
+    if m:
+        # conditional on the m discordant images, only_new ~ Binomial(m, q) and diff = m / n (2q - 1): the
+        # exact (Clopper-Pearson) interval of q gives an interval of diff consistent with the exact test
+        test = binomtest(only_new, m, 0.5)
+        ci = test.proportion_ci(0.95, method="exact")
+        p, lo, hi = test.pvalue, m / n * (2 * ci.low - 1), m / n * (2 * ci.high - 1)
+    else:
+        p, lo, hi = 1.0, 0.0, 0.0
     return {"trials": n, "old_rate": float(old_ok.mean()), "new_rate": float(new_ok.mean()), "diff": diff,
-            "diff_lo": diff - half, "diff_hi": diff + half, "only_old_correct": only_old,
+            "diff_lo": float(lo), "diff_hi": float(hi), "only_old_correct": only_old,
             "only_new_correct": only_new, "p_value": float(p)}
 
 
@@ -418,8 +424,8 @@ def build_regression(old: str | Path, new: str | Path, out: str | Path | None = 
                           f"folders of the same experiment")
     diff = compare(fo, fn)
     fig = figs.ReportFigure("regression", "Rate differences, new − old",
-                            "Identification rate of the new folder minus the old one per label and point, with an "
-                            "approximate 95 % interval for paired proportions; filled markers: McNemar's exact test "
+                            "Identification rate of the new folder minus the old one per label and point, with a 95 % "
+                            "interval for paired proportions (exact, given the discordant images); filled markers: McNemar's exact test "
                             "p < 0.05 (the same images in both folders, matched by trial index).",
                             plots.regression(diff, f"{nn}: new − old on the same images"))
     figs.save([fig], out / "figures", svg=svg)
