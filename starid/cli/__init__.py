@@ -1,7 +1,7 @@
 """The ``starid`` command line: it parses arguments, calls the library and prints.
 
 Commands: ``list``, ``info``, ``check``, ``run``, ``sweep``, ``experiment``, ``reproduce``, ``table6``,
-``identify``, ``simulate`` (``starid COMMAND --help`` for each). Bad input exits with status 2
+``identify``, ``simulate``, ``report``, ``show`` (``starid COMMAND --help`` for each). Bad input exits with status 2
 and one line saying what is wrong; Ctrl-C exits 130 and SIGTERM 143, keeping every finished
 chunk of a results folder (run the same command again to resume).
 """
@@ -15,7 +15,7 @@ import warnings
 
 from ..errors import StarIDError, StarIDWarning
 from ..provenance import versions
-from . import check, experiments, identify, plugins
+from . import check, experiments, identify, plugins, report
 from .options import Formatter
 
 
@@ -35,6 +35,7 @@ def build_parser() -> argparse.ArgumentParser:
     experiments.add_parsers(sub, Formatter)
     identify.add_parsers(sub, Formatter)
     check.add_parsers(sub, Formatter)
+    report.add_parsers(sub, Formatter)
     return parser
 
 

@@ -1,0 +1,107 @@
+"""``report`` (a results folder as Markdown + one self-contained HTML, or two folders as a regression
+report) and ``show`` (one simulated image, one panel per algorithm)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from ..errors import ConfigError
+from .options import add_camera, add_world, camera_spec, make_camera, seed_type, world_settings
+
+EXAMPLES = {
+    "report": """examples:
+  starid reproduce zhou2015 --trials 2000 --out results/zhou2015 && starid report results/zhou2015
+  starid sweep ptp pvector --param sigma_px=0:2:0.5 --out results/noise && starid report results/noise
+  starid report results/noise --format html
+  starid report results/ptp-v1 results/ptp-v2          # regression: new vs old, same images
+  starid report results/ptp-v1 results/ptp-v2 --out results/regression""",
+    "show": """examples:
+  starid show ptp pvector planar_triangle triangle_voting --trial 3 --out trial3.png
+  starid show ptp 'ptp[n_slaves=3]' --trial 12 --seed 7 --pos-noise-px 1 --mag-noise 0.5 --out t12.png
+  starid show ptp triangle_voting --trial 0 --false-stars 3 --sky paper --out false3.svg""",
+}
+
+
+def _formats(text: str) -> tuple[str, ...]:
+    return tuple(x.strip() for x in text.split(",") if x.strip())
+
+
+def cmd_report(args) -> int:
+    from ..report.build import build_regression, build_report
+
+    formats = _formats(args.format)
+    if args.new is None:
+        if args.out is not None:
+            raise ConfigError("--out is for the regression report (starid report OLD NEW); a folder's report is "
+                              "written into the folder")
+        written = build_report(args.dir, formats, svg=not args.no_svg)
+        print(f"wrote {', '.join(str(written[f]) for f in formats)} and {len(written['figures'])} figures in "
+              f"{args.dir / 'figures'}")
+        return 0
+    written, diff = build_regression(args.dir, args.new, args.out, formats, svg=not args.no_svg)
+    shown = diff.assign(old=100 * diff["old_rate"], new=100 * diff["new_rate"], diff_pp=100 * diff["diff"])
+    print(shown[["study", "where", "label", "trials", "old", "new", "diff_pp", "only_old_correct",
+                 "only_new_correct", "p_value"]].to_string(index=False, float_format=lambda v: f"{v:.4g}"))
+    print(f"wrote {', '.join(str(written[f]) for f in formats)}")
+    worse = diff[(diff["p_value"] < 0.05) & (diff["diff"] < 0) & (diff["where"] != "all points")]
+    return 1 if args.fail_on_regression and len(worse) else 0
+
+
+def cmd_show(args) -> int:
+    from ..catalog import load_csv, load_hipparcos
+    from ..report.show import show
+
+    out = args.out
+    if out.suffix.lower() not in (".png", ".svg", ".pdf"):
+        raise ConfigError(f"--out {out}: give a .png, .svg or .pdf file name")
+    if out.exists() and out.is_dir():
+        raise ConfigError(f"--out {out} is a folder; give a file name such as {out / 'trial.png'}")
+    catalog = load_csv(args.catalog) if args.catalog else load_hipparcos()
+    shown = show(args.algorithms, args.trial, args.seed, world_settings(args), make_camera(camera_spec(args)),
+                 catalog, label_stars=not args.no_labels)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    shown.figure.savefig(out, dpi=args.dpi, facecolor="white")
+    print(shown.results[["label", "status", "n_identified", "n_correct", "n_wrong", "time_ms", "explain"]]
+          .to_string(index=False, float_format=lambda v: f"{v:.3g}"))
+    print(f"wrote {out}")
+    return 0
+
+
+def add_parsers(sub, formatter) -> None:
+    p = sub.add_parser("report", help="a results folder as report.md + report.html + figures; or OLD NEW: regression",
+                       formatter_class=formatter, epilog=EXAMPLES["report"],
+                       description="Turn a results folder (starid run/sweep --out, experiment run, reproduce, table6 "
+                                   "--out) into DIR/report.md, one self-contained DIR/report.html (figures embedded, "
+                                   "no external URL, no JavaScript) and DIR/figures/*.png + .svg: conditions, "
+                                   "provenance, tables, rate curves with 95 % Wilson bands and the paper's points, "
+                                   "time and memory trade-offs, star counts, McNemar tests. With two folders of the "
+                                   "same experiment (OLD NEW): the rate differences per label and point with "
+                                   "McNemar's exact test on the same images (regression.md / .html).")
+    p.add_argument("dir", type=Path, metavar="DIR", help="results folder (OLD when NEW is given)")
+    p.add_argument("new", type=Path, nargs="?", metavar="NEW", help="a second results folder: regression report")
+    p.add_argument("--format", default="md,html", metavar="md,html", help="which documents to write")
+    p.add_argument("--out", type=Path, metavar="DIR", help="where the regression report goes (default: NEW)")
+    p.add_argument("--no-svg", action="store_true", help="write PNG figures only")
+    p.add_argument("--fail-on-regression", action="store_true",
+                   help="regression report: exit 1 when any label/point is significantly worse (for CI)")
+    p.set_defaults(func=cmd_report)
+
+    p = sub.add_parser("show", help="one simulated image, one panel per algorithm, its reasoning drawn over it",
+                       formatter_class=formatter, epilog=EXAMPLES["show"],
+                       description="Draw trial K of a seed (the image 'starid run' scores as trial K in the same "
+                                   "world): stars sized by magnitude, each with its true and identified HIP; "
+                                   "correct, wrong, missed and false stars marked by shape; and, for plugins with "
+                                   "explain(), the algorithm's own reasoning (the triangles it formed, the one that "
+                                   "matched) with its caption.")
+    p.add_argument("algorithms", nargs="+", metavar="ALGO", help="registered names or variants NAME[KEY=VALUE,...]")
+    p.add_argument("--trial", type=seed_type, required=True, metavar="K", help="trial index")
+    p.add_argument("--seed", type=seed_type, default=0, help="simulator seed")
+    p.add_argument("--out", type=Path, required=True, metavar="FILE.png", help="picture to write (.png, .svg, .pdf)")
+    p.add_argument("--dpi", type=int, default=150, help="resolution of a PNG")
+    p.add_argument("--no-labels", action="store_true", help="leave out the HIP numbers beside the stars")
+    add_world(p)
+    add_camera(p)
+    p.set_defaults(func=cmd_show)
+
+
+__all__ = ["add_parsers"]

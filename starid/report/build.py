@@ -1,0 +1,482 @@
+"""``starid report``: a results folder -> ``report.md``, one self-contained ``report.html``, ``figures/``.
+
+A report is a list of blocks (headings, paragraphs, Markdown snippets with tables, figures)
+rendered twice: as Markdown (figures linked as ``figures/<name>.png``) and as one HTML file
+(figures embedded as base64 PNG, tables as HTML tables, a small inline stylesheet; no external
+URL and no JavaScript). :func:`build_report` makes the report of one folder;
+:func:`build_regression` compares two folders of the same experiment trial by trial
+(McNemar's exact test per label and point).
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import math
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from scipy.stats import binomtest
+
+from .. import experiments as builtin
+from .. import plots
+from ..errors import ConfigError
+from ..experiment import Experiment, read_manifest
+from ..io import atomic_write_text
+from ..provenance import versions
+from ..stats import mcnemar_all, summarize
+from . import figures as figs
+from .tables import Table, markdown, mcnemar_markdown, p_value, pct, rate_ci
+
+FORMATS = ("md", "html")
+SIM_FIELDS = ("sigma_px", "sigma_mag", "mag_limit", "false_stars", "lost_stars", "min_stars", "merge_radius_px",
+              "sky_mag_limit")
+
+
+# ---------------------------------------------------------------------------------------------- reading
+
+def load(folder: str | Path) -> tuple[dict, pd.DataFrame]:
+    """The manifest and the trial rows of a results folder (clear errors when it is not one)."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise ConfigError(f"{folder} is not a folder")
+    manifest = read_manifest(folder)
+    path = folder / "results.parquet"
+    if not path.is_file():
+        raise ConfigError(f"{folder} has no results.parquet (an unfinished run? run the same command again to "
+                          f"finish it)")
+    try:
+        frame = pd.read_parquet(path)
+    except Exception as exc:  # pyarrow raises several types for a damaged file
+        raise ConfigError(f"{path} is unreadable: {exc}") from None
+    if frame.empty:
+        raise ConfigError(f"{path} holds no rows")
+    return manifest, frame
+
+
+def experiment_module(manifest: dict):
+    """The built-in experiment module the folder was made by (``starid reproduce``), or ``None``."""
+    name = manifest.get("experiment", {}).get("name")
+    return builtin.get(name) if name in builtin.MODULES else None
+
+
+# ---------------------------------------------------------------------------------------------- blocks
+
+@dataclass
+class Block:
+    kind: str            # "h2", "h3", "p", "md" (Markdown text with tables), "fig"
+    text: str = ""
+    figure: figs.ReportFigure | None = None
+
+
+def _kv_table(pairs: list[tuple[str, str]]) -> str:
+    return markdown(pd.DataFrame(pairs, columns=["", "value"]))
+
+
+def _fmt(v) -> str:
+    if v is None or (isinstance(v, float) and math.isnan(v)):
+        return "none"
+    if isinstance(v, float):
+        return f"{v:g}"
+    return str(v)
+
+
+def conditions(manifest: dict, frame: pd.DataFrame) -> list[Block]:
+    """Camera, trials, seed and the simulated world of every study point (the settings that vary)."""
+    exp = manifest.get("experiment", {})
+    cam = {c[7:]: frame[c].iloc[0] for c in frame.columns if c.startswith("camera_")}
+    cam_text = ", ".join(f"{k} = {_fmt(v)}" for k, v in cam.items())
+    fov = ""
+    if {"width_px", "focal_mm", "pixel_um"} <= set(cam):
+        f_px = float(cam["focal_mm"]) / (float(cam["pixel_um"]) * 1e-3)
+        fov = f" ({2 * math.degrees(math.atan(float(cam['width_px']) / 2 / f_px)):.2f} deg across)"
+    pairs = [("experiment", f"{exp.get('name', '?')}: {exp.get('description', '') or 'no description'}"),
+             ("trials per point", str(exp.get("trials", frame["trial"].nunique()))),
+             ("seed", str(exp.get("seed", frame["seed"].iloc[0] if "seed" in frame else "?"))),
+             ("camera", cam_text + fov),
+             ("studies", ", ".join(s["name"] for s in exp.get("studies", [])) or ", ".join(frame["study"].unique())),
+             ("success rule", "an image is correct when >= 3 stars get their true HIP and none a wrong one")]
+    sim_cols = [f"sim_{k}" for k in SIM_FIELDS if f"sim_{k}" in frame.columns]
+    points = frame.drop_duplicates(["study", "point"])[["study", "point"] + sim_cols].copy()
+    varying = [c for c in sim_cols if points[c].map(_fmt).nunique() > 1]
+    constant = [c for c in sim_cols if c not in varying]
+    world = ", ".join(f"{c[4:]} = {_fmt(points[c].iloc[0])}" for c in constant)
+    pairs.append(("simulated world (every point)", world + _sky_words(points)))
+    blocks = [Block("h2", "Conditions"), Block("md", _kv_table(pairs))]
+    if varying:
+        shown = points[["study", "point"] + varying].rename(columns={c: c[4:] for c in varying})
+        shown = shown.map(_fmt) if hasattr(shown, "map") else shown.applymap(_fmt)
+        blocks.append(Block("p", "The settings that change from point to point (sky_mag_limit none = the real sky, "
+                                 "every catalog star to V 8 imaged; 6 = the paper's sky, only its guide stars):"))
+        blocks.append(Block("md", markdown(shown)))
+    return blocks
+
+
+def _sky_words(points: pd.DataFrame) -> str:
+    if "sim_sky_mag_limit" not in points or points["sim_sky_mag_limit"].map(_fmt).nunique() > 1:
+        return ""
+    v = points["sim_sky_mag_limit"].iloc[0]
+    return ("; the real sky (every catalog star to V 8 imaged)" if v is None or pd.isna(v)
+            else f"; sky V <= {v:g} (only those stars imaged)")
+
+
+def provenance(manifest: dict, frame: pd.DataFrame) -> list[Block]:
+    """Versions, plugins, machine, command and dates."""
+    m = manifest.get("machine", {})
+    pk = m.get("packages", {})
+    ver_cols = [c for c in frame.columns if c.endswith("_version") and c != "plugin_version"]
+    row_versions = ", ".join(f"{c[:-8]} {frame[c].iloc[0]}" for c in ver_cols)
+    pairs = [("results made by", row_versions or "?"),
+             ("packages on that machine", ", ".join(f"{k.replace('_version', '')} {v}" for k, v in pk.items())),
+             ("machine", f"{m.get('hostname', '?')}: {m.get('platform', '?')}, {m.get('cpu', '?')}, "
+                         f"{m.get('cpu_count', '?')} cores"),
+             ("command", f"`{manifest.get('command', '?')}`"),
+             ("started / finished (UTC)", f"{manifest.get('started', '?')} / {manifest.get('finished', '?')}"),
+             ("definition digest", f"`{manifest.get('digest', '?')}`"),
+             ("report made by", f"starid {versions()['starid_version']}")]
+    blocks = [Block("h2", "Provenance"), Block("md", _kv_table(pairs))]
+    if "plugin_dist" in frame.columns:
+        plug = frame.drop_duplicates("label")[["label", "algorithm", "plugin_dist", "plugin_version"]]
+        params = [c for c in frame.columns if c.startswith("param_")]
+        plug = plug.assign(parameters=[", ".join(f"{c[6:]}={_fmt(v)}" for c, v in zip(params, row) if not _missing(v))
+                                       for row in frame.drop_duplicates("label")[params].itertuples(index=False)])
+        blocks.append(Block("p", "Algorithm labels, the plugin distribution that provided them and the parameters "
+                                 "they ran with (at the first point; parameters that follow the simulator change "
+                                 "with it):"))
+        blocks.append(Block("md", markdown(plug.map(_fmt) if hasattr(plug, "map") else plug.applymap(_fmt))))
+    return blocks
+
+
+def _missing(v) -> bool:
+    return v is None or (isinstance(v, float) and math.isnan(v))
+
+
+def generic_tables(frame: pd.DataFrame) -> list[Table]:
+    """Per study: each label's summary at every point; McNemar for every pair at each point."""
+    out = []
+    for study, part in frame.groupby("study", sort=False):
+        grid = [c for c in part.columns if c.startswith("grid_") and part[c].notna().any()]
+        s = summarize(part, by=["point", *grid, "label"])
+        shown = pd.DataFrame({c[5:]: s[c].map(_fmt) for c in grid})
+        shown["label"] = s["label"]
+        shown["trials"] = s["trials"]
+        shown["id rate [95% CI]"] = [rate_ci(a, b, c) for a, b, c in zip(s["id_rate"], s["id_rate_lo"],
+                                                                          s["id_rate_hi"])]
+        shown["misid"] = s["misid_rate"].map(pct)
+        shown["no result"] = s["no_result_rate"].map(pct)
+        shown["failed"] = (s["error_rate"] + s["timeout_rate"] + s["crash_rate"]).map(pct)
+        shown["median time"] = s["time_median_us"].map(lambda v: f"{v / 1e3:.3f} ms")
+        shown["DB (MB)"] = s["db_mb"].map(lambda v: f"{v:.3f}")
+        notes = []
+        if part["label"].nunique() > 1:
+            rows = []
+            for point, g in part.groupby("point", sort=False):
+                t = mcnemar_all(g)
+                where = ", ".join(f"{c[5:]} = {_fmt(g[c].iloc[0])}" for c in grid) or "-"
+                rows.append(t.assign(point=where))
+            tests = pd.concat(rows, ignore_index=True)
+            md = mcnemar_markdown(tests)
+            md = _prepend_column(md, "point", list(tests["point"]))
+            notes.append("McNemar's exact test on the same images (pairs of labels at each point):\n\n" + md)
+        out.append(Table(f"summary_{study}", f"Study {study}: summary per point and label", s, markdown(shown),
+                         tuple(notes)))
+    return out
+
+
+def _prepend_column(md: str, name: str, values: list) -> str:
+    lines = md.rstrip("\n").split("\n")
+    out = [f"| {name} " + lines[0], "|---" + lines[1]]
+    out += [f"| {v} " + line for v, line in zip(values, lines[2:])]
+    return "\n".join(out) + "\n"
+
+
+def tables_for(manifest: dict, frame: pd.DataFrame) -> tuple[list[Table], str]:
+    """The experiment's own tables when it is a built-in one (else per-study summaries), and which."""
+    mod = experiment_module(manifest)
+    if mod is not None:
+        try:
+            exp = Experiment.from_dict(manifest["experiment"])
+            return list(mod.tables(frame, exp)), f"the tables of the built-in experiment '{mod.NAME}' ({mod.TITLE})"
+        except Exception as exc:  # a folder from another version: fall back, and say so
+            return generic_tables(frame), f"per-study summaries (the built-in tables failed: {exc})"
+    return generic_tables(frame), "per-study summaries"
+
+
+# ---------------------------------------------------------------------------------------------- report
+
+def build_report(folder: str | Path, formats=FORMATS, svg: bool = True) -> dict:
+    """Write ``report.md`` / ``report.html`` and ``figures/*`` into ``folder``; the written paths."""
+    folder = Path(folder)
+    bad = [f for f in formats if f not in FORMATS]
+    if bad or not formats:
+        raise ConfigError(f"--format takes {', '.join(FORMATS)} (comma-separated), got {','.join(formats) or 'nothing'}")
+    manifest, frame = load(folder)
+    mod = experiment_module(manifest)
+    paper = mod.paper_points() if mod is not None and hasattr(mod, "paper_points") else None
+    fig10 = getattr(mod, "PAPER_FIG10", None) if mod is not None else None
+    tables, which = tables_for(manifest, frame)
+    figures = figs.report_figures(frame, paper, fig10)
+    figs.save(figures, folder / "figures", svg=svg)
+    exp = manifest.get("experiment", {})
+    title = (mod.TITLE if mod is not None else f"Experiment {exp.get('name', folder.name)}") + " — starid report"
+    blocks = [Block("h1", title), Block("p", _overview(manifest, frame, which))]
+    blocks += conditions(manifest, frame)
+    blocks += [Block("h2", "Tables"), Block("p", f"Tables: {which}. Rates carry their 95 % Wilson interval; "
+                                                 f"times are medians on this machine (noisy, compare ratios).")]
+    for t in tables:
+        blocks += [Block("h3", t.title), Block("md", t.markdown)] + [Block("md", n) for n in t.notes]
+    blocks.append(Block("h2", "Figures"))
+    blocks.append(Block("p", "Every label keeps its colour, marker and line style in every figure, so the figures "
+                             "read in black and white."))
+    for f in figures:
+        blocks += [Block("h3", f.title), Block("fig", f.caption, f)]
+    blocks += provenance(manifest, frame)
+    written = {}
+    if "md" in formats:
+        written["md"] = folder / "report.md"
+        atomic_write_text(written["md"], render_markdown(blocks))
+    if "html" in formats:
+        written["html"] = folder / "report.html"
+        atomic_write_text(written["html"], render_html(blocks, title, folder))
+    written["figures"] = [folder / "figures" / f"{f.name}.png" for f in figures]
+    written["tables"] = [t.name for t in tables]
+    return written
+
+
+def _overview(manifest: dict, frame: pd.DataFrame, which: str) -> str:
+    exp = manifest.get("experiment", {})
+    labels = list(dict.fromkeys(frame["label"]))
+    return (f"Results folder of experiment **{exp.get('name', '?')}**: {len(frame):,} trial rows, "
+            f"{frame.groupby('study').ngroups} stud{'y' if frame['study'].nunique() == 1 else 'ies'}, "
+            f"{frame.drop_duplicates(['study', 'point']).shape[0]} points, {len(labels)} algorithm labels "
+            f"({', '.join(labels)}), {exp.get('trials', frame['trial'].nunique())} images per point (seed "
+            f"{exp.get('seed', '?')}). Below: the conditions, {which}, the figures and the provenance.")
+
+
+# ---------------------------------------------------------------------------------------------- rendering
+
+def render_markdown(blocks: list[Block]) -> str:
+    out = []
+    for b in blocks:
+        if b.kind == "h1":
+            out.append(f"# {b.text}\n")
+        elif b.kind == "h2":
+            out.append(f"## {b.text}\n")
+        elif b.kind == "h3":
+            out.append(f"### {b.text}\n")
+        elif b.kind in ("p", "md"):
+            out.append(b.text.rstrip("\n") + "\n")
+        elif b.kind == "fig":
+            out.append(f"![{b.figure.title}](figures/{b.figure.name}.png)\n\n*{b.text}* "
+                       f"([SVG](figures/{b.figure.name}.svg))\n")
+    return "\n".join(out)
+
+
+CSS = """
+body { font-family: "DejaVu Sans", Helvetica, Arial, sans-serif; max-width: 1100px; margin: 2em auto;
+       padding: 0 1em; color: #111; line-height: 1.45; font-size: 15px; }
+h1 { font-size: 1.6em; border-bottom: 2px solid #111; padding-bottom: .2em; }
+h2 { font-size: 1.3em; border-bottom: 1px solid #999; margin-top: 2em; }
+h3 { font-size: 1.05em; margin-top: 1.6em; }
+table { border-collapse: collapse; margin: .6em 0 1em; font-size: 13px; }
+th, td { border: 1px solid #999; padding: 3px 8px; text-align: left; vertical-align: top; }
+th { background: #e8e8e8; }
+tr:nth-child(even) td { background: #f6f6f6; }
+figure { margin: 1em 0 2em; }
+figure img { max-width: 100%; height: auto; border: 1px solid #ccc; }
+figcaption { font-size: 13px; color: #333; margin-top: .3em; }
+code { background: #f0f0f0; padding: 0 3px; }
+"""
+
+
+def _inline(text: str) -> str:
+    t = html.escape(text, quote=False)
+    t = re.sub(r"`([^`]+)`", r"<code>\1</code>", t)
+    t = re.sub(r"\*\*([^*]+)\*\*", r"<strong>\1</strong>", t)
+    return t
+
+
+def markdown_to_html(text: str) -> str:
+    """The little Markdown the reports use: pipe tables, headings, bullet lists and paragraphs."""
+    out, para, table, items = [], [], [], []
+
+    def flush():
+        if para:
+            out.append(f"<p>{_inline(' '.join(para))}</p>")
+            para.clear()
+        if items:
+            out.append("<ul>" + "".join(f"<li>{_inline(i)}</li>" for i in items) + "</ul>")
+            items.clear()
+        if table:
+            rows = [[c.strip() for c in line.strip().strip("|").split("|")] for line in table]
+            body = [r for r in rows[1:] if not all(re.fullmatch(r":?-{3,}:?", c) for c in r)]
+            head = "".join(f"<th>{_inline(c)}</th>" for c in rows[0])
+            trs = "".join("<tr>" + "".join(f"<td>{_inline(c)}</td>" for c in r) + "</tr>" for r in body)
+            out.append(f"<table><thead><tr>{head}</tr></thead><tbody>{trs}</tbody></table>")
+            table.clear()
+
+    for line in text.splitlines():
+        s = line.strip()
+        if s.startswith("|"):
+            if para or items:
+                flush()
+            table.append(s)
+            continue
+        if table:
+            flush()
+        if not s:
+            flush()
+        elif s.startswith("#"):
+            flush()
+            level = min(len(s) - len(s.lstrip("#")), 4)
+            out.append(f"<h{level}>{_inline(s.lstrip('#').strip())}</h{level}>")
+        elif s.startswith(("* ", "- ")):
+            if para:
+                flush()
+            items.append(s[2:])
+        else:
+            para.append(s)
+    flush()
+    return "\n".join(out)
+
+
+def render_html(blocks: list[Block], title: str, folder: Path) -> str:
+    body = []
+    for b in blocks:
+        if b.kind in ("h1", "h2", "h3"):
+            body.append(f"<{b.kind}>{_inline(b.text)}</{b.kind}>")
+        elif b.kind in ("p", "md"):
+            body.append(markdown_to_html(b.text))
+        elif b.kind == "fig":
+            data = base64.b64encode((folder / "figures" / f"{b.figure.name}.png").read_bytes()).decode("ascii")
+            body.append(f'<figure><img alt="{html.escape(b.figure.title)}" src="data:image/png;base64,{data}">'
+                        f"<figcaption>{_inline(b.text)}</figcaption></figure>")
+    return (f'<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8"><title>{html.escape(title)}</title>'
+            f"<style>{CSS}</style></head><body>\n" + "\n".join(body) + "\n</body></html>\n")
+
+
+# ---------------------------------------------------------------------------------------------- regression
+
+def _where_text(row: pd.Series, grid: list[str]) -> str:
+    return ", ".join(f"{c[5:]}={_fmt(row[c])}" for c in grid if not _missing(row[c])) or "-"
+
+
+def compare(old: pd.DataFrame, new: pd.DataFrame) -> pd.DataFrame:
+    """Per study, point and label: both rates, their difference (new − old) with a 95 % interval for
+    paired proportions (exact, conditional on the discordant images), and McNemar's exact test on the trials both ran (matched by
+    study, grid values, label and trial index). A row ``where = all points`` per study and label pools
+    the points."""
+    grid = sorted({c for c in old.columns if c.startswith("grid_")} & {c for c in new.columns if c.startswith("grid_")})
+    key = ["study", *grid, "label", "trial"]
+    a = old[key + ["status"]].assign(ok=old["status"] == "correct")
+    b = new[key + ["status"]].assign(ok=new["status"] == "correct")
+    for df in (a, b):
+        for c in grid:
+            df[c] = df[c].map(_fmt)
+    m = a.merge(b, on=key, suffixes=("_old", "_new"))
+    if m.empty:
+        raise ConfigError("the two folders share no (study, point, label, trial): nothing to compare")
+    m["where"] = m[grid].apply(lambda r: ", ".join(f"{c[5:]}={v}" for c, v in r.items() if v != "none"),
+                               axis=1) if grid else "-"
+    rows = []
+    for (study, label), g in m.groupby(["study", "label"], sort=False):
+        parts = list(g.groupby("where", sort=False))
+        if len(parts) > 1:
+            parts.append(("all points", g))
+        for where, h in parts:
+            rows.append({"study": study, "where": where, "label": label, **_paired(h["ok_old"].to_numpy(),
+                                                                                   h["ok_new"].to_numpy())})
+    return pd.DataFrame(rows)
+
+
+def _paired(old_ok: np.ndarray, new_ok: np.ndarray) -> dict:
+    n = old_ok.size
+    only_old = int((old_ok & ~new_ok).sum())
+    only_new = int((new_ok & ~old_ok).sum())
+    diff = (only_new - only_old) / n
+    m = only_new + only_old
+    if m:
+        # conditional on the m discordant images, only_new ~ Binomial(m, q) and diff = m / n (2q - 1): the
+        # exact (Clopper-Pearson) interval of q gives an interval of diff consistent with the exact test
+        test = binomtest(only_new, m, 0.5)
+        ci = test.proportion_ci(0.95, method="exact")
+        p, lo, hi = test.pvalue, m / n * (2 * ci.low - 1), m / n * (2 * ci.high - 1)
+    else:
+        p, lo, hi = 1.0, 0.0, 0.0
+    return {"trials": n, "old_rate": float(old_ok.mean()), "new_rate": float(new_ok.mean()), "diff": diff,
+            "diff_lo": float(lo), "diff_hi": float(hi), "only_old_correct": only_old,
+            "only_new_correct": only_new, "p_value": float(p)}
+
+
+def build_regression(old: str | Path, new: str | Path, out: str | Path | None = None, formats=FORMATS,
+                     svg: bool = True) -> tuple[dict, pd.DataFrame]:
+    """``regression.md`` / ``regression.html`` / ``figures/regression.*`` in ``out`` (default: ``new``)."""
+    old, new = Path(old), Path(new)
+    out = Path(out) if out is not None else new
+    mo, fo = load(old)
+    mn, fn = load(new)
+    no, nn = mo.get("experiment", {}).get("name"), mn.get("experiment", {}).get("name")
+    if no != nn:
+        raise ConfigError(f"{old} holds experiment {no!r} and {new} holds {nn!r}: a regression report compares two "
+                          f"folders of the same experiment")
+    diff = compare(fo, fn)
+    fig = figs.ReportFigure("regression", "Rate differences, new − old",
+                            "Identification rate of the new folder minus the old one per label and point, with a 95 % "
+                            "interval for paired proportions (exact, given the discordant images); filled markers: McNemar's exact test "
+                            "p < 0.05 (the same images in both folders, matched by trial index).",
+                            plots.regression(diff, f"{nn}: new − old on the same images"))
+    figs.save([fig], out / "figures", svg=svg)
+    sig = diff[(diff["p_value"] < 0.05) & (diff["where"] != "all points")]
+    worse = sig[sig["diff"] < 0]
+    better = sig[sig["diff"] > 0]
+    verdict = (f"{len(worse)} label/point(s) significantly worse, {len(better)} significantly better (McNemar p < "
+               f"0.05) out of {int((diff['where'] != 'all points').sum())}; with many points a few p < 0.05 arise "
+               f"by chance (about 1 in 20).")
+    shown = pd.DataFrame({
+        "study": diff["study"], "point": diff["where"], "label": diff["label"], "trials": diff["trials"],
+        "old": diff["old_rate"].map(pct), "new": diff["new_rate"].map(pct),
+        "new − old [95% CI]": [f"{100 * d:+.2f} pp [{100 * lo:+.2f}, {100 * hi:+.2f}]"
+                               for d, lo, hi in zip(diff["diff"], diff["diff_lo"], diff["diff_hi"])],
+        "only old correct": diff["only_old_correct"], "only new correct": diff["only_new_correct"],
+        "McNemar p": diff["p_value"].map(p_value),
+        "": ["**worse**" if p < 0.05 and d < 0 else "**better**" if p < 0.05 and d > 0 else ""
+             for p, d in zip(diff["p_value"], diff["diff"])]})
+
+    def side(m, f, name):
+        plug = f.drop_duplicates("label")
+        pv = ", ".join(f"{lab} {d} {v}" for lab, d, v in zip(plug["label"], plug.get("plugin_dist", ""),
+                                                           plug.get("plugin_version", "")))
+        ver = ", ".join(f"{c[:-8]} {f[c].iloc[0]}" for c in f.columns if c.endswith("_version") and
+                        c != "plugin_version")
+        return [(f"{name} folder", f"`{m.get('_path')}`"), (f"{name} versions", ver), (f"{name} plugins", pv),
+                (f"{name} run", f"{m.get('started')} / {m.get('finished')} on {m.get('machine', {}).get('hostname')}"),
+                (f"{name} digest", f"`{m.get('digest')}`")]
+
+    mo["_path"], mn["_path"] = str(old), str(new)
+    pairs = side(mo, fo, "old") + side(mn, fn, "new")
+    note = "" if mo.get("digest") == mn.get("digest") else (
+        " The two definitions differ (digests differ): only the trials both folders ran are compared.")
+    title = f"Regression report: {nn}, {new.name} vs {old.name}"
+    blocks = [Block("h1", title),
+              Block("p", f"Every label and point of the new folder compared with the old one on the same images "
+                         f"(trials matched by index: common random numbers make trial k the same image in both). "
+                         f"{verdict}{note}"),
+              Block("h2", "Differences"), Block("md", markdown(shown)),
+              Block("h2", "Figure"), Block("fig", fig.caption, fig),
+              Block("h2", "Provenance"), Block("md", _kv_table(pairs))]
+    written = {}
+    if "md" in formats:
+        written["md"] = out / "regression.md"
+        atomic_write_text(written["md"], render_markdown(blocks))
+    if "html" in formats:
+        written["html"] = out / "regression.html"
+        atomic_write_text(written["html"], render_html(blocks, title, out))
+    return written, diff
+
+
+__all__ = ["build_regression", "build_report", "compare", "load", "markdown_to_html", "render_html",
+           "render_markdown"]
+

@@ -1,0 +1,115 @@
+"""``starid show``: one simulated image, every algorithm's identification (and reasoning) drawn on it.
+
+:func:`show` regenerates trial ``K`` of a seed (the same image ``starid run`` scored as trial
+``K`` with the same world settings), runs each algorithm on it as the harness does (database
+built once, ``identify`` on the read-only observation without truth), calls the optional
+``explain(database, observation)`` when the plugin has one, and draws
+:func:`starid.plots.show_figure`: one panel per algorithm on the same image.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import pandas as pd
+from matplotlib.figure import Figure
+
+from .. import plots
+from ..camera import Camera
+from ..catalog import Catalog, load_hipparcos
+from ..errors import ConfigError
+from ..experiment import Variant
+from ..experiment.spec import sim_settings
+from ..plugin import Explanation, check_identification
+from ..scoring import score_trial
+from ..simulate import SimConfig, Simulator
+
+
+@dataclass(eq=False)
+class Shown:
+    """What :func:`show` computed: the figure, the image's stars and each label's ids and result."""
+
+    figure: Figure
+    stars: pd.DataFrame
+    ids: pd.DataFrame
+    results: pd.DataFrame
+    explanations: dict
+
+
+def explain(algorithm, database, observation) -> tuple[Explanation | None, str]:
+    """The algorithm's explanation of this image, or ``None`` with the reason (no method, or it failed)."""
+    method = getattr(algorithm, "explain", None)
+    if method is None or not callable(method):
+        return None, "no explain()"
+    try:
+        ex = method(database, observation)
+    except Exception as exc:  # a teaching picture must not die of one plugin's bug
+        return None, f"explain failed: {type(exc).__name__}: {exc}"
+    if not isinstance(ex, Explanation):
+        return None, f"explain returned {type(ex).__name__}, not starid.Explanation"
+    return ex, ""
+
+
+def show(algorithms, trial: int, seed: int = 0, world: dict | None = None, camera: Camera | None = None,
+         catalog: Catalog | None = None, label_stars: bool = True, databases: dict | None = None) -> Shown:
+    """Trial ``trial`` of ``seed`` in the world ``world`` (SimConfig fields, or ``sky``), one panel per
+    algorithm (names or variants such as ``"ptp[n_slaves=3]"``).
+
+    ``databases`` (label -> database built for the same catalog and camera) skips the builds, e.g.
+    when a notebook draws several images.
+    """
+    if not algorithms:
+        raise ConfigError("show needs at least one algorithm")
+    if int(trial) != trial or trial < 0:
+        raise ConfigError(f"--trial must be a whole number >= 0, got {trial!r}")
+    variants = [a if isinstance(a, Variant) else Variant.parse(a) for a in algorithms]
+    labels = [v.label for v in variants]
+    if len(set(labels)) != len(labels):
+        raise ConfigError(f"an algorithm is given twice ({', '.join(labels)})")
+    catalog = catalog or load_hipparcos()
+    camera = camera or Camera()
+    config = SimConfig(**sim_settings(dict(world or {}), {}))
+    sim = Simulator(catalog, camera, config, seed)
+    obs = sim.observation(int(trial))
+    view = obs.for_plugin()
+    stars = obs.to_frame()
+    id_rows, results, explanations, titles = [], [], {}, {}
+    for variant in variants:
+        algorithm = variant.make().resolved(config)
+        hip, error, elapsed_ms = None, "", float("nan")
+        try:
+            database = (databases or {}).get(variant.label)
+            if database is None:
+                database = algorithm.build(catalog, camera)
+            algorithm.identify(database, view)          # warm the JIT up, as the harness does
+            t0 = time.perf_counter()
+            result = algorithm.identify(database, view)
+            elapsed_ms = (time.perf_counter() - t0) * 1e3
+            check_identification(result, len(obs), catalog.hip)
+            hip = result.hip.astype("int64")
+            ex, why = explain(algorithm, database, view)
+        except Exception as exc:  # shown in the panel's title, not raised: the other panels still draw
+            error, ex, why = f"{type(exc).__name__}: {exc}", None, ""
+        if hip is None:
+            hip = pd.Series(-1, index=range(len(obs))).to_numpy()
+        scored = score_trial(hip, obs.truth_hip)
+        status = "error" if error else scored["status"]
+        results.append({"label": variant.label, "status": status, "time_ms": elapsed_ms, "error": error,
+                        "explain": "yes" if ex is not None else why, **{k: v for k, v in scored.items()
+                                                                         if k != "status"}})
+        id_rows.append(pd.DataFrame({"label": variant.label, "star": range(len(obs)), "hip": hip}))
+        explanations[variant.label] = ex
+        titles[variant.label] = (f"{status}, {elapsed_ms:.2f} ms" if not error else f"error: {error[:60]}")
+    ids = pd.concat(id_rows, ignore_index=True)
+    fig = plots.show_figure(stars, ids, explanations, camera.width_px, camera.height_px, titles, label_stars)
+    world_text = ", ".join(f"{k} = {v:g}" for k, v in config.as_dict().items()
+                           if k in ("sigma_px", "sigma_mag", "false_stars", "lost_stars"))
+    world_text += ("; real sky (every star to V 8)" if config.sky_mag_limit is None
+                   else f"; sky V <= {config.sky_mag_limit:g}")
+    fig.suptitle(f"trial {trial}, seed {seed}: {len(obs)} detections ({int((obs.truth_hip >= 0).sum())} true); "
+                 f"{world_text}", fontsize=10)
+    return Shown(fig, stars, ids, pd.DataFrame(results), explanations)
+
+
+__all__ = ["Shown", "explain", "show"]
