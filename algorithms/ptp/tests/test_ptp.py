@@ -2,7 +2,7 @@
 
 The conformance checks (few stars, coincident stars, random fields, ids beyond 2^31, order,
 determinism, explain, ...) run for every plugin in tests/test_conformance.py; here only what is
-PTP's own.
+PTP's own. The catalog database does not depend on the camera, so every test shares one.
 """
 
 import dataclasses
@@ -85,8 +85,9 @@ def test_nearest_slaves_respects_limits():
 
 def test_noise_free_identification(catalog, camera):
     sim = Simulator(catalog, camera, SimConfig(), seed=99)
-    s = summarize(run([PTP()], sim.generate(300), catalog, sim)).iloc[0]
-    assert s["id_rate"] >= 0.96 and s["misid_rate"] <= 0.01
+    s = summarize(run([PTP()], sim.generate(100), catalog, sim)).iloc[0]
+    # measured on these 100 trials: 0.97, no misidentification (300 trials: 0.977); margin 4 points
+    assert s["id_rate"] >= 0.93 and s["misid_rate"] <= 0.01
 
 
 def test_paper_literal_variant_runs(catalog, camera, db):
@@ -128,10 +129,9 @@ def test_coincident_detections_without_d_min(catalog, camera):
 
 
 @pytest.mark.parametrize("fov_deg", [170.0, 60.0])
-def test_wide_field_finishes_quickly(catalog, fov_deg):
-    cam = Camera.from_fov(fov_deg)
+def test_wide_field_finishes_quickly(db, catalog, fov_deg):
+    cam = Camera.from_fov(fov_deg)      # the database does not depend on the camera
     algo = PTP()
-    db = algo.build(catalog, cam)
     obs = Simulator(catalog, cam, SimConfig(sigma_px=1.0), seed=2).observation(0)
     algo.identify(db, obs)                     # compile
     t0 = time.perf_counter()

@@ -2,7 +2,7 @@
 
 The conformance checks (few stars, coincident stars, random fields, ids beyond 2^31, order,
 determinism, explain, ...) run for every plugin in tests/test_conformance.py; here only what is
-the P-vector's own.
+the P-vector's own. The catalog database does not depend on the camera, so every test shares one.
 """
 
 from __future__ import annotations
@@ -160,8 +160,9 @@ def test_few_stars(algo, db, camera, n):
 # --------------------------------------------------------------------- identification rate
 def test_noise_free_rate(algo, catalog):
     sim = Simulator(catalog, Camera(), SimConfig(), seed=11)
-    summary = summarize(run([algo], sim.generate(300), catalog, sim)).iloc[0]
-    assert summary.id_rate >= 0.93  # 2,000 trials (seed 1): 0.961
+    summary = summarize(run([algo], sim.generate(100), catalog, sim)).iloc[0]
+    # measured on these 100 trials: 0.99 (300 trials: 0.983; 2,000 trials, seed 1: 0.961); margin 4 points
+    assert summary.id_rate >= 0.95
     assert summary.misid_rate == 0.0
     assert summary.error_rate == 0.0
 
@@ -172,9 +173,10 @@ def test_magnitude_noise_hurts_as_in_the_paper(catalog):
     rates = {}
     for label, cfg in (("pos", SimConfig(sigma_px=1.0)), ("mag", SimConfig(sigma_mag=0.5))):
         sim = Simulator(catalog, Camera(), cfg, seed=12)
-        rates[label] = summarize(run([algo], sim.generate(300), catalog, sim)).iloc[0]
-    assert rates["pos"].id_rate >= 0.92
-    assert rates["mag"].id_rate < rates["pos"].id_rate - 0.05
+        rates[label] = summarize(run([algo], sim.generate(100), catalog, sim)).iloc[0]
+    # measured on these 100 trials: pos 0.98, mag 0.90, no misidentification (300 trials: 0.98 and 0.923)
+    assert rates["pos"].id_rate >= 0.94                          # margin 4 points
+    assert rates["mag"].id_rate < rates["pos"].id_rate - 0.05    # measured gap 0.08
     assert rates["mag"].misid_rate <= 0.01
 
 
@@ -192,10 +194,8 @@ def test_coincident_detections_without_min_sep(catalog, camera):
 
 
 @pytest.mark.parametrize("fov_deg", [170.0, 40.0])
-def test_wide_field_finishes_quickly(catalog, fov_deg):
-    cam = Camera.from_fov(fov_deg)
-    algo = PVector()
-    db = algo.build(catalog, cam)
+def test_wide_field_finishes_quickly(algo, db, catalog, fov_deg):
+    cam = Camera.from_fov(fov_deg)      # the database does not depend on the camera
     obs = Simulator(catalog, cam, SimConfig(sigma_px=1.0, sigma_mag=0.5), seed=1).observation(1)
     algo.identify(db, obs)                     # compile
     t0 = time.perf_counter()
