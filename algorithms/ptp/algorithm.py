@@ -14,11 +14,11 @@ from starid.camera import Camera
 from starid.catalog import Catalog
 from starid.errors import ConfigError
 from starid.params import check_flag, check_number, check_whole
-from starid.kernels import KVector, kvector_make, rad_to_chord
+from starid.kernels import DeepSky, KVector, camera_frame, deep_sky, kvector_make, rad_to_chord
 from starid.observation import Observation
 from starid.plugin import Algorithm, Database, Explanation, Identification
 
-from .kernels import Frame, Tables, Tolerances, build_triangles, identify_kernel, nearest_slaves, select_stars
+from .kernels import Tables, Tolerances, View, build_triangles, identify_kernel, nearest_slaves, select_stars
 
 #: Sides and D_ms are chords of unit vectors times this (section 2.1: 5 deg -> 872.8).
 CHORD_SCALE = 10000.0
@@ -39,6 +39,8 @@ class PTPDatabase(Database):
     guide_hip : int64 (g,) catalog id of each guide row; guide rows are sorted by z (declination).
     guide_unit : float32 (g, 3) ICRS unit vectors of the guide stars, for verification and
         confirmation (float32: 0.02 arcsec, far below the tolerances).
+    deep : :class:`starid.kernels.DeepSky`, the stars to V <= ``deep_mag_limit`` for ``assign_all``
+        (empty unless ``assign_all``).
     """
 
     kv: KVector
@@ -48,8 +50,7 @@ class PTPDatabase(Database):
     axis: np.ndarray
     guide_hip: np.ndarray
     guide_unit: np.ndarray
-    deep_unit: np.ndarray
-    deep_hip: np.ndarray
+    deep: DeepSky
     explained_variance: float
 
     @property
@@ -60,25 +61,14 @@ class PTPDatabase(Database):
     def tables(self) -> Tables:
         """The arrays identify reads, as one kernel argument."""
         return Tables(self.kv, self.ids, self.sides, self.mean, self.axis, self.guide_unit, self.guide_hip,
-                      self.deep_unit, self.deep_hip)
+                      self.deep)
 
 
 @lru_cache(maxsize=16)
-def _frame(camera: Camera) -> Frame:
-    """The camera as the kernel needs it (``c_fov``: chord from the boresight to the farthest corner)."""
-    return Frame(float(camera.f_px), float(camera.cx_px), float(camera.cy_px), float(camera.width_px),
-                 float(camera.height_px), rad_to_chord(camera.half_diagonal_rad))
-
-
-def _deep(catalog: Catalog, limit: float | None) -> dict:
-    """The deep catalog (V <= ``limit``) for ``assign_all``: z-sorted float32 unit vectors and int64 ids
-    (empty when ``limit`` is None)."""
-    if limit is None:
-        return {"deep_unit": np.zeros((0, 3), dtype=np.float32), "deep_hip": np.zeros(0, dtype=np.int64)}
-    deep = catalog.brighter_than(limit)
-    by_z = np.argsort(deep.unit_icrs[:, 2], kind="stable")
-    return {"deep_unit": np.ascontiguousarray(deep.unit_icrs[by_z], dtype=np.float32),
-            "deep_hip": deep.hip[by_z].astype(np.int64)}
+def _view(camera: Camera) -> View:
+    """The camera as the kernel needs it: the core frame and ``c_fov``, the chord from the boresight to
+    the farthest corner."""
+    return View(camera_frame(camera), rad_to_chord(camera.half_diagonal_rad))
 
 
 def _index_dtype(n: int):
@@ -265,11 +255,11 @@ class PTP(Algorithm):
         return PTPDatabase(kv=kv, ids=ids[order].astype(_index_dtype(len(guide))),
                            sides=np.ascontiguousarray(sides[order].T, dtype=np.float32), mean=mean, axis=axis,
                            guide_hip=guide_hip.astype(np.int64), guide_unit=unit.astype(np.float32),
-                           **_deep(catalog, self.deep_mag_limit if self.assign_all else None),
+                           deep=deep_sky(catalog, self.deep_mag_limit if self.assign_all else -math.inf),
                            explained_variance=float(eigval[-1] / eigval.sum()))
 
     def identify(self, database: PTPDatabase, observation: Observation) -> Identification:
-        hip = identify_kernel(observation.x_px, observation.y_px, observation.mag, _frame(observation.camera),
+        hip = identify_kernel(observation.x_px, observation.y_px, observation.mag, _view(observation.camera),
                               database.tables(), self._tol)
         return Identification(hip)
 

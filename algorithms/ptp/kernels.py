@@ -8,19 +8,16 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from starid.kernels import (KVector, backproject_px, chord_rows, kvector_query, reproject_assign, verify_pairwise,
-                            wahba_rows)
+from starid.kernels import (DeepSky, Frame, KVector, assign_all, backproject_px, chord_rows, kvector_query,
+                            reproject_assign, verify_pairwise, wahba_rows)
 
 
-class Frame(NamedTuple):
-    """The camera as identify needs it: pinhole focal length and principal point (px), sensor size (px),
-    and ``c_fov``, the chord from the boresight to the farthest image corner."""
+class View(NamedTuple):
+    """The camera as identify needs it: the core :class:`starid.kernels.Frame` (focal length, principal
+    point, sensor size, px) and ``c_fov``, the chord from the boresight to the farthest image corner
+    (from ``Camera.half_diagonal_rad``, computed once per camera)."""
 
-    f_px: float
-    cx_px: float
-    cy_px: float
-    width_px: float
-    height_px: float
+    frame: Frame
     c_fov: float
 
 
@@ -31,8 +28,7 @@ class Tables(NamedTuple):
     ids : (t, 3) guide rows of (r1, r2, r3); sides : float32 (3, t) scaled sides a, b, c (eq. 1).
     mean : (3,) mean side vector; axis : (3,) projection axis u_max.
     guide_unit : float32 (g, 3) guide unit vectors (ICRS, z-sorted); guide_hip : int64 (g,) their ids.
-    deep_unit : float32 (d, 3) the deeper catalog stars for ``assign_all`` (z-sorted; may be empty);
-    deep_hip : int64 (d,) their ids.
+    deep : :class:`starid.kernels.DeepSky`, the deeper catalog stars for ``assign_all`` (may be empty).
     """
 
     kv: KVector
@@ -42,8 +38,7 @@ class Tables(NamedTuple):
     axis: np.ndarray
     guide_unit: np.ndarray
     guide_hip: np.ndarray
-    deep_unit: np.ndarray
-    deep_hip: np.ndarray
+    deep: DeepSky
 
 
 class Tolerances(NamedTuple):
@@ -269,14 +264,14 @@ def select_stars(x_px, y_px, mag, max_stars):
 
 
 @njit(cache=True)
-def identify_kernel(x_px, y_px, mag, frame, db, tol):
-    """The catalog id of each detection (-1 = none) and whether an attitude was found.
+def identify_kernel(x_px, y_px, mag, view, db, tol):
+    """The catalog id of each detection (-1 = none).
 
     :func:`match_rows` runs on the ``tol.max_stars`` brightest detections whose measured magnitude
     is at most ``tol.star_mag_max`` (the flight precaution: a star that cannot be in the database
-    makes no pattern). With ``tol.assign_all`` the attitude of the identified stars then assigns
-    every detection to the deep catalog star predicted within the tolerance
-    (``starid.kernels.reproject_assign``, one-to-one only).
+    makes no pattern). With ``tol.assign_all`` the attitude of the identified stars (Wahba) then
+    assigns every detection to the deep catalog star predicted within the tolerance
+    (``starid.kernels.assign_all``, one-to-one only).
     """
     n = x_px.shape[0]
     hip = np.full(n, -1, dtype=np.int64)
@@ -289,49 +284,23 @@ def identify_kernel(x_px, y_px, mag, frame, db, tol):
     sel = sel[:k]
     if k < 3:
         return hip
+    frame = view.frame
     unit = backproject_px(x_px[sel], y_px[sel], frame.f_px, frame.cx_px, frame.cy_px)
-    rows = match_rows(unit, frame, db, tol)
+    rows = match_rows(unit, view, db, tol)
     n_found = 0
     for s in range(sel.shape[0]):
         if rows[s] >= 0:
             hip[sel[s]] = db.guide_hip[rows[s]]
             n_found += 1
-    if tol.assign_all and n_found >= 3 and db.deep_unit.shape[0] > 0:
-        assign_deep(x_px, y_px, frame, db.guide_unit, rows, unit, db.deep_unit, db.deep_hip,
-                    tol.side_beta * math.sqrt(2.0) * tol.sigma_px / frame.f_px, hip)
+    if tol.assign_all and n_found >= 3 and db.deep.unit.shape[0] > 0:
+        attitude = wahba_rows(unit, rows, db.guide_unit)
+        assign_all(attitude, x_px, y_px, frame, db.deep, tol.side_beta * math.sqrt(2.0) * tol.sigma_px / frame.f_px,
+                   hip)
     return hip
 
 
 @njit(cache=True)
-def assign_deep(x_px, y_px, frame, guide_unit, rows, unit, deep_unit, deep_hip, tol_chord, hip):
-    """The standard final step: the attitude of the identified stars (``rows`` of ``unit``) assigns
-    every detection to the deep catalog star predicted within ``tol_chord`` of it (one-to-one).
-    Detections left unassigned keep the id they had in ``hip`` unless the deep assignment gave that
-    id to another detection. Updates ``hip`` in place."""
-    n = x_px.shape[0]
-    attitude = wahba_rows(unit, rows, guide_unit)
-    v_all = backproject_px(x_px, y_px, frame.f_px, frame.cx_px, frame.cy_px)
-    deep_rows = np.empty(n, dtype=np.int64)
-    reproject_assign(attitude, v_all, deep_unit, frame.c_fov + tol_chord, tol_chord, deep_rows, frame.f_px,
-                     frame.cx_px, frame.cy_px, frame.width_px, frame.height_px)
-    out = np.full(n, -1, dtype=np.int64)
-    for i in range(n):
-        if deep_rows[i] >= 0:
-            out[i] = deep_hip[deep_rows[i]]
-    for i in range(n):
-        if out[i] < 0 and hip[i] >= 0:
-            taken = False
-            for j in range(n):
-                if out[j] == hip[i]:
-                    taken = True
-            if not taken:
-                out[i] = hip[i]
-    for i in range(n):
-        hip[i] = out[i]
-
-
-@njit(cache=True)
-def match_rows(unit, frame, db, tol):
+def match_rows(unit, view, db, tol):
     """PTP identification of one image (sections 2.2-2.3) from the detections' camera-frame unit
     vectors ``unit``: the guide row of each (-1 = none).
 
@@ -358,6 +327,7 @@ def match_rows(unit, frame, db, tol):
        (Wahba) must put guide stars in the image of which at least that fraction is observed
        within the same tolerance (``reproject_assign``); otherwise nothing is reported.
     """
+    frame = view.frame
     f_px, cx_px, cy_px = frame.f_px, frame.cx_px, frame.cy_px
     guide_unit = db.guide_unit
     sigma = tol.sigma_px / f_px
@@ -506,7 +476,7 @@ def match_rows(unit, frame, db, tol):
     if tol.confirm_fraction > 0 and n_found >= 2:
         attitude = wahba_rows(unit, result, guide_unit)
         seen = np.empty(n, dtype=np.int64)
-        n_seen, n_predicted = reproject_assign(attitude, unit, guide_unit, frame.c_fov + tol_chord, tol_chord, seen,
+        n_seen, n_predicted = reproject_assign(attitude, unit, guide_unit, view.c_fov + tol_chord, tol_chord, seen,
                                                f_px, cx_px, cy_px, frame.width_px, frame.height_px)
         if n_seen < tol.confirm_fraction * n_predicted:
             result[:] = -1

@@ -13,7 +13,7 @@ from starid.camera import Camera
 from starid.catalog import Catalog
 from starid.errors import ConfigError
 from starid.params import check_choice, check_flag, check_number, check_whole
-from starid.kernels import KVector, kvector_make, rad_to_chord
+from starid.kernels import DeepSky, KVector, camera_frame, deep_sky, kvector_make, rad_to_chord
 from starid.observation import Observation
 from starid.plugin import Algorithm, Database, Explanation, Identification
 
@@ -25,17 +25,6 @@ SIDE_ORDERS = ("sorted", "role")
 NEIGHBOUR_RULES = ("brightest", "nearest")
 MAIN_ORDERS = ("centre", "brightness")
 SEARCHES = ("kvector", "linear")
-
-
-def _deep(catalog: Catalog, limit: float | None) -> dict:
-    """The deep catalog (V <= ``limit``) for ``assign_all``: z-sorted float32 unit vectors and int64 ids
-    (empty when ``limit`` is None)."""
-    if limit is None:
-        return {"deep_unit": np.zeros((0, 3), dtype=np.float32), "deep_hip": np.zeros(0, dtype=np.int64)}
-    deep = catalog.brighter_than(limit)
-    by_z = np.argsort(deep.unit_icrs[:, 2], kind="stable")
-    return {"deep_unit": np.ascontiguousarray(deep.unit_icrs[by_z], dtype=np.float32),
-            "deep_hip": deep.hip[by_z].astype(np.int64)}
 
 
 @dataclass(frozen=True, eq=False)
@@ -51,6 +40,8 @@ class PVectorDatabase(Database):
         neighbour, the other neighbour.
     unit_icrs : float32 (n, 3) guide-star unit vectors, sorted by z (declination bands).
     hip : int64 (n,) the catalog id (HIP) of each guide row.
+    deep : :class:`starid.kernels.DeepSky`, the stars to V <= ``deep_mag_limit`` for ``assign_all``
+        (empty unless ``assign_all``).
     explained_variance : fraction of the side-vector variance along p (build diagnostic).
     """
 
@@ -60,8 +51,7 @@ class PVectorDatabase(Database):
     tri_rows: np.ndarray
     unit_icrs: np.ndarray
     hip: np.ndarray
-    deep_unit: np.ndarray
-    deep_hip: np.ndarray
+    deep: DeepSky
     explained_variance: float = float("nan")
 
     @property
@@ -72,7 +62,7 @@ class PVectorDatabase(Database):
     def tables(self) -> K.Tables:
         """The arrays identify reads, as one kernel argument."""
         return K.Tables(self.p_axis, self.kv, self.tri_sides, self.tri_rows, self.unit_icrs, self.hip,
-                        self.deep_unit, self.deep_hip)
+                        self.deep)
 
 
 @dataclass(frozen=True)
@@ -300,17 +290,14 @@ class PVector(Algorithm):
             tri_rows=np.ascontiguousarray(rows[order], dtype=row_dtype),
             unit_icrs=np.ascontiguousarray(unit, dtype=np.float32),
             hip=hip.astype(np.int64),
-            **_deep(catalog, self.deep_mag_limit if self.assign_all else None),
+            deep=deep_sky(catalog, self.deep_mag_limit if self.assign_all else -math.inf),
             explained_variance=float(eigval[-1] / eigval.sum()),
         )
 
     # --------------------------------------------------------------- identify
     def _run(self, database: PVectorDatabase, observation: Observation):
-        cam = observation.camera
-        frame = K.Frame(float(cam.f_px), float(cam.cx_px), float(cam.cy_px), float(cam.width_px),
-                        float(cam.height_px))
-        return K.identify_rows(observation.x_px, observation.y_px, observation.mag, frame, database.tables(),
-                               self._tol)
+        return K.identify_rows(observation.x_px, observation.y_px, observation.mag, camera_frame(observation.camera),
+                               database.tables(), self._tol)
 
     def identify(self, database: PVectorDatabase, observation: Observation) -> Identification:
         n = observation.x_px.shape[0]

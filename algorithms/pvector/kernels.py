@@ -15,22 +15,11 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from starid.kernels import (KVector, backproject_px, chord_rows, chord_to_rad, keep_unique, kvector_query,
-                            reproject_assign, verify_pairwise, wahba_rows, z_band_rows)
+from starid.kernels import (DeepSky, KVector, assign_all, backproject_px, chord_rows, chord_to_rad, field_chord,
+                            keep_unique, kvector_query, reproject_assign, verify_pairwise, wahba_rows, z_band_rows)
 
 # The six vertex correspondences (observed vertex j -> database vertex PERMS[p, j]).
 PERMS = np.array([[0, 1, 2], [1, 2, 0], [2, 0, 1], [0, 2, 1], [2, 1, 0], [1, 0, 2]], dtype=np.int64)
-
-
-
-class Frame(NamedTuple):
-    """The camera as identify needs it: focal length and principal point (px), sensor size (px)."""
-
-    f_px: float
-    cx_px: float
-    cy_px: float
-    width_px: float
-    height_px: float
 
 
 class Tables(NamedTuple):
@@ -39,6 +28,7 @@ class Tables(NamedTuple):
     p_axis : (3,) the P vector; kv : :class:`starid.kernels.KVector` over the keys P (float32);
     tri_sides : float32 (m, 3) side vectors (rad); tri_rows : (m, 3) guide rows of (S, N1, N2);
     unit : float32 (n, 3) guide unit vectors (ICRS, z-sorted); hip : int64 (n,) their ids.
+    deep : :class:`starid.kernels.DeepSky`, the deeper catalog for ``assign_all`` (may be empty).
     """
 
     p_axis: np.ndarray
@@ -47,8 +37,7 @@ class Tables(NamedTuple):
     tri_rows: np.ndarray
     unit: np.ndarray
     hip: np.ndarray
-    deep_unit: np.ndarray
-    deep_hip: np.ndarray
+    deep: DeepSky
 
 
 class Tolerances(NamedTuple):
@@ -258,39 +247,6 @@ def match_extras(oc, tri_obs, cat_rows, unit, eps, c_band, out_row):
 
 
 @njit(cache=True)
-def assign_deep(x_px, y_px, frame, attitude, deep_unit, deep_hip, eps, hip):
-    """The standard final step (``assign_all``): ``attitude`` assigns every detection to the deep
-    catalog star predicted within chord ``eps`` (``starid.kernels.reproject_assign``, one-to-one).
-    A detection left unassigned keeps its id in ``hip`` unless that id went to another detection.
-    Updates ``hip`` in place."""
-    n = x_px.shape[0]
-    v_all = backproject_px(x_px, y_px, frame.f_px, frame.cx_px, frame.cy_px)
-    c_fov = 0.0
-    corners = backproject_px(np.array([0.0, frame.width_px, 0.0, frame.width_px]),
-                             np.array([0.0, 0.0, frame.height_px, frame.height_px]), frame.f_px, frame.cx_px,
-                             frame.cy_px)
-    for i in range(4):
-        c_fov = max(c_fov, math.sqrt(corners[i, 0] ** 2 + corners[i, 1] ** 2 + (corners[i, 2] - 1.0) ** 2))
-    deep_rows = np.empty(n, dtype=np.int64)
-    reproject_assign(attitude, v_all, deep_unit, c_fov + eps, eps, deep_rows, frame.f_px, frame.cx_px, frame.cy_px,
-                     frame.width_px, frame.height_px)
-    out = np.full(n, -1, dtype=np.int64)
-    for i in range(n):
-        if deep_rows[i] >= 0:
-            out[i] = deep_hip[deep_rows[i]]
-    for i in range(n):
-        if out[i] < 0 and hip[i] >= 0:
-            taken = False
-            for j in range(n):
-                if out[j] == hip[i]:
-                    taken = True
-            if not taken:
-                out[i] = hip[i]
-    for i in range(n):
-        hip[i] = out[i]
-
-
-@njit(cache=True)
 def identify_rows(x_px, y_px, mag, frame, db, tol):
     """``(hip, attitude, ok, triangle)``: catalog id per observed star (-1 = unidentified, input
     order), the ICRS -> camera attitude, whether the image was identified, and the input indices of
@@ -331,13 +287,7 @@ def identify_rows(x_px, y_px, mag, frame, db, tol):
     centre_first = tol.centre_first
     inside_only = tol.inside_only
     r_px = f_px * math.tan(tol.r_rad)
-    # chord from the boresight to the farthest image corner, plus the tolerance
-    corners = backproject_px(np.array([0.0, width_px, 0.0, width_px]), np.array([0.0, 0.0, height_px, height_px]),
-                             f_px, cx_px, cy_px)
-    c_fov = 0.0
-    for i in range(4):
-        c_fov = max(c_fov, math.sqrt(corners[i, 0] ** 2 + corners[i, 1] ** 2 + (corners[i, 2] - 1.0) ** 2))
-    c_fov += eps
+    c_fov = field_chord(frame) + eps   # chord from the boresight to the farthest image corner, plus the tolerance
 
     eligible = ms <= mag_limit + tol.mag_margin   # stars that can be in the database (flight precaution)
     # main-star preference: largest distance to the image edge first (R-disc inside), or brightest
@@ -461,8 +411,8 @@ def identify_rows(x_px, y_px, mag, frame, db, tol):
                     if rows_best[i] >= 0:
                         out[canon[i]] = hip[rows_best[i]]
                 attitude = wahba_rows(v, rows_best, unit)
-                if tol.assign_all and db.deep_unit.shape[0] > 0:
-                    assign_deep(x_px, y_px, frame, attitude, db.deep_unit, db.deep_hip, eps, out)
+                if tol.assign_all and db.deep.unit.shape[0] > 0:
+                    assign_all(attitude, x_px, y_px, frame, db.deep, eps, out)
                 for j in range(3):
                     tri_found[j] = canon[tri_obs[j]]
                 return out, attitude, True, tri_found

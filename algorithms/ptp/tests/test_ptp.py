@@ -1,15 +1,24 @@
+"""Tests of the PTP plugin (algorithms/ptp).
+
+The conformance checks (few stars, coincident stars, random fields, ids beyond 2^31, order,
+determinism, explain, ...) run for every plugin in tests/test_conformance.py; here only what is
+PTP's own. The catalog database does not depend on the camera, so every test shares one.
+"""
+
+import dataclasses
+import math
 import time
 
 import numpy as np
 import pytest
 
-from starid import Camera, Catalog, ConfigError, Observation, SimConfig, Simulator
+from starid import Camera, ConfigError, Observation, SimConfig, Simulator
+from starid.kernels import assign_all, backproject_px, camera_frame, deep_sky, wahba_rows
 from starid.plugin import Explanation, check_identification
-from starid.testing import CHECKS, check_algorithm
 from starid import run, summarize
 from starid_algorithms.ptp import PTP
 from starid_algorithms.ptp.algorithm import CHORD_SCALE
-from starid_algorithms.ptp.kernels import nearest_slaves, projection_sigma
+from starid_algorithms.ptp.kernels import nearest_slaves, projection_sigma, select_stars
 
 
 @pytest.fixture(scope="module")
@@ -76,8 +85,9 @@ def test_nearest_slaves_respects_limits():
 
 def test_noise_free_identification(catalog, camera):
     sim = Simulator(catalog, camera, SimConfig(), seed=99)
-    s = summarize(run([PTP()], sim.generate(300), catalog, sim)).iloc[0]
-    assert s["id_rate"] >= 0.96 and s["misid_rate"] <= 0.01
+    s = summarize(run([PTP()], sim.generate(100), catalog, sim)).iloc[0]
+    # measured on these 100 trials: 0.97, no misidentification (300 trials: 0.977); margin 4 points
+    assert s["id_rate"] >= 0.93 and s["misid_rate"] <= 0.01
 
 
 def test_paper_literal_variant_runs(catalog, camera, db):
@@ -105,51 +115,23 @@ def test_sigma_px_follows_the_simulator_with_a_floor():
     assert PTP(sigma_px=2.0).sigma_eff_px == 2.0
 
 
-# ------------------------------------------------------------------------------------ trust (issue 10)
-@pytest.fixture(scope="module")
-def offset_catalog(catalog):
-    """The catalog to V 6.5 with every id offset by 2^31 (ids that do not fit in int32)."""
-    cat = catalog.brighter_than(6.5)
-    return Catalog.from_arrays(cat.hip + 2**31, cat.ra_deg, cat.dec_deg, cat.v_mag, name="offset")
-
-
-def test_ids_beyond_int32(offset_catalog, camera):
-    db = PTP().build(offset_catalog, camera)
-    assert db.guide_hip.dtype == np.int64 and db.guide_hip.min() > 2**31
-    sim = Simulator(offset_catalog, camera, SimConfig(sigma_px=0.5), seed=4)
-    s = summarize(run([PTP()], sim.generate(30), offset_catalog, sim)).iloc[0]
-    assert s["error_rate"] == 0 and s["id_rate"] >= 0.8 and s["misid_rate"] == 0
-
-
-def test_random_fields_give_nothing(db, camera):
-    rng = np.random.default_rng(2024)
-    algo = PTP()
-    claimed = 0
-    for _ in range(40):
-        obs = Observation(rng.uniform(0, 1024, 30), rng.uniform(0, 1024, 30), rng.uniform(2, 6, 30), camera)
-        claimed += int(np.any(algo.identify(db, obs).hip >= 0))
-    assert claimed == 0
-
-
-def test_coincident_detections(db, catalog, camera):
+def test_coincident_detections_without_d_min(catalog, camera):
+    """With d_min = 0 and doubles kept, a coincident detection (distance 0) is still never a slave:
+    the duplicated stars give no wrong id (the conformance check only runs the defaults)."""
+    algo = PTP(d_min_deg=0.0, exclude_doubles=False)
+    base = algo.build(catalog, camera)
     sim = Simulator(catalog, camera, SimConfig(sigma_px=0.5), seed=8)
-    for d_min in (0.05, 0.0):
-        algo = PTP(d_min_deg=d_min, exclude_doubles=d_min > 0)
-        base = algo.build(catalog, camera) if d_min == 0 else db
-        for t in range(5):
-            o = sim.observation(t)
-            dup = Observation(np.append(o.x_px, o.x_px[:2]), np.append(o.y_px, o.y_px[:2]),
-                              np.append(o.mag, o.mag[:2]), camera)
-            hip = check_identification(algo.identify(base, dup), len(dup), catalog.hip).hip
-            truth = np.append(o.truth_hip, o.truth_hip[:2])
-            assert not np.any((hip >= 0) & (hip != truth))
+    for t in range(5):
+        o = sim.observation(t)
+        dup = o.permuted(np.concatenate([np.arange(len(o)), [0, 1]]))      # stars 0 and 1 twice
+        hip = check_identification(algo.identify(base, dup), len(dup), catalog.hip).hip
+        assert not np.any((hip >= 0) & (hip != dup.truth_hip))
 
 
 @pytest.mark.parametrize("fov_deg", [170.0, 60.0])
-def test_wide_field_finishes_quickly(catalog, fov_deg):
-    cam = Camera.from_fov(fov_deg)
+def test_wide_field_finishes_quickly(db, catalog, fov_deg):
+    cam = Camera.from_fov(fov_deg)      # the database does not depend on the camera
     algo = PTP()
-    db = algo.build(catalog, cam)
     obs = Simulator(catalog, cam, SimConfig(sigma_px=1.0), seed=2).observation(0)
     algo.identify(db, obs)                     # compile
     t0 = time.perf_counter()
@@ -158,27 +140,29 @@ def test_wide_field_finishes_quickly(catalog, fov_deg):
     assert not np.any((hip >= 0) & (hip != obs.truth_hip))
 
 
-@pytest.mark.parametrize("check", CHECKS)
-def test_conformance(check):
-    check_algorithm(PTP, checks=[check])
-
-
-def test_assign_all_raises_recall_without_wrong_ids(catalog, camera):
+def test_assign_all_is_the_core_final_step(db, catalog, camera):
+    """assign_all = starid.kernels.assign_all with the Wahba attitude of the stars PTP matched, over
+    the deep catalog, within side_beta sqrt(2) sigma; it adds stars (noisy images, 1 px / 0.5 mag)."""
+    algo = PTP(assign_all=True)
+    deep_db = dataclasses.replace(db, deep=deep_sky(catalog, algo.deep_mag_limit))
+    eps = algo.side_beta * math.sqrt(2.0) * algo.sigma_eff_px / camera.f_px
+    guide_row = {h: r for r, h in enumerate(db.guide_hip.tolist())}
     sim = Simulator(catalog, camera, SimConfig(sigma_px=1.0, sigma_mag=0.5), seed=22)
-    recall, wrong = {}, {}
-    for assign in (False, True):
-        algo = PTP(assign_all=assign)
-        db = algo.build(catalog, camera)
-        right = total = bad = 0
-        for t in range(40):
-            o = sim.observation(t)
-            hip = algo.identify(db, o).hip
-            right += int(np.sum((hip >= 0) & (hip == o.truth_hip)))
-            bad += int(np.sum((hip >= 0) & (hip != o.truth_hip)))
-            total += len(o)
-        recall[assign], wrong[assign] = right / total, bad
-    assert recall[True] > recall[False] + 0.05
-    assert wrong[True] <= 2
+    gained = 0
+    for t in range(12):
+        o = sim.observation(t)
+        base = PTP().identify(db, o).hip
+        hip = algo.identify(deep_db, o).hip
+        expect = base.copy()
+        if np.sum(base >= 0) >= 3:
+            sel = select_stars(o.x_px, o.y_px, o.mag, algo.max_stars)   # the order the kernel sums in
+            sel = sel[base[sel] >= 0]
+            v = backproject_px(o.x_px[sel], o.y_px[sel], camera.f_px, camera.cx_px, camera.cy_px)
+            attitude = wahba_rows(v, np.array([guide_row[h] for h in base[sel].tolist()]), db.guide_unit)
+            assign_all(attitude, o.x_px, o.y_px, camera_frame(camera), deep_db.deep, eps, expect)
+        assert np.array_equal(hip, expect)
+        gained += int(np.sum(hip >= 0) - np.sum(base >= 0))
+    assert gained > 0
 
 
 def test_image_slaves_form_more_triangles(db, catalog, camera):

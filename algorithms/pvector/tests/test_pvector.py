@@ -1,7 +1,13 @@
-"""Tests of the P-vector plugin (algorithms/pvector)."""
+"""Tests of the P-vector plugin (algorithms/pvector).
+
+The conformance checks (few stars, coincident stars, random fields, ids beyond 2^31, order,
+determinism, explain, ...) run for every plugin in tests/test_conformance.py; here only what is
+the P-vector's own. The catalog database does not depend on the camera, so every test shares one.
+"""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 
@@ -10,9 +16,9 @@ import pytest
 
 from starid import Camera, Catalog, ConfigError, Observation, SimConfig, Simulator
 from starid import run, summarize
+from starid.kernels import assign_all, camera_frame, deep_sky
 from starid.plugin import Explanation, check_identification
 from starid.registry import get_algorithm
-from starid.testing import CHECKS, check_algorithm
 from starid_algorithms.pvector import PVector, PVectorDatabase
 
 
@@ -68,7 +74,7 @@ def test_database_invariants(algo, db, catalog):
     n = len(guide)
     assert db.unit_icrs.shape == (n, 3) and db.unit_icrs.dtype == np.float32
     assert np.all(np.diff(db.unit_icrs[:, 2]) >= 0)  # z-sorted (declination bands)
-    assert np.array_equal(np.sort(db.hip.astype(np.int64)), guide.hip)
+    assert db.hip.dtype == np.int64 and np.array_equal(np.sort(db.hip), guide.hip)   # int64 ids end to end
     assert 2.7 * n < m <= 3 * n  # K = 3: three triangles per guide star with three neighbours (13,979)
     assert db.key.dtype == np.float32 and np.all(np.diff(db.key) >= 0)
     assert db.kv.k.dtype == np.int32 and db.kv.k.shape == (m,)
@@ -151,28 +157,12 @@ def test_few_stars(algo, db, camera, n):
     assert res.hip.shape == (n,) and res.hip.dtype == np.int64 and np.all(res.hip == -1)
 
 
-def test_order_invariance_determinism_unique_ids(algo, db, catalog, camera):
-    sim = Simulator(catalog, camera, SimConfig(sigma_px=1.0, sigma_mag=0.5, false_stars=1), seed=3)
-    trials = sim.generate(60)
-    rng = np.random.default_rng(0)
-    n_identified = 0
-    for i in range(len(trials)):
-        obs = trials.observation(i)
-        first = check_identification(algo.identify(db, obs), len(obs), catalog.hip)
-        again = algo.identify(db, obs)
-        assert np.array_equal(first.hip, again.hip)
-        perm = rng.permutation(len(obs))
-        permuted = algo.identify(db, obs.permuted(perm))
-        assert np.array_equal(permuted.hip, first.hip[perm])
-        n_identified += int(np.any(first.hip >= 0))
-    assert n_identified > 30
-
-
 # --------------------------------------------------------------------- identification rate
 def test_noise_free_rate(algo, catalog):
     sim = Simulator(catalog, Camera(), SimConfig(), seed=11)
-    summary = summarize(run([algo], sim.generate(300), catalog, sim)).iloc[0]
-    assert summary.id_rate >= 0.93  # 2,000 trials (seed 1): 0.961
+    summary = summarize(run([algo], sim.generate(100), catalog, sim)).iloc[0]
+    # measured on these 100 trials: 0.99 (300 trials: 0.983; 2,000 trials, seed 1: 0.961); margin 4 points
+    assert summary.id_rate >= 0.95
     assert summary.misid_rate == 0.0
     assert summary.error_rate == 0.0
 
@@ -183,62 +173,35 @@ def test_magnitude_noise_hurts_as_in_the_paper(catalog):
     rates = {}
     for label, cfg in (("pos", SimConfig(sigma_px=1.0)), ("mag", SimConfig(sigma_mag=0.5))):
         sim = Simulator(catalog, Camera(), cfg, seed=12)
-        rates[label] = summarize(run([algo], sim.generate(300), catalog, sim)).iloc[0]
-    assert rates["pos"].id_rate >= 0.92
-    assert rates["mag"].id_rate < rates["pos"].id_rate - 0.05
+        rates[label] = summarize(run([algo], sim.generate(100), catalog, sim)).iloc[0]
+    # measured on these 100 trials: pos 0.98, mag 0.90, no misidentification (300 trials: 0.98 and 0.923)
+    assert rates["pos"].id_rate >= 0.94                          # margin 4 points
+    assert rates["mag"].id_rate < rates["pos"].id_rate - 0.05    # measured gap 0.08
     assert rates["mag"].misid_rate <= 0.01
 
 
-# ------------------------------------------------------------------------------------ trust (issue 10)
-def test_ids_beyond_int32(catalog, camera):
-    cat = catalog.brighter_than(6.5)
-    offset = Catalog.from_arrays(cat.hip + 2**31, cat.ra_deg, cat.dec_deg, cat.v_mag, name="offset")
-    db = PVector().build(offset, camera)
-    assert db.hip.dtype == np.int64 and db.hip.min() > 2**31
-    sim = Simulator(offset, camera, SimConfig(sigma_px=0.5), seed=4)
-    s = summarize(run([PVector()], sim.generate(30), offset, sim)).iloc[0]
-    assert s["error_rate"] == 0 and s["id_rate"] >= 0.8 and s["misid_rate"] == 0
-
-
-def test_random_fields_give_nothing(algo, db, camera):
-    rng = np.random.default_rng(2024)
-    claimed = 0
-    for _ in range(40):
-        obs = Observation(rng.uniform(0, 1024, 30), rng.uniform(0, 1024, 30), rng.uniform(2, 6, 30), camera)
-        claimed += int(np.any(algo.identify(db, obs).hip >= 0))
-    assert claimed == 0
-
-
-def test_coincident_detections(catalog, camera, db):
+def test_coincident_detections_without_min_sep(catalog, camera):
+    """With r_min = 0, a coincident detection (distance 0) is still never a neighbour: the duplicated
+    stars give no wrong id (the conformance check only runs the defaults)."""
+    algo = PVector(min_sep_deg=0.0)
+    base = algo.build(catalog, camera)
     sim = Simulator(catalog, camera, SimConfig(sigma_px=0.5), seed=8)
-    for min_sep in (0.2, 0.0):
-        algo = PVector(min_sep_deg=min_sep)
-        base = db if min_sep else algo.build(catalog, camera)
-        for t in range(5):
-            o = sim.observation(t)
-            dup = Observation(np.append(o.x_px, o.x_px[:2]), np.append(o.y_px, o.y_px[:2]),
-                              np.append(o.mag, o.mag[:2]), camera)
-            hip = check_identification(algo.identify(base, dup), len(dup), catalog.hip).hip
-            truth = np.append(o.truth_hip, o.truth_hip[:2])
-            assert not np.any((hip >= 0) & (hip != truth))
+    for t in range(5):
+        o = sim.observation(t)
+        twice = np.concatenate([np.arange(len(o)), [0, 1]])     # the first two stars twice
+        hip = check_identification(algo.identify(base, o.permuted(twice)), twice.size, catalog.hip).hip
+        assert not np.any((hip >= 0) & (hip != o.truth_hip[twice]))
 
 
 @pytest.mark.parametrize("fov_deg", [170.0, 40.0])
-def test_wide_field_finishes_quickly(catalog, fov_deg):
-    cam = Camera.from_fov(fov_deg)
-    algo = PVector()
-    db = algo.build(catalog, cam)
+def test_wide_field_finishes_quickly(algo, db, catalog, fov_deg):
+    cam = Camera.from_fov(fov_deg)      # the database does not depend on the camera
     obs = Simulator(catalog, cam, SimConfig(sigma_px=1.0, sigma_mag=0.5), seed=1).observation(1)
     algo.identify(db, obs)                     # compile
     t0 = time.perf_counter()
     hip = algo.identify(db, obs).hip
     assert time.perf_counter() - t0 < 2.0
     assert not np.any((hip >= 0) & (hip != obs.truth_hip))   # 40 deg: was 6 wrong ids before confirm_fraction
-
-
-@pytest.mark.parametrize("check", CHECKS)
-def test_conformance(check):
-    check_algorithm(PVector, checks=[check])
 
 
 def test_search_variants_agree(db, catalog, camera):
@@ -250,22 +213,24 @@ def test_search_variants_agree(db, catalog, camera):
         assert np.array_equal(fast.identify(db, o).hip, slow.identify(db, o).hip)
 
 
-def test_assign_all_raises_recall_without_wrong_ids(catalog, camera):
+def test_assign_all_extends_the_reported_attitude(db, catalog, camera):
+    """assign_all = starid.kernels.assign_all with the attitude the P-vector reports, over the deep
+    catalog, within eps_d; it adds stars (noisy images, 1 px / 0.5 mag)."""
+    algo = PVector(assign_all=True)
+    deep_db = dataclasses.replace(db, deep=deep_sky(catalog, algo.deep_mag_limit))
+    eps = algo.beta * math.sqrt(2.0) * algo._tol.sigma_px / camera.f_px
     sim = Simulator(catalog, camera, SimConfig(sigma_px=1.0, sigma_mag=0.5), seed=22)
-    recall, wrong = {}, {}
-    for assign in (False, True):
-        algo = PVector(assign_all=assign)
-        db = algo.build(catalog, camera)
-        right = total = bad = 0
-        for t in range(40):
-            o = sim.observation(t)
-            hip = algo.identify(db, o).hip
-            right += int(np.sum((hip >= 0) & (hip == o.truth_hip)))
-            bad += int(np.sum((hip >= 0) & (hip != o.truth_hip)))
-            total += len(o)
-        recall[assign], wrong[assign] = right / total, bad
-    assert recall[True] > recall[False] + 0.05
-    assert wrong[True] <= 2
+    gained = 0
+    for t in range(12):
+        o = sim.observation(t)
+        plain = PVector().identify(db, o)
+        hip = algo.identify(deep_db, o).hip
+        expect = plain.hip.copy()
+        if plain.attitude is not None:
+            assign_all(plain.attitude, o.x_px, o.y_px, camera_frame(camera), deep_db.deep, eps, expect)
+        assert np.array_equal(hip, expect)
+        gained += int(np.sum(hip >= 0) - np.sum(plain.hip >= 0))
+    assert gained > 0
 
 
 def test_explain_shows_the_guide_star_and_its_two_brightest_neighbours(algo, db, catalog, camera):
