@@ -262,9 +262,9 @@ def _pad_log(ax) -> None:
 
 
 def _plain_log(ax) -> None:
-    """Log x axis ticked at 1, 2, 5 x 10^k (1 x 10^k over more than three decades), plain numbers."""
+    """Log x axis ticked at 1, 2, 5 x 10^k (1 x 10^k over more than two decades), plain numbers."""
     lo, hi = ax.get_xlim()
-    wide = lo > 0 and hi / lo > 2000
+    wide = lo > 0 and hi / lo > 200   # 1-2-5 ticks crowd the axis beyond two decades
     ax.xaxis.set_major_locator(LogLocator(base=10, subs=(1.0,) if wide else (1.0, 2.0, 5.0)))
     ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
     ax.xaxis.set_minor_formatter(NullFormatter())
