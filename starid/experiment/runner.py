@@ -1,7 +1,8 @@
 """Plan an experiment into chunks, compute the missing ones, assemble the tidy frame.
 
 A chunk is (grid point settings, algorithm variant, block of ``BLOCK`` trials). Its key hashes
-everything that decides its rows, so chunks shared by two studies (Table 6's condition is also a
+everything that decides its rows -- settings, variant, seed, catalog, and the source code of
+starid and of the plugin -- so chunks shared by two studies (Table 6's condition is also a
 point of the noise sweeps) are computed once, a resumed run computes only missing keys, and a
 changed experiment only the chunks it changes.
 """
@@ -9,6 +10,7 @@ changed experiment only the chunks it changes.
 from __future__ import annotations
 
 import hashlib
+import importlib
 import json
 import sys
 from dataclasses import dataclass
@@ -54,6 +56,25 @@ def _hash(obj) -> str:
     return hashlib.sha256(json.dumps(obj, sort_keys=True, default=str).encode()).hexdigest()[:20]
 
 
+def source_fingerprint(module_name: str) -> str:
+    """A hash of the Python sources of a module's package (its folder, tests left out).
+
+    Part of every chunk key, so results computed by other code are never reused: an edited
+    plugin or simulator recomputes, even when its version number did not change.
+    """
+    module = importlib.import_module(module_name)
+    if getattr(module, "__file__", None) is None:     # defined interactively: no source to hash
+        return "interactive"
+    path = Path(module.__file__)
+    files = sorted(p for p in path.parent.rglob("*.py") if "tests" not in p.relative_to(path.parent).parts) \
+        if path.name == "__init__.py" else [path]
+    h = hashlib.sha256()
+    for f in files:
+        h.update(str(f.relative_to(path.parent)).encode())
+        h.update(f.read_bytes())
+    return h.hexdigest()[:16]
+
+
 def catalog_identity(catalog) -> str:
     """A content hash of a catalog (ids, positions, magnitudes)."""
     h = hashlib.sha256()
@@ -66,7 +87,8 @@ def plan(experiment: Experiment, catalog, rule: SuccessRule = SuccessRule()) -> 
     """Every chunk of the experiment, in frame order (study, point, variant, block)."""
     camera = experiment.make_camera()
     common = {"camera": camera.as_dict(), "seed": experiment.seed, "catalog": catalog_identity(catalog),
-              "rule": rule.min_correct, "starid": versions()["starid_version"]}
+              "rule": rule.min_correct, "starid": versions()["starid_version"], "core": source_fingerprint("starid")}
+    plugin_code: dict[str, str] = {}
     out = []
     for study in experiment.studies:
         for p, point in enumerate(study.grid.points()):
@@ -75,11 +97,15 @@ def plan(experiment: Experiment, catalog, rule: SuccessRule = SuccessRule()) -> 
             for variant in study.variants:
                 info = algorithm_info(variant.name)
                 variant.make()          # bad parameters are refused here, before any work
+                if variant.name not in plugin_code:
+                    plugin_code[variant.name] = source_fingerprint(info.cls.__module__.rpartition(".")[0]
+                                                                   or info.cls.__module__)
                 for start in range(0, experiment.trials, BLOCK):
                     stop = min(start + BLOCK, experiment.trials)
                     key = _hash({**common, "settings": settings, "algorithm": variant.name,
                                  "params": [list(kv) for kv in variant.params], "label": variant.label,
-                                 "plugin": [info.dist, info.dist_version], "start": start, "stop": stop})
+                                 "plugin": [info.dist, info.dist_version, plugin_code[variant.name]],
+                                 "start": start, "stop": stop})
                     out.append(Placement(study.name, p, point, Chunk(key, settings, settings_key, variant, start,
                                                                      stop)))
     return out
