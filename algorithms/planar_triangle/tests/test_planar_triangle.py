@@ -212,14 +212,34 @@ def test_false_star_is_not_identified(db, catalog, camera):
         assert np.all((hip == -1) | (hip == obs.truth_hip))
 
 
-def test_noise_free_identification_rate(catalog, noise_free):
+PAPER = dict(restarts=0, max_stars=None, subset_size=None, assign_all=False)  # Cole's method as published
+
+
+def _summary(alg, db, trials, catalog, sim):
+    from starid.harness import Prepared, score
+    return summarize(score(Prepared(alg, db, 0.0, 0.0), trials, catalog, sim)).iloc[0]
+
+
+def test_noise_free_identification_rate(db, catalog, noise_free):
     sim, trials = noise_free
-    paper = summarize(run([PlanarTriangle(restarts=0)], trials, catalog, sim)).iloc[0]
-    restarted = summarize(run([PlanarTriangle()], trials, catalog, sim)).iloc[0]
-    assert paper["misid_rate"] == 0.0 and restarted["misid_rate"] == 0.0
-    assert paper["id_rate"] >= 0.90  # measured 0.9315 on 2,000 trials
-    assert restarted["id_rate"] >= 0.94  # measured 0.956 on 2,000 trials
-    assert restarted["id_rate"] >= paper["id_rate"]
+    trials = trials.select(np.arange(150))
+    paper = _summary(PlanarTriangle(**PAPER), db, trials, catalog, sim)
+    default = _summary(PlanarTriangle(), db, trials, catalog, sim)
+    assert paper["misid_rate"] == 0.0 and default["misid_rate"] == 0.0
+    assert paper["id_rate"] >= 0.88  # measured 0.9315 on 2,000 trials
+    assert default["id_rate"] >= 0.97  # measured 0.995 on 1,000 trials (seed 11)
+    assert default["star_recall"] > paper["star_recall"] + 0.05  # assign_all
+
+
+def test_brightest_subsets_rescue_the_real_sky(db, catalog, camera):
+    """V <= 8 sky: stars outside the V <= 6 database break the paper's pivot chain; subsets don't."""
+    sim = Simulator(catalog, camera, SimConfig(sigma_px=1.0, sigma_mag=0.5), seed=12)
+    trials = sim.generate(100)
+    paper = _summary(PlanarTriangle(**PAPER), db, trials, catalog, sim)
+    default = _summary(PlanarTriangle(), db, trials, catalog, sim)
+    assert paper["id_rate"] <= 0.4  # measured 0.13 on 500 images (seed 7)
+    assert default["id_rate"] >= 0.85  # measured 0.936 on 500 images (seed 7)
+    assert default["misid_rate"] <= 0.02
 
 
 def test_sigma_px_follows_the_simulator_with_a_1px_floor():
@@ -264,7 +284,7 @@ def test_ids_beyond_int32(catalog, camera):
     """Catalog ids offset by 2^31 come back intact (int64 end to end)."""
     big = Catalog.from_arrays(catalog.hip + 2**31, catalog.ra_deg, catalog.dec_deg, catalog.v_mag)
     alg = PlanarTriangle()
-    db_big = alg.build(big.brighter_than(6.5), camera)
+    db_big = alg.build(big.brighter_than(alg.mag_limit), camera)
     sim = Simulator(big, camera, SimConfig(), seed=6)
     n_ok = 0
     for t in range(8):

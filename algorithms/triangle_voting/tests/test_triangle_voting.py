@@ -257,7 +257,7 @@ def test_ids_beyond_int32(catalog, camera):
     """Catalog ids offset by 2^31 come back intact (int64 end to end)."""
     big = Catalog.from_arrays(catalog.hip + 2**31, catalog.ra_deg, catalog.dec_deg, catalog.v_mag)
     alg = TriangleVoting()
-    db_big = alg.build(big.brighter_than(6.5), camera)
+    db_big = alg.build(big.brighter_than(alg.mag_limit), camera)
     sim = Simulator(big, camera, SimConfig(), seed=6)
     n_ok = 0
     for t in range(8):
