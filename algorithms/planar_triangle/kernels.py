@@ -1,11 +1,11 @@
 """Numba kernels of the planar-triangle algorithm (Cole & Crassidis 2006).
 
-Features of a triangle of unit vectors ``b1, b2, b3`` (chord space, notes 3.1 and 3.7.5):
+Features of a triangle of unit vectors ``b1, b2, b3`` (chord space):
 area ``A`` (Heron's formula; computed here as half the norm of the edge cross product, which
 is the same number and stays accurate for skinny triangles), polar moment about the centroid
 ``J = A (a^2 + b^2 + c^2) / 36`` (paper eq. 16), and the angular diameter of the smallest
 enclosing circle (Cole's ``CalcFOV.m``). Variances follow paper eqs. 9-20 in the numerically
-stable cross-product form of notes 3.2.
+stable cross-product form.
 """
 
 from __future__ import annotations
@@ -107,7 +107,7 @@ def triangle_variances(r1, r2, r3, sigma_rad):
     """``(var_area, var_moment)`` of the chord triangle under the QUEST noise model.
 
     Paper eqs. 9-20 (``sigma_A^2 = H R H^T``, ``sigma_J^2 = Hbar R Hbar^T`` with
-    ``R_i = sigma^2 (I - b_i b_i^T)``), evaluated with the cross-product gradients of notes 3.2:
+    ``R_i = sigma^2 (I - b_i b_i^T)``), evaluated with the cross-product gradients:
     ``grad_1 A = (b2 - b3) x n_hat / 2`` (cyclic), ``grad_i J = (S grad_i A + A grad_i S) / 36``
     with ``S = a^2 + b^2 + c^2``.
     """
@@ -131,7 +131,7 @@ def triangle_variances(r1, r2, r3, sigma_rad):
             p, q, r = r2, r3, r1
         else:
             p, q, r = r3, r1, r2
-        # grad_p A = (q - r) x n_hat / 2 ; grad_p S = 2 (p - q) + 2 (p - r)
+        # grad_p A = (q - r) x n_hat / 2; grad_p S = 2 (p - q) + 2 (p - r)
         gx, gy, gz = _cross(q[0] - r[0], q[1] - r[1], q[2] - r[2], nx, ny, nz)
         gx, gy, gz = 0.5 * gx, 0.5 * gy, 0.5 * gz
         sx = 2.0 * (2.0 * p[0] - q[0] - r[0])
@@ -401,7 +401,7 @@ PERMS = np.array([[0, 1, 2], [0, 2, 1], [1, 0, 2], [1, 2, 0], [2, 0, 1], [2, 1, 
 
 @njit(cache=True)
 def _triangle_consistent(img_v, cat_unit, i0, i1, i2, g0, g1, g2, tol_chord):
-    """Chords agree within ``tol_chord`` and the handedness is the same (notes 3.7.1)."""
+    """Chords agree within ``tol_chord`` and the handedness is the same."""
     if abs(chord_rows(img_v, i0, img_v, i1) - chord_rows(cat_unit, g0, cat_unit, g1)) > tol_chord:
         return False
     if abs(chord_rows(img_v, i1, img_v, i2) - chord_rows(cat_unit, g1, cat_unit, g2)) > tol_chord:
@@ -415,7 +415,7 @@ def _triangle_consistent(img_v, cat_unit, i0, i1, i2, g0, g1, g2, tol_chord):
 
 @njit(cache=True)
 def recover_correspondence(img, chain, cat_chain, db, tol_chord):
-    """Per-star catalog rows from the single surviving chain (notes 3.7.1), or all -1.
+    """Per-star catalog rows from the single surviving chain, or all -1.
 
     Every vertex order of the start triangle is tried; the others follow from the stars each
     triangle shares with the ones before it. An assignment survives when every chain triangle
@@ -593,22 +593,27 @@ def identify_rows(img_v, db, tol):
     4. (extension, ``extend``) further stars by angular distance, then pairwise verification;
        at least ``min_verified`` verified stars are needed;
     5. (extension, ``restarts`` > 0) on failure, start again from the next-largest triangle.
+
+    Returns ``(rows, chain)``: ``chain`` (L, 3) the stars of the image triangles of the accepted
+    pivot sequence (of the last one tried when none is accepted; for ``explain``).
     """
     n = img_v.shape[0]
     none = np.full(n, -1, dtype=np.int64)
+    no_chain = np.zeros((0, 3), dtype=np.int64)
     if n < 3:
-        return none
+        return none, no_chain
     tol_chord = tol.beta * math.sqrt(2.0) * tol.sigma_rad
     img = image_triangles(img_v, db, tol)
     m = img.tri.shape[0]
     if m == 0:
-        return none
+        return none, no_chain
     pivot_limit = tol.pivot_limit
     if pivot_limit < 0:  # no limit: the chain may use every image triangle
         pivot_limit = m - 1
     ranked = np.argsort(-img.area, kind="mergesort")
     for attempt in range(min(tol.restarts + 1, m)):
         chain, cat_chain, n_fin = _pivot(ranked[attempt], img, db, tol, pivot_limit)
+        no_chain = img.tri[chain]
         if n_fin != 1:
             continue
         rows = recover_correspondence(img, chain, cat_chain, db, tol_chord)
@@ -622,5 +627,52 @@ def identify_rows(img_v, db, tol):
             else:
                 n_keep += 1
         if n_keep >= tol.min_verified:
-            return rows
-    return none
+            return rows, no_chain
+    return none, no_chain
+
+
+@njit(cache=True)
+def identify_subsets(img_v, bright, db, tol, subset_size, max_subsets):
+    """Brightest-first star subsets: :func:`identify_rows` on subsets of the stars ``bright``.
+
+    ``img_v`` holds the candidate stars in a canonical (geometric) order; ``bright`` indexes them
+    brightest first. The subsets of ``subset_size`` of them are tried in lexicographic order of
+    brightness rank (the brightest combination first), at most ``max_subsets`` of them, each with
+    its stars in the canonical order; the first identification wins. A star that is not in the
+    database (a fainter star that magnitude noise made look bright) breaks every pivot chain
+    through it; a subset without it does not. Returns the row per star of ``img_v`` (-1 = none)
+    and the pivot sequence of the last subset tried (star indices of ``img_v``, see
+    :func:`identify_rows`).
+    """
+    n = img_v.shape[0]
+    k = bright.shape[0]
+    out = np.full(n, -1, dtype=np.int64)
+    chain = np.zeros((0, 3), dtype=np.int64)
+    size = min(subset_size, k)
+    if size < 3:
+        return out, chain
+    comb = np.arange(size)
+    for _ in range(max_subsets):
+        idx = np.sort(bright[comb])
+        sub = np.empty((size, 3))
+        for a in range(size):
+            sub[a] = img_v[idx[a]]
+        rows, sub_chain = identify_rows(sub, db, tol)
+        chain = np.empty_like(sub_chain)
+        for l in range(sub_chain.shape[0]):
+            for x in range(3):
+                chain[l, x] = idx[sub_chain[l, x]]
+        if rows.max() >= 0:
+            for a in range(size):
+                out[idx[a]] = rows[a]
+            return out, chain
+        # next combination of ``size`` out of ``k`` in lexicographic order
+        p = size - 1
+        while p >= 0 and comb[p] == k - size + p:
+            p -= 1
+        if p < 0:
+            break
+        comb[p] += 1
+        for q in range(p + 1, size):
+            comb[q] = comb[q - 1] + 1
+    return out, chain

@@ -36,18 +36,6 @@ class Tables(NamedTuple):
     sky_axis: int
     pr_chord: float  # pattern radius as a chord
     dmin_chord: float  # D_min as a chord
-    v_mag: np.ndarray  # float32 (n,) guide-star V magnitudes (coverage check)
-
-
-class Sensor(NamedTuple):
-    """The camera of one image, in pixels (for predicting which guide stars it must show)."""
-
-    f_px: float
-    cx_px: float
-    cy_px: float
-    width_px: float
-    height_px: float
-    half_diagonal_chord: float
 
 
 class Tolerance(NamedTuple):
@@ -65,8 +53,6 @@ class Tolerance(NamedTuple):
     min_support: int
     min_stars: int
     max_hypotheses: int
-    coverage_mag: float  # guide stars at most this bright must be seen (coverage check) ...
-    max_missed_fraction: float  # ... all but this fraction of them (and one star always may be missed)
 
 
 @njit(cache=True)
@@ -371,7 +357,7 @@ def _nearest_row(r, db, tol_chord):
 def _extend(v_cam, row, db, tol):
     """Extend the consistent set ``row`` (-1 = not in it) by reprojection, in place; returns its size.
 
-    The attitude is solved from the set (SVD, notes 7.5); every other star takes the only
+    The attitude is solved from the set (SVD,; every other star takes the only
     catalog star within ``radius_chord * sqrt(1 + 1 / set size)`` of its reprojected direction
     (centroid noise plus the attitude's own error) (``cat_unit`` rows are
     sorted by cell of the ``n_axis``^3 sky grid, ``sky_start`` delimiting the cells) when
@@ -424,11 +410,11 @@ def _extend(v_cam, row, db, tol):
 def confirm(v_cam, proposed, weight, db, tol, min_stars):
     """Make the verified proposals one consistent set, extend it by reprojection, keep it if large enough.
 
-    1. ``proposed`` (rows or -1, from :func:`starid.kernels.verify_pairwise`) is reduced to a
+    1. ``proposed`` (rows or -1, from:func:`starid.kernels.verify_pairwise`) is reduced to a
        set whose every pair agrees in separation: the proposal disagreeing with the most others
        is dropped (ties: lower ``weight``, i.e. fewer votes, then higher index) until none
        disagrees.
-    2. The set is extended by reprojection (:func:`_extend`, notes 4.3 step 5).
+    2. The set is extended by reprojection (:func:`_extend`).
     3. Fewer than ``min_stars`` stars in the end: nothing is reported.
     Returns the catalog row per observed star (-1 = none).
     """
@@ -497,15 +483,13 @@ def best_hypothesis(v_cam, hyp, score, db, tol, min_stars):
 
 
 @njit(cache=True)
-def identify_rows(v_cam, db, tol, sensor):
+def identify_rows(v_cam, db, tol):
     """The whole identification of one image (``v_cam`` brightest first): guide row per star or -1.
 
     Voting (:func:`vote`), the best-supported candidate per star (:func:`select_candidates`),
     pairwise verification (``starid.kernels.verify_pairwise``), one consistent set extended by
     reprojection (:func:`confirm`), and when that yields nothing the single-triangle fallback
-    (:func:`best_hypothesis`); finally the coverage check (:func:`coverage`): the identification
-    is kept only if at most ``max(1, max_missed_fraction x predicted)`` of the bright guide stars
-    its attitude puts on the sensor are missing.
+    (:func:`best_hypothesis`).
     """
     cand, cand_votes, hyp, score = vote(v_cam, db, tol)
     chosen, chosen_votes = select_candidates(v_cam, cand, cand_votes, db.unit, tol.eps_chord)
@@ -516,55 +500,5 @@ def identify_rows(v_cam, db, tol, sensor):
     rows = confirm(v_cam, chosen, chosen_votes, db, tol, tol.min_stars)
     if rows.max() < 0 and tol.max_hypotheses > 0:
         rows = best_hypothesis(v_cam, hyp, score, db, tol, tol.min_stars + 1)
-    if rows.max() >= 0 and tol.max_missed_fraction < 1.0:
-        predicted, missed = coverage(v_cam, rows, db, tol, sensor)
-        if missed > 1 and missed > tol.max_missed_fraction * predicted:
-            rows[:] = -1
     return rows
 
-
-@njit(cache=True)
-def coverage(v_cam, rows, db, tol, sensor):
-    """``(predicted, missed)``: guide stars with V <= ``tol.coverage_mag`` that the attitude solved
-    from ``rows`` puts on the sensor, and how many of them no identified star claims.
-
-    A true identification explains the bright stars of its field; a chance match among noise
-    points or wrong stars predicts bright stars that are not there.
-    """
-    n = v_cam.shape[0]
-    A = wahba_rows(v_cam, rows, db.unit)  # ICRS -> camera
-    n_axis = db.sky_axis
-    w = 2.0 / n_axis
-    c = sensor.half_diagonal_chord + w  # the sky cells that can hold a star on the sensor
-    lo = np.empty(3, dtype=np.int64)
-    hi = np.empty(3, dtype=np.int64)
-    for d in range(3):
-        b = A[2, d]  # the boresight in ICRS
-        lo[d] = max(int((b - c + 1.0) / w), 0)
-        hi[d] = min(int((b + c + 1.0) / w), n_axis - 1)
-    predicted = 0
-    missed = 0
-    for ix in range(lo[0], hi[0] + 1):
-        for iy in range(lo[1], hi[1] + 1):
-            for iz in range(lo[2], hi[2] + 1):
-                cell = (ix * n_axis + iy) * n_axis + iz
-                for g in range(db.sky_start[cell], db.sky_start[cell + 1]):
-                    if db.v_mag[g] > tol.coverage_mag:
-                        continue
-                    u0, u1, u2 = float(db.unit[g, 0]), float(db.unit[g, 1]), float(db.unit[g, 2])
-                    pz = A[2, 0] * u0 + A[2, 1] * u1 + A[2, 2] * u2
-                    if pz <= 0.0:
-                        continue
-                    x = sensor.cx_px + sensor.f_px * (A[0, 0] * u0 + A[0, 1] * u1 + A[0, 2] * u2) / pz
-                    y = sensor.cy_px + sensor.f_px * (A[1, 0] * u0 + A[1, 1] * u1 + A[1, 2] * u2) / pz
-                    if not (0.0 <= x < sensor.width_px and 0.0 <= y < sensor.height_px):
-                        continue
-                    predicted += 1
-                    seen = False
-                    for i in range(n):
-                        if rows[i] == g:
-                            seen = True
-                            break
-                    if not seen:
-                        missed += 1
-    return predicted, missed

@@ -168,7 +168,7 @@ def test_parameter_validation(kwargs):
 
 def test_defaults_are_documented():
     alg = PlanarTriangle()
-    assert alg.mag_limit == 6.0 and alg.sigma_px is None and alg.restarts == 3
+    assert alg.mag_limit == 6.0 and alg.sigma_px is None and alg.restarts == 0 and alg.max_stars == 8
     for name in alg.params():
         assert name in PlanarTriangle.__doc__ or name in ("mag_limit", "sigma_px", "beta",
                                                            "min_support")
@@ -212,14 +212,34 @@ def test_false_star_is_not_identified(db, catalog, camera):
         assert np.all((hip == -1) | (hip == obs.truth_hip))
 
 
-def test_noise_free_identification_rate(catalog, noise_free):
+PAPER = dict(restarts=0, max_stars=None, subset_size=None, assign_all=False)  # Cole's method as published
+
+
+def _summary(alg, db, trials, catalog, sim):
+    from starid.harness import Prepared, score
+    return summarize(score(Prepared(alg, db, 0.0, 0.0), trials, catalog, sim)).iloc[0]
+
+
+def test_noise_free_identification_rate(db, catalog, noise_free):
     sim, trials = noise_free
-    paper = summarize(run([PlanarTriangle(restarts=0)], trials, catalog, sim)).iloc[0]
-    restarted = summarize(run([PlanarTriangle()], trials, catalog, sim)).iloc[0]
-    assert paper["misid_rate"] == 0.0 and restarted["misid_rate"] == 0.0
-    assert paper["id_rate"] >= 0.90  # measured 0.9315 on 2,000 trials
-    assert restarted["id_rate"] >= 0.94  # measured 0.956 on 2,000 trials
-    assert restarted["id_rate"] >= paper["id_rate"]
+    trials = trials.select(np.arange(150))
+    paper = _summary(PlanarTriangle(**PAPER), db, trials, catalog, sim)
+    default = _summary(PlanarTriangle(), db, trials, catalog, sim)
+    assert paper["misid_rate"] == 0.0 and default["misid_rate"] == 0.0
+    assert paper["id_rate"] >= 0.88  # measured 0.9315 on 2,000 trials
+    assert default["id_rate"] >= 0.97  # measured 0.995 on 1,000 trials (seed 11)
+    assert default["star_recall"] > paper["star_recall"] + 0.05  # assign_all
+
+
+def test_brightest_subsets_rescue_the_real_sky(db, catalog, camera):
+    """V <= 8 sky: stars outside the V <= 6 database break the paper's pivot chain; subsets don't."""
+    sim = Simulator(catalog, camera, SimConfig(sigma_px=1.0, sigma_mag=0.5), seed=12)
+    trials = sim.generate(100)
+    paper = _summary(PlanarTriangle(**PAPER), db, trials, catalog, sim)
+    default = _summary(PlanarTriangle(), db, trials, catalog, sim)
+    assert paper["id_rate"] <= 0.4  # measured 0.13 on 500 images (seed 7)
+    assert default["id_rate"] >= 0.85  # measured 0.936 on 500 images (seed 7)
+    assert default["misid_rate"] <= 0.02
 
 
 def test_sigma_px_follows_the_simulator_with_a_1px_floor():
@@ -256,7 +276,7 @@ def test_coincident_detections(db, catalog, camera):
     dup = Observation(np.r_[obs.x_px, obs.x_px[0]], np.r_[obs.y_px, obs.y_px[0]], np.r_[obs.mag, obs.mag[0]],
                       camera, np.r_[obs.truth_hip, obs.truth_hip[0]])
     hip = PlanarTriangle().identify(db, dup).hip
-    assert hip.shape == (len(dup),) and hip[0] == -1 and hip[-1] == -1
+    assert hip.shape == (len(dup),) and not (hip[0] >= 0 and hip[-1] >= 0)
     assert np.all((hip == -1) | (hip == dup.truth_hip))
 
 
@@ -264,7 +284,7 @@ def test_ids_beyond_int32(catalog, camera):
     """Catalog ids offset by 2^31 come back intact (int64 end to end)."""
     big = Catalog.from_arrays(catalog.hip + 2**31, catalog.ra_deg, catalog.dec_deg, catalog.v_mag)
     alg = PlanarTriangle()
-    db_big = alg.build(big.brighter_than(6.5), camera)
+    db_big = alg.build(big.brighter_than(alg.mag_limit), camera)
     sim = Simulator(big, camera, SimConfig(), seed=6)
     n_ok = 0
     for t in range(8):
@@ -274,3 +294,26 @@ def test_ids_beyond_int32(catalog, camera):
         assert np.all((hip == -1) | (hip == obs.truth_hip))
         n_ok += int((hip >= 2**31).sum() >= 3)
     assert n_ok >= 6
+
+
+
+# --- explain --------------------------------------------------------------------------------
+
+def test_explain_draws_its_reasoning(db, catalog, camera):
+    from starid.plugin import Explanation
+
+    alg = PlanarTriangle()
+    sim = Simulator(catalog, camera, SimConfig(sigma_px=1.0, sigma_mag=0.5), seed=8)
+    n_drawn = 0
+    for t in range(4):
+        obs = sim.observation(t)
+        ex = alg.explain(db, obs)
+        assert isinstance(ex, Explanation) and ex.caption
+        hip = alg.identify(db, obs).hip
+        if np.any(hip >= 0):
+            n_drawn += 1
+            assert ex.segments.shape[0] >= 3 and ex.highlight.size >= 3
+            assert np.all((ex.segments[..., 0] >= 0) & (ex.segments[..., 0] < camera.width_px))
+    assert n_drawn >= 3
+    tiny = Observation(np.array([10.0, 20.0]), np.array([10.0, 30.0]), np.array([3.0, 4.0]), camera)
+    assert isinstance(alg.explain(db, tiny), Explanation)
