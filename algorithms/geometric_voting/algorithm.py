@@ -39,7 +39,7 @@ class GeometricVoting(Algorithm):
        within +-eps of theta_ij are found by a k-vector range query, and each adds a vote for I
        and for J to both i and j (``once_per_pair``: at most one vote per catalog star per
        image pair); each image star takes the catalog star with most votes (ties: the first
-       maximum, left to verification);
+       maximum, left to verification) -- with ``n_candidates`` = 1 and ``expected_votes`` off;
     2. verification: two assignments (i -> I, j -> J) agree when |theta_ij - theta_IJ| <= eps;
        assignments with too little agreement are dropped (``starid.kernels.verify_pairwise``:
        each kept one agrees with at least ``min_support`` others and a fraction
@@ -60,9 +60,19 @@ class GeometricVoting(Algorithm):
       catalog pairs, and a catalog star with many neighbours at about that distance collects
       several votes from one image pair; counted every time, such stars outvote the true one for
       4 image stars in 5, counted once per image pair for about 1 in 5;
+    * ``expected_votes`` (reconstructed, on by default): a star is ranked by its votes minus the
+      votes it would collect by chance, ``degree * w``, where ``degree`` is its number of
+      catalog neighbours and ``w`` the probability that one neighbour falls in the windows of
+      the image star's pairs (4 eps c / c_max^2 per pair: distances spread as in a disc). Dense
+      sky otherwise wins on its many neighbours alone;
+    * ``n_candidates`` (reconstructed, 16 by default; 1 = the paper): each star keeps its 16 best
+      catalog stars and takes the one that agrees in pair angle with the most other stars'
+      shortlists (the verification vote, counted over shortlists) -- in a 6-star image the true
+      star has at most 5 votes, which chance alone often matches;
     * detections closer than ``d_min_deg`` to another, and guide stars with such a neighbour,
-      are not used; only the ``max_stars`` brightest detections vote (reconstructed: both keep
-      the cost bounded, the second also keeps wide-angle cameras fast, with ``max_window``);
+      are not used; only the ``max_stars`` (15) brightest detections vote (reconstructed: the
+      cost grows as the square of the voters; in the deep sky 15 voters identify as many images
+      as 40 (85 vs 86 %, seed 7) at a tenth of the time; with ``max_window`` it also keeps wide-angle cameras fast);
     * ``confirm_fraction``, ``min_extra`` (starid's extension; 0 and 0 switch it off): the
       verified stars' attitude must see this fraction of the guide stars it puts on the sensor
       and 3 + ``min_extra`` stars in all, else nothing is reported.
@@ -76,7 +86,7 @@ class GeometricVoting(Algorithm):
     beta: float = 3.0
     d_min_deg: float = 0.05
     max_pair_deg: float = 20.0
-    max_stars: int = 40
+    max_stars: int = 15
     max_window: int = 10000
     min_support: int = 2
     min_fraction: float = 0.5
@@ -84,10 +94,12 @@ class GeometricVoting(Algorithm):
     min_extra: int = 1
     once_per_pair: bool = True
     n_candidates: int = 16
+    expected_votes: bool = True
 
     def __post_init__(self):
         check_pair_params(self)
         check_flag("once_per_pair", self.once_per_pair)
+        check_flag("expected_votes", self.expected_votes)
         check_whole("n_candidates", self.n_candidates, 1, 1000)
         check_whole("min_support", self.min_support, 1)
         check_number("min_fraction", self.min_fraction, lo=0, hi=1)
@@ -106,9 +118,9 @@ class GeometricVoting(Algorithm):
     def _run(self, database: PairDatabase, observation: Observation):
         cam = observation.camera
         return voting_kernel(observation.x_px, observation.y_px, observation.mag, database.kv, database.pairs,
-                             database.guide_unit, self.tolerances(cam, database), sensor_of(cam),
+                             database.degree, database.guide_unit, self.tolerances(cam, database), sensor_of(cam),
                              int(self.min_support), float(self.min_fraction), self.once_per_pair,
-                             int(self.n_candidates))
+                             self.expected_votes, int(self.n_candidates))
 
     def identify(self, database: PairDatabase, observation: Observation) -> Identification:
         rows, _, attitude = self._run(database, observation)

@@ -14,7 +14,7 @@ from starid_algorithms.pyramid.kernels import pair_windows, select_stars
 
 
 @njit(cache=True)
-def vote(sel, start, stop, pairs, n_guide, once_per_pair, n_keep):
+def vote(v_cam, sel, start, stop, pairs, degree, tol, once_per_pair, expected, n_keep):
     """Votes of the catalog stars for each selected star; returns ``(cand_row, cand_votes)``.
 
     For star a, every other star b gives its pair's window: each catalog pair (I, J) in it is a
@@ -22,18 +22,30 @@ def vote(sel, start, stop, pairs, n_guide, once_per_pair, n_keep):
     voting: both catalog stars of a matching pair vote for both image stars). With
     ``once_per_pair`` one image pair gives a catalog star at most one vote, however many pairs of
     the window contain it (a star with many neighbours at about that distance is one possible
-    identity, not several). Star a keeps its ``n_keep`` most-voted catalog stars, most votes
-    first, ties to the lowest guide row (``cand_row[a, 0]`` is the paper's choice, the "first
-    maximum"); unused slots are -1. One vote row at a time (``n_guide`` counters,
+    identity, not several). Star a keeps its ``n_keep`` best catalog stars, most votes first,
+    ties to the lowest guide row (``cand_row[a, 0]`` is the paper's choice, the "first
+    maximum"); unused slots are -1. With ``expected`` (reconstruction) "best" is the excess
+    over the votes a catalog star collects by chance, ``votes - degree[g] * w_a``:
+    ``w_a = sum_b 4 eps c_ab / c_max^2`` is the probability that one given neighbour of a
+    catalog star falls in the windows of star a's pairs (pair distances spread as in a disc of
+    radius ``c_max``), ``degree[g]`` the star's number of neighbours -- so a star in dense sky
+    does not win on its many neighbours alone. One vote row at a time (``n_guide`` counters,
     cache-resident), zeroed between stars; at most 32,767 selected stars and 65,535 votes.
     """
     m = sel.shape[0]
+    n_guide = degree.shape[0]
     # one int32 per catalog star: votes in the low 16 bits, the last voting image pair above
     tally = np.zeros(n_guide, dtype=np.int32)
     cand_row = np.full((m, n_keep), -1, dtype=np.int64)
     cand_votes = np.zeros((m, n_keep), dtype=np.int64)
+    score = np.empty(n_keep)
     for a in range(m):
         tally[:] = 0
+        w_a = 0.0
+        if expected:
+            for b in range(m):
+                if b != a and stop[a, b] > start[a, b]:
+                    w_a += 4.0 * tol.eps * chord_rows(v_cam, sel[a], v_cam, sel[b]) / (tol.c_max * tol.c_max)
         for b in range(m):
             if b == a:
                 continue
@@ -50,15 +62,21 @@ def vote(sel, start, stop, pairs, n_guide, once_per_pair, n_keep):
                         tally[g] = x + np.int32(1)
         for g in range(n_guide):
             tally[g] &= np.int32(65535)
+        score[:] = -np.inf
         for g in range(n_guide):          # keep the n_keep best (rows ascend, so ties keep the lowest)
             c = tally[g]
-            if c == 0 or c <= cand_votes[a, n_keep - 1]:
+            if c == 0:
+                continue
+            x = c - w_a * degree[g]
+            if x <= score[n_keep - 1]:
                 continue
             t = n_keep - 1
-            while t > 0 and cand_votes[a, t - 1] < c:
+            while t > 0 and score[t - 1] < x:
+                score[t] = score[t - 1]
                 cand_votes[a, t] = cand_votes[a, t - 1]
                 cand_row[a, t] = cand_row[a, t - 1]
                 t -= 1
+            score[t] = x
             cand_votes[a, t] = c
             cand_row[a, t] = g
     return cand_row, cand_votes
@@ -102,8 +120,8 @@ def pick_candidates(v_cam, sel, cand_row, cand_votes, guide_unit, eps):
 
 
 @njit(cache=True)
-def voting_kernel(x_px, y_px, mag, kv, pairs, guide_unit, tol, cam, min_support, min_fraction, once_per_pair,
-                  n_candidates):
+def voting_kernel(x_px, y_px, mag, kv, pairs, degree, guide_unit, tol, cam, min_support, min_fraction,
+                  once_per_pair, expected, n_candidates):
     """Geometric voting on one image. Returns ``(rows, votes, attitude)``.
 
     ``rows[s]``: guide row of detection ``s`` (-1 = unidentified); ``votes[s]``: the votes its
@@ -135,7 +153,7 @@ def voting_kernel(x_px, y_px, mag, kv, pairs, guide_unit, tol, cam, min_support,
     if sel.shape[0] < 3:
         return rows, votes, np.zeros((3, 3))
     start, stop = pair_windows(v_cam, sel, kv, tol)
-    cand_row, cand_votes = vote(sel, start, stop, pairs, guide_unit.shape[0], once_per_pair, n_candidates)
+    cand_row, cand_votes = vote(v_cam, sel, start, stop, pairs, degree, tol, once_per_pair, expected, n_candidates)
     if n_candidates == 1:
         best_row, best_votes = cand_row[:, 0].copy(), cand_votes[:, 0].copy()
     else:

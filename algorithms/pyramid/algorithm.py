@@ -40,6 +40,8 @@ class PairDatabase(Database):
     nbr, nbr_chord, nbr_start : the same pairs per star (``neighbour_lists``; empty otherwise):
         the partners of guide row g are ``nbr[nbr_start[g]:nbr_start[g + 1]]`` (uint16/int32),
         sorted by their chord ``nbr_chord`` (float32); int32 offsets ``nbr_start`` (g + 1,).
+    degree : uint16/int32 (g,) how many pairs each guide star belongs to (its neighbours within
+        ``c_max``), for geometric voting's expected random votes.
     c_max : the largest pair chord stored (not read by identify as an array).
     """
 
@@ -50,6 +52,7 @@ class PairDatabase(Database):
     nbr: np.ndarray
     nbr_chord: np.ndarray
     nbr_start: np.ndarray
+    degree: np.ndarray
     c_max: float
 
 
@@ -86,10 +89,13 @@ def build_pair_database(catalog: Catalog, camera: Camera, mag_limit: float, d_mi
         nbr_start = np.searchsorted(star[by_star], np.arange(len(guide) + 1)).astype(np.int32)
     else:
         nbr, nbr_chord, nbr_start = np.zeros(0, row_dtype), np.zeros(0, np.float32), np.zeros(1, np.int32)
+    degree = np.bincount(pairs.ravel(), minlength=len(guide))
+    deg_dtype = np.uint16 if degree.max() <= np.iinfo(np.uint16).max else np.int32
     return PairDatabase(kv=kvector_make(chord[order], np.float32, np.int32),
                         pairs=np.ascontiguousarray(pairs[order].astype(row_dtype)),
                         guide_unit=unit.astype(np.float32), guide_hip=guide.hip[by_z].astype(np.int64),
-                        nbr=nbr, nbr_chord=nbr_chord, nbr_start=nbr_start, c_max=float(c_max))
+                        nbr=nbr, nbr_chord=nbr_chord, nbr_start=nbr_start,
+                        degree=degree.astype(deg_dtype), c_max=float(c_max))
 
 
 def check_pair_params(algo) -> None:
