@@ -26,7 +26,7 @@ from . import registered_beyond, sweep_points, sweep_table
 NAME = "luo2015"
 TITLE = "Luo, Xu, Zhang & Sun (2015)"
 DESCRIPTION = "Luo et al. (2015): improved LPT vs LPT vs modified grid on a 20 deg camera, every algorithm"
-DEFAULT_TRIALS = 1000
+DEFAULT_TRIALS = 200
 PAPER_ALGORITHMS = ("lpt_improved", "lpt", "grid")
 #: The paper's navigation-star list and neighbourhood radius, as the three plugins' parameters.
 PAPER_PARAMS = {"mag_limit": 6.5, "radius_deg": 6.0, "double_px": 20.0}
