@@ -18,14 +18,15 @@ def is_cache_error(exc: BaseException) -> bool:
 
 
 def cache_folders(exc: BaseException) -> list[str]:
-    """The ``__pycache__`` folders of the kernels involved (outermost first), from the traceback."""
+    """The cache folders numba was reading when ``exc`` was raised (from its cache objects)."""
     out = []
-    for f in traceback.extract_tb(exc.__traceback__):
-        if "numba" + os.sep in f.filename or not f.filename.endswith(".py"):
-            continue
-        folder = os.path.join(os.path.dirname(f.filename), "__pycache__")
-        if os.path.isdir(folder) and folder not in out and any(n.endswith(".nbi") for n in os.listdir(folder)):
+    tb = exc.__traceback__
+    while tb is not None:
+        owner = tb.tb_frame.f_locals.get("self")
+        folder = getattr(owner, "_cache_path", None)
+        if isinstance(folder, str) and folder not in out:
             out.append(folder)
+        tb = tb.tb_next
     return out
 
 

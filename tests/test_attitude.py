@@ -36,3 +36,21 @@ def test_rotation_angle():
     t = 1e-5
     R = np.array([[np.cos(t), -np.sin(t), 0], [np.sin(t), np.cos(t), 0], [0, 0, 1]])
     assert rotation_angle_rad(R, np.eye(3)) == pytest.approx(t, rel=1e-9)
+
+
+def test_wahba_solvers_agree_with_scipy_align_vectors():
+    """scipy's Rotation.align_vectors as the oracle for both Wahba solvers, on noisy vectors."""
+    from scipy.spatial.transform import Rotation
+
+    from starid.kernels import wahba_rows
+
+    rng = np.random.default_rng(5)
+    for _ in range(20):
+        A = random_attitude(rng)
+        r = rng.normal(size=(8, 3))
+        r /= np.linalg.norm(r, axis=1, keepdims=True)
+        b = r @ A.T + rng.normal(scale=1e-3, size=(8, 3))
+        b /= np.linalg.norm(b, axis=1, keepdims=True)
+        oracle = Rotation.align_vectors(b, r)[0].as_matrix()
+        assert rotation_angle_rad(solve_wahba(b, r), oracle) < 1e-9
+        assert rotation_angle_rad(wahba_rows(b, np.arange(8), r), oracle) < 1e-9

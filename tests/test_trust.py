@@ -232,3 +232,31 @@ def test_camera_and_simulator_parameters_run_or_refuse(width, focal, pixel, sigm
         Simulator(__import__("starid").load_hipparcos(), cam, config, seed=0).generate(1)
     except ConfigError as exc:
         assert str(exc)
+
+
+KERNEL = '''
+from numba import njit
+
+
+@njit(cache=True)
+def twice(x):
+    return 2 * x
+'''
+
+
+def test_a_broken_numba_cache_is_named_not_scored(tmp_path):
+    """A garbage cache file: the failure says which folder to clear (never a silent rate of 0)."""
+    (tmp_path / "cachedmod.py").write_text(KERNEL)
+    run = ("import sys; sys.path.insert(0, %r)\nfrom starid.jitcache import describe\nimport cachedmod\n"
+           "try:\n    print('value', cachedmod.twice(21))\nexcept Exception as exc:\n    print('failed:', describe(exc))\n"
+           % str(tmp_path))
+    first = subprocess.run([sys.executable, "-c", run], capture_output=True, text=True, timeout=300)
+    assert "value 42" in first.stdout, first.stderr
+    cache = tmp_path / "__pycache__"
+    files = list(cache.glob("*.nbi")) + list(cache.glob("*.nbc"))
+    assert files
+    for f in files:
+        f.write_bytes(b"\x80garbage" * 3)
+    second = subprocess.run([sys.executable, "-c", run], capture_output=True, text=True, timeout=300)
+    out = second.stdout
+    assert "numba cache file is unreadable" in out and str(cache) in out, out + second.stderr
