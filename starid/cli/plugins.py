@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import inspect
+import re
 import typing
 
 from ..catalog import load_hipparcos
@@ -23,8 +24,26 @@ def cmd_list(args) -> int:
     return 0
 
 
+UNITS = {"_deg": "deg", "_rad": "rad", "_px": "px", "_mag": "mag", "_s": "s", "_mb": "MB", "_um": "um",
+         "_mm": "mm", "_arcsec": "arcsec"}
+
+
+def unit_of(name: str) -> str:
+    """The unit a parameter's name carries (``d_max_deg`` -> deg), or ``""``."""
+    return next((u for suffix, u in UNITS.items() if name.endswith(suffix)), "")
+
+
+def meaning_of(cls, name: str) -> str:
+    """The first sentence of the class docstring that names ``name`` in double back-quotes."""
+    doc = " ".join(inspect.cleandoc(cls.__doc__ or "").split())
+    for sentence in re.split(r"(?<=[.;])\s+", doc):
+        if f"``{name}``" in sentence:
+            return sentence.strip(" *-")
+    return ""
+
+
 def parameter_table(cls) -> list[dict]:
-    """Each dataclass field of an algorithm: name, type, default, and what ``follows`` it."""
+    """Each dataclass field of an algorithm: name, type, default, unit, what ``follows`` it, meaning."""
     hints = typing.get_type_hints(cls)
     rows = []
     for f in dataclasses.fields(cls):
@@ -32,8 +51,8 @@ def parameter_table(cls) -> list[dict]:
         type_text = getattr(kind, "__name__", None) or str(kind).replace("typing.", "")
         follows = cls.follows.get(f.name)
         default = f.default if f.default is not dataclasses.MISSING else "(required)"
-        rows.append({"name": f.name, "type": type_text, "default": default,
-                     "follows": f"simulator {follows}" if follows else ""})
+        rows.append({"name": f.name, "type": type_text, "default": default, "unit": unit_of(f.name),
+                     "follows": f"simulator {follows}" if follows else "", "meaning": meaning_of(cls, f.name)})
     return rows
 
 
@@ -47,8 +66,11 @@ def cmd_info(args) -> int:
     rows = parameter_table(cls) if dataclasses.is_dataclass(cls) else []
     width = max((len(r["name"]) for r in rows), default=4)
     for r in rows:
+        unit = f" {r['unit']}" if r["unit"] else ""
         tail = f"  (None: follows the {r['follows']})" if r["follows"] else ""
-        print(f"  {r['name']:<{width}}  {r['type']:<14} default {r['default']!r}{tail}")
+        print(f"  {r['name']:<{width}}  {r['type']:<14} default {r['default']!r}{unit}{tail}")
+        if r["meaning"]:
+            print(f"  {'':<{width}}  {r['meaning'][:300]}")
     if not args.no_build:
         db = cls().build(load_hipparcos(), Camera())
         print(f"\ndatabase for the default camera and the embedded catalog: {db.nbytes / 1e6:.3f} MB")
