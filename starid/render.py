@@ -25,8 +25,8 @@ that the render -> extract chain detects half of the V = 6.0 stars (their "sensi
 magnitude 6.0 Mv"); docs/images.md has the measured detection curve.
 
 :func:`observation_from_image` renders a trial, extracts its centroids
-(:func:`starid.extract.extract`) and matches each detection to the nearest true star within
-``match_radius_px`` (2 px): the result is an :class:`~starid.observation.Observation` with
+(:func:`starid.extract.extract`) and matches each detection to the brightest true star within
+``match_radius_px`` (2 px; wider at the sensor's edges): the result is an :class:`~starid.observation.Observation` with
 truth, ready for the harness. :func:`image_trials` does it for a range of trials and returns a
 :class:`~starid.observation.TrialSet` plus per-trial image statistics (detection rate, rms
 centroid error, false detections), the hook for an ``--pipeline image`` option of the engine.
@@ -263,34 +263,46 @@ def render_image(x_px: np.ndarray, y_px: np.ndarray, signal_e: np.ndarray, width
     return adu.astype(np.uint16 if config.bits == 16 else np.uint8).reshape(height_px, width_px)
 
 
-def match_truth(x_px, y_px, true_x_px, true_y_px, true_hip, radius_px: float = 2.0):
-    """Each detection's true star: the nearest within ``radius_px``, one detection per star.
+def match_truth(x_px, y_px, true_x_px, true_y_px, true_hip, radius_px=2.0, true_mag=None, flux=None):
+    """Each detection's true star: the brightest true star within ``radius_px``, one detection per star.
 
-    Pairs are taken closest first, so a star that two detections are near goes to the closer;
-    the other detection, and any with no star within the radius, gets -1 (false). Returns
-    ``(truth_hip, matched_row)`` with ``matched_row`` the row of the true star, -1 when false.
+    ``radius_px`` is a number or one radius per detection. Detections are taken brightest
+    first (by ``flux``; input order without it), each gets the brightest true star within its
+    radius that no earlier detection took (by ``true_mag``; the nearest without it) -- the
+    simulator's rule for blends, whose truth is the brighter star. A detection with no free
+    star within its radius gets -1 (false). Returns ``(truth_hip, matched_row)``, the row of the
+    true star or -1.
     """
     n = len(x_px)
     truth = np.full(n, -1, dtype=np.int64)
     row = np.full(n, -1, dtype=np.int64)
     if n == 0 or len(true_x_px) == 0:
         return truth, row
+    radius = np.broadcast_to(np.asarray(radius_px, dtype=np.float64), (n,))
     tree = cKDTree(np.column_stack([true_x_px, true_y_px]))
-    k = min(4, len(true_x_px))
-    dist, idx = tree.query(np.column_stack([x_px, y_px]), k=k, distance_upper_bound=radius_px)
-    dist, idx = dist.reshape(n, k), idx.reshape(n, k)
-    det = np.repeat(np.arange(n), k)
-    dist, idx = dist.ravel(), idx.ravel()
-    ok = np.isfinite(dist)
-    det, dist, idx = det[ok], dist[ok], idx[ok]
+    near = tree.query_ball_point(np.column_stack([x_px, y_px]), radius)
     taken = np.zeros(len(true_x_px), dtype=bool)
-    for j in np.argsort(dist, kind="stable"):
-        d, s = det[j], idx[j]
-        if row[d] < 0 and not taken[s]:
-            row[d] = s
-            taken[s] = True
+    order = np.arange(n) if flux is None else np.argsort(-np.asarray(flux), kind="stable")
+    tx, ty = np.asarray(true_x_px), np.asarray(true_y_px)
+    for d in order:
+        cand = np.asarray([s for s in near[d] if not taken[s]], dtype=np.int64)
+        if cand.size == 0:
+            continue
+        dist = np.hypot(tx[cand] - x_px[d], ty[cand] - y_px[d])
+        key = (dist,) if true_mag is None else (dist, np.asarray(true_mag)[cand])
+        s = cand[np.lexsort(key)[0]]
+        row[d] = s
+        taken[s] = True
     truth[row >= 0] = np.asarray(true_hip, dtype=np.int64)[row[row >= 0]]
     return truth, row
+
+
+def match_radius(x_px, y_px, camera: Camera, radius_px: float, psf_sigma_px: float) -> np.ndarray:
+    """``radius_px``, widened by ``3 psf_sigma_px`` for detections within that of the sensor's edge
+    (the edge cuts the PSF and pulls the centroid inwards by up to a few pixels)."""
+    edge = 3.0 * psf_sigma_px
+    dist = np.minimum(np.minimum(x_px, camera.width_px - x_px), np.minimum(y_px, camera.height_px - y_px))
+    return np.where(dist < edge, radius_px + edge, radius_px)
 
 
 def match_stats(rendered: RenderedTrial, x_px, y_px, row, camera: Camera, mag_limit: float) -> dict:
@@ -316,6 +328,9 @@ def observation_from_image(simulator: Simulator, trial: int, config: RenderConfi
                            **extract_options) -> ImageTrial:
     """Render trial ``trial`` of ``simulator``, extract its centroids and match them to the truth.
 
+    Truth: the brightest true star within ``match_radius_px`` of each detection (the
+    simulator's rule for blends), the radius widened near the sensor's edges
+    (:func:`match_radius`); see :func:`match_truth`.
     The detections' magnitudes use the render's own zero point (a calibrated sensor);
     ``extract_options`` go to :func:`starid.extract.extract` (``psf_sigma_px`` defaults to the
     render's). Statistics count stars to the simulator's ``mag_limit`` as detectable.
@@ -327,8 +342,9 @@ def observation_from_image(simulator: Simulator, trial: int, config: RenderConfi
     rendered = renderer.render(trial)
     options = {"psf_sigma_px": cfg.psf_sigma_px, "zero_point_mag": cfg.adu_zero_point_mag, **extract_options}
     x, y, mag, flux = extract(rendered.image, **options)
-    truth, row = match_truth(x, y, rendered.x_px, rendered.y_px, rendered.hip, match_radius_px)
     camera = renderer.camera
+    radius = match_radius(x, y, camera, match_radius_px, cfg.psf_sigma_px)
+    truth, row = match_truth(x, y, rendered.x_px, rendered.y_px, rendered.hip, radius, rendered.v_mag, flux)
     obs = Observation(x, y, mag, camera, truth)
     stats = match_stats(rendered, x, y, row, camera, simulator.config.mag_limit)
     return ImageTrial(obs, flux, rendered, stats)
@@ -377,5 +393,5 @@ def summarize_stats(stats) -> dict:
             "rms_centroid_err_px": math.sqrt(float(stats["sq_err_px2_sum"].sum()) / n_match) if n_match else float("nan")}
 
 
-__all__ = ["ImageTrial", "RenderConfig", "RenderedTrial", "Renderer", "image_trials", "match_stats", "match_truth",
+__all__ = ["ImageTrial", "RenderConfig", "RenderedTrial", "Renderer", "image_trials", "match_stats", "match_radius", "match_truth",
            "observation_from_image", "render_image", "summarize_stats"]

@@ -138,3 +138,14 @@ def test_ra_dec_roll_convention():
         assert np.allclose(attitude_from_ra_dec_roll(ra, dec, roll), a, atol=1e-9)
         b = a[2]
         assert math.isclose(math.degrees(math.asin(b[2])), dec, abs_tol=1e-9)
+
+
+def test_roll_zero_puts_north_down_and_east_right():
+    def unit(ra, dec):
+        ra, dec = math.radians(ra), math.radians(dec)
+        return np.array([math.cos(dec) * math.cos(ra), math.cos(dec) * math.sin(ra), math.sin(dec)])
+
+    a = attitude_from_ra_dec_roll(30.0, 20.0, 0.0)
+    north, east = a @ unit(30.0, 20.5), a @ unit(30.5, 20.0)
+    assert north[1] > 0 and abs(north[0]) < 1e-9 and east[0] > 0
+    assert np.allclose(ra_dec_roll_deg(a), (30.0, 20.0, 0.0), atol=1e-9)

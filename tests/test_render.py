@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from starid import Camera, ConfigError, SimConfig, Simulator
-from starid.render import (RenderConfig, Renderer, image_trials, match_truth, observation_from_image, render_image,
+from starid.render import (RenderConfig, Renderer, image_trials, match_radius, match_truth, observation_from_image, render_image,
                            summarize_stats)
 
 
@@ -71,11 +71,24 @@ def test_eight_bit_and_config_checks():
     assert RenderConfig().adu_zero_point_mag == pytest.approx(16.9 + 2.5 * math.log10(0.1))
 
 
-def test_match_truth_nearest_one_to_one():
-    truth, row = match_truth(np.array([10.0, 10.5, 50.0, 80.0]), np.array([10.0, 10.0, 50.0, 80.0]),
-                             np.array([10.4, 51.0, 90.0]), np.array([10.0, 51.5, 90.0]), np.array([7, 8, 9]))
+def test_match_truth_brightest_first_one_to_one():
+    det_x, det_y = np.array([10.0, 10.5, 50.0, 80.0]), np.array([10.0, 10.0, 50.0, 80.0])
+    true_x, true_y, hip = np.array([10.4, 51.0, 90.0]), np.array([10.0, 51.5, 90.0]), np.array([7, 8, 9])
+    # the brighter detection (flux) takes the star both are near; the other is false
+    truth, row = match_truth(det_x, det_y, true_x, true_y, hip, flux=np.array([1.0, 5.0, 1.0, 1.0]))
     assert truth.tolist() == [-1, 7, 8, -1] and row.tolist() == [-1, 0, 1, -1]
+    truth, _ = match_truth(det_x, det_y, true_x, true_y, hip, flux=np.array([5.0, 1.0, 1.0, 1.0]))
+    assert truth.tolist() == [7, -1, 8, -1]
+    # a blend: the brighter of two stars within the radius, as the simulator merges them
+    truth, _ = match_truth(np.array([20.0]), np.array([20.0]), np.array([20.1, 20.8]), np.array([20.0, 20.0]),
+                           np.array([1, 2]), true_mag=np.array([7.5, 5.0]))
+    assert truth.tolist() == [2]
     assert match_truth(np.zeros(0), np.zeros(0), np.ones(1), np.ones(1), np.ones(1))[0].size == 0
+
+
+def test_match_radius_widens_at_the_edges():
+    r = match_radius(np.array([1.0, 500.0, 1020.0]), np.array([500.0, 500.0, 500.0]), Camera(), 2.0, 2.0)
+    assert r.tolist() == [8.0, 2.0, 8.0]
 
 
 def test_observation_from_image_matches_truth(sim, renderer):

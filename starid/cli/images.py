@@ -56,8 +56,9 @@ def ra_dec_roll_deg(attitude: np.ndarray) -> tuple[float, float, float]:
     """Boresight right ascension and declination and the roll of an attitude (ICRS -> camera).
 
     The 3-1-3 convention ``A = R3(roll) R1(90 deg - dec) R3(90 deg + ra)`` (passive rotations):
-    roll 0 puts celestial north at image up (-y)... and east at image left, roll grows
-    counter-clockwise from the sky side. :func:`attitude_from_ra_dec_roll` is its inverse.
+    at roll 0 celestial north points to image +y (down) and east to image +x (right); roll is the
+    angle of the last rotation about the boresight, in [0, 360).
+    :func:`attitude_from_ra_dec_roll` is its inverse.
     """
     b = attitude[2]                                   # the boresight in ICRS
     dec = math.asin(max(-1.0, min(1.0, b[2])))
