@@ -182,8 +182,8 @@ def annotate(path: Path, image: np.ndarray, x_px, y_px, hip, title: str) -> None
     h, w = image.shape
     level = float(np.median(image))
     rms = 1.4826 * float(np.median(np.abs(image - level))) or 1.0
-    shown = np.arcsinh(np.clip(image - level, 0, None) / (4.0 * rms))   # below 4 rms: black
-    low, top = math.asinh(1.0), math.asinh(300.0)
+    shown = np.arcsinh(np.clip(image - level, 0, None) / (4.0 * rms))
+    low, top = math.asinh(0.5), math.asinh(25.0)   # 2 rms -> black, 100 rms -> white
     scale = 8.0 / max(w, h)
     fig = plt.figure(figsize=(w * scale, h * scale + 0.4), dpi=max(w, h) / 8.0)
     ax = fig.add_axes([0, 0, 1, h * scale / (h * scale + 0.4)])
@@ -194,7 +194,9 @@ def annotate(path: Path, image: np.ndarray, x_px, y_px, hip, title: str) -> None
         ax.add_patch(Circle((x, y), radius * (1.3 if ident else 1.0), fill=False, lw=1.2 if ident else 0.6,
                             ec="#ffcc00" if ident else "#4aa3ff"))
         if ident:
-            ax.text(x + radius * 1.5, y - radius * 1.2, f"HIP {int(h_id)}", color="#ffcc00", fontsize=7)
+            left = x > 0.88 * w                       # keep the label on the image
+            ax.text(x - radius * 1.5 if left else x + radius * 1.5, y - radius * 1.2, f"HIP {int(h_id)}",
+                    color="#ffcc00", fontsize=7, ha="right" if left else "left")
     ax.set_xlim(0, w)
     ax.set_ylim(h, 0)
     ax.axis("off")
