@@ -15,7 +15,7 @@ import warnings
 
 from ..errors import StarIDError, StarIDWarning
 from ..provenance import versions
-from . import check, experiments, identify, plugins, report
+from . import check, experiments, identify, images, plugins, report
 from .options import Formatter
 
 
@@ -34,6 +34,7 @@ def build_parser() -> argparse.ArgumentParser:
     plugins.add_parsers(sub, Formatter)
     experiments.add_parsers(sub, Formatter)
     identify.add_parsers(sub, Formatter)
+    images.add_parsers(sub, Formatter)
     check.add_parsers(sub, Formatter)
     report.add_parsers(sub, Formatter)
     return parser

@@ -121,7 +121,7 @@ def add_parsers(sub, formatter) -> None:
                        description="Identify centroids you measured. OBS.csv has columns trial, x_px, y_px, mag "
                                    "and optionally truth_hip (then the images are scored like 'starid run').")
     p.add_argument("items", nargs="+", metavar="ALGO... OBS.csv", help="one or more algorithms, then the file")
-    p.add_argument("--out", type=Path, required=True, metavar="DIR",
+    p.add_argument("--out", type=Path, metavar="DIR",
                    help="writes identifications.csv (algorithm, label, trial, star, x_px, y_px, mag, hip, truth_hip), "
                         "trials.csv and, with truth, summary.csv")
     p.add_argument("--catalog", help="CSV catalog instead of the embedded Hipparcos")
@@ -142,6 +142,12 @@ def add_parsers(sub, formatter) -> None:
 
 
 def _identify_entry(args) -> int:
+    from .images import identify_images, is_image_file
+
+    if len(args.items) >= 2 and is_image_file(args.items[-1]):
+        return identify_images(args)
+    if args.out is None:
+        raise ObservationError("identify OBS.csv needs --out DIR")
     if len(args.items) < 2:
         raise ObservationError("identify needs at least one algorithm and then OBS.csv")
     args.algorithms, args.obs = args.items[:-1], Path(args.items[-1])
