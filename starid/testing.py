@@ -169,10 +169,11 @@ def _check_large_ids(cls, algorithm, db, catalog, camera):
 
 
 def _check_explain(cls, algorithm, db, catalog, camera):
-    if not hasattr(algorithm, "explain"):
+    method = getattr(algorithm, "explain", None)
+    if not callable(method):
         return
     for obs in _trials(catalog, camera, NOISY, 3):
-        result = algorithm.explain(db, obs.for_plugin())
+        result = method(db, obs.for_plugin())
         _require(isinstance(result, Explanation), f"explain must return a starid.plugin.Explanation, got "
                                                   f"{type(result).__name__}")
 

@@ -40,13 +40,21 @@ class BrokenExplainPTP(PTP):
         raise RuntimeError("boom")
 
 
+@dataclass(frozen=True)
+class PlainPTP(PTP):
+    """PTP without its explain() (a test plugin: a plugin need not explain itself)."""
+
+    name: ClassVar[str] = "plain_ptp"
+    explain = None
+
+
 @pytest.fixture
 def explained():
-    starid.register(ExplainedPTP)
-    starid.register(BrokenExplainPTP)
+    for cls in (ExplainedPTP, BrokenExplainPTP, PlainPTP):
+        starid.register(cls)
     yield
-    unregister("explained_ptp")
-    unregister("broken_explain_ptp")
+    for name in ("explained_ptp", "broken_explain_ptp", "plain_ptp"):
+        unregister(name)
 
 
 def _texts(fig):
@@ -72,10 +80,11 @@ def test_show_every_registered_algorithm_on_one_trial(tmp_path, catalog, camera)
 
 
 def test_explain_layer_is_drawn_with_its_caption(explained, catalog, camera):
-    shown = show(["ptp", "explained_ptp", "broken_explain_ptp"], trial=0, seed=2, camera=camera, catalog=catalog)
+    shown = show(["plain_ptp", "explained_ptp", "broken_explain_ptp"], trial=0, seed=2, camera=camera,
+                 catalog=catalog)
     plain, drawn, broken = (ax for ax in shown.figure.axes if ax.get_visible() and ax.axison)
     assert isinstance(shown.explanations["explained_ptp"], Explanation)
-    assert shown.explanations["ptp"] is None and shown.explanations["broken_explain_ptp"] is None
+    assert shown.explanations["plain_ptp"] is None and shown.explanations["broken_explain_ptp"] is None
     assert CAPTION in drawn.get_xlabel().replace("\n", " ")
     assert any(t.get_text().startswith("HIP ") for t in drawn.texts)
     assert len(drawn.lines) >= len(plain.lines) + 4          # three sides + the polygon outline
@@ -84,7 +93,7 @@ def test_explain_layer_is_drawn_with_its_caption(explained, catalog, camera):
     assert list(shown.results["explain"]) == ["no explain()", "yes", "explain failed: RuntimeError: boom"]
     # identical ids: explaining does not change what is identified
     ids = shown.ids.pivot(index="star", columns="label", values="hip")
-    assert (ids["ptp"] == ids["explained_ptp"]).all()
+    assert (ids["plain_ptp"] == ids["explained_ptp"]).all()
 
 
 def test_explain_helper_refuses_a_wrong_return_type(catalog, camera):
