@@ -44,7 +44,7 @@ from .attitude import random_attitude
 from .camera import Camera
 from .catalog import Catalog
 from .errors import ConfigError
-from .params import check_number, check_whole
+from .params import check_choice, check_number, check_whole
 from .kernels import project_cam
 from .observation import Observation, TrialSet
 
@@ -67,6 +67,10 @@ class SimConfig:
     min_stars: int = 6
     merge_radius_px: float = 2.0
     sky_mag_limit: float | None = None
+    #: "centroids": Gaussian noise on ideal centroids (the default); "image": every trial is
+    #: rendered to pixels and its stars extracted (:mod:`starid.render`, :mod:`starid.extract`);
+    #: the render's own noise then replaces ``sigma_px`` and ``sigma_mag``.
+    pipeline: str = "centroids"
 
     def __post_init__(self):
         for name in ("sigma_px", "sigma_mag", "merge_radius_px"):
@@ -74,12 +78,15 @@ class SimConfig:
         check_number("mag_limit", self.mag_limit)
         if self.sky_mag_limit is not None:
             check_number("sky_mag_limit", self.sky_mag_limit)
+        check_choice("pipeline", self.pipeline, PIPELINES)
         for name in ("false_stars", "lost_stars", "min_stars"):
             check_whole(name, getattr(self, name), 0)
 
     def as_dict(self) -> dict:
         return asdict(self)
 
+
+PIPELINES = ("centroids", "image")
 
 #: Named skies: the settings that decide which stars are imaged (see the module docstring).
 #: ``fig10`` is calibrated on Zhou & Ye's Fig. 10 (mean 14.18 stars in the field, noise-free):

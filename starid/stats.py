@@ -18,6 +18,10 @@ SUMMARY_COLUMNS = [
 ]
 
 
+#: Summary columns added when the images went through render -> extract (``pipeline = "image"``).
+IMAGE_COLUMNS = ["detection_rate", "false_detections_per_image", "rms_centroid_err_px"]
+
+
 def wilson_interval(successes: int, n: int, confidence: float = 0.95) -> tuple[float, float]:
     """Wilson score interval of a binomial proportion (scipy's ``proportion_ci``); NaN for n = 0."""
     if n == 0:
@@ -86,8 +90,15 @@ def summarize(df: pd.DataFrame, by=("label",)) -> pd.DataFrame:
             "attitude_err_median_arcsec": float(np.nanmedian(att)) if att.notna().any() else float("nan"),
             "timeout_rate": _rate(g, TIMEOUT), "crash_rate": _rate(g, CRASHED),
         })
+        if "img_n_detectable" in g.columns:   # the image pipeline: what extraction did, beside the id rate
+            n_match = g["img_n_matched"].sum()
+            row.update({"detection_rate": g["img_n_detected"].sum() / max(g["img_n_detectable"].sum(), 1),
+                        "false_detections_per_image": float(g["img_n_false"].mean()),
+                        "rms_centroid_err_px": float(np.sqrt(g["img_sq_err_px2_sum"].sum() / n_match))
+                        if n_match else float("nan")})
         out.append(row)
     cols = SUMMARY_COLUMNS + [c for c in by if c != "label"]
+    cols += [c for c in IMAGE_COLUMNS if out and c in out[0]]
     return pd.DataFrame(out, columns=cols)
 
 

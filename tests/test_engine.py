@@ -181,3 +181,16 @@ def test_toml_experiment_and_cli(tmp_path, capsys):
     (tmp_path / "bad.toml").write_text("name = 'x'\n[[study]]\nname='a'\nalgorithms=['ptp']\ngrid={nope=[1]}\n")
     assert main(["experiment", "run", str(tmp_path / "bad.toml"), "--out", str(tmp_path / "b")]) == 2
     assert "grid axis 'nope'" in capsys.readouterr().err
+
+
+def test_image_pipeline_reports_extraction_beside_the_rates():
+    from starid.stats import IMAGE_COLUMNS, summarize
+
+    exp = Experiment("img", (Study("s", ("ptp",), Grid({"pipeline": ["centroids", "image"]})),), trials=6, seed=4)
+    frame = run_experiment(exp, None, jobs=1, progress=False)
+    image = frame[frame["grid_pipeline"] == "image"]
+    assert image["img_n_detectable"].gt(0).all() and frame.loc[frame["grid_pipeline"] == "centroids",
+                                                                "img_n_detectable"].isna().all()
+    s = summarize(image)
+    assert set(IMAGE_COLUMNS) <= set(s.columns)
+    assert 0.5 < s["detection_rate"].iloc[0] <= 1 and 0 < s["rms_centroid_err_px"].iloc[0] < 1.5

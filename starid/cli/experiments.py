@@ -16,7 +16,7 @@ from ..io import atomic_write_text, write_frame
 from ..provenance import versions
 from ..registry import get_algorithm
 from ..scoring import FAILED
-from ..stats import SUMMARY_COLUMNS, summarize
+from ..stats import IMAGE_COLUMNS, SUMMARY_COLUMNS, summarize
 from .options import trials_type, add_camera, add_engine, add_out, add_world, camera_spec, check_out, progress, world_settings
 
 #: The summary columns ``run`` prints (then the failure columns when anything failed).
@@ -29,6 +29,7 @@ def format_summary(summary: pd.DataFrame) -> str:
     for extra in ("error_rate", "timeout_rate", "crash_rate"):
         if summary[extra].fillna(0).gt(0).any():
             cols.append(extra)
+    cols += [c for c in IMAGE_COLUMNS if c in summary.columns]
     return summary[cols].to_string(index=False, float_format=lambda v: f"{v:.4g}")
 
 
@@ -86,7 +87,9 @@ def cmd_run(args) -> int:
     frame, wall_s = _engine(args, exp, args.out)
     summary = summarize(frame)
     s = world_settings(args)
-    print(f"{args.trials} trials, seed {args.seed}, {s['sigma_px']:g} px / {s['sigma_mag']:g} mag noise, "
+    noise = "rendered images (render -> extract)" if s["pipeline"] == "image" else \
+        f"{s['sigma_px']:g} px / {s['sigma_mag']:g} mag noise"
+    print(f"{args.trials} trials, seed {args.seed}, {noise}, "
           f"{s['false_stars']} false / {s['lost_stars']} lost stars, {_sky_text(frame)}; {wall_s:.1f} s wall with "
           f"{args.jobs} job(s) ({int(frame.drop_duplicates('trial')['n_redraws'].sum())} attitudes redrawn for "
           f"< {s['min_stars']} stars)")

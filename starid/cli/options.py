@@ -10,7 +10,7 @@ from pathlib import Path
 from ..camera import Camera
 from ..errors import ConfigError
 from ..experiment.executors import DEFAULT_TIME_LIMIT_S
-from ..simulate import SKIES
+from ..simulate import PIPELINES, SKIES
 
 MAX_TRIALS = 10_000_000
 
@@ -90,6 +90,10 @@ def add_world(p: argparse.ArgumentParser, pos_default: float = 0.0, mag_default:
     g.add_argument("--sky-mag-limit", type=float, default=None,
                    help="image only catalog stars with V <= this (6.0 is the paper's sky)")
     g.add_argument("--catalog", help="CSV catalog (hip,ra_deg,dec_deg,vmag) instead of the embedded Hipparcos")
+    g.add_argument("--pipeline", choices=PIPELINES, default="centroids",
+                   help="'centroids': Gaussian noise on ideal centroids; 'image': render each image to pixels and "
+                        "extract its stars (the render's noise replaces --pos-noise-px and --mag-noise; summaries "
+                        "add detection rate, false detections and rms centroid error)")
 
 
 def world_settings(args) -> dict:
@@ -98,7 +102,7 @@ def world_settings(args) -> dict:
         raise ConfigError("give either --sky or --sky-mag-limit, not both")
     settings = {"sigma_px": args.pos_noise_px, "sigma_mag": args.mag_noise, "mag_limit": args.mag_limit,
                 "false_stars": args.false_stars, "lost_stars": args.lost_stars, "min_stars": args.min_stars,
-                "merge_radius_px": args.merge_radius_px}
+                "merge_radius_px": args.merge_radius_px, "pipeline": args.pipeline}
     if args.sky is not None:
         settings["sky"] = args.sky
     elif args.sky_mag_limit is not None:

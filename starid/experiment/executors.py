@@ -73,7 +73,13 @@ def _trials(task: Task, catalog: Catalog):
     cache = _CACHE["trials"]
     if key not in cache:
         sim = Simulator(catalog, task.camera, SimConfig(**chunk.settings), seed=task.seed)
-        cache[key] = (sim, sim.generate(chunk.stop - chunk.start, chunk.start))
+        if sim.config.pipeline == "image":
+            from ..render import image_trials
+
+            trials, stats = image_trials(sim, chunk.stop - chunk.start, chunk.start)
+            cache[key] = (sim, trials, stats.add_prefix("img_").rename(columns={"img_trial": "trial"}))
+        else:
+            cache[key] = (sim, sim.generate(chunk.stop - chunk.start, chunk.start), None)
         while len(cache) > 4:
             cache.popitem(last=False)
     return cache[key]
@@ -82,7 +88,7 @@ def _trials(task: Task, catalog: Catalog):
 def execute_task(task: Task, beat=None) -> pd.DataFrame:
     """The trial rows of one chunk. ``beat`` (a shared array) hears which image is running."""
     catalog = _catalog(task.catalog_path)
-    sim, trials = _trials(task, catalog)
+    sim, trials, image_stats = _trials(task, catalog)
     chunk = task.chunk
     if beat is not None:   # the time first: the parent never pairs a new position with an old start
         beat[2], beat[0], beat[1] = time.monotonic(), task.index, -1.0
@@ -117,6 +123,8 @@ def execute_task(task: Task, beat=None) -> pd.DataFrame:
     if beat is not None:
         beat[1] = -2.0
     df = rows_to_frame(prepared, rows)
+    if image_stats is not None:     # what render -> extract did to each image
+        df = df.merge(image_stats, on="trial", how="left")
     df["plugin_dist"] = dist
     df["plugin_version"] = dist_version
     params = algorithm.params() if algorithm is not None else dict(chunk.variant.params)
