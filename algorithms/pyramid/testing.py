@@ -20,7 +20,8 @@ def noisy_results(algo, db, catalog, camera, n: int, seed: int = 12):
 
     Asserts that no star is misidentified in any of them.
     """
-    trials = Simulator(catalog.brighter_than(6.0), camera, SimConfig(sigma_px=1.0, sigma_mag=0.5), seed=seed).generate(n)
+    config = SimConfig(sigma_px=1.0, sigma_mag=0.5)
+    trials = Simulator(catalog.brighter_than(6.0), camera, config, seed=seed).generate(n)
     out = []
     for t in range(len(trials)):
         obs = trials.observation(t)

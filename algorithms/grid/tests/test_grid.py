@@ -1,4 +1,5 @@
-"""Grid-specific tests: database layout, cells and soft credit against numpy, Luo's set-up and Padgett's variant, explain, parameters.
+"""Grid-specific tests: database layout, cells and soft credit against numpy, Luo's set-up and
+Padgett's variant, explain, parameters.
 
 Conformance (random fields, coincident stars, ids beyond 2^31, explain's type, determinism, order
 invariance) runs for every plugin in tests/test_conformance.py and is not repeated here.

@@ -1,4 +1,5 @@
-"""Improved-LPT-specific tests: database layout, feature and search against numpy oracles, noisy accuracy, Luo's set-up, a 170 deg camera, explain, parameters.
+"""Improved-LPT-specific tests: database layout, feature and search against numpy oracles, noisy
+accuracy, Luo's set-up, a 170 deg camera, explain, parameters.
 
 Conformance (random fields, coincident stars, ids beyond 2^31, explain's type, determinism, order
 invariance) runs for every plugin in tests/test_conformance.py and is not repeated here.
