@@ -12,10 +12,10 @@ from starid.camera import Camera
 from starid.catalog import Catalog
 from starid.observation import Observation
 from starid.params import check_flag, check_number, check_whole
-from starid.plugin import Algorithm, Database, Explanation, Identification
+from starid.plugin import Database, Explanation
 
-from ..lpt_improved.planar import (acceptance, check_common, effective_double_px, explain_pattern, neighbour_lists,
-                                   prepare_image, radius_for, rows_to_hip, select_guides, sensor_of)
+from ..lpt_improved.planar import (PlanarAlgorithm, acceptance, effective_double_px, explain_pattern, neighbour_lists,
+                                   prepare_image, radius_for, select_guides, sensor_of)
 from .kernels import GridSpec, GridTable, build_patterns, identify_kernel
 
 
@@ -47,7 +47,7 @@ class GridDatabase(Database):
 
 
 @dataclass(frozen=True)
-class Grid(Algorithm):
+class Grid(PlanarAlgorithm):
     """Grid algorithm (Padgett & Kreutz-Delgado, IEEE TAES 1997) with the modified-grid options (Na et al. 2009).
 
     Padgett C., Kreutz-Delgado K., "A grid algorithm for autonomous star identification", IEEE
@@ -82,11 +82,7 @@ class Grid(Algorithm):
     """
 
     name: ClassVar[str] = "grid"
-    follows: ClassVar[dict] = {"sigma_px": "sigma_px"}
 
-    mag_limit: float = 6.0
-    radius_deg: float | None = None
-    double_px: float = 20.0
     buffer_px: float = 30.0
     grid_size: int = 40
     soft_edge: float = 0.4
@@ -95,15 +91,9 @@ class Grid(Algorithm):
     db_orientations: int = 1
     normalise: bool = False
     min_score: float = 3.0
-    max_refs: int = 10
-    n_candidates: int = 3
-    sigma_px: float | None = None
-    beta: float = 3.0
-    min_matches: int = 4
-    confirm_fraction: float = 0.5
 
     def __post_init__(self):
-        check_common(self)
+        super().__post_init__()
         check_number("buffer_px", self.buffer_px, lo=0)
         check_whole("grid_size", self.grid_size, 2, 255)
         for name in ("soft_edge", "soft_diag"):
@@ -141,10 +131,6 @@ class Grid(Algorithm):
         rows, attitude, ok = identify_kernel(observation.x_px, observation.y_px, sensor_of(cam), db.table,
                                              db.guide_unit, self._spec_for(db), acc, trace)
         return rows, attitude, ok, trace
-
-    def identify(self, database: GridDatabase, observation: Observation) -> Identification:
-        rows, attitude, ok, _ = self._run(database, observation)
-        return Identification(rows_to_hip(rows, database.guide_hip), attitude if ok else None)
 
     def explain(self, database: GridDatabase, observation: Observation) -> Explanation:
         """The reference star, its orientation star, its neighbours and the oriented grid's outline and lines."""

@@ -12,9 +12,8 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from starid.kernels import wahba_rows
-
-from ..lpt_improved.planar import confirm, image_neighbours, plane_polar, prepare_image
+from ..lpt_improved.planar import (begin_identify, confirm_pair, guide_pattern, keep_best, no_match, polar_buffers,
+                                   reference_pattern)
 
 
 class GridSpec(NamedTuple):
@@ -91,13 +90,9 @@ def build_patterns(unit, nbr, nbr_off, f_px, spec, db_orientations):
     Returns ``(cells, start, guide, orient)`` (see :class:`GridTable`).
     """
     n_guide = unit.shape[0]
-    longest = 1
-    for g in range(n_guide):
-        longest = max(longest, nbr_off[g + 1] - nbr_off[g])
-    r_px = np.empty(longest)
-    phi = np.empty(longest)
-    cand = np.empty(longest, dtype=np.int64)
-    buf = np.empty(longest, dtype=np.int64)
+    r_px, phi = polar_buffers(nbr_off)
+    cand = np.empty(r_px.shape[0], dtype=np.int64)
+    buf = np.empty(r_px.shape[0], dtype=np.int64)
     cap = 16 * n_guide + 16
     cells = np.empty(cap, dtype=np.int64)
     start = [0]
@@ -105,11 +100,9 @@ def build_patterns(unit, nbr, nbr_off, f_px, spec, db_orientations):
     orient = []
     total = 0
     for g in range(n_guide):
-        s0 = nbr_off[g]
-        n = nbr_off[g + 1] - s0
+        n = guide_pattern(unit, nbr, nbr_off, g, f_px, r_px, phi)
         if n == 0:
             continue
-        plane_polar(unit, g, nbr[s0:], n, f_px, r_px, phi)
         n_or = orientation_candidates(r_px, n, spec.buffer_px, spec.half_px, cand)
         for a in range(min(db_orientations, n_or)):
             k = grid_cells(r_px, phi, n, cand[a], spec, buf)
@@ -122,7 +115,7 @@ def build_patterns(unit, nbr, nbr_off, f_px, spec, db_orientations):
             total += k
             start.append(total)
             guide.append(g)
-            orient.append(nbr[s0 + cand[a]])
+            orient.append(nbr[nbr_off[g] + cand[a]])
     return cells[:total].copy(), np.array(start), np.array(guide), np.array(orient)
 
 
@@ -178,13 +171,7 @@ def identify_kernel(x_px, y_px, sensor, table, guides_unit, spec, acc, trace):
     accept. ``trace`` (int64, 4): reference star, orientation star, pattern, 1000 x score.
     """
     n = x_px.shape[0]
-    rows = np.full(n, -1, dtype=np.int64)
-    for t in range(4):
-        trace[t] = -1
-    attitude = np.eye(3)
-    if n < 3:
-        return rows, attitude, False
-    unit, usable, order = prepare_image(x_px, y_px, sensor, spec.double_px)
+    rows, unit, usable, order = begin_identify(x_px, y_px, sensor, spec.double_px, trace)
     nbrs = np.empty(n, dtype=np.int64)
     r_px = np.empty(n)
     phi = np.empty(n)
@@ -199,10 +186,9 @@ def identify_kernel(x_px, y_px, sensor, table, guides_unit, spec, acc, trace):
     seed = np.full(n, -1, dtype=np.int64)
     for t in range(min(spec.max_refs, order.shape[0])):
         s = order[t]
-        k = image_neighbours(unit, usable, x_px, y_px, s, spec.cos_radius, nbrs)
+        k = reference_pattern(unit, usable, x_px, y_px, s, spec.cos_radius, sensor.f_px, nbrs, r_px, phi)
         if k < 1:
             continue
-        plane_polar(unit, s, nbrs, k, sensor.f_px, r_px, phi)
         n_or = orientation_candidates(r_px, k, spec.buffer_px, spec.half_px, cand)
         for a in range(min(spec.image_orientations, n_or)):
             o = cand[a]
@@ -216,33 +202,17 @@ def identify_kernel(x_px, y_px, sensor, table, guides_unit, spec, acc, trace):
                 if raw < spec.min_score:
                     continue
                 sc = raw / math.sqrt(nc * (table.start[p + 1] - table.start[p])) if spec.normalise else raw
-                if found == n_best and sc <= best_sc[found - 1]:
-                    continue
-                i = found if found < n_best else n_best - 1
-                while i > 0 and best_sc[i - 1] < sc:
-                    best_sc[i] = best_sc[i - 1]
-                    best_p[i] = best_p[i - 1]
-                    i -= 1
-                best_sc[i] = sc
-                best_p[i] = p
-                if found < n_best:
-                    found += 1
+                found = keep_best(best_sc, best_p, found, n_best, sc, p)
             for i in range(nt):
                 weight[touched[i]] = 0.0
             for c in range(found):
                 p = best_p[c]
-                seed[s] = table.guide[p]
-                seed[nbrs[o]] = table.orient[p]
-                A = wahba_rows(unit, seed, guides_unit)
-                seed[s] = -1
-                seed[nbrs[o]] = -1
-                ok, A = confirm(unit, rows, A, guides_unit, sensor, acc)
+                ok, A = confirm_pair(unit, rows, seed, s, nbrs[o], table.guide[p], table.orient[p], guides_unit,
+                                     sensor, acc)
                 if ok:
                     trace[0] = s
                     trace[1] = nbrs[o]
                     trace[2] = p
                     trace[3] = int(1000 * best_sc[c])
                     return rows, A, True
-    for i in range(n):
-        rows[i] = -1
-    return rows, attitude, False
+    return no_match(rows)

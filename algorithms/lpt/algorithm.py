@@ -12,11 +12,10 @@ from starid.camera import Camera
 from starid.catalog import Catalog
 from starid.observation import Observation
 from starid.params import check_whole
-from starid.plugin import Algorithm, Database, Explanation, Identification
+from starid.plugin import Database, Explanation
 
-from ..lpt_improved.planar import (acceptance, check_common, effective_double_px, explain_pattern, image_neighbours,
-                                   neighbour_lists, plane_polar, prepare_image, radius_for, rows_to_hip,
-                                   select_guides, sensor_of)
+from ..lpt_improved.planar import (PlanarAlgorithm, acceptance, effective_double_px, explain_pattern, image_neighbours,
+                                   neighbour_lists, plane_polar, prepare_image, radius_for, select_guides, sensor_of)
 from .kernels import StringSearch, build_strings, identify_kernel, lpt_string
 
 
@@ -41,7 +40,7 @@ class LPTDatabase(Database):
 
 
 @dataclass(frozen=True)
-class LPT(Algorithm):
+class LPT(PlanarAlgorithm):
     """Log-polar transform (Wei, Zhang & Jiang, JACIC 2009): LPT strings matched under every circular shift.
 
     Wei X., Zhang G., Jiang J., "Star identification algorithm based on log-polar transform",
@@ -79,25 +78,15 @@ class LPT(Algorithm):
     """
 
     name: ClassVar[str] = "lpt"
-    follows: ClassVar[dict] = {"sigma_px": "sigma_px"}
 
-    mag_limit: float = 6.0
-    radius_deg: float | None = None
-    double_px: float = 20.0
     n_sectors: int = 100
     n_levels: int = 16
     level_tol: int = 1
     sector_tol: int = 1
     min_score: int = 2
-    max_refs: int = 10
-    n_candidates: int = 3
-    sigma_px: float | None = None
-    beta: float = 3.0
-    min_matches: int = 4
-    confirm_fraction: float = 0.5
 
     def __post_init__(self):
-        check_common(self)
+        super().__post_init__()
         check_whole("n_sectors", self.n_sectors, 4, 1024)
         check_whole("n_levels", self.n_levels, 1, 255)
         check_whole("level_tol", self.level_tol, 0)
@@ -129,10 +118,6 @@ class LPT(Algorithm):
         rows, attitude, ok = identify_kernel(observation.x_px, observation.y_px, sensor_of(cam), db.strings,
                                              db.guide_unit, search, acc, trace)
         return rows, attitude, ok, trace
-
-    def identify(self, database: LPTDatabase, observation: Observation) -> Identification:
-        rows, attitude, ok, _ = self._run(database, observation)
-        return Identification(rows_to_hip(rows, database.guide_hip), attitude if ok else None)
 
     def explain(self, database: LPTDatabase, observation: Observation) -> Explanation:
         """The reference star, its neighbours within R and the boundaries of its occupied sectors."""

@@ -12,7 +12,8 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from ..lpt_improved.planar import confirm, image_neighbours, plane_polar, prepare_image, seed_attitude_roll
+from ..lpt_improved.planar import (begin_identify, confirm, guide_pattern, keep_best, no_match, polar_buffers,
+                                   reference_pattern, seed_attitude_roll)
 
 
 class StringSearch(NamedTuple):
@@ -71,19 +72,13 @@ def build_strings(unit, nbr, nbr_off, f_px, search):
     """LPT string of every guide star (rows of ``unit``), uint8 ``(g, n_sectors)``."""
     n_guide = unit.shape[0]
     strings = np.zeros((n_guide, search.n_sectors), dtype=np.uint8)
-    longest = 1
-    for g in range(n_guide):
-        longest = max(longest, nbr_off[g + 1] - nbr_off[g])
-    r_px = np.empty(longest)
-    phi = np.empty(longest)
+    r_px, phi = polar_buffers(nbr_off)
     out = np.zeros(search.n_sectors, dtype=np.int64)
     owner = np.zeros(search.n_sectors, dtype=np.int64)
     for g in range(n_guide):
-        start = nbr_off[g]
-        n = nbr_off[g + 1] - start
+        n = guide_pattern(unit, nbr, nbr_off, g, f_px, r_px, phi)
         if n == 0:
             continue
-        plane_polar(unit, g, nbr[start:], n, f_px, r_px, phi)
         lpt_string(r_px, phi, n, search, out, owner)
         for k in range(search.n_sectors):
             strings[g, k] = out[k]
@@ -166,13 +161,7 @@ def identify_kernel(x_px, y_px, sensor, strings, guides_unit, search, acc, trace
     :func:`confirm` must accept. ``trace`` (int64, 4): reference star, -1, guide row, score.
     """
     n = x_px.shape[0]
-    rows = np.full(n, -1, dtype=np.int64)
-    for t in range(4):
-        trace[t] = -1
-    attitude = np.eye(3)
-    if n < 3:
-        return rows, attitude, False
-    unit, usable, order = prepare_image(x_px, y_px, sensor, search.double_px)
+    rows, unit, usable, order = begin_identify(x_px, y_px, sensor, search.double_px, trace)
     m = search.n_sectors
     n_guide = strings.shape[0]
     nbrs = np.empty(n, dtype=np.int64)
@@ -187,15 +176,13 @@ def identify_kernel(x_px, y_px, sensor, strings, guides_unit, search, acc, trace
     score = np.zeros(m, dtype=np.int64)
     stamp = 0
     n_best = search.n_candidates
-    best_g = np.empty(n_best, dtype=np.int64)
+    best_item = np.empty(n_best, dtype=np.int64)   # guide row * m + shift
     best_sc = np.empty(n_best, dtype=np.int64)
-    best_sh = np.empty(n_best, dtype=np.int64)
     for t in range(min(search.max_refs, order.shape[0])):
         s = order[t]
-        k = image_neighbours(unit, usable, x_px, y_px, s, search.cos_radius, nbrs)
+        k = reference_pattern(unit, usable, x_px, y_px, s, search.cos_radius, sensor.f_px, nbrs, r_px, phi)
         if k < 1:
             continue
-        plane_polar(unit, s, nbrs, k, sensor.f_px, r_px, phi)
         nz = lpt_string(r_px, phi, k, search, img, owner)
         if nz < 1:
             continue
@@ -214,22 +201,10 @@ def identify_kernel(x_px, y_px, sensor, strings, guides_unit, search, acc, trace
                 continue
             # more matched characters first; among equals, fewer unmatched database characters
             sc = 1024 * matched - min(n_chars - matched, 1023)
-            if found == n_best and sc <= best_sc[found - 1]:
-                continue
-            p = found if found < n_best else n_best - 1
-            while p > 0 and best_sc[p - 1] < sc:
-                best_sc[p] = best_sc[p - 1]
-                best_g[p] = best_g[p - 1]
-                best_sh[p] = best_sh[p - 1]
-                p -= 1
-            best_sc[p] = sc
-            best_g[p] = g
-            best_sh[p] = sh
-            if found < n_best:
-                found += 1
+            found = keep_best(best_sc, best_item, found, n_best, sc, g * m + sh)
         for c in range(found):
-            g = best_g[c]
-            roll = refined_roll(strings[g], img_sector, img_level, img_phi, nz, best_sh[c], search)
+            g = best_item[c] // m
+            roll = refined_roll(strings[g], img_sector, img_level, img_phi, nz, best_item[c] % m, search)
             A = seed_attitude_roll(unit, s, guides_unit, g, roll)
             ok, A = confirm(unit, rows, A, guides_unit, sensor, acc)
             if ok:
@@ -237,6 +212,4 @@ def identify_kernel(x_px, y_px, sensor, strings, guides_unit, search, acc, trace
                 trace[2] = g
                 trace[3] = (best_sc[c] + 1023) // 1024
                 return rows, A, True
-    for i in range(n):
-        rows[i] = -1
-    return rows, attitude, False
+    return no_match(rows)

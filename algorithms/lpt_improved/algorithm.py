@@ -12,11 +12,11 @@ from starid.camera import Camera
 from starid.catalog import Catalog
 from starid.observation import Observation
 from starid.params import check_number, check_whole
-from starid.plugin import Algorithm, Database, Explanation, Identification
+from starid.plugin import Database, Explanation
 
 from .kernels import FeatureTable, Search, build_features, feature_vector, identify_kernel
-from .planar import (acceptance, check_common, effective_double_px, explain_pattern, image_neighbours, neighbour_lists,
-                     plane_polar, prepare_image, radius_for, rows_to_hip, select_guides, sensor_of)
+from .planar import (PlanarAlgorithm, acceptance, effective_double_px, explain_pattern, image_neighbours,
+                     neighbour_lists, plane_polar, prepare_image, radius_for, select_guides, sensor_of)
 
 
 @dataclass(frozen=True, eq=False)
@@ -54,7 +54,7 @@ def _row_dtype(n: int):
 
 
 @dataclass(frozen=True)
-class ImprovedLPT(Algorithm):
+class ImprovedLPT(PlanarAlgorithm):
     """Improved log-polar (Luo et al., Chin. Phys. B 2015): alignment star, log plane distance per angle sector, no shift.
 
     Luo L.-Y., Xu L.-P., Zhang H., Sun J.-R., "Improved autonomous star identification
@@ -106,26 +106,16 @@ class ImprovedLPT(Algorithm):
     """
 
     name: ClassVar[str] = "lpt_improved"
-    follows: ClassVar[dict] = {"sigma_px": "sigma_px"}
 
-    mag_limit: float = 6.0
-    radius_deg: float | None = None
-    double_px: float = 20.0
     n_sectors: int = 100
     log_scale: float = 1.0
     count_tol: int = 1
     count_tol_above: int | None = 3
-    max_refs: int = 10
     image_alignments: int = 2
     db_alignments: int = 1
-    n_candidates: int = 3
-    sigma_px: float | None = None
-    beta: float = 3.0
-    min_matches: int = 4
-    confirm_fraction: float = 0.5
 
     def __post_init__(self):
-        check_common(self)
+        super().__post_init__()
         check_whole("n_sectors", self.n_sectors, 4, 4096)
         check_number("log_scale", self.log_scale, lo=0, hi=1000, lo_open=True)
         check_whole("count_tol", self.count_tol, 0)
@@ -166,10 +156,6 @@ class ImprovedLPT(Algorithm):
         rows, attitude, ok = identify_kernel(observation.x_px, observation.y_px, sensor, db.table, db.guide_unit,
                                              self._search(db), acc, trace)
         return rows, attitude, ok, trace
-
-    def identify(self, database: ImprovedLPTDatabase, observation: Observation) -> Identification:
-        rows, attitude, ok, _ = self._run(database, observation)
-        return Identification(rows_to_hip(rows, database.guide_hip), attitude if ok else None)
 
     def explain(self, database: ImprovedLPTDatabase, observation: Observation) -> Explanation:
         """The accepted reference star, its alignment star, its neighbours within R and its non-empty sectors."""

@@ -12,9 +12,8 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from starid.kernels import wahba_rows
-
-from .planar import confirm, image_neighbours, plane_polar, prepare_image, relative_angle
+from .planar import (begin_identify, confirm_pair, guide_pattern, keep_best, no_match, polar_buffers,
+                     reference_pattern, relative_angle)
 
 
 class FeatureTable(NamedTuple):
@@ -89,24 +88,16 @@ def build_features(unit, nbr, nbr_off, f_px, n_sectors, log_scale, db_alignments
     count = np.zeros(k_max, dtype=np.int64)
     guide = np.zeros(k_max, dtype=np.int64)
     align = np.zeros(k_max, dtype=np.int64)
-    longest = 1
-    for g in range(n_guide):
-        longest = max(longest, nbr_off[g + 1] - nbr_off[g])
-    r_px = np.empty(longest)
-    phi = np.empty(longest)
+    r_px, phi = polar_buffers(nbr_off)
     row = 0
     for g in range(n_guide):
-        start = nbr_off[g]
-        n = nbr_off[g + 1] - start
-        if n == 0:
-            continue
-        plane_polar(unit, g, nbr[start:], n, f_px, r_px, phi)
+        n = guide_pattern(unit, nbr, nbr_off, g, f_px, r_px, phi)
         for a in range(min(db_alignments, n)):
             count[row] = feature_vector(r_px, phi, n, a, n_sectors, log_scale, feature[row])
             for i in range(n_sectors):
                 feature[row, i] = min(feature[row, i], max_value)
             guide[row] = g
-            align[row] = nbr[start + a]
+            align[row] = nbr[nbr_off[g] + a]
             row += 1
     return feature, count, guide, align
 
@@ -132,17 +123,9 @@ def sad_search(table, vec, nz_idx, nz, count_tol, n_best, best_row, best_sad, co
             i = nz_idx[t]
             c = int(table.feature[r, i])
             s += abs(int(vec[i]) - c) - c
-        if found == n_best and s >= best_sad[found - 1]:
-            continue
-        p = found if found < n_best else n_best - 1
-        while p > 0 and best_sad[p - 1] > s:
-            best_sad[p] = best_sad[p - 1]
-            best_row[p] = best_row[p - 1]
-            p -= 1
-        best_sad[p] = s
-        best_row[p] = r
-        if found < n_best:
-            found += 1
+        found = keep_best(best_sad, best_row, found, n_best, -s, r)   # negated: smallest difference first
+    for c in range(found):
+        best_sad[c] = -best_sad[c]
     return found
 
 
@@ -160,13 +143,7 @@ def identify_kernel(x_px, y_px, sensor, table, guides_unit, search, acc, trace):
     difference of the accepted match (-1 when none), for ``explain``.
     """
     n = x_px.shape[0]
-    rows = np.full(n, -1, dtype=np.int64)
-    for t in range(4):
-        trace[t] = -1
-    attitude = np.eye(3)
-    if n < 3:
-        return rows, attitude, False
-    unit, usable, order = prepare_image(x_px, y_px, sensor, search.double_px)
+    rows, unit, usable, order = begin_identify(x_px, y_px, sensor, search.double_px, trace)
     m = search.n_sectors
     nbrs = np.empty(n, dtype=np.int64)
     r_px = np.empty(n)
@@ -178,10 +155,7 @@ def identify_kernel(x_px, y_px, sensor, table, guides_unit, search, acc, trace):
     seed = np.full(n, -1, dtype=np.int64)
     for t in range(min(search.max_refs, order.shape[0])):
         s = order[t]
-        k = image_neighbours(unit, usable, x_px, y_px, s, search.cos_radius, nbrs)
-        if k < 1:
-            continue
-        plane_polar(unit, s, nbrs, k, sensor.f_px, r_px, phi)
+        k = reference_pattern(unit, usable, x_px, y_px, s, search.cos_radius, sensor.f_px, nbrs, r_px, phi)
         for a in range(min(search.image_alignments, k)):
             nz = feature_vector(r_px, phi, k, a, m, search.log_scale, vec)
             q = 0
@@ -193,18 +167,12 @@ def identify_kernel(x_px, y_px, sensor, table, guides_unit, search, acc, trace):
                                search.count_tol_above)
             for c in range(found):
                 r = best_row[c]
-                seed[s] = table.guide[r]
-                seed[nbrs[a]] = table.align[r]
-                A = wahba_rows(unit, seed, guides_unit)
-                seed[s] = -1
-                seed[nbrs[a]] = -1
-                ok, A = confirm(unit, rows, A, guides_unit, sensor, acc)
+                ok, A = confirm_pair(unit, rows, seed, s, nbrs[a], table.guide[r], table.align[r], guides_unit,
+                                     sensor, acc)
                 if ok:
                     trace[0] = s
                     trace[1] = nbrs[a]
                     trace[2] = r
                     trace[3] = best_sad[c]
                     return rows, A, True
-    for i in range(n):
-        rows[i] = -1
-    return rows, attitude, False
+    return no_match(rows)

@@ -25,7 +25,8 @@ Angles in radians unless a name says ``_deg``; plane distances in pixels (``_px`
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+from dataclasses import dataclass
+from typing import ClassVar, NamedTuple
 
 import numpy as np
 from numba import njit
@@ -37,7 +38,7 @@ from starid.errors import ConfigError
 from starid.kernels import backproject_px, reproject_assign, verify_pairwise, wahba_rows
 from starid.observation import Observation
 from starid.params import check_number, check_whole
-from starid.plugin import Explanation
+from starid.plugin import Algorithm, Explanation, Identification
 
 #: Default neighbourhood radius R: 0.3 x the smaller field of view (6 deg at 20 deg, Luo et al.'s
 #: set-up), but at least the radius that holds :data:`NEIGHBOURS_TARGET` guide stars on average
@@ -362,6 +363,94 @@ def confirm(unit, rows, attitude, guides_unit, sensor, acc):
 
 
 @njit(cache=True)
+def polar_buffers(nbr_off):
+    """Work arrays ``(r_px, phi)`` long enough for the longest CSR neighbour list (at least 1)."""
+    longest = 1
+    for g in range(nbr_off.shape[0] - 1):
+        longest = max(longest, nbr_off[g + 1] - nbr_off[g])
+    return np.empty(longest), np.empty(longest)
+
+
+@njit(cache=True)
+def guide_pattern(unit, nbr, nbr_off, g, f_px, r_px, phi):
+    """Neighbour count of guide ``g`` and, when it has any, their :func:`plane_polar` coordinates."""
+    start = nbr_off[g]
+    n = nbr_off[g + 1] - start
+    if n > 0:
+        plane_polar(unit, g, nbr[start:], n, f_px, r_px, phi)
+    return n
+
+
+@njit(cache=True)
+def begin_identify(x_px, y_px, sensor, double_px, trace):
+    """Start of every identify kernel: ``trace`` reset to -1, ``(rows, unit, usable, order)``.
+
+    ``rows`` (guide row per star) is all -1; ``order`` is empty when there are fewer than 3 stars
+    (no pattern to match), so the kernel's reference loop does not run.
+    """
+    n = x_px.shape[0]
+    for t in range(trace.shape[0]):
+        trace[t] = -1
+    unit, usable, order = prepare_image(x_px, y_px, sensor, double_px)
+    if n < 3:
+        order = order[:0]
+    return np.full(n, -1, dtype=np.int64), unit, usable, order
+
+
+@njit(cache=True)
+def no_match(rows):
+    """End of every identify kernel when nothing was accepted: ``(rows all -1, identity, False)``."""
+    for i in range(rows.shape[0]):
+        rows[i] = -1
+    return rows, np.eye(3), False
+
+
+@njit(cache=True)
+def reference_pattern(unit, usable, x_px, y_px, s, cos_radius, f_px, nbrs, r_px, phi):
+    """Neighbours of reference star ``s`` (:func:`image_neighbours` into ``nbrs``) and their polar coordinates.
+
+    Returns their count; ``r_px``/``phi`` are filled only when it is at least 1.
+    """
+    k = image_neighbours(unit, usable, x_px, y_px, s, cos_radius, nbrs)
+    if k > 0:
+        plane_polar(unit, s, nbrs, k, f_px, r_px, phi)
+    return k
+
+
+@njit(cache=True)
+def keep_best(best_score, best_item, found, n_best, score, item):
+    """Insert ``(score, item)`` into the ``found`` best so far (``best_score`` descending); returns the new count.
+
+    Ties keep arrival order (a later equal score goes after); when the list is full, a score not
+    above the last is dropped.
+    """
+    if found == n_best and score <= best_score[found - 1]:
+        return found
+    p = found if found < n_best else n_best - 1
+    while p > 0 and best_score[p - 1] < score:
+        best_score[p] = best_score[p - 1]
+        best_item[p] = best_item[p - 1]
+        p -= 1
+    best_score[p] = score
+    best_item[p] = item
+    return found + 1 if found < n_best else found
+
+
+@njit(cache=True)
+def confirm_pair(unit, rows, seed, s, o, guide_s, guide_o, guides_unit, sensor, acc):
+    """Seed an attitude on two matched stars (``s`` -> ``guide_s``, ``o`` -> ``guide_o``, Wahba) and :func:`confirm` it.
+
+    ``seed`` is an all -1 work array (length of the image), left all -1. Returns ``(accepted, attitude)``.
+    """
+    seed[s] = guide_s
+    seed[o] = guide_o
+    A = wahba_rows(unit, seed, guides_unit)
+    seed[s] = -1
+    seed[o] = -1
+    return confirm(unit, rows, A, guides_unit, sensor, acc)
+
+
+@njit(cache=True)
 def rows_to_hip(rows, hip):
     """Catalog ids of guide ``rows`` (-1 stays -1)."""
     out = np.full(rows.shape[0], -1, dtype=np.int64)
@@ -371,21 +460,48 @@ def rows_to_hip(rows, hip):
     return out
 
 
-# ---- Python helpers shared by the three plugin classes ----
+# ---- Python shared by the three plugin classes ----
 
-def check_common(alg) -> None:
-    """Checks of the parameters the three log-polar / grid plugins share."""
-    check_number("mag_limit", alg.mag_limit)
-    if alg.radius_deg is not None:
-        check_number("radius_deg", alg.radius_deg, lo=0, hi=60, lo_open=True)
-    if alg.sigma_px is not None:
-        check_number("sigma_px", alg.sigma_px, lo=0)
-    check_number("double_px", alg.double_px, lo=0)
-    check_number("beta", alg.beta, lo=0, lo_open=True)
-    check_whole("max_refs", alg.max_refs, 1)
-    check_whole("n_candidates", alg.n_candidates, 1)
-    check_whole("min_matches", alg.min_matches, 3)
-    check_number("confirm_fraction", alg.confirm_fraction, lo=0, hi=1)
+@dataclass(frozen=True)
+class PlanarAlgorithm(Algorithm):
+    """Parameters, checks and ``identify`` the three log-polar / grid plugins share (subclass as a frozen dataclass).
+
+    mag_limit : guide stars V <= this. radius_deg : neighbourhood radius R (None = :func:`default_radius_deg`).
+    double_px : pairs closer than this (px) are unresolvable doubles. max_refs : reference stars tried.
+    n_candidates : database matches tried per pattern. sigma_px : centroid noise the windows assume
+    (None = follow the simulator; floor :data:`SIGMA_FLOOR_PX`). beta : window in sigmas.
+    min_matches, confirm_fraction : acceptance by reprojection (:func:`confirm`).
+    A subclass defines ``_run(database, observation) -> (rows, attitude, accepted, trace)``.
+    """
+
+    follows: ClassVar[dict] = {"sigma_px": "sigma_px"}
+
+    mag_limit: float = 6.0
+    radius_deg: float | None = None
+    double_px: float = 20.0
+    max_refs: int = 10
+    n_candidates: int = 3
+    sigma_px: float | None = None
+    beta: float = 3.0
+    min_matches: int = 4
+    confirm_fraction: float = 0.5
+
+    def __post_init__(self):
+        check_number("mag_limit", self.mag_limit)
+        if self.radius_deg is not None:
+            check_number("radius_deg", self.radius_deg, lo=0, hi=60, lo_open=True)
+        if self.sigma_px is not None:
+            check_number("sigma_px", self.sigma_px, lo=0)
+        check_number("double_px", self.double_px, lo=0)
+        check_number("beta", self.beta, lo=0, lo_open=True)
+        check_whole("max_refs", self.max_refs, 1)
+        check_whole("n_candidates", self.n_candidates, 1)
+        check_whole("min_matches", self.min_matches, 3)
+        check_number("confirm_fraction", self.confirm_fraction, lo=0, hi=1)
+
+    def identify(self, database, observation: Observation) -> Identification:
+        rows, attitude, ok, _ = self._run(database, observation)
+        return Identification(rows_to_hip(rows, database.guide_hip), attitude if ok else None)
 
 
 def radius_for(alg, catalog: Catalog, camera: Camera) -> float:

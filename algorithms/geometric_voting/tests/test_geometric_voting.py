@@ -1,16 +1,18 @@
-"""Tests of the geometric-voting plugin: conformance, voting against a numpy oracle, random fields, explain."""
+"""Geometric-voting-specific tests: voting against a numpy oracle, shortlist, noisy accuracy, explain, variants.
 
-import time
+Conformance (random fields, coincident stars, ids beyond 2^31, explain's type, determinism, order
+invariance) runs for every plugin in tests/test_conformance.py; helpers shared with the pyramid
+tests come from ``starid_algorithms.pyramid.testing``.
+"""
 
 import numpy as np
 import pytest
 
-from starid import Camera, Catalog, ConfigError, Observation, SimConfig, Simulator
-from starid.plugin import Explanation
-from starid.testing import CHECKS, check_algorithm
+from starid import ConfigError, SimConfig, Simulator
 from starid_algorithms.geometric_voting import GeometricVoting
 from starid_algorithms.geometric_voting.kernels import pick_candidates, vote
 from starid_algorithms.pyramid.kernels import pair_windows, select_stars
+from starid_algorithms.pyramid.testing import noisy_results, wide_field_seconds
 
 
 @pytest.fixture(scope="module")
@@ -21,11 +23,6 @@ def algo():
 @pytest.fixture(scope="module")
 def db(algo, catalog, camera):
     return algo.build(catalog, camera)
-
-
-@pytest.mark.parametrize("check", CHECKS)
-def test_conformance(check):
-    check_algorithm(GeometricVoting, checks=[check])
 
 
 @pytest.fixture(scope="module")
@@ -77,55 +74,22 @@ def test_database_has_no_neighbour_lists_but_the_pairs(db):
     assert db.nbr.size == 0 and db.pairs.shape[0] > 100_000 and db.guide_hip.dtype == np.int64
 
 
-def test_random_fields_give_no_identification(algo, db, camera):
-    rng = np.random.default_rng(2024)
-    identified = 0
-    for _ in range(40):
-        obs = Observation(rng.uniform(0, camera.width_px, 30), rng.uniform(0, camera.height_px, 30),
-                          rng.uniform(2, 6, 30), camera)
-        identified += bool(np.any(algo.identify(db, obs).hip >= 0))
-    assert identified <= 1
-
-
 def test_noisy_trials_no_misidentification(algo, db, catalog, camera):
-    sim = Simulator(catalog.brighter_than(6.0), camera, SimConfig(sigma_px=1.0, sigma_mag=0.5), seed=12)
     correct = 0
-    for t in range(30):
-        obs = sim.observation(t)
-        result = algo.identify(db, obs)
-        found = result.hip >= 0
-        assert np.all(result.hip[found] == obs.truth_hip[found])
-        if found.sum() >= 3:
+    for _, result, _ in noisy_results(algo, db, catalog, camera, 15):
+        if np.sum(result.hip >= 0) >= 3:
             correct += 1
             assert result.attitude is not None
-    assert correct >= 28
-
-
-def test_large_ids(catalog, camera):
-    offset = 2**31
-    big = Catalog.from_arrays(catalog.hip + offset, catalog.ra_deg, catalog.dec_deg, catalog.v_mag)
-    algo = GeometricVoting()
-    db = algo.build(big, camera)
-    obs = Simulator(big, camera, SimConfig(), seed=1).observation(0)
-    hip = algo.identify(db, obs).hip
-    assert hip.dtype == np.int64 and np.sum(hip >= offset) >= 3
-    assert np.all(hip[hip >= 0] == obs.truth_hip[hip >= 0])
+    assert correct >= 14        # measured 15 of 15; one spare
 
 
 def test_wide_field_camera_finishes_quickly(catalog):
-    cam = Camera.from_fov(170.0)
-    algo = GeometricVoting()
-    db = algo.build(catalog, cam)
-    rng = np.random.default_rng(5)
-    obs = Observation(rng.uniform(0, 1024, 300), rng.uniform(0, 1024, 300), rng.uniform(0, 6, 300), cam)
-    t0 = time.perf_counter()
-    assert algo.identify(db, obs).hip.shape == (300,) and time.perf_counter() - t0 < 5.0
+    assert wide_field_seconds(GeometricVoting, catalog) < 5.0
 
 
 def test_explain_shows_votes_and_verified_pairs(algo, db, catalog, camera):
     obs = Simulator(catalog, camera, SimConfig(sigma_px=1.0), seed=3).observation(1)
     ex = algo.explain(db, obs)
-    assert isinstance(ex, Explanation)
     hip = algo.identify(db, obs).hip
     k = int(np.sum(hip >= 0))
     assert k >= 3 and sum("HIP" in label for label in ex.labels) == k

@@ -1,18 +1,16 @@
-import math
+"""Grid-specific tests: database layout, cells and soft credit against numpy, Luo's set-up and
+Padgett's variant, explain, parameters.
+
+Conformance (random fields, coincident stars, ids beyond 2^31, explain's type, determinism, order
+invariance) runs for every plugin in tests/test_conformance.py and is not repeated here.
+"""
 
 import numpy as np
 import pytest
 
-from starid import Camera, ConfigError, Observation, SimConfig, Simulator
-from starid.plugin import Explanation
-from starid.testing import CHECKS, check_algorithm
+from starid import Camera, ConfigError, SimConfig, Simulator
 from starid_algorithms.grid import Grid
 from starid_algorithms.grid.kernels import GridSpec, grid_cells, image_weights
-
-
-@pytest.mark.parametrize("check", CHECKS)
-def test_conformance(check):
-    check_algorithm(Grid, checks=[check])
 
 
 @pytest.fixture(scope="module")
@@ -65,16 +63,6 @@ def test_image_weights_soft_credit():
     assert np.count_nonzero(weight) == 1
 
 
-def test_random_fields_give_no_result(db, camera):
-    rng = np.random.default_rng(11)
-    alg = Grid()
-    hits = 0
-    for _ in range(40):
-        obs = Observation(rng.uniform(0, 1024, 30), rng.uniform(0, 1024, 30), rng.uniform(2, 6, 30), camera)
-        hits += int(np.any(alg.identify(db, obs).hip >= 0))
-    assert hits <= 1
-
-
 def test_luo_setup_and_padgett_variant(catalog):
     camera = Camera.from_fov(20.0, 1024)
     sim = Simulator(catalog.brighter_than(6.5), camera, SimConfig(sigma_px=0.5, mag_limit=6.5, min_stars=3), seed=2)
@@ -83,18 +71,18 @@ def test_luo_setup_and_padgett_variant(catalog):
         db = alg.build(catalog, camera)
         assert db.radius_deg == pytest.approx(6.0)
         ok = 0
-        for t in range(10):
+        for t in range(6):
             obs = sim.observation(t)
             hip = alg.identify(db, obs).hip
             assert not np.any((hip >= 0) & (hip != obs.truth_hip))
             ok += int(np.sum(hip == obs.truth_hip) >= 3)
-        assert ok >= 9
+        assert ok >= 5      # measured 6 of 6 for both; one spare
 
 
 def test_explain(catalog, camera, db):
     obs = Simulator(catalog, camera, SimConfig(sigma_px=0.5), seed=3).observation(0)
     ex = Grid().explain(db, obs)
-    assert isinstance(ex, Explanation) and ex.highlight.size == 1 and ex.caption
+    assert ex.highlight.size == 1 and ex.caption.startswith("Grid")
     assert len(ex.segments) >= 22                                      # neighbours + 2 x 11 grid lines
 
 

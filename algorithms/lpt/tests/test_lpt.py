@@ -1,16 +1,15 @@
+"""LPT-specific tests: database layout, shift voting against brute force, Luo's set-up, explain, parameters.
+
+Conformance (random fields, coincident stars, ids beyond 2^31, explain's type, determinism, order
+invariance) runs for every plugin in tests/test_conformance.py and is not repeated here.
+"""
+
 import numpy as np
 import pytest
 
-from starid import Camera, ConfigError, Observation, SimConfig, Simulator
-from starid.plugin import Explanation
-from starid.testing import CHECKS, check_algorithm
+from starid import Camera, ConfigError, SimConfig, Simulator
 from starid_algorithms.lpt import LPT
 from starid_algorithms.lpt.kernels import StringSearch, shift_scores
-
-
-@pytest.mark.parametrize("check", CHECKS)
-def test_conformance(check):
-    check_algorithm(LPT, checks=[check])
 
 
 @pytest.fixture(scope="module")
@@ -55,16 +54,6 @@ def test_shift_scores_equal_brute_force_circular_match(sector_tol):
         assert n_chars == np.count_nonzero(row)
 
 
-def test_random_fields_give_no_result(db, camera):
-    rng = np.random.default_rng(11)
-    alg = LPT()
-    hits = 0
-    for _ in range(40):
-        obs = Observation(rng.uniform(0, 1024, 30), rng.uniform(0, 1024, 30), rng.uniform(2, 6, 30), camera)
-        hits += int(np.any(alg.identify(db, obs).hip >= 0))
-    assert hits <= 1
-
-
 def test_luo_setup(catalog):
     camera = Camera.from_fov(20.0, 1024)
     alg = LPT(mag_limit=6.5, sigma_px=0.5, max_refs=3)
@@ -72,18 +61,18 @@ def test_luo_setup(catalog):
     assert db.radius_deg == pytest.approx(6.0)
     sim = Simulator(catalog.brighter_than(6.5), camera, SimConfig(sigma_px=0.5, mag_limit=6.5, min_stars=3), seed=2)
     ok = 0
-    for t in range(8):
+    for t in range(6):
         obs = sim.observation(t)
         hip = alg.identify(db, obs).hip
         assert not np.any((hip >= 0) & (hip != obs.truth_hip))
         ok += int(np.sum(hip == obs.truth_hip) >= 3)
-    assert ok >= 7
+    assert ok >= 5      # measured 6 of 6; one spare
 
 
 def test_explain(catalog, camera, db):
     obs = Simulator(catalog, camera, SimConfig(sigma_px=0.5), seed=3).observation(0)
     ex = LPT().explain(db, obs)
-    assert isinstance(ex, Explanation) and len(ex.segments) > 2 and ex.caption
+    assert len(ex.segments) > 2 and "LPT" in ex.caption
 
 
 def test_bad_parameters():

@@ -1,19 +1,19 @@
+"""Improved-LPT-specific tests: database layout, feature and search against numpy oracles, noisy
+accuracy, Luo's set-up, a 170 deg camera, explain, parameters.
+
+Conformance (random fields, coincident stars, ids beyond 2^31, explain's type, determinism, order
+invariance) runs for every plugin in tests/test_conformance.py and is not repeated here.
+"""
+
 import math
 
 import numpy as np
 import pytest
 
-from starid import Camera, Catalog, ConfigError, Observation, SimConfig, Simulator
-from starid.plugin import Explanation
-from starid.testing import CHECKS, check_algorithm
+from starid import Camera, ConfigError, SimConfig, Simulator
 from starid_algorithms.lpt_improved import ImprovedLPT
 from starid_algorithms.lpt_improved.kernels import FeatureTable, feature_vector, sad_search
 from starid_algorithms.lpt_improved.planar import plane_polar, select_guides
-
-
-@pytest.mark.parametrize("check", CHECKS)
-def test_conformance(check):
-    check_algorithm(ImprovedLPT, checks=[check])
 
 
 @pytest.fixture(scope="module")
@@ -104,63 +104,51 @@ def test_sad_search_matches_brute_force(above):
         assert np.array_equal(best_sad[:found], sad[expect])
 
 
-def test_random_fields_give_no_result(db, camera):
-    rng = np.random.default_rng(11)
-    alg = ImprovedLPT()
-    hits = 0
-    for _ in range(40):
-        obs = Observation(rng.uniform(0, 1024, 30), rng.uniform(0, 1024, 30), rng.uniform(2, 6, 30), camera)
-        hits += int(np.any(alg.identify(db, obs).hip >= 0))
-    assert hits <= 1
+#: noisy trials (1 px, 2 false stars) of 20 with 3+ stars right: measured 19; the threshold leaves 4 spare
+OK_NOISY = 15
 
 
 def test_noisy_and_false_stars(catalog, camera, db):
     sim = Simulator(catalog.brighter_than(6.0), camera, SimConfig(sigma_px=1.0, false_stars=2), seed=4)
     alg = ImprovedLPT(sigma_px=1.0)
     ok = wrong = 0
-    for t in range(40):
+    for t in range(20):
         obs = sim.observation(t)
         hip = alg.identify(db, obs).hip
         wrong += int(np.any((hip >= 0) & (hip != obs.truth_hip)))
         ok += int(np.sum((hip >= 0) & (hip == obs.truth_hip)) >= 3)
-    assert wrong == 0 and ok >= 28
+    assert wrong == 0 and ok >= OK_NOISY
 
 
-def test_luo_setup_and_large_ids(catalog):
-    """20 x 20 deg, 1024 px, guide stars to 6.5 mag, R = 6 deg; ids beyond 2^31 survive end to end."""
-    shifted = Catalog.from_arrays(catalog.hip + 2**31, catalog.ra_deg, catalog.dec_deg, catalog.v_mag)
+def test_luo_setup(catalog):
+    """20 x 20 deg, 1024 px, guide stars to 6.5 mag, R = 6 deg."""
     camera = Camera.from_fov(20.0, 1024)
     alg = ImprovedLPT(mag_limit=6.5, sigma_px=0.5)
-    db = alg.build(shifted, camera)
+    db = alg.build(catalog, camera)
     assert db.radius_deg == pytest.approx(6.0)
-    assert db.guide_hip.min() > 2**31
-    sim = Simulator(shifted.brighter_than(6.5), camera, SimConfig(sigma_px=0.5, mag_limit=6.5, min_stars=3), seed=2)
+    sim = Simulator(catalog.brighter_than(6.5), camera, SimConfig(sigma_px=0.5, mag_limit=6.5, min_stars=3), seed=2)
     ok = 0
-    for t in range(20):
+    for t in range(8):
         obs = sim.observation(t)
         res = alg.identify(db, obs)
         assert not np.any((res.hip >= 0) & (res.hip != obs.truth_hip))
         ok += int(np.sum(res.hip == obs.truth_hip) >= 3)
         if res.attitude is not None:
             assert np.allclose(res.attitude @ res.attitude.T, np.eye(3), atol=1e-9)
-    assert ok >= 19
+    assert ok >= 7      # measured 8 of 8; one spare
 
 
-def test_wide_camera_and_coincident_stars(catalog):
+def test_wide_camera(catalog):
     wide = Camera.from_fov(170.0, 512)
     alg = ImprovedLPT()
     db = alg.build(catalog.brighter_than(4.0), wide)
     obs = Simulator(catalog.brighter_than(4.0), wide, seed=1).observation(0)
     assert alg.identify(db, obs).hip.shape == (len(obs),)
-    x = np.array([100.0, 100.0, 300.0, 500.0])
-    both = Observation(x, x[::-1].copy(), np.full(4, 4.0), wide)
-    assert alg.identify(db, both).hip.shape == (4,)
 
 
 def test_explain(catalog, camera, db):
     obs = Simulator(catalog, camera, SimConfig(sigma_px=0.5), seed=3).observation(0)
     ex = ImprovedLPT().explain(db, obs)
-    assert isinstance(ex, Explanation)
     assert ex.highlight.size == 1 and len(ex.segments) > 2
     assert ex.labels[0].startswith("reference") and ex.caption
 

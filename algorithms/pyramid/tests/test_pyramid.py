@@ -1,16 +1,18 @@
-"""Tests of the Pyramid plugin: conformance, kernels against numpy oracles, random fields, explain."""
+"""Pyramid-specific tests: database layout, kernels against numpy oracles, noisy accuracy, explain, variants.
+
+Conformance (random fields, coincident stars, ids beyond 2^31, explain's type, determinism, order
+invariance) runs for every plugin in tests/test_conformance.py and is not repeated here.
+"""
 
 import math
-import time
 
 import numpy as np
 import pytest
 
-from starid import Camera, Catalog, ConfigError, Observation, SimConfig, Simulator
-from starid.plugin import Explanation
-from starid.testing import CHECKS, check_algorithm
+from starid import ConfigError, Observation, SimConfig, Simulator
 from starid_algorithms.pyramid import Pyramid
 from starid_algorithms.pyramid.kernels import brightness_order, neighbours_within, select_stars, triad_triangles
+from starid_algorithms.pyramid.testing import noisy_results, wide_field_seconds
 
 
 @pytest.fixture(scope="module")
@@ -21,11 +23,6 @@ def algo():
 @pytest.fixture(scope="module")
 def db(algo, catalog, camera):
     return algo.build(catalog, camera)
-
-
-@pytest.mark.parametrize("check", CHECKS)
-def test_conformance(check):
-    check_algorithm(Pyramid, checks=[check])
 
 
 def test_database_layout(db, camera):
@@ -117,59 +114,23 @@ def test_triad_triangles_match_numpy_oracle(algo, db, catalog, camera):
     assert seen_true >= 3
 
 
-def test_random_fields_give_no_identification(algo, db, camera):
-    rng = np.random.default_rng(2024)
-    identified = 0
-    for _ in range(40):
-        obs = Observation(rng.uniform(0, camera.width_px, 30), rng.uniform(0, camera.height_px, 30),
-                          rng.uniform(2, 6, 30), camera)
-        identified += bool(np.any(algo.identify(db, obs).hip >= 0))
-    assert identified <= 1
-
-
 def test_noisy_trials_no_misidentification_and_attitude(algo, db, catalog, camera):
-    sim = Simulator(catalog.brighter_than(6.0), camera, SimConfig(sigma_px=1.0, sigma_mag=0.5), seed=12)
-    trials = sim.generate(40)
     correct = 0
-    for t in range(len(trials)):
-        obs = trials.observation(t)
-        result = algo.identify(db, obs)
-        found = result.hip >= 0
-        assert np.all(result.hip[found] == obs.truth_hip[found])
-        if found.sum() >= 3:
+    for obs, result, attitude in noisy_results(algo, db, catalog, camera, 15):
+        if np.sum(result.hip >= 0) >= 3:
             correct += 1
-            err = result.attitude @ trials.attitude[t].T        # ~identity (roll is the loosest: arcminutes)
+            err = result.attitude @ attitude.T        # ~identity (roll is the loosest: arcminutes)
             assert math.degrees(math.acos(min(1.0, (np.trace(err) - 1) / 2))) * 3600 < 900
-    assert correct >= 38
-
-
-def test_large_ids(catalog, camera):
-    offset = 2**31
-    big = Catalog.from_arrays(catalog.hip + offset, catalog.ra_deg, catalog.dec_deg, catalog.v_mag)
-    algo = Pyramid()
-    db = algo.build(big, camera)
-    sim = Simulator(big, camera, SimConfig(), seed=1)
-    obs = sim.observation(0)
-    hip = algo.identify(db, obs).hip
-    assert hip.dtype == np.int64 and np.sum(hip >= offset) >= 3
-    assert np.all(hip[hip >= 0] == obs.truth_hip[hip >= 0])
+    assert correct >= 14        # measured 15 of 15; one spare
 
 
 def test_wide_field_camera_finishes_quickly(catalog):
-    cam = Camera.from_fov(170.0)
-    algo = Pyramid()
-    db = algo.build(catalog, cam)
-    rng = np.random.default_rng(5)
-    obs = Observation(rng.uniform(0, 1024, 300), rng.uniform(0, 1024, 300), rng.uniform(0, 6, 300), cam)
-    t0 = time.perf_counter()
-    hip = algo.identify(db, obs).hip
-    assert hip.shape == (300,) and time.perf_counter() - t0 < 5.0
+    assert wide_field_seconds(Pyramid, catalog) < 5.0
 
 
 def test_explain_draws_the_pyramid(algo, db, catalog, camera):
     obs = Simulator(catalog, camera, SimConfig(sigma_px=1.0), seed=3).observation(1)
     ex = algo.explain(db, obs)
-    assert isinstance(ex, Explanation)
     assert ex.segments.shape == (6, 2, 2) and len(ex.highlight) == 3 and len(ex.polygons) == 1
     assert any(label.startswith("r (4th)") for label in ex.labels)
     hip = algo.identify(db, obs).hip
