@@ -17,7 +17,7 @@ import numpy as np
 from numba import njit
 
 from starid.kernels import (KVector, assign_all, backproject_px, chord_rows, field_chord, kvector_query,
-                           verify_pairwise, wahba_rows, z_band_rows)
+                           triple_product, verify_pairwise, wahba_rows, z_band_rows)
 
 KEY_BASE = 65536  # star indices are < 65536 (uint16), so a sorted pair packs into lo * 65536 + hi
 
@@ -184,13 +184,6 @@ def scan_triangles(unit, nbr_ptr, nbr_idx, rules, offsets, fill):
                     c += 1
         counts[i] = c
     return counts, stars, area_out, moment_out
-
-
-@njit(cache=True)
-def _triple(u, v, w):
-    """``u . (v x w)``: its sign is the triangle's handedness (chirality)."""
-    return (u[0] * (v[1] * w[2] - v[2] * w[1]) + u[1] * (v[2] * w[0] - v[0] * w[2])
-            + u[2] * (v[0] * w[1] - v[1] * w[0]))
 
 
 @njit(cache=True)
@@ -409,8 +402,8 @@ def _triangle_consistent(img_v, cat_unit, i0, i1, i2, g0, g1, g2, tol_chord):
         return False
     if abs(chord_rows(img_v, i0, img_v, i2) - chord_rows(cat_unit, g0, cat_unit, g2)) > tol_chord:
         return False
-    ti = _triple(img_v[i0], img_v[i1], img_v[i2])
-    tc = _triple(cat_unit[g0], cat_unit[g1], cat_unit[g2])
+    ti = triple_product(img_v[i0], img_v[i1], img_v[i2])
+    tc = triple_product(cat_unit[g0], cat_unit[g1], cat_unit[g2])
     return (ti > 0.0) == (tc > 0.0)
 
 
