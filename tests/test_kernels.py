@@ -6,7 +6,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from starid.kernels import (angular_distance_rad, chord, kvector_build, kvector_range, pairwise_chords,
-                            rad_to_chord, triangle_sides, verify_pairwise)
+                            rad_to_chord, triangle_sides, triple_product, verify_pairwise)
 
 values = st.lists(st.floats(-1e3, 1e3, allow_nan=False), min_size=0, max_size=60)
 
@@ -57,6 +57,16 @@ def _sky(n, seed):
     rng = np.random.default_rng(seed)
     v = rng.normal(size=(n, 3)) * [0.03, 0.03, 0] + [0, 0, 1]
     return v / np.linalg.norm(v, axis=1, keepdims=True)
+
+
+def test_triple_product_matches_numpy():
+    rng = np.random.default_rng(4)
+    for _ in range(20):
+        u, v, w = rng.normal(size=(3, 3))
+        assert triple_product(u, v, w) == pytest.approx(np.dot(u, np.cross(v, w)), rel=1e-12, abs=1e-15)
+    u, v, w = np.eye(3)
+    assert triple_product(u, v, w) == 1.0 and triple_product(u, w, v) == -1.0  # handedness
+    assert triple_product(u, u, w) == 0.0
 
 
 def test_verify_pairwise_rejects_outlier_and_duplicates():

@@ -13,12 +13,12 @@ from starid.camera import Camera
 from starid.catalog import Catalog
 from starid.errors import ConfigError
 from starid.params import check_flag, check_number, check_whole
-from starid.kernels import KVector, kvector_make, rad_to_chord
+from starid.kernels import DeepSky, KVector, camera_frame, deep_sky, kvector_make, rad_to_chord
 from starid.observation import Observation
 from starid.plugin import Algorithm, Database, Explanation, Identification
 
-from .assign import DeepSky, deep_sky, finish
-from .kernels import Rules, Tables, Tolerance, identify_rows, identify_subsets, scan_triangles
+from .kernels import (Finish, Rules, Tables, Tolerance, deep_v_mag, finish, identify_rows, identify_subsets,
+                      scan_triangles)
 
 MAX_GUIDE_STARS = 65536  # star indices are stored as uint16
 DEG2_TO_CHORD2 = (math.pi / 180.0) ** 2
@@ -40,8 +40,8 @@ class PlanarTriangleDatabase(Database):
         diagonal (read only by the distance extension).
     rules: what a stored triangle satisfies (chord of ``fov_db_rad``, ``fov_db_rad``, the
         smallest stored area in chord units).
-    deep: every catalog star (float32 unit vectors sorted by z, int64 ids, V magnitudes), for
-        the coverage check and ``assign_all``.
+    deep: every catalog star (``starid.kernels.DeepSky``: float32 unit vectors sorted by z, int64
+        ids), for the coverage check and ``assign_all``; deep_v_mag: float32 their V magnitudes.
     """
 
     tri_stars: np.ndarray
@@ -53,6 +53,7 @@ class PlanarTriangleDatabase(Database):
     nbr_idx: np.ndarray
     rules: Rules
     deep: DeepSky
+    deep_v_mag: np.ndarray
 
     def tables(self) -> Tables:
         """The arrays the kernels read, as one bundle."""
@@ -242,12 +243,13 @@ class PlanarTriangle(Algorithm):
         # Neighbours for the distance extension: anything two observed stars can be apart.
         diag_chord = float(rad_to_chord(2.0 * min(camera.half_diagonal_rad, math.pi / 2)))
         nptr, nidx = _neighbour_csr(unit, diag_chord * 1.01, symmetric=True)
+        deep = deep_sky(catalog)
         return PlanarTriangleDatabase(
             tri_stars=np.ascontiguousarray(stars[order]),
             tri_area=kvector_make(area32[order], np.float32, np.int32),
             tri_moment=moment[order].astype(np.float32), guide_hip=guide.hip.astype(np.int64),
             guide_unit=unit, nbr_ptr=nptr.astype(np.int32), nbr_idx=nidx.astype(np.uint16), rules=rules,
-            deep=deep_sky(catalog))
+            deep=deep, deep_v_mag=deep_v_mag(catalog, deep))
 
     def _run(self, database: PlanarTriangleDatabase, observation: Observation):
         """``(rows per observed star, chain as observed-star indices (L, 3))`` of one image."""
@@ -284,11 +286,12 @@ class PlanarTriangle(Algorithm):
             return Identification.none(len(observation))
         cam = observation.camera
         tol = self._tolerance(cam)
-        verdict = finish(cam.backproject(observation.x_px, observation.y_px), observation.mag, all_rows,
-                         database.guide_unit, database.guide_hip, database.deep, cam,
-                         tol.beta * math.sqrt(2.0) * tol.sigma_rad, self.mag_margin, self.mag_limit,
-                         self.coverage_mag_margin, self.max_missed_fraction, self.assign_all)
-        return Identification(verdict.hip, verdict.attitude)
+        rules = Finish(tol.beta * math.sqrt(2.0) * tol.sigma_rad, float(self.mag_margin), float(self.mag_limit),
+                       float(self.coverage_mag_margin), float(self.max_missed_fraction), bool(self.assign_all))
+        hip, attitude, accepted = finish(observation.x_px, observation.y_px, observation.mag, all_rows,
+                                         database.guide_unit, database.guide_hip, database.deep, database.deep_v_mag,
+                                         camera_frame(cam), rules)
+        return Identification(hip, attitude if accepted else None)
 
     def explain(self, database: PlanarTriangleDatabase, observation: Observation) -> Explanation:
         """The pivot sequence of image triangles (the accepted one's last triangle highlighted)."""

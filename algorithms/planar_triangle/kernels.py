@@ -16,7 +16,8 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from starid.kernels import KVector, chord_rows, kvector_query, verify_pairwise
+from starid.kernels import (KVector, assign_all, backproject_px, chord_rows, field_chord, kvector_query,
+                           triple_product, verify_pairwise, wahba_rows, z_band_rows)
 
 KEY_BASE = 65536  # star indices are < 65536 (uint16), so a sorted pair packs into lo * 65536 + hi
 
@@ -183,13 +184,6 @@ def scan_triangles(unit, nbr_ptr, nbr_idx, rules, offsets, fill):
                     c += 1
         counts[i] = c
     return counts, stars, area_out, moment_out
-
-
-@njit(cache=True)
-def _triple(u, v, w):
-    """``u . (v x w)``: its sign is the triangle's handedness (chirality)."""
-    return (u[0] * (v[1] * w[2] - v[2] * w[1]) + u[1] * (v[2] * w[0] - v[0] * w[2])
-            + u[2] * (v[0] * w[1] - v[1] * w[0]))
 
 
 @njit(cache=True)
@@ -408,8 +402,8 @@ def _triangle_consistent(img_v, cat_unit, i0, i1, i2, g0, g1, g2, tol_chord):
         return False
     if abs(chord_rows(img_v, i0, img_v, i2) - chord_rows(cat_unit, g0, cat_unit, g2)) > tol_chord:
         return False
-    ti = _triple(img_v[i0], img_v[i1], img_v[i2])
-    tc = _triple(cat_unit[g0], cat_unit[g1], cat_unit[g2])
+    ti = triple_product(img_v[i0], img_v[i1], img_v[i2])
+    tc = triple_product(cat_unit[g0], cat_unit[g1], cat_unit[g2])
     return (ti > 0.0) == (tc > 0.0)
 
 
@@ -676,3 +670,119 @@ def identify_subsets(img_v, bright, db, tol, subset_size, max_subsets):
         for q in range(p + 1, size):
             comb[q] = comb[q - 1] + 1
     return out, chain
+
+
+# -- the final step (shared with triangle_voting) -------------------------------------------
+
+
+class Finish(NamedTuple):
+    """What the final step (:func:`finish`) assumes besides the image and the database."""
+
+    eps_chord: float  # assignment tolerance (chord)
+    mag_margin: float  # an assigned star may be at most this much fainter (V) than measured
+    mag_limit: float  # the guide stars' V limit
+    coverage_mag_margin: float  # the coverage check looks at stars this much brighter than the limit
+    max_missed_fraction: float  # coverage: fraction of predicted bright stars that may be missing (>= 1: off)
+    assign_all: bool  # report the assigned ids (else only the guide identification)
+
+
+def deep_v_mag(catalog, deep) -> np.ndarray:
+    """float32 V magnitude of every star of ``deep`` (a ``starid.kernels.DeepSky`` of ``catalog``), row by row."""
+    by_hip = np.argsort(catalog.hip, kind="stable")
+    return catalog.v_mag[by_hip[np.searchsorted(catalog.hip[by_hip], deep.hip)]].astype(np.float32)
+
+
+@njit(cache=True)
+def _deep_mag_of(deep, deep_mag, r_icrs, eps_chord, hip):
+    """V of the deep star ``hip``, which lies within chord ``eps_chord`` of the ICRS direction ``r_icrs``."""
+    start, stop = z_band_rows(deep.unit, r_icrs[2], 2.0 * eps_chord)
+    for g in range(start, stop):
+        if deep.hip[g] == hip:
+            return float(deep_mag[g])
+    return np.inf
+
+
+@njit(cache=True)
+def coverage(attitude, deep, deep_mag, mag_max, found_hip, frame):
+    """``(predicted, missed)``: stars of ``deep`` with V <= ``mag_max`` that ``attitude`` puts on the
+    sensor, and how many of them are not among ``found_hip`` (sorted ids of the identified stars).
+
+    A true identification explains the bright stars of its field; a chance match among noise
+    points or wrong stars predicts bright stars that are not there.
+    """
+    start, stop = z_band_rows(deep.unit, attitude[2, 2], field_chord(frame))
+    predicted = 0
+    missed = 0
+    for g in range(start, stop):
+        if deep_mag[g] > mag_max:
+            continue
+        u0, u1, u2 = float(deep.unit[g, 0]), float(deep.unit[g, 1]), float(deep.unit[g, 2])
+        pz = attitude[2, 0] * u0 + attitude[2, 1] * u1 + attitude[2, 2] * u2
+        if pz <= 0.0:
+            continue
+        x = frame.cx_px + frame.f_px * (attitude[0, 0] * u0 + attitude[0, 1] * u1 + attitude[0, 2] * u2) / pz
+        y = frame.cy_px + frame.f_px * (attitude[1, 0] * u0 + attitude[1, 1] * u1 + attitude[1, 2] * u2) / pz
+        if not (0.0 <= x < frame.width_px and 0.0 <= y < frame.height_px):
+            continue
+        predicted += 1
+        pos = np.searchsorted(found_hip, deep.hip[g])
+        if pos >= found_hip.shape[0] or found_hip[pos] != deep.hip[g]:
+            missed += 1
+    return predicted, missed
+
+
+@njit(cache=True)
+def finish(x_px, y_px, mag, rows, guide_unit, guide_hip, deep, deep_mag, frame, rules):
+    """Attitude, the core final assignment and the coverage check, for ``rows`` (guide rows or -1).
+
+    Returns ``(hip int64 (n,), attitude 3x3, accepted)``; not accepted: every id -1.
+
+    1. The attitude is solved from the identified stars (Wahba, ``starid.kernels.wahba_rows``).
+    2. ``starid.kernels.assign_all`` gives every image star the deep star predicted within
+       ``eps_chord`` of it. The guide identification stands for the stars it names; another star
+       takes its assigned id unless a guide star already has that id or the assigned star is more
+       than ``mag_margin`` fainter than the star's measured ``mag`` (a false detection near a
+       faint catalog star is not it).
+    3. Coverage (:func:`coverage`, on the ids of step 2): of the deep stars with
+       V <= min(``mag_limit``, faintest image star) - ``coverage_mag_margin`` that the attitude
+       puts on the sensor, at most max(1, ``max_missed_fraction`` x their number) may lack an
+       identified star; otherwise the identification is dropped.
+    The ids of step 2 are reported only with ``assign_all``; otherwise those of ``rows``.
+    """
+    n = rows.shape[0]
+    hip = np.full(n, -1, dtype=np.int64)
+    n_found = 0
+    for i in range(n):
+        if rows[i] >= 0:
+            hip[i] = guide_hip[rows[i]]
+            n_found += 1
+    if n_found < 2:
+        return np.full(n, -1, dtype=np.int64), np.zeros((3, 3)), False
+    v_cam = backproject_px(x_px, y_px, frame.f_px, frame.cx_px, frame.cy_px)
+    attitude = wahba_rows(v_cam, rows, guide_unit)
+    assigned = hip.copy()
+    assign_all(attitude, x_px, y_px, frame, deep, rules.eps_chord, assigned)
+    hip_all = hip.copy()
+    r_icrs = np.empty(3)
+    for i in range(n):
+        if rows[i] >= 0 or assigned[i] < 0:
+            continue
+        taken = False
+        for j in range(n):
+            if rows[j] >= 0 and hip[j] == assigned[i]:
+                taken = True
+        if taken:
+            continue
+        for a in range(3):
+            r_icrs[a] = attitude[0, a] * v_cam[i, 0] + attitude[1, a] * v_cam[i, 1] + attitude[2, a] * v_cam[i, 2]
+        if _deep_mag_of(deep, deep_mag, r_icrs, rules.eps_chord, assigned[i]) <= mag[i] + rules.mag_margin:
+            hip_all[i] = assigned[i]
+    if rules.max_missed_fraction < 1.0:
+        found = np.sort(hip_all[hip_all >= 0])
+        mag_max = min(rules.mag_limit, mag.max()) - rules.coverage_mag_margin
+        predicted, missed = coverage(attitude, deep, deep_mag, mag_max, found, frame)
+        if not (missed <= 1 or missed <= rules.max_missed_fraction * predicted):
+            return np.full(n, -1, dtype=np.int64), attitude, False
+    if rules.assign_all:
+        return hip_all, attitude, True
+    return hip, attitude, True

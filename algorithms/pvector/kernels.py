@@ -16,7 +16,8 @@ import numpy as np
 from numba import njit
 
 from starid.kernels import (DeepSky, KVector, assign_all, backproject_px, chord_rows, chord_to_rad, field_chord,
-                            keep_unique, kvector_query, reproject_assign, verify_pairwise, wahba_rows, z_band_rows)
+                            keep_unique, kvector_query, reproject_assign, triple_product, verify_pairwise, wahba_rows,
+                            z_band_rows)
 
 # The six vertex correspondences (observed vertex j -> database vertex PERMS[p, j]).
 PERMS = np.array([[0, 1, 2], [1, 2, 0], [2, 0, 1], [0, 2, 1], [2, 1, 0], [1, 0, 2]], dtype=np.int64)
@@ -195,13 +196,6 @@ def triangle_feature(s_len01, s_len02, s_len12, sorted_sides):
 
 
 @njit(cache=True)
-def _triple(a, b, c):
-    """a . (b x c)."""
-    return (a[0] * (b[1] * c[2] - b[2] * c[1]) + a[1] * (b[2] * c[0] - b[0] * c[2])
-            + a[2] * (b[0] * c[1] - b[1] * c[0]))
-
-
-@njit(cache=True)
 def match_extras(oc, tri_obs, cat_rows, unit, eps, c_band, out_row):
     """Identify the non-triangle observed stars by their chords to the three triangle stars.
 
@@ -334,7 +328,7 @@ def identify_rows(x_px, y_px, mag, frame, db, tol):
                     start, stop = kvector_query(db.kv, p_obs - eps_key, p_obs + eps_key)
                 if stop <= start:
                     continue
-                trip_obs = _triple(v[s], v[n1], v[n2])
+                trip_obs = triple_product(v[s], v[n1], v[n2])
                 chir_significant = abs(trip_obs) > eps * max(c01, max(c02, c12))
                 for i in range(n):
                     for j in range(3):
@@ -365,7 +359,7 @@ def identify_rows(x_px, y_px, mag, frame, db, tol):
                                     or abs(chord_rows(unit, cat_rows[1], unit, cat_rows[2]) - c12) > eps):
                                 continue
                         if chir_significant:
-                            trip_cat = _triple(unit[cat_rows[0]], unit[cat_rows[1]], unit[cat_rows[2]])
+                            trip_cat = triple_product(unit[cat_rows[0]], unit[cat_rows[1]], unit[cat_rows[2]])
                             if (trip_cat > 0) != (trip_obs > 0):
                                 continue
                         if n_found > 0 and cat_rows[0] == best_map[0] and cat_rows[1] == best_map[1] \

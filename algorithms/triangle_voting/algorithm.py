@@ -13,11 +13,11 @@ from starid.camera import Camera
 from starid.catalog import Catalog
 from starid.errors import ConfigError
 from starid.params import check_flag, check_number, check_whole
-from starid.kernels import backproject_px, rad_to_chord
+from starid.kernels import DeepSky, backproject_px, camera_frame, deep_sky, rad_to_chord
 from starid.observation import Observation
 from starid.plugin import Algorithm, Database, Explanation, Identification
 
-from starid_algorithms.planar_triangle.assign import DeepSky, deep_sky, finish
+from starid_algorithms.planar_triangle.kernels import Finish, deep_v_mag, finish
 
 from .kernels import Tables, Tolerance, build_triangles, identify_rows, sky_cell_of, vote
 
@@ -37,7 +37,9 @@ class TriangleVotingDatabase(Database):
     ``n_j[r]`` (uint16 rows of the guide arrays). The records of cell ``c`` are
     ``cell_start[c]:cell_start[c + 1]``. ``unit_icrs`` (float32) and ``hip`` (int64) are the
     guide stars, sorted by cell of a uniform ``sky_axis``^3 grid over [-1, 1]^3 (ties by HIP);
-    the stars of sky cell ``c`` are rows ``sky_start[c]:sky_start[c + 1]``.
+    the stars of sky cell ``c`` are rows ``sky_start[c]:sky_start[c + 1]``. ``deep``
+    (``starid.kernels.DeepSky``) and ``deep_v_mag`` (float32 V) are every catalog star, for the
+    final assignment and the coverage check.
     """
 
     base: np.ndarray
@@ -57,6 +59,7 @@ class TriangleVotingDatabase(Database):
     pattern_radius_chord: float
     d_min_chord: float
     deep: DeepSky
+    deep_v_mag: np.ndarray
 
     def tables(self) -> Tables:
         """The arrays the kernels read, as one bundle."""
@@ -117,7 +120,7 @@ class TriangleVoting(Algorithm):
       differing result.
 
     * coverage check (this library's, against chance matches; ``max_missed_fraction = 1`` turns
-      it off; shared with planar_triangle, ``starid_algorithms.planar_triangle.assign``): the
+      it off; shared with planar_triangle, ``finish`` in ``starid_algorithms.planar_triangle.kernels``): the
       attitude of the final set must explain the bright stars of its field -- of the catalog
       stars with V <= min(``mag_limit``, faintest image star) - ``coverage_mag_margin`` it puts on
       the sensor, at most max(1, ``max_missed_fraction`` x their number) may lack an identified
@@ -248,6 +251,7 @@ class TriangleVoting(Algorithm):
         cell_id = cb * n_cells_h + ch
         order = np.lexsort((main, height32, base32, cell_id))
         cell_start = np.searchsorted(cell_id[order], np.arange(n_cells_b * n_cells_h + 1)).astype(np.int32)
+        deep = deep_sky(catalog)
         return TriangleVotingDatabase(
             base=base32[order], height=height32[order], main=main[order].astype(np.uint16),
             n_i=n_i[order].astype(np.uint16), n_j=n_j[order].astype(np.uint16),
@@ -255,7 +259,7 @@ class TriangleVoting(Algorithm):
             sky_start=sky_start, sky_axis=SKY_AXIS,
             cell_b=cell, cell_h=cell, n_cells_b=n_cells_b, n_cells_h=n_cells_h,
             pattern_radius_chord=pr_chord, d_min_chord=dmin_chord,
-            deep=deep_sky(catalog))
+            deep=deep, deep_v_mag=deep_v_mag(catalog, deep))
 
     # -- identification ---------------------------------------------------------------------
     def identify(self, database: TriangleVotingDatabase, observation: Observation) -> Identification:
@@ -279,10 +283,11 @@ class TriangleVoting(Algorithm):
             return Identification(out)
         all_rows = np.full(n, -1, dtype=np.int64)
         all_rows[order] = rows
-        verdict = finish(backproject_px(x, y, cam.f_px, cam.cx_px, cam.cy_px), mag, all_rows, db.unit_icrs, db.hip,
-                         db.deep, cam, tol.eps_chord, self.mag_margin, self.mag_limit, self.coverage_mag_margin,
-                         self.max_missed_fraction, self.assign_all)
-        return Identification(verdict.hip, verdict.attitude)
+        rules = Finish(tol.eps_chord, float(self.mag_margin), float(self.mag_limit), float(self.coverage_mag_margin),
+                       float(self.max_missed_fraction), bool(self.assign_all))
+        hip, attitude, accepted = finish(x, y, mag, all_rows, db.unit_icrs, db.hip, db.deep, db.deep_v_mag,
+                                         camera_frame(cam), rules)
+        return Identification(hip, attitude if accepted else None)
 
     def _tolerance(self, cam: Camera) -> Tolerance:
         sigma_chord = self.sigma_window_px / cam.f_px

@@ -16,12 +16,12 @@ Euclidean distance between two unit vectors, ``2 sin(theta / 2)`` (:func:`rad_to
 from .assign import DeepSky, Frame, assign_all, camera_frame, deep_sky, field_chord
 from .attitude import wahba_rows
 from .geometry import (angular_distance_rad, backproject_px, chord, chord_rows, chord_to_rad, pairwise_chords,
-                       project_cam, rad_to_chord, triangle_sides)
+                       project_cam, rad_to_chord, triangle_sides, triple_product)
 from .kvector import KVector, kvector_build, kvector_make, kvector_query, kvector_range
 from .verify import keep_unique, reproject_assign, verify_pairwise, z_band_rows, z_bound
 
 __all__ = [
     "DeepSky", "Frame", "KVector", "assign_all", "camera_frame", "deep_sky", "field_chord", "angular_distance_rad", "backproject_px", "chord", "chord_rows", "chord_to_rad", "keep_unique",
     "kvector_build", "kvector_make", "kvector_query", "kvector_range", "pairwise_chords", "project_cam",
-    "rad_to_chord", "reproject_assign", "triangle_sides", "verify_pairwise", "wahba_rows", "z_band_rows", "z_bound",
+    "rad_to_chord", "reproject_assign", "triangle_sides", "triple_product", "verify_pairwise", "wahba_rows", "z_band_rows", "z_bound",
 ]

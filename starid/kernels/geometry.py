@@ -62,6 +62,13 @@ def chord_rows(a, i, b, j):
 
 
 @njit(cache=True)
+def triple_product(u, v, w):
+    """``u . (v x w)`` of three 3-vectors; for unit vectors its sign is the triangle's handedness (chirality)."""
+    return (u[0] * (v[1] * w[2] - v[2] * w[1]) + u[1] * (v[2] * w[0] - v[0] * w[2])
+            + u[2] * (v[0] * w[1] - v[1] * w[0]))
+
+
+@njit(cache=True)
 def angular_distance_rad(u, v):
     """Angle between two unit 3-vectors in radians, accurate at small angles (via the chord)."""
     c = chord(u, v)

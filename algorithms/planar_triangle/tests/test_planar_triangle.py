@@ -8,10 +8,8 @@ import numpy as np
 import pytest
 
 from starid import ConfigError, Observation, SimConfig, Simulator
-from starid import run, summarize
-from starid.catalog import Catalog
+from starid import summarize
 from starid.kernels import kvector_query
-from starid.testing import CHECKS, check_algorithm
 from starid.registry import get_algorithm
 from starid_algorithms.planar_triangle import PlanarTriangle
 from starid_algorithms.planar_triangle.kernels import (
@@ -26,7 +24,7 @@ def db(catalog, camera):
 @pytest.fixture(scope="module")
 def noise_free(catalog, camera):
     sim = Simulator(catalog, camera, SimConfig(), seed=1)
-    return sim, sim.generate(300)
+    return sim, sim.generate(150)
 
 
 def test_registered():
@@ -215,31 +213,30 @@ def test_false_star_is_not_identified(db, catalog, camera):
 PAPER = dict(restarts=0, max_stars=None, subset_size=None, assign_all=False)  # Cole's method as published
 
 
-def _summary(alg, db, trials, catalog, sim):
+def _summary(alg, db, trials, catalog):
     from starid.harness import Prepared, score
-    return summarize(score(Prepared(alg, db, 0.0, 0.0), trials, catalog, sim)).iloc[0]
+    return summarize(score(Prepared(alg, alg.name, db, 0.0, 0.0), trials, catalog)).iloc[0]
 
 
 def test_noise_free_identification_rate(db, catalog, noise_free):
     sim, trials = noise_free
-    trials = trials.select(np.arange(150))
-    paper = _summary(PlanarTriangle(**PAPER), db, trials, catalog, sim)
-    default = _summary(PlanarTriangle(), db, trials, catalog, sim)
+    paper = _summary(PlanarTriangle(**PAPER), db, trials, catalog)
+    default = _summary(PlanarTriangle(), db, trials, catalog)
     assert paper["misid_rate"] == 0.0 and default["misid_rate"] == 0.0
-    assert paper["id_rate"] >= 0.88  # measured 0.9315 on 2,000 trials
-    assert default["id_rate"] >= 0.97  # measured 0.995 on 1,000 trials (seed 11)
-    assert default["star_recall"] > paper["star_recall"] + 0.05  # assign_all
+    assert paper["id_rate"] >= 0.88  # measured 0.933 on these 150 (0.9315 on 2,000): margin 0.05
+    assert default["id_rate"] >= 0.97  # measured 1.0 on these 150 (0.995 on 1,000, seed 11): margin 0.03
+    assert default["star_recall"] > paper["star_recall"] + 0.05  # assign_all; measured 0.983 vs 0.913 on these 150
 
 
 def test_brightest_subsets_rescue_the_real_sky(db, catalog, camera):
     """V <= 8 sky: stars outside the V <= 6 database break the paper's pivot chain; subsets don't."""
     sim = Simulator(catalog, camera, SimConfig(sigma_px=1.0, sigma_mag=0.5), seed=12)
     trials = sim.generate(100)
-    paper = _summary(PlanarTriangle(**PAPER), db, trials, catalog, sim)
-    default = _summary(PlanarTriangle(), db, trials, catalog, sim)
-    assert paper["id_rate"] <= 0.4  # measured 0.13 on 500 images (seed 7)
-    assert default["id_rate"] >= 0.85  # measured 0.936 on 500 images (seed 7)
-    assert default["misid_rate"] <= 0.02
+    paper = _summary(PlanarTriangle(**PAPER), db, trials, catalog)
+    default = _summary(PlanarTriangle(), db, trials, catalog)
+    assert paper["id_rate"] <= 0.4  # measured 0.15 on these 100 (0.13 on 500, seed 7): margin 0.25
+    assert default["id_rate"] >= 0.85  # measured 0.94 on these 100 (0.936 on 500, seed 7): margin 0.09
+    assert default["misid_rate"] <= 0.02  # measured 0 on these 100
 
 
 def test_sigma_px_follows_the_simulator_with_a_1px_floor():
@@ -250,51 +247,6 @@ def test_sigma_px_follows_the_simulator_with_a_1px_floor():
         assert alg.sigma_px == world and alg.sigma_window_px == window
     pinned = PlanarTriangle(sigma_px=2.0).resolved(SimConfig(sigma_px=0.0))
     assert pinned.sigma_px == 2.0 and pinned.sigma_window_px == 2.0
-
-
-# --- trust (issue 10) -----------------------------------------------------------------------
-
-@pytest.mark.parametrize("check", CHECKS)
-def test_conformance(check):
-    check_algorithm(PlanarTriangle, checks=[check])
-
-
-def test_random_fields_give_no_identification(db, camera):
-    """40 fields of 30 uniform random points (no real star): nothing may be identified."""
-    rng = np.random.default_rng(2024)
-    alg = PlanarTriangle()
-    hits = 0
-    for _ in range(40):
-        obs = Observation(rng.uniform(0, 1024, 30), rng.uniform(0, 1024, 30), rng.uniform(2, 8, 30), camera)
-        hits += int(np.any(alg.identify(db, obs).hip != -1))
-    assert hits == 0
-
-
-def test_coincident_detections(db, catalog, camera):
-    """Two detections at the same pixel: no exception, neither gets an id, the rest stays right."""
-    obs = Simulator(catalog, camera, SimConfig(), seed=5).observation(0)
-    dup = Observation(np.r_[obs.x_px, obs.x_px[0]], np.r_[obs.y_px, obs.y_px[0]], np.r_[obs.mag, obs.mag[0]],
-                      camera, np.r_[obs.truth_hip, obs.truth_hip[0]])
-    hip = PlanarTriangle().identify(db, dup).hip
-    assert hip.shape == (len(dup),) and not (hip[0] >= 0 and hip[-1] >= 0)
-    assert np.all((hip == -1) | (hip == dup.truth_hip))
-
-
-def test_ids_beyond_int32(catalog, camera):
-    """Catalog ids offset by 2^31 come back intact (int64 end to end)."""
-    big = Catalog.from_arrays(catalog.hip + 2**31, catalog.ra_deg, catalog.dec_deg, catalog.v_mag)
-    alg = PlanarTriangle()
-    db_big = alg.build(big.brighter_than(alg.mag_limit), camera)
-    sim = Simulator(big, camera, SimConfig(), seed=6)
-    n_ok = 0
-    for t in range(8):
-        obs = sim.observation(t)
-        hip = alg.identify(db_big, obs).hip
-        assert hip.dtype == np.int64
-        assert np.all((hip == -1) | (hip == obs.truth_hip))
-        n_ok += int((hip >= 2**31).sum() >= 3)
-    assert n_ok >= 6
-
 
 
 # --- explain --------------------------------------------------------------------------------

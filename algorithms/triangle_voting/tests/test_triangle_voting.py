@@ -10,9 +10,7 @@ import pytest
 
 from starid import ConfigError, Observation, SimConfig, Simulator
 from starid import run, summarize
-from starid.catalog import Catalog
 from starid.harness import Prepared, score
-from starid.testing import CHECKS, check_algorithm
 from starid.kernels import chord
 from starid.plugin import check_identification
 from starid.registry import get_algorithm
@@ -97,7 +95,7 @@ def test_database_invariants(algo, db, catalog, camera):
     assert np.array_equal(np.searchsorted(cell, np.arange(cell.max() + 2)), db.cell_start[:cell.max() + 2])
     # sky grid: rows of each sky cell contiguous
     assert db.sky_start[-1] == n and np.all(np.diff(db.sky_start) >= 0)
-    assert db.nbytes - sum(a.nbytes for a in db.deep) <= 2_000_000  # measured 1.58 MB at V <= 6.5
+    assert db.nbytes - db.deep.nbytes - db.deep_v_mag.nbytes <= 2_000_000  # measured 1.58 MB at V <= 6.5
 
 
 def test_records_match_recomputed_features(db):
@@ -173,24 +171,14 @@ def test_order_invariance_and_determinism(algo, db, catalog, noisy_sim):
         check_identification(algo.identify(db, obs), len(obs), catalog.hip)
 
 
-def test_false_stars_only_image_gives_nothing(algo, db, camera):
-    rng = np.random.default_rng(9)
-    hits = 0
-    for _ in range(20):
-        n = 12
-        obs = Observation(rng.uniform(0, 1024, n), rng.uniform(0, 1024, n), rng.uniform(2, 6, n), camera)
-        hits += int(np.any(algo.identify(db, obs).hip != -1))
-    assert hits == 0
-
-
 # -- identification rates (thresholds well below the measured values) -----------------------
 
 def test_noise_free_rate(algo, db, catalog, camera):
     sim = Simulator(catalog, camera, SimConfig(), seed=21)
     trials = sim.generate(300)
     s = summarize(score(Prepared(algo, algo.name, db, 0.0, 0.0), trials, catalog)).iloc[0]
-    assert s.id_rate >= 0.97  # measured 0.997 on 2,000 trials (seed 1)
-    assert s.misid_rate <= 0.01
+    assert s.id_rate >= 0.97  # measured 1.0 on these 300 (0.997 on 2,000, seed 1): margin 0.03
+    assert s.misid_rate <= 0.01  # measured 0 on these 300
     assert s.error_rate == 0
 
 
@@ -198,8 +186,8 @@ def test_noisy_rate_with_false_stars(algo, db, catalog, camera):
     sim = Simulator(catalog, camera, SimConfig(sigma_px=1.0, sigma_mag=0.5, false_stars=3), seed=22)
     trials = sim.generate(300)
     s = summarize(score(Prepared(algo, algo.name, db, 0.0, 0.0), trials, catalog)).iloc[0]
-    assert s.id_rate >= 0.85  # measured 0.92 on 2,000 trials (seed 1)
-    assert s.misid_rate <= 0.02
+    assert s.id_rate >= 0.85  # measured 0.97 on these 300 (0.92 on 2,000, seed 1): margin 0.12
+    assert s.misid_rate <= 0.02  # measured 0.0067 on these 300
 
 
 def test_extensions_help(catalog, camera):
@@ -224,51 +212,6 @@ def test_sigma_px_follows_the_simulator_with_a_1px_floor():
         assert alg.sigma_px == world and alg.sigma_window_px == window
     pinned = TriangleVoting(sigma_px=2.0).resolved(SimConfig(sigma_px=0.0))
     assert pinned.sigma_px == 2.0 and pinned.sigma_window_px == 2.0
-
-
-# --- trust (issue 10) -----------------------------------------------------------------------
-
-@pytest.mark.parametrize("check", CHECKS)
-def test_conformance(check):
-    check_algorithm(TriangleVoting, checks=[check])
-
-
-def test_random_fields_give_no_identification(db, camera):
-    """40 fields of 30 uniform random points (no real star): nothing may be identified."""
-    rng = np.random.default_rng(2024)
-    alg = TriangleVoting()
-    hits = 0
-    for _ in range(40):
-        obs = Observation(rng.uniform(0, 1024, 30), rng.uniform(0, 1024, 30), rng.uniform(2, 8, 30), camera)
-        hits += int(np.any(alg.identify(db, obs).hip != -1))
-    assert hits == 0
-
-
-def test_coincident_detections(db, catalog, camera):
-    """Two detections at the same pixel: no exception, neither gets an id, the rest stays right."""
-    obs = Simulator(catalog, camera, SimConfig(), seed=5).observation(0)
-    dup = Observation(np.r_[obs.x_px, obs.x_px[0]], np.r_[obs.y_px, obs.y_px[0]], np.r_[obs.mag, obs.mag[0]],
-                      camera, np.r_[obs.truth_hip, obs.truth_hip[0]])
-    hip = TriangleVoting().identify(db, dup).hip
-    assert hip.shape == (len(dup),) and not (hip[0] >= 0 and hip[-1] >= 0)
-    assert np.all((hip == -1) | (hip == dup.truth_hip))
-
-
-def test_ids_beyond_int32(catalog, camera):
-    """Catalog ids offset by 2^31 come back intact (int64 end to end)."""
-    big = Catalog.from_arrays(catalog.hip + 2**31, catalog.ra_deg, catalog.dec_deg, catalog.v_mag)
-    alg = TriangleVoting()
-    db_big = alg.build(big.brighter_than(alg.mag_limit), camera)
-    sim = Simulator(big, camera, SimConfig(), seed=6)
-    n_ok = 0
-    for t in range(8):
-        obs = sim.observation(t)
-        hip = alg.identify(db_big, obs).hip
-        assert hip.dtype == np.int64
-        assert np.all((hip == -1) | (hip == obs.truth_hip))
-        n_ok += int((hip >= 2**31).sum() >= 3)
-    assert n_ok >= 6
-
 
 
 # --- explain --------------------------------------------------------------------------------
