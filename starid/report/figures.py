@@ -120,9 +120,11 @@ def report_figures(frame: pd.DataFrame, paper: pd.DataFrame | None = None, paper
 
 
 def _histogram_rows(frame: pd.DataFrame, main: pd.DataFrame) -> tuple[pd.DataFrame, str | None]:
-    """A study sweeping only the sky gives one histogram per sky; else the main condition."""
+    """A study sweeping only the sky gives one histogram per sky (a study named ``fig10`` first: the
+    star counts as Fig. 10 counts them); else the main condition."""
     if "grid_sky" in frame.columns:
-        for study, part in frame.groupby("study", sort=False):
+        studies = sorted(frame.groupby("study", sort=False), key=lambda item: item[0] != "fig10")
+        for study, part in studies:
             if part["grid_sky"].nunique() > 1 and grid_axes(part) == ["sky"]:
                 return part, "grid_sky"
     return main, None
