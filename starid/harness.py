@@ -98,14 +98,25 @@ def timed_identify(prepared: Prepared, obs: Observation, catalog_hip: np.ndarray
     return np.asarray(result.hip, dtype=np.int64), elapsed_ns, ""
 
 
+def _image_fields(trials: TrialSet, i: int, obs: Observation) -> dict:
+    """The columns every row of image ``i`` has, whatever the algorithm did."""
+    return {"trial": int(trials.trial[i]), "n_stars": len(obs), "n_true_stars": int((obs.truth_hip >= 0).sum()),
+            "n_redraws": int(trials.n_redraws[i])}
+
+
+def param_columns(params: dict) -> dict:
+    """An algorithm's parameters as ``param_<key>`` columns (scalars as they are, anything else as text)."""
+    return {f"param_{k}": v if isinstance(v, (bool, int, float, str, type(None))) else repr(v)
+            for k, v in params.items()}
+
+
 def trial_row(prepared: Prepared, trials: TrialSet, i: int, catalog: Catalog, rule: SuccessRule,
               keep_ids: bool = False) -> dict:
     """Run, time and score image ``i`` of ``trials``: one trial row."""
     obs = trials.observation(i)
     hip, elapsed_ns, error = timed_identify(prepared, obs, catalog.hip)
-    row = {"trial": int(trials.trial[i]), "n_stars": len(obs), "n_true_stars": int((obs.truth_hip >= 0).sum()),
-           "error": error, **score_trial(hip, obs.truth_hip, rule), "time_us": elapsed_ns / 1e3,
-           "n_redraws": int(trials.n_redraws[i])}
+    row = {**_image_fields(trials, i, obs), "error": error, **score_trial(hip, obs.truth_hip, rule),
+           "time_us": elapsed_ns / 1e3}
     if error:
         row["status"] = ERROR
         row["attitude_err_arcsec"] = float("nan")
@@ -120,10 +131,8 @@ def trial_row(prepared: Prepared, trials: TrialSet, i: int, catalog: Catalog, ru
 
 def failed_row(trials: TrialSet, i: int, status: str, error: str) -> dict:
     """The row of image ``i`` when its ``identify`` never returned (timeout, crash)."""
-    obs = trials.observation(i)
-    return {"trial": int(trials.trial[i]), "n_stars": len(obs), "n_true_stars": int((obs.truth_hip >= 0).sum()),
-            "error": error, "n_identified": 0, "n_correct": 0, "n_wrong": 0, "status": status,
-            "time_us": float("nan"), "n_redraws": int(trials.n_redraws[i]), "attitude_err_arcsec": float("nan")}
+    return {**_image_fields(trials, i, trials.observation(i)), "error": error, "n_identified": 0, "n_correct": 0,
+            "n_wrong": 0, "status": status, "time_us": float("nan"), "attitude_err_arcsec": float("nan")}
 
 
 def rows_to_frame(prepared: Prepared, rows: list[dict]) -> pd.DataFrame:
@@ -179,8 +188,8 @@ def run(algorithms, trials: TrialSet, catalog: Catalog, simulator=None, rule: Su
             iterator = tqdm(iterator, desc=label, unit="img", leave=False)
         rows = [trial_row(prepared, trials, i, catalog, rule, keep_ids) for i in iterator]
         df = rows_to_frame(prepared, rows)
-        for key, value in algorithm.params().items():
-            df[f"param_{key}"] = value if not isinstance(value, (list, dict, tuple)) else repr(value)
+        for key, value in param_columns(algorithm.params()).items():
+            df[key] = value
         frames.append(df)
     out = pd.concat(frames, ignore_index=True)
     if simulator is not None:

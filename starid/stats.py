@@ -62,7 +62,7 @@ def summarize(df: pd.DataFrame, by=("label",)) -> pd.DataFrame:
     ``by`` may add grid columns (e.g. ``("point", "label")``); they follow the summary columns.
     Times are over the trials that ran (not over failures).
     """
-    by = [c for c in ([by] if isinstance(by, str) else list(by))]
+    by = [by] if isinstance(by, str) else list(by)
     if "label" in by and "label" not in df.columns:
         df = df.assign(label=df["algorithm"])
     out = []

@@ -115,7 +115,7 @@ def report_figures(frame: pd.DataFrame, paper: pd.DataFrame | None = None, paper
         "rate_by_stars", "Rate vs stars in the field (Fig. 11)",
         f"Identification rate by the number of true stars in the image ({_where(hist_rows) if not by else where}), "
         f"with 95 % Wilson intervals; bins with few images have wide intervals.",
-        plots.rate_by_stars(main if by else hist_rows, title=f"rate vs stars in the field", styles=styles)))
+        plots.rate_by_stars(main if by else hist_rows, title="rate vs stars in the field", styles=styles)))
     return out
 
 
