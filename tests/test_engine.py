@@ -106,7 +106,10 @@ def test_killed_run_resumes_without_recomputing(tmp_path, monkeypatch):
     proc.wait()
     finished = {p.name: p.stat().st_mtime_ns for p in chunks.glob("*.parquet")}
     assert 3 <= len(finished) < 16, "the run was not interrupted mid-way"
-    assert not list(chunks.glob(".*.tmp")) or True   # a temp file of a killed write is never read
+    # what a write killed mid-way leaves behind: a truncated temp file beside a missing chunk; never read
+    missing = next(key for key in read_manifest(out)["chunks"] if f"{key}.parquet" not in finished)
+    leftover = chunks / f".{missing}.parquet.killed.tmp"
+    leftover.write_bytes(b"PAR1 truncated")
     exp = Experiment("killed", (Study("s", ("ptp", "pvector"), Grid({"sigma_px": [0.0, 1.0]})),),
                      trials=200, seed=1)
     resumed = run_experiment(exp, out, jobs=2, progress=False)
@@ -114,6 +117,7 @@ def test_killed_run_resumes_without_recomputing(tmp_path, monkeypatch):
     assert manifest["reused_chunks"] == len(finished) and manifest["computed_chunks"] == 16 - len(finished)
     for name, mtime in finished.items():
         assert (chunks / name).stat().st_mtime_ns == mtime, "a finished chunk was recomputed"
+    assert (chunks / f"{missing}.parquet").is_file() and leftover.read_bytes() == b"PAR1 truncated"
     fresh = run_experiment(exp, None, jobs=2, progress=False)
     same(resumed, fresh)
 

@@ -8,7 +8,6 @@ from starid.stats import mcnemar
 SUMMARY = ["algorithm", "trials", "id_rate", "id_rate_lo", "id_rate_hi", "misid_rate", "no_result_rate",
            "star_recall", "star_precision", "time_median_us", "time_mean_us", "time_p95_us", "db_mb", "build_s",
            "compile_s"]
-MEASURED = ["time_us", "build_s", "compile_s"]
 
 
 def test_mcnemar_exact():
@@ -21,15 +20,13 @@ def test_mcnemar_exact():
     assert r["p_value"] == pytest.approx(0.3017578125)     # 2 * P(X <= 5), X ~ Binomial(15, 1/2)
 
 
-def test_table6_files_two_skies_and_jobs_invariance(tmp_path, capsys):
-    for jobs in (1, 2):
-        assert main(["table6", "--trials", "24", "--seed", "5", "--jobs", str(jobs), "--quiet",
-                     "--out", str(tmp_path / f"j{jobs}")]) == 0
+def test_table6_files_two_skies(tmp_path, capsys):
+    # --jobs 1 against --jobs 2 is tests/test_engine.py::test_jobs_do_not_change_results (the same engine)
+    assert main(["table6", "--trials", "24", "--seed", "5", "--jobs", "2", "--quiet", "--out", str(tmp_path / "j1")]) == 0
     out = capsys.readouterr().out
     assert "| ptp |" in out and "McNemar" in out
     assert out.index("paper's sky") < out.index("real sky")
-    t1, t2 = (pd.read_csv(tmp_path / f"j{j}" / "trials.csv") for j in (1, 2))
-    pd.testing.assert_frame_equal(t1.drop(columns=MEASURED), t2.drop(columns=MEASURED))
+    t1 = pd.read_csv(tmp_path / "j1" / "trials.csv")
     table = pd.read_csv(tmp_path / "j1" / "table6.csv")
     assert list(table.columns[:len(SUMMARY)]) == SUMMARY
     assert {"paper_id_rate", "paper_time_ms", "paper_db_mb", "sky"} <= set(table.columns)
