@@ -207,6 +207,18 @@ def tables_for(manifest: dict, frame: pd.DataFrame) -> tuple[list[Table], str]:
 
 # ---------------------------------------------------------------------------------------------- report
 
+def _write_documents(blocks: list, title: str, folder: Path, stem: str, formats) -> dict:
+    """``blocks`` written atomically as ``folder/stem.md`` and/or ``.html``; the paths by format."""
+    written = {}
+    if "md" in formats:
+        written["md"] = folder / f"{stem}.md"
+        atomic_write_text(written["md"], render_markdown(blocks))
+    if "html" in formats:
+        written["html"] = folder / f"{stem}.html"
+        atomic_write_text(written["html"], render_html(blocks, title, folder))
+    return written
+
+
 def build_report(folder: str | Path, formats=FORMATS, svg: bool = True) -> dict:
     """Write ``report.md`` / ``report.html`` and ``figures/*`` into ``folder``; the written paths."""
     folder = Path(folder)
@@ -234,13 +246,7 @@ def build_report(folder: str | Path, formats=FORMATS, svg: bool = True) -> dict:
     for f in figures:
         blocks += [Block("h3", f.title), Block("fig", f.caption, f)]
     blocks += provenance(manifest, frame)
-    written = {}
-    if "md" in formats:
-        written["md"] = folder / "report.md"
-        atomic_write_text(written["md"], render_markdown(blocks))
-    if "html" in formats:
-        written["html"] = folder / "report.html"
-        atomic_write_text(written["html"], render_html(blocks, title, folder))
+    written = _write_documents(blocks, title, folder, "report", formats)
     written["figures"] = [folder / "figures" / f"{f.name}.png" for f in figures]
     written["tables"] = [t.name for t in tables]
     return written
@@ -467,14 +473,7 @@ def build_regression(old: str | Path, new: str | Path, out: str | Path | None = 
               Block("h2", "Differences"), Block("md", markdown(shown)),
               Block("h2", "Figure"), Block("fig", fig.caption, fig),
               Block("h2", "Provenance"), Block("md", _kv_table(pairs))]
-    written = {}
-    if "md" in formats:
-        written["md"] = out / "regression.md"
-        atomic_write_text(written["md"], render_markdown(blocks))
-    if "html" in formats:
-        written["html"] = out / "regression.html"
-        atomic_write_text(written["html"], render_html(blocks, title, out))
-    return written, diff
+    return _write_documents(blocks, title, out, "regression", formats), diff
 
 
 __all__ = ["build_regression", "build_report", "compare", "load", "markdown_to_html", "render_html",
