@@ -17,7 +17,10 @@ An algorithm is a small class (a frozen dataclass is the easy way) that
   parameter defaults to ``None`` = "follow the simulator": :meth:`Algorithm.resolved` fills it
   from the simulator's settings before the database is built, so ``--pos-noise-px 3`` retunes
   the algorithm unless the user pins the parameter. A plugin must still work when it is ``None``
-  (called outside the harness) and applies its own floor (a 0 px world still needs a window).
+  (called outside the harness) and applies its own floor (a 0 px world still needs a window);
+* optionally lists in ``published`` the parameter overrides that turn its defaults into the
+  method exactly as its paper publishes it (starid's extensions and flight precautions off), so
+  "as published" and "as improved" can run side by side: the variant ``NAME:paper``.
 
 The harness, not the plugin, decides whether an identification is correct. Plugins register
 through the entry-point group ``starid.algorithms`` (see ``pyproject.toml``), or in process
@@ -122,6 +125,9 @@ class Algorithm(abc.ABC):
     name: ClassVar[str] = ""
     #: parameter name -> :class:`starid.simulate.SimConfig` field it follows when left ``None``
     follows: ClassVar[dict] = {}
+    #: parameter overrides giving the method as published (the ``NAME:paper`` variant); empty when
+    #: the defaults are the paper's
+    published: ClassVar[dict] = {}
 
     def params(self) -> dict:
         """The parameters of this instance, as a plain dict (for result rows)."""

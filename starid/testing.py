@@ -83,6 +83,13 @@ def _check_default_constructible(cls, algorithm, db, catalog, camera):
     _require(bool(cls.summary()), f"{cls.__name__} needs a docstring (first line = summary, then the reference)")
     _require(isinstance(algorithm.params(), dict), "params() must return a dict")
     _require(isinstance(db.nbytes, int) and db.nbytes > 0, "database.nbytes must be a positive int")
+    _require(isinstance(cls.published, dict), "'published' must be a dict of parameter overrides")
+    if cls.published:
+        try:
+            published = cls(**cls.published)
+        except TypeError as exc:
+            raise ConformanceError(f"'published' names a parameter {cls.__name__} does not take: {exc}") from None
+        _require(published.params() != algorithm.params(), "'published' changes no parameter: leave it empty")
 
 
 def _check_deterministic(cls, algorithm, db, catalog, camera):

@@ -8,6 +8,7 @@ import re
 import typing
 
 from ..catalog import load_hipparcos
+from ..experiment.spec import Variant
 from ..camera import Camera
 from ..registry import algorithm_info, available_algorithms
 
@@ -71,6 +72,8 @@ def cmd_info(args) -> int:
         print(f"  {r['name']:<{width}}  {r['type']:<14} default {r['default']!r}{unit}{tail}")
         if r["meaning"]:
             print(f"  {'':<{width}}  {r['meaning'][:300]}")
+    if getattr(cls, "published", None):
+        print(f"\nas published ({info.name}:paper): {Variant(info.name, cls.published).label}")
     if not args.no_build:
         db = cls().build(load_hipparcos(), Camera())
         print(f"\ndatabase for the default camera and the embedded catalog: {db.nbytes / 1e6:.3f} MB")

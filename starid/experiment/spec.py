@@ -41,6 +41,8 @@ from ..registry import get_algorithm
 from ..simulate import SKIES, SimConfig
 
 _LABEL = re.compile(r"^\s*([A-Za-z_][\w.-]*)\s*(?:\[(.*)\])?\s*$")
+#: The suffix of the "as published" variant of a plugin (its ``published`` overrides).
+PAPER_SUFFIX = ":paper"
 
 
 def _format_value(value) -> str:
@@ -98,8 +100,19 @@ class Variant:
             object.__setattr__(self, "label", f"{self.name}[{inner}]" if inner else self.name)
 
     @classmethod
+    def as_published(cls, name: str, **params) -> "Variant":
+        """``NAME:paper``: the plugin's ``published`` overrides on top of ``params``."""
+        algo = get_algorithm(name)
+        if not algo.published:
+            raise ConfigError(f"{name} declares no 'published' parameters: its defaults are the paper's method")
+        return cls(name, tuple({**params, **algo.published}.items()), f"{name}{PAPER_SUFFIX}")
+
+    @classmethod
     def parse(cls, text: str) -> "Variant":
-        """``"ptp"`` or ``"ptp[n_slaves=3,verify=false]"``, values coerced by the field types."""
+        """``"ptp"``, ``"ptp[n_slaves=3,verify=false]"`` (values coerced by the field types) or
+        ``"ptp:paper"`` (:meth:`as_published`)."""
+        if text.strip().endswith(PAPER_SUFFIX):
+            return cls.as_published(text.strip()[:-len(PAPER_SUFFIX)])
         m = _LABEL.match(text)
         if not m:
             raise ConfigError(f"cannot read algorithm {text!r}; expected NAME or NAME[KEY=VALUE,...]")
