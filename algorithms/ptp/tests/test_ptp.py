@@ -33,7 +33,12 @@ def test_database_layout(db, catalog):
     assert np.all(np.diff(db.proj) >= 0)
     assert db.ids.dtype == np.uint16 and db.kv.k.dtype == np.uint16 and db.sides.dtype == np.float32
     assert db.guide_hip.dtype == np.int64
-    assert db.nbytes / 1e6 <= 0.80                         # the paper's Table 6: 0.784 MB (+ int64 ids here)
+    # the paper's Table 6: 0.784 MB; here + int64 ids, d_max 6 deg (measured 0.81 MB) and the whole-image
+    # check's unit vectors (V <= 7, float32, 0.126 MB): 0.939 MB
+    assert (db.nbytes - db.extra_unit.nbytes) / 1e6 <= 0.82 and db.nbytes / 1e6 <= 0.95
+    assert db.extra_unit.dtype == np.float32 and np.all(np.diff(db.extra_unit[:, 2]) >= 0)
+    assert 10_000 <= db.extra_unit.shape[0] <= 10_600       # 6 < V <= 7 (and the excluded doubles)
+    assert PTP(hypotheses=0).build(catalog, Camera()).extra_unit.shape == (0, 3)
     assert np.linalg.norm(db.axis) == pytest.approx(1.0) and db.axis.sum() > 0
     # recompute one triangle from the catalog
     rows = catalog.index_of(db.guide_hip)                   # guide rows are in declination order
@@ -44,7 +49,7 @@ def test_database_layout(db, catalog):
     assert np.allclose(db.sides[:, 123], [a, b, c], rtol=1e-6)
     assert db.proj[123] == pytest.approx(db.axis @ (np.array([a, b, c]) - db.mean), abs=1e-3)
     assert a <= c                                          # r2 is the nearer slave
-    assert 8.728 - 1e-6 <= min(a, c) and max(a, c) <= 872.8 + 1e-6
+    assert 8.728 - 1e-6 <= min(a, c) and max(a, c) <= PTP()._d_max + 1e-6 < 1047.2    # 0.05 - 6 deg
 
 
 def test_projection_sigma_matches_monte_carlo():
