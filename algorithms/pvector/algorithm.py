@@ -129,16 +129,27 @@ class PVector(Algorithm):
     image reports as many verified stars as possible), and the attitude.
 
     Pattern radius: the usual reading suggests R = FOV/2 = 5 deg, but then no main star's R-disc ever
-    lies inside the 10 x 10 deg image, and a catalog neighbour outside the image
-    breaks the triangle. The default R = 4 deg is the best of 3.5 / 4 / 4.5 / 5 deg on
-    noise-free trials (seed 1: 95.6 / 96.1 / 94.9 / 92.9 %); it is a reconstruction.
+    lies inside the 10 x 10 deg image, and a catalog neighbour outside the image breaks the triangle.
+    With one triangle per guide star R = 4 deg was the best on noise-free trials (seed 1: 3.5 / 4 / 4.5
+    / 5 deg gave 95.6 / 96.1 / 94.9 / 92.9 %). With K = 5 triangles per star and the whole-image pass,
+    R = 5 deg is better in the real sky (seed 7: R = 4 / 4.5 / 5 / 6 deg at K = 3: 91.4 / 92.7 / 92.4 /
+    89.1 %; K = 5, R = 5: 95.65 %). Both are reconstructions.
 
     Extensions (each a parameter, measured in docs/algorithms/pvector.md): ``triangles_per_star``
-    K = 3 (the triangles of the 3 brightest neighbours; chosen because its database, 0.46 MB, is the
-    closest to the paper's 0.537 MB), ``search`` ('linear': the search of a sorted table without an
-    index, which explains why the paper's P-vector is slower than PTP), ``mag_margin`` (flight
-    precaution), ``assign_all`` (the standard final step), ``confirm_fraction``, ``max_stars``,
+    K = 5 (the triangles of every pair of the 5 brightest neighbours, so two of them in the image
+    suffice; chosen on the real-sky rate, seed 7; the database, 1.09 MB with compact uint16 sides and
+    k-vector, is 2x the paper's 0.537 MB; K = 3, 0.48 MB, is the closest to the paper's size),
+    ``image_neighbours`` (the image side's K, a superset of the database's), ``hypotheses`` (64; 0 = off:
+    when no triangle is confirmed by ``k_min`` guide-star distance matches, the correspondences that
+    passed the side and handedness checks are tried again, each confirmed when its attitude explains the
+    whole image: ``max(check_min_stars, check_fraction * n)`` (5, 0.5) detections within eps_d of a
+    predicted star among the guide stars and the stars to ``check_mag_limit`` (V 7), its own three
+    included; a real sensor images every star to its limit, so a sparse field often holds a single
+    database triangle and too few guide stars for k_min), ``search`` ('linear': the search of a sorted
+    table without an index, which explains why the paper's P-vector is slower than PTP), ``mag_margin``
+    (flight precaution), ``assign_all`` (the standard final step), ``confirm_fraction``, ``max_stars``,
     ``max_candidates`` (bounds for very wide or crowded images). Tuned on seed 7, evaluated on seed 11.
+    The form closest to the paper: ``triangles_per_star=2, hypotheses=0`` (``pattern_radius_deg=4``).
 
     Tolerances and other numbers the paper does not give (r_min = 0.2 deg, beta = 3,
     k_min = 2) are reconstructions (docs/algorithms/pvector.md).

@@ -52,6 +52,8 @@ def test_registered_and_default_constructible():
     dict(k_min=-1), dict(k_min=1.5), dict(k_min=True), dict(side_order="perimeter"),
     dict(neighbour_rule="faintest"), dict(main_order="random"), dict(disc_inside_only=1),
     dict(max_stars=2), dict(max_candidates=0), dict(confirm_fraction=1.5),
+    dict(hypotheses=-1), dict(image_neighbours=1), dict(check_min_stars=3), dict(check_fraction=-0.1),
+    dict(check_mag_limit=float("nan")),
 ])
 def test_parameter_validation(kwargs):
     with pytest.raises(ConfigError):
@@ -251,3 +253,17 @@ def test_explain_shows_the_guide_star_and_its_two_brightest_neighbours(algo, db,
     d = np.hypot(obs.x_px - obs.x_px[main], obs.y_px - obs.y_px[main])
     assert obs.mag[n1] <= obs.mag[n2] and d[n1] > 0
     assert algo.explain(db, Observation(obs.x_px[:2], obs.y_px[:2], obs.mag[:2], camera)).caption
+
+
+def test_whole_image_pass_recovers_sparse_real_sky_fields(db, catalog):
+    """The whole-image pass (``hypotheses``) raises the real-sky rate without misidentification, and its
+    star list holds exactly the non-guide stars to V 7."""
+    extra = np.sort(catalog.unit_icrs[(catalog.v_mag <= 7.0) & ~np.isin(catalog.hip, db.hip)][:, 2])
+    assert np.allclose(np.sort(db.extra_unit[:, 2]), extra, atol=1e-7)
+    assert PVector(hypotheses=0).build(catalog, Camera()).extra_unit.shape == (0, 3)
+    sim = Simulator(catalog, Camera(), SimConfig(sigma_px=1.0, sigma_mag=0.5), seed=43)    # real sky
+    trials = sim.generate(150)
+    s = summarize(run([PVector(), ("off", PVector(hypotheses=0))], trials, catalog, sim)).set_index("label")
+    # measured on these 150 trials: default 0.973, hypotheses=0 0.947; no misidentification
+    assert s.loc["pvector", "id_rate"] >= s.loc["off", "id_rate"] + 0.02
+    assert s["misid_rate"].max() <= 0.01
