@@ -332,6 +332,8 @@ def match_rows(unit, view, db, tol):
     5. (``confirm_fraction``, starid's extension) the attitude of the surviving pairings
        (Wahba) must put guide stars in the image of which at least that fraction is observed
        within the same tolerance (``reproject_assign``); otherwise nothing is reported.
+    6. (``hypotheses``, starid's extension) if fewer than three stars remain, each matched triangle alone
+       is a hypothesis checked against the whole image (:func:`try_hypotheses`).
     """
     frame = view.frame
     f_px, cx_px, cy_px = frame.f_px, frame.cx_px, frame.cy_px
