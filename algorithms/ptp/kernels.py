@@ -29,6 +29,8 @@ class Tables(NamedTuple):
     mean : (3,) mean side vector; axis : (3,) projection axis u_max.
     guide_unit : float32 (g, 3) guide unit vectors (ICRS, z-sorted); guide_hip : int64 (g,) their ids.
     deep : :class:`starid.kernels.DeepSky`, the deeper catalog stars for ``assign_all`` (may be empty).
+    extra_unit : float32 (e, 3) ICRS unit vectors, z-sorted, of the catalog stars that are not guide
+        stars, to V <= ``check_mag_limit`` (the whole-image check; may be empty).
     """
 
     kv: KVector
@@ -39,6 +41,7 @@ class Tables(NamedTuple):
     guide_unit: np.ndarray
     guide_hip: np.ndarray
     deep: DeepSky
+    extra_unit: np.ndarray
 
 
 class Tolerances(NamedTuple):
@@ -66,6 +69,9 @@ class Tolerances(NamedTuple):
     image_slaves: int
     star_mag_max: float
     assign_all: bool
+    hypotheses: int
+    check_min_stars: int
+    check_fraction: float
 
 
 @njit(cache=True)
@@ -326,6 +332,8 @@ def match_rows(unit, view, db, tol):
     5. (``confirm_fraction``, starid's extension) the attitude of the surviving pairings
        (Wahba) must put guide stars in the image of which at least that fraction is observed
        within the same tolerance (``reproject_assign``); otherwise nothing is reported.
+    6. (``hypotheses``, starid's extension) if fewer than three stars remain, each matched triangle alone
+       is a hypothesis checked against the whole image (:func:`try_hypotheses`).
     """
     frame = view.frame
     f_px, cx_px, cy_px = frame.f_px, frame.cx_px, frame.cy_px
@@ -480,4 +488,104 @@ def match_rows(unit, view, db, tol):
                                                f_px, cx_px, cy_px, frame.width_px, frame.height_px)
         if n_seen < tol.confirm_fraction * n_predicted:
             result[:] = -1
+            n_found = 0
+    if n_found < 3 and tol.hypotheses > 0:
+        if try_hypotheses(unit, view, db, tol, n_match, m_img, m_cat, support, tol_chord, result):
+            return result
+        result[:] = -1
     return result
+
+
+@njit(cache=True)
+def explained(attitude, unit, db, view, eps_chord, rows_guide, rows_extra):
+    """Whole-image check: how many detections ``attitude`` explains, i.e. lie within chord ``eps_chord`` of
+    exactly one predicted catalog star (guide stars and the stars to ``check_mag_limit`` in ``extra_unit``;
+    ``starid.kernels.reproject_assign``, one-to-one per list). Fills ``rows_guide`` / ``rows_extra``."""
+    frame = view.frame
+    c_fov = view.c_fov + eps_chord
+    reproject_assign(attitude, unit, db.guide_unit, c_fov, eps_chord, rows_guide, frame.f_px, frame.cx_px,
+                     frame.cy_px, frame.width_px, frame.height_px)
+    if db.extra_unit.shape[0] > 0:
+        reproject_assign(attitude, unit, db.extra_unit, c_fov, eps_chord, rows_extra, frame.f_px, frame.cx_px,
+                         frame.cy_px, frame.width_px, frame.height_px)
+    else:
+        rows_extra[:] = -1
+    count = 0
+    for i in range(unit.shape[0]):
+        if rows_guide[i] >= 0 or rows_extra[i] >= 0:
+            count += 1
+    return count
+
+
+@njit(cache=True)
+def try_hypotheses(unit, view, db, tol, n_match, m_img, m_cat, support, eps_chord, result):
+    """Extension (``hypotheses``): when sharing-star validation gives no identification, each matched
+    triangle alone is a hypothesis, best supported first (then brightest stars: ``unit`` is in brightness
+    order), at most ``tol.hypotheses`` distinct ones. Its attitude (Wahba on the three pairings) must
+    explain its own three stars and at least ``max(check_min_stars, check_fraction * n)`` of the ``n``
+    detections (:func:`explained`); the attitude is then refined on every explained detection and the
+    check repeated. The first hypothesis that passes gives the guide-star ids in ``result``."""
+    n = unit.shape[0]
+    need = max(tol.check_min_stars, int(math.ceil(tol.check_fraction * n)))
+    if n < need or n_match == 0:
+        return False
+    score = np.empty(n_match)
+    for mi in range(n_match):
+        sup = support[3 * mi] + support[3 * mi + 1] + support[3 * mi + 2]
+        score[mi] = -float(sup) * 3.0 * n + float(m_img[mi, 0] + m_img[mi, 1] + m_img[mi, 2])
+    order = np.argsort(score, kind="mergesort")
+    rows = np.empty(n, dtype=np.int64)
+    rows_g = np.empty(n, dtype=np.int64)
+    rows_x = np.empty(n, dtype=np.int64)
+    cat_vec = np.empty((n, 3))
+    tried_img = np.empty((tol.hypotheses, 3), dtype=np.int64)
+    tried_cat = np.empty((tol.hypotheses, 3), dtype=np.int64)
+    n_tried = 0
+    for oi in range(n_match):
+        if n_tried >= tol.hypotheses:
+            break
+        mi = order[oi]
+        seen = False
+        for t in range(n_tried):
+            same = True
+            for v in range(3):
+                if tried_img[t, v] != m_img[mi, v] or tried_cat[t, v] != m_cat[mi, v]:
+                    same = False
+            if same:
+                seen = True
+                break
+        if seen:
+            continue
+        for v in range(3):
+            tried_img[n_tried, v] = m_img[mi, v]
+            tried_cat[n_tried, v] = m_cat[mi, v]
+        n_tried += 1
+        rows[:] = -1
+        for v in range(3):
+            rows[m_img[mi, v]] = m_cat[mi, v]
+        attitude = wahba_rows(unit, rows, db.guide_unit)
+        count = explained(attitude, unit, db, view, eps_chord, rows_g, rows_x)
+        own = True
+        for v in range(3):
+            if rows_g[m_img[mi, v]] != m_cat[mi, v]:
+                own = False
+        if not own or count < need:
+            continue
+        for i in range(n):     # refine on every explained detection, then check again
+            rows[i] = -1
+            if rows_g[i] >= 0 or rows_x[i] >= 0:
+                rows[i] = i
+                for a in range(3):
+                    cat_vec[i, a] = db.guide_unit[rows_g[i], a] if rows_g[i] >= 0 else db.extra_unit[rows_x[i], a]
+        attitude = wahba_rows(unit, rows, cat_vec)
+        count = explained(attitude, unit, db, view, eps_chord, rows_g, rows_x)
+        n_guide = 0
+        for i in range(n):
+            if rows_g[i] >= 0:
+                n_guide += 1
+        if count < need or n_guide < 3:
+            continue
+        for i in range(n):
+            result[i] = rows_g[i]
+        return True
+    return False

@@ -35,7 +35,9 @@ class PVectorDatabase(Database):
     kv : :class:`starid.kernels.KVector`: ``kv.values`` float32 (m,) the keys P = p . d of every
         triangle, ascending; ``kv.k`` int32 (m,) the k-vector; ``kv.m``, ``kv.q`` its line
         (Mortari & Neta 2000).
-    tri_sides : float32 (m, 3) the side vector d (rad) in the order the key uses.
+    tri_sides : uint16 (m, 3) the side vector d in the order the key uses, in units of ``side_step_rad``
+        (2R / 65535: about 3 urad at R = 5 deg, 0.02 px on the Table 4 camera, far below the tolerance).
+    side_step_rad : float, the unit of ``tri_sides``.
     tri_rows : int16/int32 (m, 3) guide rows of (S, N1, N2): main star, brighter (or nearer)
         neighbour, the other neighbour.
     unit_icrs : float32 (n, 3) guide-star unit vectors, sorted by z (declination bands).
@@ -48,10 +50,12 @@ class PVectorDatabase(Database):
     p_axis: np.ndarray
     kv: KVector
     tri_sides: np.ndarray
+    side_step_rad: float
     tri_rows: np.ndarray
     unit_icrs: np.ndarray
     hip: np.ndarray
     deep: DeepSky
+    extra_unit: np.ndarray
     explained_variance: float = float("nan")
 
     @property
@@ -61,8 +65,8 @@ class PVectorDatabase(Database):
 
     def tables(self) -> K.Tables:
         """The arrays identify reads, as one kernel argument."""
-        return K.Tables(self.p_axis, self.kv, self.tri_sides, self.tri_rows, self.unit_icrs, self.hip,
-                        self.deep)
+        return K.Tables(self.p_axis, self.kv, self.tri_sides, float(self.side_step_rad), self.tri_rows, self.unit_icrs, self.hip,
+                        self.deep, self.extra_unit)
 
 
 @dataclass(frozen=True)
@@ -125,16 +129,27 @@ class PVector(Algorithm):
     image reports as many verified stars as possible), and the attitude.
 
     Pattern radius: the usual reading suggests R = FOV/2 = 5 deg, but then no main star's R-disc ever
-    lies inside the 10 x 10 deg image, and a catalog neighbour outside the image
-    breaks the triangle. The default R = 4 deg is the best of 3.5 / 4 / 4.5 / 5 deg on
-    noise-free trials (seed 1: 95.6 / 96.1 / 94.9 / 92.9 %); it is a reconstruction.
+    lies inside the 10 x 10 deg image, and a catalog neighbour outside the image breaks the triangle.
+    With one triangle per guide star R = 4 deg was the best on noise-free trials (seed 1: 3.5 / 4 / 4.5
+    / 5 deg gave 95.6 / 96.1 / 94.9 / 92.9 %). With K = 5 triangles per star and the whole-image pass,
+    R = 5 deg is better in the real sky (seed 7: R = 4 / 4.5 / 5 / 6 deg at K = 3: 91.4 / 92.7 / 92.4 /
+    89.1 %; K = 5, R = 5: 95.65 %). Both are reconstructions.
 
     Extensions (each a parameter, measured in docs/algorithms/pvector.md): ``triangles_per_star``
-    K = 3 (the triangles of the 3 brightest neighbours; chosen because its database, 0.46 MB, is the
-    closest to the paper's 0.537 MB), ``search`` ('linear': the search of a sorted table without an
-    index, which explains why the paper's P-vector is slower than PTP), ``mag_margin`` (flight
-    precaution), ``assign_all`` (the standard final step), ``confirm_fraction``, ``max_stars``,
+    K = 5 (the triangles of every pair of the 5 brightest neighbours, so two of them in the image
+    suffice; chosen on the real-sky rate, seed 7; the database, 1.09 MB with compact uint16 sides and
+    k-vector, is 2x the paper's 0.537 MB; K = 3, 0.48 MB, is the closest to the paper's size),
+    ``image_neighbours`` (the image side's K, a superset of the database's), ``hypotheses`` (64; 0 = off:
+    when no triangle is confirmed by ``k_min`` guide-star distance matches, the correspondences that
+    passed the side and handedness checks are tried again, each confirmed when its attitude explains the
+    whole image: ``max(check_min_stars, check_fraction * n)`` (5, 0.5) detections within eps_d of a
+    predicted star among the guide stars and the stars to ``check_mag_limit`` (V 7), its own three
+    included; a real sensor images every star to its limit, so a sparse field often holds a single
+    database triangle and too few guide stars for k_min), ``search`` ('linear': the search of a sorted
+    table without an index, which explains why the paper's P-vector is slower than PTP), ``mag_margin``
+    (flight precaution), ``assign_all`` (the standard final step), ``confirm_fraction``, ``max_stars``,
     ``max_candidates`` (bounds for very wide or crowded images). Tuned on seed 7, evaluated on seed 11.
+    The form closest to the paper: ``triangles_per_star=2, hypotheses=0`` (``pattern_radius_deg=4``).
 
     Tolerances and other numbers the paper does not give (r_min = 0.2 deg, beta = 3,
     k_min = 2) are reconstructions (docs/algorithms/pvector.md).
@@ -149,7 +164,7 @@ class PVector(Algorithm):
     """Assumed centroid noise (px) from which every tolerance is derived (Table 6: 1 px). ``None``
     (default) follows the simulator; floored at ``SIGMA_FLOOR_PX`` = 1 px, so a noise-free world
     still gets a window."""
-    pattern_radius_deg: float = 4.0
+    pattern_radius_deg: float = 5.0
     """R: neighbours lie within R of the main star (reconstructed; see the class docstring)."""
     min_sep_deg: float = 0.2
     """r_min: closer neighbours are ignored (close pairs;: 0.2-0.5 deg, reconstructed)."""
@@ -172,7 +187,7 @@ class PVector(Algorithm):
     the Table 4 camera: 1,000 real-sky trials identical with 64; a 40 deg field 30x faster)."""
     confirm_fraction: float = 0.5
     """The attitude must find at least this fraction of the guide stars it puts in the image (0: off)."""
-    triangles_per_star: int = 3
+    triangles_per_star: int = 5
     """K: each guide star stores the triangles of its K brightest neighbours, K(K-1)/2 of them
     (2 = one triangle per star; reconstruction, see docs/algorithms/pvector.md)."""
     search: str = "kvector"
@@ -184,6 +199,21 @@ class PVector(Algorithm):
     (V <= ``deep_mag_limit``) predicted within the tolerance."""
     deep_mag_limit: float = 7.5
     """Depth of the catalog kept for ``assign_all`` (stored only when ``assign_all``)."""
+    image_neighbours: int = 5
+    """Extension: the image side forms the triangles of each main star's this many brightest neighbours, a
+    superset of the database's ``triangles_per_star`` (a V > 6 star that noise brought in, or a missing
+    guide star, among the brightest does not break every triangle); ``image_neighbours <=
+    triangles_per_star`` is the database's own rule."""
+    hypotheses: int = 64
+    """Extension (0 = off): when no triangle is confirmed, up to this many of the correspondences that passed
+    the side and handedness checks are tried again, each confirmed by its attitude explaining the whole image
+    (guide stars and the stars to ``check_mag_limit``) instead of by ``k_min`` guide-star distance matches."""
+    check_mag_limit: float = 7.0
+    """Depth of the whole-image check's star list (unit vectors only; stored only when ``hypotheses`` > 0)."""
+    check_min_stars: int = 5
+    """Detections (triangle included) the attitude must explain, at least."""
+    check_fraction: float = 0.5
+    """... and at least this fraction of the detections."""
 
     def __post_init__(self):
         check_number("mag_limit", self.mag_limit)
@@ -208,6 +238,11 @@ class PVector(Algorithm):
         check_number("mag_margin", self.mag_margin)
         check_flag("assign_all", self.assign_all)
         check_number("deep_mag_limit", self.deep_mag_limit)
+        check_whole("hypotheses", self.hypotheses, 0, 10_000)
+        check_whole("image_neighbours", self.image_neighbours, 2, 20)
+        check_number("check_mag_limit", self.check_mag_limit)
+        check_whole("check_min_stars", self.check_min_stars, 4)
+        check_number("check_fraction", self.check_fraction, lo=0, hi=1)
         tol = K.Tolerances(
             mag_limit=float(self.mag_limit),
             c_rmin=rad_to_chord(math.radians(self.min_sep_deg)),
@@ -226,7 +261,11 @@ class PVector(Algorithm):
             triangles_per_star=int(self.triangles_per_star),
             linear_search=self.search == "linear",
             assign_all=bool(self.assign_all),
-            mag_margin=float(self.mag_margin))
+            mag_margin=float(self.mag_margin),
+            hypotheses=int(self.hypotheses),
+            image_neighbours=int(self.image_neighbours),
+            check_min_stars=int(self.check_min_stars),
+            check_fraction=float(self.check_fraction))
         object.__setattr__(self, "_tol", tol)
 
     # ------------------------------------------------------------------ build
@@ -282,17 +321,30 @@ class PVector(Algorithm):
             p_axis = -p_axis
         key = (sides @ p_axis).astype(np.float32)
         order = np.argsort(key, kind="stable")
+        step = float(sides.max()) / np.iinfo(np.uint16).max
         row_dtype = np.int16 if unit.shape[0] <= np.iinfo(np.int16).max else np.int32
         return PVectorDatabase(
             p_axis=np.ascontiguousarray(p_axis, dtype=np.float64),
-            kv=kvector_make(key[order], values_dtype=np.float32, index_dtype=np.int32),
-            tri_sides=np.ascontiguousarray(sides[order], dtype=np.float32),
+            kv=kvector_make(key[order], values_dtype=np.float32,
+                            index_dtype=np.uint16 if key.size <= np.iinfo(np.uint16).max else np.int32),
+            tri_sides=np.ascontiguousarray(np.rint(sides[order] / step), dtype=np.uint16),
+            side_step_rad=step,
             tri_rows=np.ascontiguousarray(rows[order], dtype=row_dtype),
             unit_icrs=np.ascontiguousarray(unit, dtype=np.float32),
             hip=hip.astype(np.int64),
             deep=deep_sky(catalog, self.deep_mag_limit if self.assign_all else -math.inf),
+            extra_unit=self._extra_unit(catalog, hip),
             explained_variance=float(eigval[-1] / eigval.sum()),
         )
+
+    def _extra_unit(self, catalog: Catalog, guide_hip: np.ndarray) -> np.ndarray:
+        """The whole-image check's other stars: V <= ``check_mag_limit``, not guide stars, float32, z-sorted
+        (empty when ``hypotheses`` is 0)."""
+        if self.hypotheses == 0:
+            return np.zeros((0, 3), dtype=np.float32)
+        keep = (catalog.v_mag <= self.check_mag_limit) & ~np.isin(catalog.hip, guide_hip)
+        unit = catalog.unit_icrs[keep].astype(np.float32)
+        return np.ascontiguousarray(unit[np.lexsort((unit[:, 1], unit[:, 0], unit[:, 2]))])
 
     # --------------------------------------------------------------- identify
     def _run(self, database: PVectorDatabase, observation: Observation):

@@ -27,18 +27,22 @@ class Tables(NamedTuple):
     """What identify reads from :class:`~starid_algorithms.pvector.PVectorDatabase`, as one argument.
 
     p_axis : (3,) the P vector; kv : :class:`starid.kernels.KVector` over the keys P (float32);
-    tri_sides : float32 (m, 3) side vectors (rad); tri_rows : (m, 3) guide rows of (S, N1, N2);
+    tri_sides : uint16 (m, 3) side vectors in units of ``side_step`` rad; tri_rows : (m, 3) guide rows of (S, N1, N2);
     unit : float32 (n, 3) guide unit vectors (ICRS, z-sorted); hip : int64 (n,) their ids.
     deep : :class:`starid.kernels.DeepSky`, the deeper catalog for ``assign_all`` (may be empty).
+    extra_unit : float32 (e, 3) ICRS unit vectors, z-sorted, of the non-guide stars to V <=
+        ``check_mag_limit`` (the whole-image check; empty when it is off).
     """
 
     p_axis: np.ndarray
     kv: KVector
     tri_sides: np.ndarray
+    side_step: float
     tri_rows: np.ndarray
     unit: np.ndarray
     hip: np.ndarray
     deep: DeepSky
+    extra_unit: np.ndarray
 
 
 class Tolerances(NamedTuple):
@@ -68,6 +72,10 @@ class Tolerances(NamedTuple):
     linear_search: bool
     assign_all: bool
     mag_margin: float
+    hypotheses: int
+    image_neighbours: int
+    check_min_stars: int
+    check_fraction: float
 
 
 @njit(cache=True)
@@ -241,6 +249,40 @@ def match_extras(oc, tri_obs, cat_rows, unit, eps, c_band, out_row):
 
 
 @njit(cache=True)
+def explained(attitude, v, db, c_fov, eps, frame, rows_guide, rows_extra):
+    """Whole-image check: how many detections ``attitude`` explains, i.e. lie within chord ``eps`` of exactly
+    one predicted catalog star (guide stars, then the stars to ``check_mag_limit`` in ``extra_unit``; each
+    list one-to-one, ``starid.kernels.reproject_assign``). Fills ``rows_guide`` / ``rows_extra``; returns
+    ``(n_explained, n_guide_seen, n_guide_predicted)``."""
+    n_seen, n_predicted = reproject_assign(attitude, v, db.unit, c_fov, eps, rows_guide, frame.f_px, frame.cx_px,
+                                           frame.cy_px, frame.width_px, frame.height_px)
+    if db.extra_unit.shape[0] > 0:
+        reproject_assign(attitude, v, db.extra_unit, c_fov, eps, rows_extra, frame.f_px, frame.cx_px,
+                         frame.cy_px, frame.width_px, frame.height_px)
+    else:
+        rows_extra[:] = -1
+    count = 0
+    for i in range(v.shape[0]):
+        if rows_guide[i] >= 0 or rows_extra[i] >= 0:
+            count += 1
+    return count, n_seen, n_predicted
+
+
+@njit(cache=True)
+def refine(v, db, c_fov, eps, frame, rows_guide, rows_extra, rows_tmp, cat_vec):
+    """Attitude from every detection :func:`explained` assigned, then :func:`explained` again with it."""
+    for i in range(v.shape[0]):
+        rows_tmp[i] = -1
+        if rows_guide[i] >= 0 or rows_extra[i] >= 0:
+            rows_tmp[i] = i
+            for a in range(3):
+                cat_vec[i, a] = db.unit[rows_guide[i], a] if rows_guide[i] >= 0 else db.extra_unit[rows_extra[i], a]
+    attitude = wahba_rows(v, rows_tmp, cat_vec)
+    count, n_seen, n_predicted = explained(attitude, v, db, c_fov, eps, frame, rows_guide, rows_extra)
+    return attitude, count, n_seen, n_predicted
+
+
+@njit(cache=True)
 def identify_rows(x_px, y_px, mag, frame, db, tol):
     """``(hip, attitude, ok, triangle)``: catalog id per observed star (-1 = unidentified, input
     order), the ICRS -> camera attitude, whether the image was identified, and the input indices of
@@ -255,6 +297,7 @@ def identify_rows(x_px, y_px, mag, frame, db, tol):
     """
     f_px, cx_px, cy_px, width_px, height_px = frame.f_px, frame.cx_px, frame.cy_px, frame.width_px, frame.height_px
     p_axis, tri_sides, tri_rows, unit, hip = db.p_axis, db.tri_sides, db.tri_rows, db.unit, db.hip
+    step = db.side_step
     out = np.full(x_px.shape[0], -1, dtype=np.int64)
     tri_found = np.full(3, -1, dtype=np.int64)
     if x_px.shape[0] < 3:
@@ -297,8 +340,13 @@ def identify_rows(x_px, y_px, mag, frame, db, tol):
     rows_try = np.empty(n, dtype=np.int64)
     rows_best = np.empty(n, dtype=np.int64)
     best_map = np.empty(3, dtype=np.int64)
-    nbs = np.empty(max(2, tol.triangles_per_star), dtype=np.int64)
+    nbs = np.empty(max(2, max(tol.triangles_per_star, tol.image_neighbours)), dtype=np.int64)
     n_perm = 6 if sorted_sides else 1
+    need = max(tol.check_min_stars, int(math.ceil(tol.check_fraction * n)))
+    hyp_cap = tol.hypotheses if n >= need else 0
+    hyp_obs = np.empty((hyp_cap, 3), dtype=np.int64)
+    hyp_cat = np.empty((hyp_cap, 3), dtype=np.int64)
+    n_hyp = 0
 
     for oi in range(n):
         s = order[oi]
@@ -339,16 +387,16 @@ def identify_rows(x_px, y_px, mag, frame, db, tol):
                 c_band += eps
                 n_side = 0
                 for t in range(start, stop):
-                    if (abs(tri_sides[t, 0] - d_obs[0]) <= eps and abs(tri_sides[t, 1] - d_obs[1]) <= eps
-                            and abs(tri_sides[t, 2] - d_obs[2]) <= eps):
+                    if (abs(step * tri_sides[t, 0] - d_obs[0]) <= eps and abs(step * tri_sides[t, 1] - d_obs[1]) <= eps
+                            and abs(step * tri_sides[t, 2] - d_obs[2]) <= eps):
                         n_side += 1
                 if n_side > tol.max_candidates:
                     continue    # an uninformative triangle: its window is far wider than the catalog's spacing
                 n_found = 0
                 ambiguous = False
                 for t in range(start, stop):
-                    if (abs(tri_sides[t, 0] - d_obs[0]) > eps or abs(tri_sides[t, 1] - d_obs[1]) > eps
-                            or abs(tri_sides[t, 2] - d_obs[2]) > eps):
+                    if (abs(step * tri_sides[t, 0] - d_obs[0]) > eps or abs(step * tri_sides[t, 1] - d_obs[1]) > eps
+                            or abs(step * tri_sides[t, 2] - d_obs[2]) > eps):
                         continue
                     for p in range(n_perm):
                         for j in range(3):
@@ -365,6 +413,11 @@ def identify_rows(x_px, y_px, mag, frame, db, tol):
                         if n_found > 0 and cat_rows[0] == best_map[0] and cat_rows[1] == best_map[1] \
                                 and cat_rows[2] == best_map[2]:
                             continue  # the same correspondence reached through another database entry
+                        if n_hyp < hyp_cap:    # kept for the whole-image pass (extension)
+                            for j in range(3):
+                                hyp_obs[n_hyp, j] = tri_obs[j]
+                                hyp_cat[n_hyp, j] = cat_rows[j]
+                            n_hyp += 1
                         confirmed = match_extras(oc, tri_obs, cat_rows, unit, eps, c_band, rows_try)
                         if confirmed < k_min:
                             continue
@@ -410,4 +463,50 @@ def identify_rows(x_px, y_px, mag, frame, db, tol):
                 for j in range(3):
                     tri_found[j] = canon[tri_obs[j]]
                 return out, attitude, True, tri_found
+    if n_hyp > 0:
+        h = whole_image_pass(v, db, c_fov, eps, frame, hyp_obs, hyp_cat, n_hyp, need, tol.confirm_fraction,
+                             rows_best)
+        if h >= 0:
+            for i in range(n):
+                if rows_best[i] >= 0:
+                    out[canon[i]] = hip[rows_best[i]]
+            attitude = wahba_rows(v, rows_best, unit)
+            if tol.assign_all and db.deep.unit.shape[0] > 0:
+                assign_all(attitude, x_px, y_px, frame, db.deep, eps, out)
+            for j in range(3):
+                tri_found[j] = canon[hyp_obs[h, j]]
+            return out, attitude, True, tri_found
     return out, np.eye(3), False, tri_found
+
+
+@njit(cache=True)
+def whole_image_pass(v, db, c_fov, eps, frame, hyp_obs, hyp_cat, n_hyp, need, confirm_fraction, rows_guide):
+    """Extension (``hypotheses``): when no triangle was confirmed, each correspondence that passed the side and
+    handedness checks (in the order they were met: main-star preference, brightest pair first) is a hypothesis.
+    Its attitude (Wahba on the three stars) must explain its own three stars and ``need`` detections
+    (:func:`explained`); the attitude is then refined twice on every explained detection and must still explain
+    ``need`` detections, at least 3 of them guide stars, and ``confirm_fraction`` of the guide stars it predicts.
+    Returns the index of the first hypothesis that passes (its guide rows in ``rows_guide``), or -1."""
+    n = v.shape[0]
+    rows = np.empty(n, dtype=np.int64)
+    rows_x = np.empty(n, dtype=np.int64)
+    cat_vec = np.empty((n, 3))
+    for h in range(n_hyp):
+        rows[:] = -1
+        for j in range(3):
+            rows[hyp_obs[h, j]] = hyp_cat[h, j]
+        attitude = wahba_rows(v, rows, db.unit)
+        count, _, _ = explained(attitude, v, db, c_fov, eps, frame, rows_guide, rows_x)
+        own = True
+        for j in range(3):
+            if rows_guide[hyp_obs[h, j]] != hyp_cat[h, j]:
+                own = False
+        if not own or count < need:
+            continue
+        n_seen = 0
+        n_predicted = 0
+        for _ in range(2):
+            attitude, count, n_seen, n_predicted = refine(v, db, c_fov, eps, frame, rows_guide, rows_x, rows, cat_vec)
+        if count >= need and n_seen >= 3 and n_seen >= confirm_fraction * n_predicted:
+            return h
+    return -1
