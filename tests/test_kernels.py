@@ -154,3 +154,34 @@ def test_assign_all_gives_every_detection_its_star(catalog, camera):
     assert n == int((hip >= 0).sum()) and (hip[known] == truth[known]).mean() > 0.95
     assert len(np.unique(hip[hip >= 0])) == int((hip >= 0).sum())
     assert np.all(np.diff(deep.unit[:, 2]) >= 0) and deep.hip.dtype == np.int64
+
+
+def test_explained_counts_the_detections_of_stars_to_the_check_limit(catalog, camera):
+    """The whole-image check against a numpy oracle: with the true attitude, the detections it explains are
+    those whose true star has V <= the check limit (7), the guide rows name the true stars, and refining the
+    attitude on them keeps them."""
+    from starid.kernels import camera_frame, check_stars, deep_sky, explained, field_chord, refine_explained
+    from starid.simulate import SimConfig, Simulator
+
+    guide = deep_sky(catalog, 6.0)
+    extra = check_stars(catalog, guide.hip, 7.0)
+    assert extra.dtype == np.float32 and np.all(np.diff(extra[:, 2]) >= 0)
+    assert len(guide.hip) + len(extra) == int(np.count_nonzero(catalog.v_mag <= 7.0))
+    frame = camera_frame(camera)
+    eps = 3 * math.sqrt(2) / camera.f_px
+    c_fov = field_chord(frame) + eps
+    sim = Simulator(catalog, camera, SimConfig(sigma_px=1.0, sigma_mag=0.5), seed=41)    # real sky
+    v_mag = dict(zip(catalog.hip.tolist(), catalog.v_mag.tolist()))
+    agree = 0
+    for t in range(20):
+        attitude, x, y, _, truth, _ = sim.draw(t)
+        unit = camera.backproject(x, y)
+        rows_g, rows_x = np.empty(len(x), dtype=np.int64), np.empty(len(x), dtype=np.int64)
+        count, n_seen, n_predicted = explained(attitude, unit, guide.unit, extra, frame, c_fov, eps, rows_g, rows_x)
+        expect = sum(1 for h in truth if h >= 0 and v_mag[int(h)] <= 7.0)
+        agree += count == expect
+        assert all(guide.hip[r] == h for r, h in zip(rows_g, truth) if r >= 0)      # guide rows are right
+        assert n_seen == (rows_g >= 0).sum() and n_predicted >= n_seen
+        _, again, _, _ = refine_explained(unit, guide.unit, extra, frame, c_fov, eps, rows_g, rows_x)
+        assert again >= count - 1
+    assert agree >= 18      # measured: 20 of 20

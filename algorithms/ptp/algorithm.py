@@ -14,7 +14,7 @@ from starid.camera import Camera
 from starid.catalog import Catalog
 from starid.errors import ConfigError
 from starid.params import check_flag, check_number, check_whole
-from starid.kernels import DeepSky, KVector, camera_frame, deep_sky, kvector_make, rad_to_chord
+from starid.kernels import DeepSky, KVector, camera_frame, check_stars, deep_sky, kvector_make, rad_to_chord
 from starid.observation import Observation
 from starid.plugin import Algorithm, Database, Explanation, Identification
 
@@ -277,17 +277,9 @@ class PTP(Algorithm):
                            sides=np.ascontiguousarray(sides[order].T, dtype=np.float32), mean=mean, axis=axis,
                            guide_hip=guide_hip.astype(np.int64), guide_unit=unit.astype(np.float32),
                            deep=deep_sky(catalog, self.deep_mag_limit if self.assign_all else -math.inf),
-                           extra_unit=self._extra_unit(catalog, guide_hip),
+                           extra_unit=check_stars(catalog, guide_hip,
+                                                  self.check_mag_limit if self.hypotheses else -math.inf),
                            explained_variance=float(eigval[-1] / eigval.sum()))
-
-    def _extra_unit(self, catalog: Catalog, guide_hip: np.ndarray) -> np.ndarray:
-        """The whole-image check's other stars: V <= ``check_mag_limit``, not guide stars, float32, z-sorted
-        (empty when ``hypotheses`` is 0)."""
-        if self.hypotheses == 0:
-            return np.zeros((0, 3), dtype=np.float32)
-        keep = (catalog.v_mag <= self.check_mag_limit) & ~np.isin(catalog.hip, guide_hip)
-        unit = catalog.unit_icrs[keep].astype(np.float32)
-        return np.ascontiguousarray(unit[np.lexsort((unit[:, 1], unit[:, 0], unit[:, 2]))])
 
     def identify(self, database: PTPDatabase, observation: Observation) -> Identification:
         hip = identify_kernel(observation.x_px, observation.y_px, observation.mag, _view(observation.camera),

@@ -8,8 +8,8 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from starid.kernels import (DeepSky, Frame, KVector, assign_all, backproject_px, chord_rows, kvector_query,
-                            reproject_assign, verify_pairwise, wahba_rows)
+from starid.kernels import (DeepSky, Frame, KVector, assign_all, backproject_px, chord_rows, explained, kvector_query,
+                            refine_explained, reproject_assign, verify_pairwise, wahba_rows)
 
 
 class View(NamedTuple):
@@ -497,33 +497,12 @@ def match_rows(unit, view, db, tol):
 
 
 @njit(cache=True)
-def explained(attitude, unit, db, view, eps_chord, rows_guide, rows_extra):
-    """Whole-image check: how many detections ``attitude`` explains, i.e. lie within chord ``eps_chord`` of
-    exactly one predicted catalog star (guide stars and the stars to ``check_mag_limit`` in ``extra_unit``;
-    ``starid.kernels.reproject_assign``, one-to-one per list). Fills ``rows_guide`` / ``rows_extra``."""
-    frame = view.frame
-    c_fov = view.c_fov + eps_chord
-    reproject_assign(attitude, unit, db.guide_unit, c_fov, eps_chord, rows_guide, frame.f_px, frame.cx_px,
-                     frame.cy_px, frame.width_px, frame.height_px)
-    if db.extra_unit.shape[0] > 0:
-        reproject_assign(attitude, unit, db.extra_unit, c_fov, eps_chord, rows_extra, frame.f_px, frame.cx_px,
-                         frame.cy_px, frame.width_px, frame.height_px)
-    else:
-        rows_extra[:] = -1
-    count = 0
-    for i in range(unit.shape[0]):
-        if rows_guide[i] >= 0 or rows_extra[i] >= 0:
-            count += 1
-    return count
-
-
-@njit(cache=True)
 def try_hypotheses(unit, view, db, tol, n_match, m_img, m_cat, support, eps_chord, result):
     """Extension (``hypotheses``): when sharing-star validation gives no identification, each matched
     triangle alone is a hypothesis, best supported first (then brightest stars: ``unit`` is in brightness
     order), at most ``tol.hypotheses`` distinct ones. Its attitude (Wahba on the three pairings) must
     explain its own three stars and at least ``max(check_min_stars, check_fraction * n)`` of the ``n``
-    detections (:func:`explained`); the attitude is then refined on every explained detection and the
+    detections (:func:`starid.kernels.explained`); the attitude is then refined on every explained detection and the
     check repeated. The first hypothesis that passes gives the guide-star ids in ``result``."""
     n = unit.shape[0]
     need = max(tol.check_min_stars, int(math.ceil(tol.check_fraction * n)))
@@ -537,7 +516,7 @@ def try_hypotheses(unit, view, db, tol, n_match, m_img, m_cat, support, eps_chor
     rows = np.empty(n, dtype=np.int64)
     rows_g = np.empty(n, dtype=np.int64)
     rows_x = np.empty(n, dtype=np.int64)
-    cat_vec = np.empty((n, 3))
+    c_fov = view.c_fov + eps_chord
     tried_img = np.empty((tol.hypotheses, 3), dtype=np.int64)
     tried_cat = np.empty((tol.hypotheses, 3), dtype=np.int64)
     n_tried = 0
@@ -564,21 +543,17 @@ def try_hypotheses(unit, view, db, tol, n_match, m_img, m_cat, support, eps_chor
         for v in range(3):
             rows[m_img[mi, v]] = m_cat[mi, v]
         attitude = wahba_rows(unit, rows, db.guide_unit)
-        count = explained(attitude, unit, db, view, eps_chord, rows_g, rows_x)
+        count, _, _ = explained(attitude, unit, db.guide_unit, db.extra_unit, view.frame, c_fov, eps_chord, rows_g,
+                                rows_x)
         own = True
         for v in range(3):
             if rows_g[m_img[mi, v]] != m_cat[mi, v]:
                 own = False
         if not own or count < need:
             continue
-        for i in range(n):     # refine on every explained detection, then check again
-            rows[i] = -1
-            if rows_g[i] >= 0 or rows_x[i] >= 0:
-                rows[i] = i
-                for a in range(3):
-                    cat_vec[i, a] = db.guide_unit[rows_g[i], a] if rows_g[i] >= 0 else db.extra_unit[rows_x[i], a]
-        attitude = wahba_rows(unit, rows, cat_vec)
-        count = explained(attitude, unit, db, view, eps_chord, rows_g, rows_x)
+        # refine on every explained detection, then check again
+        _, count, _, _ = refine_explained(unit, db.guide_unit, db.extra_unit, view.frame, c_fov, eps_chord, rows_g,
+                                          rows_x)
         n_guide = 0
         for i in range(n):
             if rows_g[i] >= 0:

@@ -15,9 +15,9 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from starid.kernels import (DeepSky, KVector, assign_all, backproject_px, chord_rows, chord_to_rad, field_chord,
-                            keep_unique, kvector_query, reproject_assign, triple_product, verify_pairwise, wahba_rows,
-                            z_band_rows)
+from starid.kernels import (DeepSky, KVector, assign_all, backproject_px, chord_rows, chord_to_rad, explained,
+                            field_chord, keep_unique, kvector_query, refine_explained, reproject_assign, triple_product,
+                            verify_pairwise, wahba_rows, z_band_rows)
 
 # The six vertex correspondences (observed vertex j -> database vertex PERMS[p, j]).
 PERMS = np.array([[0, 1, 2], [1, 2, 0], [2, 0, 1], [0, 2, 1], [2, 1, 0], [1, 0, 2]], dtype=np.int64)
@@ -249,40 +249,6 @@ def match_extras(oc, tri_obs, cat_rows, unit, eps, c_band, out_row):
 
 
 @njit(cache=True)
-def explained(attitude, v, db, c_fov, eps, frame, rows_guide, rows_extra):
-    """Whole-image check: how many detections ``attitude`` explains, i.e. lie within chord ``eps`` of exactly
-    one predicted catalog star (guide stars, then the stars to ``check_mag_limit`` in ``extra_unit``; each
-    list one-to-one, ``starid.kernels.reproject_assign``). Fills ``rows_guide`` / ``rows_extra``; returns
-    ``(n_explained, n_guide_seen, n_guide_predicted)``."""
-    n_seen, n_predicted = reproject_assign(attitude, v, db.unit, c_fov, eps, rows_guide, frame.f_px, frame.cx_px,
-                                           frame.cy_px, frame.width_px, frame.height_px)
-    if db.extra_unit.shape[0] > 0:
-        reproject_assign(attitude, v, db.extra_unit, c_fov, eps, rows_extra, frame.f_px, frame.cx_px,
-                         frame.cy_px, frame.width_px, frame.height_px)
-    else:
-        rows_extra[:] = -1
-    count = 0
-    for i in range(v.shape[0]):
-        if rows_guide[i] >= 0 or rows_extra[i] >= 0:
-            count += 1
-    return count, n_seen, n_predicted
-
-
-@njit(cache=True)
-def refine(v, db, c_fov, eps, frame, rows_guide, rows_extra, rows_tmp, cat_vec):
-    """Attitude from every detection :func:`explained` assigned, then :func:`explained` again with it."""
-    for i in range(v.shape[0]):
-        rows_tmp[i] = -1
-        if rows_guide[i] >= 0 or rows_extra[i] >= 0:
-            rows_tmp[i] = i
-            for a in range(3):
-                cat_vec[i, a] = db.unit[rows_guide[i], a] if rows_guide[i] >= 0 else db.extra_unit[rows_extra[i], a]
-    attitude = wahba_rows(v, rows_tmp, cat_vec)
-    count, n_seen, n_predicted = explained(attitude, v, db, c_fov, eps, frame, rows_guide, rows_extra)
-    return attitude, count, n_seen, n_predicted
-
-
-@njit(cache=True)
 def identify_rows(x_px, y_px, mag, frame, db, tol):
     """``(hip, attitude, ok, triangle)``: catalog id per observed star (-1 = unidentified, input
     order), the ICRS -> camera attitude, whether the image was identified, and the input indices of
@@ -484,19 +450,18 @@ def whole_image_pass(v, db, c_fov, eps, frame, hyp_obs, hyp_cat, n_hyp, need, co
     """Extension (``hypotheses``): when no triangle was confirmed, each correspondence that passed the side and
     handedness checks (in the order they were met: main-star preference, brightest pair first) is a hypothesis.
     Its attitude (Wahba on the three stars) must explain its own three stars and ``need`` detections
-    (:func:`explained`); the attitude is then refined twice on every explained detection and must still explain
+    (:func:`starid.kernels.explained`); the attitude is then refined twice on every explained detection and must still explain
     ``need`` detections, at least 3 of them guide stars, and ``confirm_fraction`` of the guide stars it predicts.
     Returns the index of the first hypothesis that passes (its guide rows in ``rows_guide``), or -1."""
     n = v.shape[0]
     rows = np.empty(n, dtype=np.int64)
     rows_x = np.empty(n, dtype=np.int64)
-    cat_vec = np.empty((n, 3))
     for h in range(n_hyp):
         rows[:] = -1
         for j in range(3):
             rows[hyp_obs[h, j]] = hyp_cat[h, j]
         attitude = wahba_rows(v, rows, db.unit)
-        count, _, _ = explained(attitude, v, db, c_fov, eps, frame, rows_guide, rows_x)
+        count, _, _ = explained(attitude, v, db.unit, db.extra_unit, frame, c_fov, eps, rows_guide, rows_x)
         own = True
         for j in range(3):
             if rows_guide[hyp_obs[h, j]] != hyp_cat[h, j]:
@@ -506,7 +471,8 @@ def whole_image_pass(v, db, c_fov, eps, frame, hyp_obs, hyp_cat, n_hyp, need, co
         n_seen = 0
         n_predicted = 0
         for _ in range(2):
-            attitude, count, n_seen, n_predicted = refine(v, db, c_fov, eps, frame, rows_guide, rows_x, rows, cat_vec)
+            attitude, count, n_seen, n_predicted = refine_explained(v, db.unit, db.extra_unit, frame, c_fov, eps,
+                                                                    rows_guide, rows_x)
         if count >= need and n_seen >= 3 and n_seen >= confirm_fraction * n_predicted:
             return h
     return -1

@@ -4,6 +4,9 @@ An identification from guide stars gives an attitude; every other detection is t
 catalog star predicted within a tolerance of it, over a deeper star list than the guide stars
 (:class:`DeepSky`). Any plugin can offer it as a parameter (``assign_all``); star recall then
 measures the tracker, not only the pattern match.
+
+The same reprojection judges a hypothesis: :func:`explained` counts the detections an attitude
+explains against the guide stars and the fainter :func:`check_stars`.
 """
 
 from __future__ import annotations
@@ -14,6 +17,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
+from .attitude import wahba_rows
 from .geometry import backproject_px
 from .verify import reproject_assign
 
@@ -102,3 +106,57 @@ def assign_all(attitude, x_px, y_px, frame, deep, eps_chord, hip):
         if out[i] >= 0:
             count += 1
     return count
+
+
+def check_stars(catalog, guide_hip: np.ndarray, mag_limit: float) -> np.ndarray:
+    """The stars a whole-image check may explain detections with besides the guide stars: float32 ICRS
+    unit vectors (m, 3) of the catalog stars with V <= ``mag_limit`` that are not in ``guide_hip``,
+    sorted by z (what :func:`explained` reads). A real sensor images every star to its limit, so an
+    attitude is judged against these too."""
+    keep = (catalog.v_mag <= mag_limit) & ~np.isin(catalog.hip, guide_hip)
+    unit = catalog.unit_icrs[keep].astype(np.float32)
+    return np.ascontiguousarray(unit[np.lexsort((unit[:, 1], unit[:, 0], unit[:, 2]))])
+
+
+@njit(cache=True)
+def explained(attitude, v_cam, guide_unit, extra_unit, frame, c_fov, eps_chord, rows_guide, rows_extra):
+    """Whole-image check: how many detections ``attitude`` explains.
+
+    A detection is explained when it lies within chord ``eps_chord`` of exactly one predicted
+    star (:func:`~starid.kernels.reproject_assign`, one-to-one per list) among the guide stars
+    (rows in ``rows_guide``) or the :func:`check_stars` (rows in ``rows_extra``); ``c_fov`` is
+    the chord from the boresight within which stars are predicted. Returns ``(n_explained,
+    n_guide_seen, n_guide_predicted)``.
+    """
+    n_seen, n_predicted = reproject_assign(attitude, v_cam, guide_unit, c_fov, eps_chord, rows_guide, frame.f_px,
+                                           frame.cx_px, frame.cy_px, frame.width_px, frame.height_px)
+    if extra_unit.shape[0] > 0:
+        reproject_assign(attitude, v_cam, extra_unit, c_fov, eps_chord, rows_extra, frame.f_px, frame.cx_px,
+                         frame.cy_px, frame.width_px, frame.height_px)
+    else:
+        rows_extra[:] = -1
+    count = 0
+    for i in range(v_cam.shape[0]):
+        if rows_guide[i] >= 0 or rows_extra[i] >= 0:
+            count += 1
+    return count, n_seen, n_predicted
+
+
+@njit(cache=True)
+def refine_explained(v_cam, guide_unit, extra_unit, frame, c_fov, eps_chord, rows_guide, rows_extra):
+    """The attitude (Wahba) from every detection :func:`explained` assigned, then :func:`explained`
+    again with it (``rows_guide`` / ``rows_extra`` updated). Returns ``(attitude, n_explained,
+    n_guide_seen, n_guide_predicted)``."""
+    n = v_cam.shape[0]
+    rows = np.empty(n, dtype=np.int64)
+    cat_vec = np.empty((n, 3))
+    for i in range(n):
+        rows[i] = -1
+        if rows_guide[i] >= 0 or rows_extra[i] >= 0:
+            rows[i] = i
+            for a in range(3):
+                cat_vec[i, a] = guide_unit[rows_guide[i], a] if rows_guide[i] >= 0 else extra_unit[rows_extra[i], a]
+    attitude = wahba_rows(v_cam, rows, cat_vec)
+    count, n_seen, n_predicted = explained(attitude, v_cam, guide_unit, extra_unit, frame, c_fov, eps_chord,
+                                           rows_guide, rows_extra)
+    return attitude, count, n_seen, n_predicted
