@@ -160,6 +160,10 @@ class PTP(Algorithm):
     """
 
     name: ClassVar[str] = "ptp"
+    #: the paper's method (section 2): no pairwise verification, confirmation or hypotheses, 4 image
+    #: slaves, D_ms <= 5 deg, a conflicting star is a failure (``ptp:paper``)
+    published: ClassVar[dict] = {"verify": False, "confirm_fraction": 0.0, "image_slaves": 4, "hypotheses": 0,
+                                 "d_max_deg": 5.0, "majority": False}
     follows: ClassVar[dict] = {"sigma_px": "sigma_px"}
 
     mag_limit: float = 6.0

@@ -156,6 +156,10 @@ class PVector(Algorithm):
     """
 
     name: ClassVar[str] = "pvector"
+    #: closest to the paper: one triangle per guide star (its two brightest neighbours within 4 deg), no
+    #: whole-image pass, the sorted table searched without a k-vector (``pvector:paper``)
+    published: ClassVar[dict] = {"triangles_per_star": 2, "pattern_radius_deg": 4.0, "image_neighbours": 2,
+                                 "hypotheses": 0, "search": "linear"}
     follows: ClassVar[dict] = {"sigma_px": "sigma_px"}
 
     mag_limit: float = 6.0
