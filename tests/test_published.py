@@ -31,8 +31,10 @@ def test_paper_variant_parses_and_labels(registered):
     v = Variant.parse("published_ptp:paper")
     assert v.label == "published_ptp:paper" and v.name == "published_ptp"
     assert dict(v.params) == {"verify": False, "confirm_fraction": 0.0}
-    on_top = Variant.as_published("published_ptp", n_slaves=5, verify=True)
-    assert dict(on_top.params) == {"n_slaves": 5, "verify": False, "confirm_fraction": 0.0}
+    on_top = Variant.parse("published_ptp:paper[n_slaves=5,verify=true]")
+    assert on_top == Variant.as_published("published_ptp", n_slaves=5, verify=True)
+    assert on_top.label == "published_ptp:paper[n_slaves=5,verify=True]"
+    assert dict(on_top.params) == {"n_slaves": 5, "verify": True, "confirm_fraction": 0.0}
     with pytest.raises(ConfigError, match="declares no 'published'"):
         Variant.parse("tetra:paper")
 

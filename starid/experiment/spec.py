@@ -40,9 +40,9 @@ from ..plugin import Algorithm
 from ..registry import get_algorithm
 from ..simulate import SKIES, SimConfig
 
-_LABEL = re.compile(r"^\s*([A-Za-z_][\w.-]*)\s*(?:\[(.*)\])?\s*$")
 #: The suffix of the "as published" variant of a plugin (its ``published`` overrides).
 PAPER_SUFFIX = ":paper"
+_LABEL = re.compile(r"^\s*([A-Za-z_][\w.-]*)(" + PAPER_SUFFIX + r")?\s*(?:\[(.*)\])?\s*$")
 
 
 def _format_value(value) -> str:
@@ -101,22 +101,24 @@ class Variant:
 
     @classmethod
     def as_published(cls, name: str, **params) -> "Variant":
-        """``NAME:paper``: the plugin's ``published`` overrides on top of ``params``."""
+        """``NAME:paper``: the plugin's ``published`` overrides, then ``params`` on top
+        (labelled ``NAME:paper[KEY=VALUE,...]``)."""
         algo = get_algorithm(name)
         if not algo.published:
             raise ConfigError(f"{name} declares no 'published' parameters: its defaults are the paper's method")
-        return cls(name, tuple({**params, **algo.published}.items()), f"{name}{PAPER_SUFFIX}")
+        inner = ",".join(f"{k}={_format_value(v)}" for k, v in params.items())
+        label = f"{name}{PAPER_SUFFIX}" + (f"[{inner}]" if inner else "")
+        return cls(name, tuple({**algo.published, **params}.items()), label)
 
     @classmethod
     def parse(cls, text: str) -> "Variant":
-        """``"ptp"``, ``"ptp[n_slaves=3,verify=false]"`` (values coerced by the field types) or
-        ``"ptp:paper"`` (:meth:`as_published`)."""
-        if text.strip().endswith(PAPER_SUFFIX):
-            return cls.as_published(text.strip()[:-len(PAPER_SUFFIX)])
+        """``"ptp"``, ``"ptp[n_slaves=3,verify=false]"`` (values coerced by the field types),
+        ``"ptp:paper"`` or ``"ptp:paper[n_slaves=3]"`` (:meth:`as_published`)."""
         m = _LABEL.match(text)
         if not m:
-            raise ConfigError(f"cannot read algorithm {text!r}; expected NAME or NAME[KEY=VALUE,...]")
-        name, inner = m.group(1), m.group(2)
+            raise ConfigError(f"cannot read algorithm {text!r}; expected NAME, NAME[KEY=VALUE,...] or "
+                              f"NAME{PAPER_SUFFIX}[KEY=VALUE,...]")
+        name, paper, inner = m.group(1), m.group(2), m.group(3)
         params = []
         if inner and inner.strip():
             algo = get_algorithm(name)
@@ -125,7 +127,7 @@ class Variant:
                 if not sep:
                     raise ConfigError(f"{text!r}: expected KEY=VALUE, got {item!r}")
                 params.append((key.strip(), coerce(algo, key.strip(), value)))
-        return cls(name, tuple(params))
+        return cls.as_published(name, **dict(params)) if paper else cls(name, tuple(params))
 
     def with_params(self, **params) -> "Variant":
         """The same variant with more overrides (the label follows unless it was set explicitly)."""
