@@ -77,12 +77,13 @@ class GeometricVoting(Algorithm):
     * ``confirm_fraction``, ``min_extra`` (starid's extension; 0 and 0 switch it off): the
       verified stars' attitude must see this fraction of the guide stars it puts on the sensor
       and 3 + ``min_extra`` stars in all, else nothing is reported;
-    * ``round_voters`` (starid's extension, 5 by default; 0 = the paper's single round of all
-      voters): the stars vote in rounds, the 5 brightest first; the first round whose choice
-      passes verification and confirmation is reported, else the next 5 stars join and their pairs
-      add votes to the same counters (the last round has exactly the votes of a single round). In
-      the paper's sky at 1 px / 0.5 Mv five voters decide 78 % of the images (seed 7), so most
-      images cost 10 pair windows instead of up to 105; chosen on seed 7 (5 against 4 and 6);
+    * ``round_voters``, ``round_step`` (starid's extension, 5 and 1 by default; ``round_voters``
+      0 = the paper's single round of all voters): the stars vote in rounds, the 5 brightest
+      first; the first round whose choice passes verification and confirmation is reported, else
+      the next star joins and its pairs add votes to the same counters (the last round has
+      exactly the votes of a single round). In the paper's sky at 1 px / 0.5 Mv five voters
+      decide 78 % of the images (seed 7), so most images cost 10 pair windows instead of up to
+      105; chosen on seed 7 (5 against 4 and 6; steps of 1 against 2, 3 and 5);
     * ``report_all`` (starid's extension, on by default; off = only the verified voters): every
       star the confirming reprojection identifies is reported, with the attitude refitted to
       them and the reprojection repeated once (as Pyramid does).
@@ -111,12 +112,14 @@ class GeometricVoting(Algorithm):
     n_candidates: int = 16
     expected_votes: bool = True
     round_voters: int = 5
+    round_step: int = 1
     report_all: bool = True
 
     def __post_init__(self):
         check_pair_params(self)
         check_whole("max_stars", self.max_stars, 3, 255)
         check_whole("round_voters", self.round_voters, 0, 255)
+        check_whole("round_step", self.round_step, 1, 255)
         check_flag("report_all", self.report_all)
         check_flag("once_per_pair", self.once_per_pair)
         check_flag("expected_votes", self.expected_votes)
@@ -134,6 +137,7 @@ class GeometricVoting(Algorithm):
     def rule(self) -> VoteRule:
         return VoteRule(once_per_pair=bool(self.once_per_pair), expected=bool(self.expected_votes),
                         n_candidates=int(self.n_candidates), round_voters=int(self.round_voters),
+                        round_step=int(self.round_step),
                         min_support=int(self.min_support), min_fraction=float(self.min_fraction),
                         report_all=bool(self.report_all))
 

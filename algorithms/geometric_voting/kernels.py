@@ -36,8 +36,9 @@ class VoteRule(NamedTuple):
     expected : rank catalog stars by their votes above chance (degree x w).
     n_candidates : shortlist per image star (1 = the paper's single winner).
     round_voters : the selected stars vote in rounds, the brightest ``round_voters`` first and
-        ``round_voters`` more in each further round; the first verified and confirmed result is
-        returned (0 = one round of all).
+        ``round_step`` more in each further round; the first verified and confirmed result is
+        returned (``round_voters`` 0 = one round of all).
+    round_step : stars joining in each further round.
     min_support, min_fraction : ``starid.kernels.verify_pairwise``'s agreement rule.
     report_all : report every star the confirming reprojection identified (else only the
         verified voters).
@@ -47,6 +48,7 @@ class VoteRule(NamedTuple):
     expected: bool
     n_candidates: int
     round_voters: int
+    round_step: int
     min_support: int
     min_fraction: float
     report_all: bool
@@ -280,10 +282,10 @@ def decide(v_cam, sel, n_voters, start, stop, tally, degree, guide_unit, tol, ca
 @njit(cache=True)
 def vote_rounds(v_cam, sel, kv, pairs, degree, guide_unit, tol, cam, rule, tally):
     """Voting in rounds: the ``rule.round_voters`` brightest selected stars vote, their choice is
-    verified and confirmed (:func:`decide`); if that fails, the next ``rule.round_voters`` stars
-    join, their pairs add votes to the same counters, and the choice is made again -- until a round
-    succeeds or every selected star has voted (that last round gives exactly the votes of one
-    round of all). Returns ``(rows, votes, attitude)``."""
+    verified and confirmed (:func:`decide`); if that fails, the next ``rule.round_step`` stars
+    join, their pairs with every earlier star add votes to the same counters, and the choice is
+    made again -- until a round succeeds or every selected star has voted (that last round has
+    exactly the votes of one round of all). Returns ``(rows, votes, attitude)``."""
     n = v_cam.shape[0]
     m = sel.shape[0]
     rows = np.full(n, -1, dtype=np.int64)
@@ -294,17 +296,20 @@ def vote_rounds(v_cam, sel, kv, pairs, degree, guide_unit, tol, cam, rule, tally
     n_listed = np.zeros(m, dtype=np.int64)
     step = rule.round_voters if rule.round_voters >= 3 else m
     done = 0
+    last_level = 0
     while True:
-        upto = min(m, done + step)
+        upto = min(m, done + (step if done == 0 else rule.round_step))
         start, stop = pair_windows(v_cam, sel[:upto], kv, tol)
         level = min(3, upto - 1)    # list the stars with 3 votes or more (enough for every round)
-        for a in range(done):       # keep the listed stars that still reach the new level
-            k = 0
-            for i in range(n_listed[a]):
-                if tally[a, listed[a, i]] >= level:
-                    listed[a, k] = listed[a, i]
-                    k += 1
-            n_listed[a] = k
+        if level != last_level:
+            for a in range(done):   # keep the listed stars that still reach the new level
+                k = 0
+                for i in range(n_listed[a]):
+                    if tally[a, listed[a, i]] >= level:
+                        listed[a, k] = listed[a, i]
+                        k += 1
+                n_listed[a] = k
+            last_level = level
         cast_votes(start, stop, pairs, done, upto, rule.once_per_pair, stamp, tally, level, listed, n_listed)
         ok, attitude = decide(v_cam, sel, upto, start, stop, tally, degree, guide_unit, tol, cam, rule, level, listed,
                               n_listed, rows, votes)
