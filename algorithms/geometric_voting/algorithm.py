@@ -83,7 +83,7 @@ class GeometricVoting(Algorithm):
       the next star joins and its pairs add votes to the same counters (the last round has
       exactly the votes of a single round). In the paper's sky at 1 px / 0.5 Mv five voters
       decide 78 % of the images (seed 7), so most images cost 10 pair windows instead of up to
-      105; chosen on seed 7 (5 against 4 and 6; steps of 1 against 2, 3 and 5);
+      105; chosen on seed 7 (5 against 4 and 6; steps of 1 against 2 and 5);
     * ``report_all`` (starid's extension, on by default; off = only the verified voters): every
       star the confirming reprojection identifies is reported, with the attitude refitted to
       them and the reprojection repeated once (as Pyramid does).
