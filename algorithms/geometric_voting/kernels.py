@@ -2,9 +2,21 @@
 
 The star selection and the k-vector windows of the image pairs are the Pyramid plugin's
 (:mod:`starid_algorithms.pyramid.kernels`), over the same star-pair database.
+
+Bundles (``typing.NamedTuple``, passed to numba as tuples): ``kv`` (:class:`starid.kernels.KVector`),
+:class:`~starid_algorithms.pyramid.kernels.PairTol` (tolerances and work limits),
+:class:`~starid_algorithms.pyramid.kernels.Sensor` (camera geometry) and :class:`VoteRule` (the
+voting and verification choices).
+
+Vote counters: one ``(m, n_guide)`` array per call (``m`` = selected stars, one row per star, so
+the rows of a first round of few voters stay in the L1 cache), uint8 with ``once_per_pair`` (at
+most ``m - 1 <= 254`` votes), int32 otherwise; uint16 marks of the last voting image pair per
+catalog star. Everything is allocated per call, nothing is kept between calls.
 """
 
 from __future__ import annotations
+
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
@@ -12,74 +24,167 @@ from numba import njit
 from starid.kernels import backproject_px, chord_rows, reproject_assign, verify_pairwise, wahba_rows
 from starid_algorithms.pyramid.kernels import pair_windows, select_stars
 
+#: ``starid.kernels.chord_rows`` itself, inlined into the innermost loop of :func:`pick_candidates`
+#: (a numba call there costs more than the arithmetic)
+chord_rows_inline = njit(cache=True, inline="always")(chord_rows.py_func)
+
+
+class VoteRule(NamedTuple):
+    """The voting and verification choices of one identification (see ``GeometricVoting``).
+
+    once_per_pair : one image pair gives a catalog star at most one vote.
+    expected : rank catalog stars by their votes above chance (degree x w).
+    n_candidates : shortlist per image star (1 = the paper's single winner).
+    round_voters : the selected stars vote in rounds, the brightest ``round_voters`` first and
+        ``round_step`` more in each further round; the first verified and confirmed result is
+        returned (``round_voters`` 0 = one round of all).
+    round_step : stars joining in each further round.
+    min_support, min_fraction : ``starid.kernels.verify_pairwise``'s agreement rule.
+    report_all : report every star the confirming reprojection identified (else only the
+        verified voters).
+    """
+
+    once_per_pair: bool
+    expected: bool
+    n_candidates: int
+    round_voters: int
+    round_step: int
+    min_support: int
+    min_fraction: float
+    report_all: bool
+
 
 @njit(cache=True)
-def vote(v_cam, sel, start, stop, pairs, degree, tol, once_per_pair, expected, n_keep):
-    """Votes of the catalog stars for each selected star; returns ``(cand_row, cand_votes)``.
+def cast_votes(start, stop, pairs, b_lo, b_hi, once_per_pair, stamp, tally, level, listed, n_listed):
+    """Add the votes of the image pairs (a, b), a < b, ``b_lo <= b < b_hi`` to ``tally``.
 
-    For star a, every other star b gives its pair's window: each catalog pair (I, J) in it is a
-    possible identity of the image pair, so I and J each get a vote for star a (the paper's
-    voting: both catalog stars of a matching pair vote for both image stars). With
-    ``once_per_pair`` one image pair gives a catalog star at most one vote, however many pairs of
-    the window contain it (a star with many neighbours at about that distance is one possible
-    identity, not several). Star a keeps its ``n_keep`` best catalog stars, most votes first,
-    ties to the lowest guide row (``cand_row[a, 0]`` is the paper's choice, the "first
-    maximum"); unused slots are -1. With ``expected`` (reconstruction) "best" is the excess
-    over the votes a catalog star collects by chance, ``votes - degree[g] * w_a``:
-    ``w_a = sum_b 4 eps c_ab / c_max^2`` is the probability that one given neighbour of a
-    catalog star falls in the windows of star a's pairs (pair distances spread as in a disc of
-    radius ``c_max``), ``degree[g]`` the star's number of neighbours -- so a star in dense sky
-    does not win on its many neighbours alone. One vote row at a time (``n_guide`` counters,
-    cache-resident), zeroed between stars; at most 32,767 selected stars and 65,535 votes.
+    Each catalog pair (I, J) in the k-vector window ``[start[a, b], stop[a, b])`` is a possible
+    identity of the image pair, so I and J each get a vote for a and for b (the paper's voting:
+    both catalog stars of a matching pair vote for both image stars) -- ``tally[a, g]`` counts
+    the votes of guide row g for selected star a. With ``once_per_pair`` one image pair gives a
+    catalog star at most one vote, however many pairs of its window contain it: ``stamp[g]``
+    holds the last image pair (``256 a + b + 1``, unique per pair: at most 255 stars) that voted for g. A window is
+    read once for both of its stars, and the calls over ``[0, m1)`` then ``[m1, m)`` add up to
+    the votes of all pairs of the first ``m`` stars.
+
+    A catalog star whose votes for star a reach ``level`` (> 0) is appended to
+    ``listed[a, :n_listed[a]]`` (votes grow by one, so once), so that :func:`rank_votes` need not
+    scan every catalog star; ``level`` = 0 lists nothing.
     """
-    m = sel.shape[0]
-    n_guide = degree.shape[0]
-    # one int32 per catalog star: votes in the low 16 bits, the last voting image pair above
-    tally = np.zeros(n_guide, dtype=np.int32)
-    cand_row = np.full((m, n_keep), -1, dtype=np.int64)
-    cand_votes = np.zeros((m, n_keep), dtype=np.int64)
-    score = np.empty(n_keep)
-    for a in range(m):
-        tally[:] = 0
-        w_a = 0.0
-        if expected:
-            for b in range(m):
-                if b != a and stop[a, b] > start[a, b]:
-                    w_a += 4.0 * tol.eps * chord_rows(v_cam, sel[a], v_cam, sel[b]) / (tol.c_max * tol.c_max)
-        for b in range(m):
-            if b == a:
+    for b in range(b_lo, b_hi):
+        for a in range(b):
+            lo = start[a, b]
+            hi = stop[a, b]
+            if hi <= lo:
                 continue
-            stamp = np.int32((b + 1) << 16)
-            for p in range(start[a, b], stop[a, b]):
+            pair_id = np.uint16(a * 256 + b + 1)
+            for p in range(lo, hi):
                 for o in range(2):
                     g = pairs[p, o]
-                    x = tally[g]
                     if once_per_pair:
-                        if (x & np.int32(-65536)) == stamp:
+                        if stamp[g] == pair_id:
                             continue
-                        tally[g] = stamp | ((x & np.int32(65535)) + np.int32(1))
-                    else:
-                        tally[g] = x + np.int32(1)
-        for g in range(n_guide):
-            tally[g] &= np.int32(65535)
-        score[:] = -np.inf
-        for g in range(n_guide):          # keep the n_keep best (rows ascend, so ties keep the lowest)
-            c = tally[g]
-            if c == 0:
+                        stamp[g] = pair_id
+                    tally[a, g] += 1
+                    tally[b, g] += 1
+                    if tally[a, g] == level:
+                        listed[a, n_listed[a]] = g
+                        n_listed[a] += 1
+                    if tally[b, g] == level:
+                        listed[b, n_listed[b]] = g
+                        n_listed[b] += 1
+
+
+@njit(cache=True)
+def rank_votes(v_cam, sel, n_voters, start, stop, tally, degree, tol, expected, n_keep, level, listed, n_listed):
+    """Each of the first ``n_voters`` selected stars' ``n_keep`` best catalog stars, from ``tally``.
+
+    Returns ``(cand_row, cand_votes)``, shape ``(n_voters, n_keep)``: most votes first, ties to the
+    lowest guide row (``cand_row[a, 0]`` is the paper's choice, the "first maximum"); unused slots
+    are -1. With ``expected`` (reconstruction) "best" is the excess over the votes a catalog star
+    collects by chance, ``votes - degree[g] * w_a``: ``w_a = sum_b 4 eps c_ab / c_max^2`` (over the
+    voters b whose pair with a has a window) is the probability that one given neighbour of a
+    catalog star falls in the windows of star a's pairs (pair distances spread as in a disc of
+    radius ``c_max``), ``degree[g]`` the star's number of neighbours -- so a star in dense sky does
+    not win on its many neighbours alone.
+
+    With ``level`` > 0 only the stars :func:`cast_votes` listed (votes >= ``level``) are ranked
+    first; as a score never exceeds the votes, that is the exact answer when the list fills all
+    ``n_keep`` places with scores above ``level - 1``. Otherwise every catalog star is scanned.
+    """
+    n_guide = tally.shape[1]
+    cand_row = np.full((n_voters, n_keep), -1, dtype=np.int64)
+    cand_votes = np.zeros((n_voters, n_keep), dtype=np.int64)
+    score = np.full((n_voters, n_keep), -np.inf)
+    last = n_keep - 1
+    for a in range(n_voters):
+        w_a = 0.0
+        if expected:
+            for b in range(n_voters):
+                if b != a and stop[a, b] > start[a, b]:
+                    w_a += 4.0 * tol.eps * chord_rows(v_cam, sel[a], v_cam, sel[b]) / (tol.c_max * tol.c_max)
+        if level > 0:
+            for i in range(n_listed[a]):
+                g = np.int64(listed[a, i])
+                c = np.int64(tally[a, g])
+                if c < score[a, last]:          # the score is at most the votes
+                    continue
+                x = c - w_a * degree[g]
+                if x < score[a, last] or (x == score[a, last] and g > cand_row[a, last]):
+                    continue
+                t = last
+                while t > 0 and (score[a, t - 1] < x or (score[a, t - 1] == x and cand_row[a, t - 1] > g)):
+                    score[a, t] = score[a, t - 1]
+                    cand_votes[a, t] = cand_votes[a, t - 1]
+                    cand_row[a, t] = cand_row[a, t - 1]
+                    t -= 1
+                score[a, t] = x
+                cand_votes[a, t] = c
+                cand_row[a, t] = g
+            if cand_row[a, last] >= 0 and score[a, last] > level - 1:
+                continue
+            for t in range(n_keep):
+                score[a, t] = -np.inf
+                cand_row[a, t] = -1
+                cand_votes[a, t] = 0
+        for g in range(n_guide):          # rows ascend, so ties keep the lowest
+            c = np.int64(tally[a, g])
+            if c == 0 or c <= score[a, last]:     # the score is at most the votes
                 continue
             x = c - w_a * degree[g]
-            if x <= score[n_keep - 1]:
+            if x <= score[a, last]:
                 continue
-            t = n_keep - 1
-            while t > 0 and score[t - 1] < x:
-                score[t] = score[t - 1]
+            t = last
+            while t > 0 and score[a, t - 1] < x:
+                score[a, t] = score[a, t - 1]
                 cand_votes[a, t] = cand_votes[a, t - 1]
                 cand_row[a, t] = cand_row[a, t - 1]
                 t -= 1
-            score[t] = x
+            score[a, t] = x
             cand_votes[a, t] = c
             cand_row[a, t] = g
     return cand_row, cand_votes
+
+
+@njit(cache=True)
+def vote(v_cam, sel, start, stop, pairs, degree, tol, once_per_pair, expected, n_keep, level):
+    """All selected stars vote in one round: :func:`cast_votes` then :func:`rank_votes`.
+
+    Returns ``(cand_row, cand_votes)`` of every selected star (see :func:`rank_votes`; ``level``
+    changes the work, not the result).
+    """
+    m = sel.shape[0]
+    n_guide = degree.shape[0]
+    stamp = np.zeros(n_guide, dtype=np.uint16)
+    listed = np.empty((m, n_guide), dtype=pairs.dtype)
+    n_listed = np.zeros(m, dtype=np.int64)
+    if once_per_pair:
+        tally8 = np.zeros((m, n_guide), dtype=np.uint8)
+        cast_votes(start, stop, pairs, 0, m, True, stamp, tally8, level, listed, n_listed)
+        return rank_votes(v_cam, sel, m, start, stop, tally8, degree, tol, expected, n_keep, level, listed, n_listed)
+    tally32 = np.zeros((m, n_guide), dtype=np.int32)
+    cast_votes(start, stop, pairs, 0, m, False, stamp, tally32, level, listed, n_listed)
+    return rank_votes(v_cam, sel, m, start, stop, tally32, degree, tol, expected, n_keep, level, listed, n_listed)
 
 
 @njit(cache=True)
@@ -89,12 +194,15 @@ def pick_candidates(v_cam, sel, cand_row, cand_votes, guide_unit, eps):
     The support of candidate (a -> I) is the number of other stars b with some candidate J such
     that |chord(b_a, b_b) - chord(r_I, r_J)| <= ``eps`` -- the verification vote of the paper,
     counted over every star's shortlist instead of its single winner. Ties: more first-round
-    votes, then the earlier (lower) shortlist slot. Returns ``(row, votes)`` per selected star.
+    votes, then the earlier (lower) shortlist slot. Returns ``(row, votes)`` per star of ``cand_row``.
     """
     m, k = cand_row.shape
     row = np.full(m, -1, dtype=np.int64)
     got = np.zeros(m, dtype=np.int64)
+    c_img = np.empty(m)
     for a in range(m):
+        for b in range(m):
+            c_img[b] = chord_rows(v_cam, sel[a], v_cam, sel[b])
         best_support = -1
         for s in range(k):
             big_i = cand_row[a, s]
@@ -104,12 +212,11 @@ def pick_candidates(v_cam, sel, cand_row, cand_votes, guide_unit, eps):
             for b in range(m):
                 if b == a:
                     continue
-                c = chord_rows(v_cam, sel[a], v_cam, sel[b])
                 for t in range(k):
                     big_j = cand_row[b, t]
                     if big_j < 0:
                         break
-                    if big_j != big_i and abs(chord_rows(guide_unit, big_i, guide_unit, big_j) - c) <= eps:
+                    if big_j != big_i and abs(chord_rows_inline(guide_unit, big_i, guide_unit, big_j) - c_img[b]) <= eps:
                         support += 1
                         break
             if support > best_support or (support == best_support and cand_votes[a, s] > got[a]):
@@ -120,8 +227,99 @@ def pick_candidates(v_cam, sel, cand_row, cand_votes, guide_unit, eps):
 
 
 @njit(cache=True)
-def voting_kernel(x_px, y_px, mag, kv, pairs, degree, guide_unit, tol, cam, min_support, min_fraction,
-                  once_per_pair, expected, n_candidates):
+def decide(v_cam, sel, n_voters, start, stop, tally, degree, guide_unit, tol, cam, rule, level, listed, n_listed,
+           rows, votes):
+    """Choice, verification and confirmation from the votes of the first ``n_voters`` selected stars.
+
+    Fills ``rows`` (guide row per detection, -1 = unidentified) and ``votes`` (the chosen
+    catalog star's votes, -1 for detections that did not vote); returns ``(ok, attitude)``, and
+    on failure leaves every row at -1.
+    """
+    n = v_cam.shape[0]
+    cand_row, cand_votes = rank_votes(v_cam, sel, n_voters, start, stop, tally, degree, tol, rule.expected,
+                                      rule.n_candidates, level, listed, n_listed)
+    voters = sel[:n_voters]
+    if rule.n_candidates == 1:
+        best_row, best_votes = cand_row[:, 0].copy(), cand_votes[:, 0].copy()
+    else:
+        best_row, best_votes = pick_candidates(v_cam, voters, cand_row, cand_votes, guide_unit, tol.eps)
+    cand = np.full(n, -1, dtype=np.int64)
+    for s in range(n):
+        rows[s] = -1
+        votes[s] = -1
+    for a in range(n_voters):
+        cand[voters[a]] = best_row[a]
+        votes[voters[a]] = best_votes[a]
+    keep = verify_pairwise(v_cam, cand, guide_unit, tol.eps, rule.min_support, rule.min_fraction)
+    n_kept = 0
+    for s in range(n):
+        if keep[s]:
+            rows[s] = cand[s]
+            n_kept += 1
+    if n_kept < 3:
+        rows[:] = -1
+        return False, np.zeros((3, 3))
+    attitude = wahba_rows(v_cam, rows, guide_unit)
+    seen = np.empty(n, dtype=np.int64)
+    for _ in range(2 if rule.report_all else 1):
+        n_seen, n_predicted = reproject_assign(attitude, v_cam, guide_unit, tol.c_fov + tol.eps, tol.eps, seen,
+                                               cam.f_px, cam.cx_px, cam.cy_px, cam.width_px, cam.height_px)
+        n_agree = 0
+        for s in range(n):
+            if rows[s] >= 0 and seen[s] == rows[s]:
+                n_agree += 1
+        if n_agree < n_kept or n_seen < tol.confirm_fraction * n_predicted or n_seen < 3 + tol.min_extra:
+            rows[:] = -1
+            return False, np.zeros((3, 3))
+        if rule.report_all:         # the attitude of every star reprojection identified, once more
+            attitude = wahba_rows(v_cam, seen, guide_unit)
+    if rule.report_all:
+        for s in range(n):
+            rows[s] = seen[s]
+    return True, attitude
+
+
+@njit(cache=True)
+def vote_rounds(v_cam, sel, kv, pairs, degree, guide_unit, tol, cam, rule, tally):
+    """Voting in rounds: the ``rule.round_voters`` brightest selected stars vote, their choice is
+    verified and confirmed (:func:`decide`); if that fails, the next ``rule.round_step`` stars
+    join, their pairs with every earlier star add votes to the same counters, and the choice is
+    made again -- until a round succeeds or every selected star has voted (that last round has
+    exactly the votes of one round of all). Returns ``(rows, votes, attitude)``."""
+    n = v_cam.shape[0]
+    m = sel.shape[0]
+    rows = np.full(n, -1, dtype=np.int64)
+    votes = np.full(n, -1, dtype=np.int64)
+    n_guide = degree.shape[0]
+    stamp = np.zeros(n_guide, dtype=np.uint16)
+    listed = np.empty((m, n_guide), dtype=pairs.dtype)
+    n_listed = np.zeros(m, dtype=np.int64)
+    step = rule.round_voters if rule.round_voters >= 3 else m
+    done = 0
+    last_level = 0
+    while True:
+        upto = min(m, done + (step if done == 0 else rule.round_step))
+        start, stop = pair_windows(v_cam, sel[:upto], kv, tol)
+        level = min(3, upto - 1)    # list the stars with 3 votes or more (enough for every round)
+        if level != last_level:
+            for a in range(done):   # keep the listed stars that still reach the new level
+                k = 0
+                for i in range(n_listed[a]):
+                    if tally[a, listed[a, i]] >= level:
+                        listed[a, k] = listed[a, i]
+                        k += 1
+                n_listed[a] = k
+            last_level = level
+        cast_votes(start, stop, pairs, done, upto, rule.once_per_pair, stamp, tally, level, listed, n_listed)
+        ok, attitude = decide(v_cam, sel, upto, start, stop, tally, degree, guide_unit, tol, cam, rule, level, listed,
+                              n_listed, rows, votes)
+        if ok or upto == m:
+            return rows, votes, attitude
+        done = upto
+
+
+@njit(cache=True)
+def voting_kernel(x_px, y_px, mag, kv, pairs, degree, guide_unit, tol, cam, rule):
     """Geometric voting on one image. Returns ``(rows, votes, attitude)``.
 
     ``rows[s]``: guide row of detection ``s`` (-1 = unidentified); ``votes[s]``: the votes its
@@ -131,9 +329,9 @@ def voting_kernel(x_px, y_px, mag, kv, pairs, degree, guide_unit, tol, cam, min_
     1. detections with a neighbour closer than ``tol.d_min`` are set aside, the rest sorted
        brightest first and cut to ``tol.max_stars``;
     2. each image pair's angle +- ``tol.eps`` selects catalog pairs (k-vector) and votes
-       (:func:`vote`, ``once_per_pair``); each star takes its most-voted catalog star
-       (``n_candidates`` = 1, the paper) or, of its ``n_candidates`` most-voted, the one most
-       consistent with the other stars' shortlists (:func:`pick_candidates`, reconstruction);
+       (:func:`cast_votes`, ``once_per_pair``); each star takes its most-voted catalog star
+       (``n_candidates`` = 1, the paper) or, of its ``n_candidates`` best (:func:`rank_votes`),
+       the one most consistent with the other stars' shortlists (:func:`pick_candidates`);
     3. verification (``starid.kernels.verify_pairwise``): the pair of assignments (i -> I,
        j -> J) agrees when |chord(b_i, b_j) - chord(r_I, r_J)| <= ``tol.eps``; the least
        supported assignment is dropped until each agrees with at least ``min_support`` and a
@@ -142,44 +340,33 @@ def voting_kernel(x_px, y_px, mag, kv, pairs, degree, guide_unit, tol, cam, min_
        reprojection, at least ``tol.confirm_fraction`` of the guide stars it puts on the sensor,
        every verified star must keep its catalog star, and at least 3 + ``tol.min_extra`` stars
        must be seen in all -- else nothing is reported.
+
+    Steps 2-4 run first with the ``rule.round_voters`` brightest stars and, only when that finds
+    nothing, again with more of them (:func:`vote_rounds`; starid's extension, for speed).
     """
     n = x_px.shape[0]
-    rows = np.full(n, -1, dtype=np.int64)
-    votes = np.full(n, -1, dtype=np.int64)
     if n < 3:
-        return rows, votes, np.zeros((3, 3))
+        return np.full(n, -1, dtype=np.int64), np.full(n, -1, dtype=np.int64), np.zeros((3, 3))
     v_cam = backproject_px(x_px, y_px, cam.f_px, cam.cx_px, cam.cy_px)
     sel = select_stars(x_px, y_px, mag, v_cam, tol.d_min, tol.max_stars)
     if sel.shape[0] < 3:
-        return rows, votes, np.zeros((3, 3))
-    start, stop = pair_windows(v_cam, sel, kv, tol)
-    cand_row, cand_votes = vote(v_cam, sel, start, stop, pairs, degree, tol, once_per_pair, expected, n_candidates)
-    if n_candidates == 1:
-        best_row, best_votes = cand_row[:, 0].copy(), cand_votes[:, 0].copy()
-    else:
-        best_row, best_votes = pick_candidates(v_cam, sel, cand_row, cand_votes, guide_unit, tol.eps)
-    cand = np.full(n, -1, dtype=np.int64)
-    for a in range(sel.shape[0]):
-        cand[sel[a]] = best_row[a]
-        votes[sel[a]] = best_votes[a]
-    keep = verify_pairwise(v_cam, cand, guide_unit, tol.eps, min_support, min_fraction)
-    n_kept = 0
-    for s in range(n):
-        if keep[s]:
-            rows[s] = cand[s]
-            n_kept += 1
-    if n_kept < 3:
-        rows[:] = -1
-        return rows, votes, np.zeros((3, 3))
-    attitude = wahba_rows(v_cam, rows, guide_unit)
-    seen = np.empty(n, dtype=np.int64)
-    n_seen, n_predicted = reproject_assign(attitude, v_cam, guide_unit, tol.c_fov + tol.eps, tol.eps, seen,
-                                           cam.f_px, cam.cx_px, cam.cy_px, cam.width_px, cam.height_px)
-    n_agree = 0
-    for s in range(n):
-        if rows[s] >= 0 and seen[s] == rows[s]:
-            n_agree += 1
-    if n_agree < n_kept or n_seen < tol.confirm_fraction * n_predicted or n_seen < 3 + tol.min_extra:
-        rows[:] = -1
-        return rows, votes, np.zeros((3, 3))
-    return rows, votes, attitude
+        return np.full(n, -1, dtype=np.int64), np.full(n, -1, dtype=np.int64), np.zeros((3, 3))
+    m = sel.shape[0]
+    if rule.once_per_pair:
+        tally8 = np.zeros((m, degree.shape[0]), dtype=np.uint8)
+        return vote_rounds(v_cam, sel, kv, pairs, degree, guide_unit, tol, cam, rule, tally8)
+    tally32 = np.zeros((m, degree.shape[0]), dtype=np.int32)
+    return vote_rounds(v_cam, sel, kv, pairs, degree, guide_unit, tol, cam, rule, tally32)
+
+
+@njit(cache=True)
+def identify_kernel(x_px, y_px, mag, kv, pairs, degree, guide_unit, guide_hip, tol, cam, rule):
+    """:func:`voting_kernel` with catalog ids: ``(hip, attitude, found)``, hip -1 = unidentified."""
+    rows, _, attitude = voting_kernel(x_px, y_px, mag, kv, pairs, degree, guide_unit, tol, cam, rule)
+    hip = np.full(rows.shape[0], -1, dtype=np.int64)
+    found = False
+    for s in range(rows.shape[0]):
+        if rows[s] >= 0:
+            hip[s] = guide_hip[rows[s]]
+            found = True
+    return hip, attitude, found
