@@ -95,6 +95,10 @@ class GeometricVoting(Algorithm):
     """
 
     name: ClassVar[str] = "geometric_voting"
+    #: the paper's voting: one candidate per star, raw vote counts, every pair votes, one round of every
+    #: voter, only the voted stars reported (``geometric_voting:paper``)
+    published: ClassVar[dict] = {"n_candidates": 1, "expected_votes": False, "once_per_pair": False,
+                                 "round_voters": 0, "report_all": False}
     follows: ClassVar[dict] = {"sigma_px": "sigma_px"}
 
     mag_limit: float = 6.0
