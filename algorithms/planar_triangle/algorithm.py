@@ -143,10 +143,10 @@ class PlanarTriangle(Algorithm):
     * ``restarts = 0`` (reconstructed): after a failure, start again from the next-largest
       triangle, up to ``restarts`` more times. Cole's own code tries only the largest-area start
       triangle (``restarts=0``). The former default 3 was chosen on the seed it was evaluated on;
-      re-tuned on seed 7 (500 images, 1 px / 0.5 Mv) it buys nothing once star subsets are
-      tried (93.6 % both with 0 and 1, V <= 8 sky) and costs time, so 0; without subsets
-      (``subset_size=None, max_stars=None``, the paper's method) 3 restarts give 96.0 % vs
-      91.8 % in the V <= 6 sky and 20.0 % vs 12.8 % in the V <= 8 sky.
+      re-tuned on seed 7 (500 images, 1 px / 0.5 Mv, real sky) it buys nothing once star subsets
+      are tried (90.8 % with 0 and 1 at V <= 6, 96.2 % with 0 and 1 at the default V <= 6.2) and
+      costs 1.5x the mean time, so 0; without subsets (the paper's pivoting on all stars, V <= 6)
+      3 restarts give 15.0 % vs 9.4 % in the real sky.
 
     Flight precautions and final step (extensions, not in the paper; docs/algorithms/planar_triangle.md
     has the measured table):
@@ -159,7 +159,8 @@ class PlanarTriangle(Algorithm):
     * ``subset_size = 5``, ``max_subsets = 56``: the pivoting runs on subsets of ``subset_size``
       of the chosen stars, brightest combination first, until one identifies (all C(8, 5) = 56
       by default); a subset without the stray faint star succeeds. ``None``: all chosen stars at
-      once. Measured (seed 7, V <= 8 sky): 48 % for the 8 brightest at once, 93.6 % with subsets.
+      once. Measured (seed 7, 500 images, real sky, V <= 6): 9.4 % for all stars at once,
+      90.8 % with subsets of 5 of the 8 brightest.
     * ``small_subset_size = 4``, ``max_small_subsets = 70`` (last stage, after every
       ``subset_size`` subset failed): subsets of 4 of the chosen stars, brightest first (all
       C(8, 4) = 70), for fields whose brightest detections hold only 4 guide stars. One pivot
@@ -170,9 +171,9 @@ class PlanarTriangle(Algorithm):
       check. ``None``: no last stage.
     * ``wide_stars = None`` (off; an optional middle stage): subsets of ``subset_size`` of the
       ``wide_stars`` brightest stars that contain at least one star beyond the ``max_stars``
-      brightest, at most ``max_wide_subsets``. Measured (seed 7, 1,000 images, real sky, V <= 6
-      database): +1.4 points for 1.5x the mean time; with the V <= 6.2 database it rescued 2 of
-      1,000 images, so it is not the default.
+      brightest, at most ``max_wide_subsets``. Measured (seed 7, real sky, V <= 6 database, with
+      the 4-star stage): +0.4 to +1.3 points (500 and 1,000 images) for 1.2x the mean time; with
+      the V <= 6.2 database it rescued 2 of 1,000 images, so it is not the default.
     * ``mag_limit = 6.2`` (extension; the paper's database is V <= 6, ``mag_limit=6.0``): in the
       real sky magnitude noise brings V 6-6.5 stars among the brightest detections; a database
       0.2 mag deeper holds most of them (41.9 MB, 2.1 M triangles; the paper's was 178 MB).
@@ -188,7 +189,7 @@ class PlanarTriangle(Algorithm):
     * ``assign_all`` (default on): once the attitude is known (Wahba from the identified stars),
       every other image star gets the catalog star (any V, the ``deep`` list) that projects within
       ``beta sqrt(2) sigma`` of it (``starid.kernels.reproject_assign``), unless that star is more
-      than ``mag_margin`` fainter than measured; star recall 0.32 -> 0.95 (V <= 8 sky).
+      than ``mag_margin`` fainter than measured; star recall 0.91 in the real sky (seed 11).
     * coverage check (``coverage_mag_margin = 0.75``, ``max_missed_fraction = 1/3``; 1 turns it
       off): the attitude must explain the bright stars of its field -- of the catalog stars with
       V <= min(``mag_limit``, faintest image star) - ``coverage_mag_margin`` that it puts on the
