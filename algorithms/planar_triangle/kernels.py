@@ -19,6 +19,10 @@ from numba import njit
 from starid.kernels import (KVector, assign_all, backproject_px, chord_rows, field_chord, kvector_query,
                            triple_product, verify_pairwise, wahba_rows, z_band_rows)
 
+MOMENT_BLOCK = 256  # triangles per block of the moment index (offsets fit uint8)
+HASH_ROOM = 8  # hash-table slots per cached candidate (3 pairs, table at most 3/4 full, power of two)
+EMPTY = np.uint32(0xFFFFFFFF)  # an empty hash slot (no star pair lo < hi < 65536 has this key)
+CACHE_PER_TRIANGLE = 2048  # room for moment candidates per image triangle (on average) in the cache
 KEY_BASE = 65536  # star indices are < 65536 (uint16), so a sorted pair packs into lo * 65536 + hi
 
 
@@ -35,7 +39,8 @@ class Tables(NamedTuple):
 
     stars: np.ndarray  # uint16 (N, 3) guide rows of each triangle, ascending within a row
     area: KVector  # float32 areas, ascending, with their k-vector
-    moment: np.ndarray  # float32 (N,) polar moment of the same triangles
+    moment: np.ndarray  # float32 (N,) polar moments, sorted within each block of MOMENT_BLOCK triangles
+    moment_perm: np.ndarray  # uint8 (N,) triangle (offset in its block, area order) of each entry of ``moment``
     unit: np.ndarray  # float64 (n, 3) guide-star unit vectors, ICRS
     nbr_ptr: np.ndarray  # int32 (n + 1,) CSR neighbours within the sensor diagonal
     nbr_idx: np.ndarray  # uint16
@@ -65,6 +70,23 @@ class ImageTriangles(NamedTuple):
     area: np.ndarray  # (m,) chord-triangle area
     start: np.ndarray  # int64 (m,) first area hit in the catalog
     stop: np.ndarray  # int64 (m,) one past the last area hit
+    gid: np.ndarray  # int64 (m,) row of each triangle in the candidate cache (``MomentCache``)
+
+
+class MomentCache(NamedTuple):
+    """Moment-filtered area hits of image triangles, computed once per triangle and shared by
+    every star subset of an image (a subset's triangles are triangles of the whole image)."""
+
+    done: np.ndarray  # bool (M,) candidates of triangle g computed
+    start: np.ndarray  # int64 (M,) they are buf[start[g]:stop[g]]
+    stop: np.ndarray
+    buf: np.ndarray  # int64 (CACHE_PER_TRIANGLE x M,) storage; full: no more caching
+    keys: np.ndarray  # uint32 (HASH_ROOM x len(buf),) hash tables of the candidates' star pairs (EMPTY: empty slot)
+    key_cand: np.ndarray  # int32 the candidate of each slot
+    hstart: np.ndarray  # int64 (M,) triangle g's table is keys[hstart[g]:hstart[g] + hsize[g]]
+    hsize: np.ndarray  # int64 (M,) a power of two >= 4 x its candidates (3 keys each)
+    fill: np.ndarray  # int64 (1,) used length of buf
+    hfill: np.ndarray  # int64 (1,) used length of keys
 
 
 @njit(cache=True)
@@ -186,28 +208,128 @@ def scan_triangles(unit, nbr_ptr, nbr_idx, rules, offsets, fill):
     return counts, stars, area_out, moment_out
 
 
+def moment_blocks(moment):
+    """The moment index: ``(moment sorted within each block of MOMENT_BLOCK consecutive triangles
+    of the area order, float32; uint8 offset in the block of the triangle of each entry)``."""
+    n = moment.shape[0]
+    sorted_moment = np.empty(n, dtype=np.float32)
+    perm = np.empty(n, dtype=np.uint8)
+    for base in range(0, n, MOMENT_BLOCK):
+        block = moment[base:base + MOMENT_BLOCK].astype(np.float32)
+        order = np.argsort(block, kind="stable")
+        sorted_moment[base:base + block.size] = block[order]
+        perm[base:base + block.size] = order
+    return sorted_moment, perm
+
+
 @njit(cache=True)
-def _moment_filter(tri_moment, start, stop, lo, hi):
-    """Catalog triangles in ``[start, stop)`` whose polar moment lies in ``[lo, hi]``."""
-    out = np.empty(stop - start, dtype=np.int64)
+def _moment_filter(moment, moment_perm, start, stop, lo, hi):
+    """Catalog triangles ``t`` in ``[start, stop)`` (area order) whose polar moment lies in
+    ``[lo, hi]``, ascending.
+
+    The same set as scanning the area hits, found with a binary search in each block of the
+    moment index that the area range touches (the area window holds ~20x more triangles than
+    the moment window).
+    """
+    out = np.empty(max(stop - start, 0), dtype=np.int64)
     m = 0
-    for t in range(start, stop):
-        mo = tri_moment[t]
-        if mo >= lo and mo <= hi:
-            out[m] = t
-            m += 1
+    if stop <= start:
+        return out
+    n = moment.shape[0]
+    for b in range(start // MOMENT_BLOCK, (stop - 1) // MOMENT_BLOCK + 1):
+        base = b * MOMENT_BLOCK
+        end = min(base + MOMENT_BLOCK, n)
+        pos = base + np.searchsorted(moment[base:end], lo)
+        while pos > base and moment[pos - 1] >= lo:  # float32 vs float64 comparison at the edge
+            pos -= 1
+        while pos < end and moment[pos] <= hi:
+            if moment[pos] >= lo:
+                t = base + np.int64(moment_perm[pos])
+                if t >= start and t < stop:
+                    out[m] = t
+                    m += 1
+            pos += 1
     return out[:m]
 
 
 @njit(cache=True)
-def _moment_candidates(t, img, tri_moment, tol):
-    """Area hits ``[img.start[t], img.stop[t])`` of image triangle ``t`` whose polar moment lies
-    within ``beta`` standard deviations of its own (paper eqs. 16-20)."""
+def _slot(key, mask):
+    """Home slot of a star-pair key in a hash table of ``mask + 1`` slots (Fibonacci hashing)."""
+    return np.int64((np.uint64(key) * np.uint64(0x9E3779B97F4A7C15)) >> np.uint64(40)) & mask
+
+
+@njit(cache=True)
+def _moment_candidates(t, img, db, tol, cache):
+    """``(candidates, keys, key_cand)`` of image triangle ``t``: its area hits
+    ``[img.start[t], img.stop[t])`` whose polar moment lies within ``beta`` standard deviations of
+    its own (paper eqs. 16-20), and an open-addressing hash table (linear probing; a power-of-two
+    size, EMPTY = empty slot) of their three star pairs ``lo * KEY_BASE + hi`` with the candidate of each
+    slot (what a pivot matches on). From ``cache`` when this triangle was already looked up for
+    another subset (views: do not write into them); stored there while it has room."""
+    g = img.gid[t]
+    if cache.done[g]:
+        a, b = cache.start[g], cache.stop[g]
+        h0, h1 = cache.hstart[g], cache.hstart[g] + cache.hsize[g]
+        return cache.buf[a:b], cache.keys[h0:h1], cache.key_cand[h0:h1]
     r1, r2, r3 = img.v[img.tri[t, 0]], img.v[img.tri[t, 1]], img.v[img.tri[t, 2]]
     _, moment, _ = triangle_features(r1, r2, r3)
     _, var_j = triangle_variances(r1, r2, r3, tol.sigma_rad)
     half = tol.beta * math.sqrt(var_j)
-    return _moment_filter(tri_moment, img.start[t], img.stop[t], moment - half, moment + half)
+    out = _moment_filter(db.moment, db.moment_perm, img.start[t], img.stop[t], moment - half, moment + half)
+    nc = out.shape[0]
+    size = 8
+    while size < 4 * nc:
+        size *= 2
+    mask = size - 1
+    p = cache.fill[0]
+    q = cache.hfill[0]
+    cached = p + nc <= cache.buf.shape[0] and q + size <= cache.keys.shape[0]
+    if cached:
+        keys = cache.keys[q:q + size]
+        key_cand = cache.key_cand[q:q + size]
+    else:
+        keys = np.empty(size, dtype=np.uint32)
+        key_cand = np.empty(size, dtype=np.int32)
+    keys[:] = EMPTY
+    tri_stars = db.stars
+    for c in range(nc):
+        s0 = np.int64(tri_stars[out[c], 0])
+        s1 = np.int64(tri_stars[out[c], 1])
+        s2 = np.int64(tri_stars[out[c], 2])  # stored ascending
+        for x in range(3):
+            if x == 0:
+                key = s0 * KEY_BASE + s1
+            elif x == 1:
+                key = s0 * KEY_BASE + s2
+            else:
+                key = s1 * KEY_BASE + s2
+            pos = _slot(key, mask)
+            while keys[pos] != EMPTY:
+                pos = (pos + 1) & mask
+            keys[pos] = key
+            key_cand[pos] = out[c]
+    if cached:
+        cache.buf[p:p + nc] = out
+        cache.start[g] = p
+        cache.stop[g] = p + nc
+        cache.fill[0] = p + nc
+        cache.hstart[g] = q
+        cache.hsize[g] = size
+        cache.hfill[0] = q + size
+        cache.done[g] = True
+    return out, keys, key_cand
+
+
+@njit(cache=True)
+def new_cache(img):
+    """An empty :class:`MomentCache` for the triangles of ``img`` (``gid`` 0..m-1), room for
+    CACHE_PER_TRIANGLE candidates per triangle on average."""
+    m = img.tri.shape[0]
+    total = CACHE_PER_TRIANGLE * m
+    return MomentCache(np.zeros(m, dtype=np.bool_), np.zeros(m, dtype=np.int64), np.zeros(m, dtype=np.int64),
+                       np.empty(total, dtype=np.int64), np.empty(HASH_ROOM * total, dtype=np.uint32),
+                       np.empty(HASH_ROOM * total, dtype=np.int32), np.zeros(m, dtype=np.int64),
+                       np.zeros(m, dtype=np.int64), np.zeros(1, dtype=np.int64), np.zeros(1, dtype=np.int64))
 
 
 @njit(cache=True)
@@ -263,7 +385,7 @@ def _grow(arr, size):
 
 
 @njit(cache=True)
-def _pivot(first, img, db, tol, pivot_limit):
+def _pivot(first, img, db, tol, pivot_limit, cache):
     """The chain and pivot procedure of ``MatchStarsWPlanarTris.m``.
 
     The chain starts at image triangle ``first``; each pivot appends the unused triangle of
@@ -292,7 +414,7 @@ def _pivot(first, img, db, tol, pivot_limit):
     chain[0] = first
     used_tri[first] = True
     # finalist tree: node = (catalog triangle, parent node); one layer per chain triangle
-    node_cat = _moment_candidates(first, img, db.moment, tol)
+    node_cat = _moment_candidates(first, img, db, tol, cache)[0].copy()
     n_nodes = node_cat.shape[0]
     node_parent = np.full(max(n_nodes, 1), -1, dtype=np.int64)
     layer_lo = 0
@@ -306,19 +428,9 @@ def _pivot(first, img, db, tol, pivot_limit):
         chain[step] = t
         used_tri[t] = True
         length += 1
-        cand = _moment_candidates(t, img, db.moment, tol)
-        nc = cand.shape[0]
-        # index the candidates by each of their three star pairs
-        keys = np.empty(3 * nc, dtype=np.int64)
-        for c in range(nc):
-            s0 = np.int64(tri_stars[cand[c], 0])
-            s1 = np.int64(tri_stars[cand[c], 1])
-            s2 = np.int64(tri_stars[cand[c], 2])  # stored ascending
-            keys[3 * c] = s0 * KEY_BASE + s1
-            keys[3 * c + 1] = s0 * KEY_BASE + s2
-            keys[3 * c + 2] = s1 * KEY_BASE + s2
-        order = np.argsort(keys)
-        skeys = keys[order]
+        # the candidates indexed by each of their three star pairs (sorted keys)
+        _, hkeys, hcand = _moment_candidates(t, img, db, tol, cache)
+        hmask = hkeys.shape[0] - 1
         img_members = np.empty((step + 1, 3), dtype=np.int64)
         for l in range(step + 1):
             img_members[l] = img_tri[chain[l]]
@@ -339,10 +451,13 @@ def _pivot(first, img, db, tol, pivot_limit):
                     key = a0 * KEY_BASE + a2
                 else:
                     key = a1 * KEY_BASE + a2
-                pos = np.searchsorted(skeys, key)
-                while pos < skeys.shape[0] and skeys[pos] == key:
-                    c = cand[order[pos] // 3]
-                    pos += 1
+                pos = _slot(key, hmask)
+                while hkeys[pos] != EMPTY:
+                    if hkeys[pos] != key:
+                        pos = (pos + 1) & hmask
+                        continue
+                    c = np.int64(hcand[pos])
+                    pos = (pos + 1) & hmask
                     shared = 0
                     for x in range(3):
                         s = tri_stars[c, x]
@@ -573,40 +688,26 @@ def image_triangles(img_v, db, tol):
                 img_start[m] = start
                 img_stop[m] = stop
                 m += 1
-    return ImageTriangles(img_v, img_tri[:m], img_area[:m], img_start[:m], img_stop[:m])
+    return ImageTriangles(img_v, img_tri[:m], img_area[:m], img_start[:m], img_stop[:m], np.arange(m))
 
 
 @njit(cache=True)
-def identify_rows(img_v, db, tol):
-    """The whole identification of one image: guide-star row per observed star, -1 if none.
-
-    1. image triangles and their area hits (:func:`image_triangles`);
-    2. start triangle = the one of largest area; chain of triangles sharing two stars, at
-       most ``pivot_limit`` pivots; finalists filtered by the polar moment; pivot procedure;
-    3. a unique finalist chain is turned into per-star rows (chords + chirality);
-    4. (extension, ``extend``) further stars by angular distance, then pairwise verification;
-       at least ``min_verified`` verified stars are needed;
-    5. (extension, ``restarts`` > 0) on failure, start again from the next-largest triangle.
-
-    Returns ``(rows, chain)``: ``chain`` (L, 3) the stars of the image triangles of the accepted
-    pivot sequence (of the last one tried when none is accepted; for ``explain``).
-    """
+def _identify_img(img, db, tol, cache):
+    """Steps 2-5 of :func:`identify_rows` on the image triangles ``img``."""
+    img_v = img.v
     n = img_v.shape[0]
     none = np.full(n, -1, dtype=np.int64)
     no_chain = np.zeros((0, 3), dtype=np.int64)
-    if n < 3:
-        return none, no_chain
-    tol_chord = tol.beta * math.sqrt(2.0) * tol.sigma_rad
-    img = image_triangles(img_v, db, tol)
     m = img.tri.shape[0]
     if m == 0:
         return none, no_chain
+    tol_chord = tol.beta * math.sqrt(2.0) * tol.sigma_rad
     pivot_limit = tol.pivot_limit
     if pivot_limit < 0:  # no limit: the chain may use every image triangle
         pivot_limit = m - 1
     ranked = np.argsort(-img.area, kind="mergesort")
     for attempt in range(min(tol.restarts + 1, m)):
-        chain, cat_chain, n_fin = _pivot(ranked[attempt], img, db, tol, pivot_limit)
+        chain, cat_chain, n_fin = _pivot(ranked[attempt], img, db, tol, pivot_limit, cache)
         no_chain = img.tri[chain]
         if n_fin != 1:
             continue
@@ -626,50 +727,113 @@ def identify_rows(img_v, db, tol):
 
 
 @njit(cache=True)
-def identify_subsets(img_v, bright, db, tol, subset_size, max_subsets):
-    """Brightest-first star subsets: :func:`identify_rows` on subsets of the stars ``bright``.
+def identify_rows(img_v, db, tol):
+    """The whole identification of one image: guide-star row per observed star, -1 if none.
+
+    1. image triangles and their area hits (:func:`image_triangles`);
+    2. start triangle = the one of largest area; chain of triangles sharing two stars, at
+       most ``pivot_limit`` pivots; finalists filtered by the polar moment; pivot procedure;
+    3. a unique finalist chain is turned into per-star rows (chords + chirality);
+    4. (extension, ``extend``) further stars by angular distance, then pairwise verification;
+       at least ``min_verified`` verified stars are needed;
+    5. (extension, ``restarts`` > 0) on failure, start again from the next-largest triangle.
+
+    Returns ``(rows, chain)``: ``chain`` (L, 3) the stars of the image triangles of the accepted
+    pivot sequence (of the last one tried when none is accepted; for ``explain``).
+    """
+    n = img_v.shape[0]
+    if n < 3:
+        return np.full(n, -1, dtype=np.int64), np.zeros((0, 3), dtype=np.int64)
+    img = image_triangles(img_v, db, tol)
+    return _identify_img(img, db, tol, new_cache(img))
+
+
+@njit(cache=True)
+def _sub_triangles(img, idx, size, sub_v):
+    """The triangles of ``img`` whose three stars are all in ``idx[:size]`` (sorted star indices),
+    renumbered to positions in ``idx``; ``gid`` keeps the row in ``img`` (the cache key)."""
+    n = img.v.shape[0]
+    local = np.full(n, -1, dtype=np.int64)
+    for a in range(size):
+        local[idx[a]] = a
+    m = img.tri.shape[0]
+    keep = np.empty(m, dtype=np.int64)
+    k = 0
+    for t in range(m):
+        if local[img.tri[t, 0]] >= 0 and local[img.tri[t, 1]] >= 0 and local[img.tri[t, 2]] >= 0:
+            keep[k] = t
+            k += 1
+    keep = keep[:k]
+    tri = np.empty((k, 3), dtype=np.int64)
+    for q in range(k):
+        for x in range(3):
+            tri[q, x] = local[img.tri[keep[q], x]]
+    return ImageTriangles(sub_v, tri, img.area[keep], img.start[keep], img.stop[keep], img.gid[keep])
+
+
+@njit(cache=True)
+def identify_subsets(img_v, bright, db, tol, stages):
+    """Brightest-first star subsets: the pivoting of :func:`identify_rows` on subsets of the stars.
 
     ``img_v`` holds the candidate stars in a canonical (geometric) order; ``bright`` indexes them
-    brightest first. The subsets of ``subset_size`` of them are tried in lexicographic order of
-    brightness rank (the brightest combination first), at most ``max_subsets`` of them, each with
-    its stars in the canonical order; the first identification wins. A star that is not in the
-    database (a fainter star that magnitude noise made look bright) breaks every pivot chain
-    through it; a subset without it does not. Returns the row per star of ``img_v`` (-1 = none)
-    and the pivot sequence of the last subset tried (star indices of ``img_v``, see
-    :func:`identify_rows`).
+    brightest first. ``stages`` (int64 (S, 3)): rows ``(size, pool, max_subsets)``, tried in
+    order: the subsets of ``size`` of the ``pool`` brightest stars, in lexicographic order of
+    brightness rank (the brightest combination first), skipping those an earlier stage of the
+    same size already tried, at most ``max_subsets`` per stage; the first identification wins.
+    A star that is not in the database (a fainter star that magnitude noise made look bright)
+    breaks every pivot chain through it; a subset without it does not. The image triangles and
+    their moment-filtered area hits are computed once for all subsets.
+
+    Returns ``(rows, chain, stage)``: the row per star of ``img_v`` (-1 = none), the pivot sequence
+    of the last subset tried (star indices of ``img_v``, see :func:`identify_rows`) and the stage
+    that identified (-1: none).
     """
     n = img_v.shape[0]
     k = bright.shape[0]
     out = np.full(n, -1, dtype=np.int64)
     chain = np.zeros((0, 3), dtype=np.int64)
-    size = min(subset_size, k)
-    if size < 3:
-        return out, chain
-    comb = np.arange(size)
-    for _ in range(max_subsets):
-        idx = np.sort(bright[comb])
-        sub = np.empty((size, 3))
-        for a in range(size):
-            sub[a] = img_v[idx[a]]
-        rows, sub_chain = identify_rows(sub, db, tol)
-        chain = np.empty_like(sub_chain)
-        for l in range(sub_chain.shape[0]):
-            for x in range(3):
-                chain[l, x] = idx[sub_chain[l, x]]
-        if rows.max() >= 0:
-            for a in range(size):
-                out[idx[a]] = rows[a]
-            return out, chain
-        # next combination of ``size`` out of ``k`` in lexicographic order
-        p = size - 1
-        while p >= 0 and comb[p] == k - size + p:
-            p -= 1
-        if p < 0:
-            break
-        comb[p] += 1
-        for q in range(p + 1, size):
-            comb[q] = comb[q - 1] + 1
-    return out, chain
+    if n < 3:
+        return out, chain, -1
+    img = image_triangles(img_v, db, tol)
+    cache = new_cache(img)
+    for st in range(stages.shape[0]):
+        pool = min(stages[st, 1], k)
+        size = min(stages[st, 0], pool)
+        if size < 3:
+            continue
+        comb = np.arange(size)
+        tried = 0
+        while tried < stages[st, 2]:
+            # skip a subset an earlier stage of the same size already tried (all within its pool)
+            seen = False
+            for e in range(st):
+                if min(stages[e, 0], min(stages[e, 1], k)) == size and comb[size - 1] < min(stages[e, 1], k):
+                    seen = True
+            if not seen:
+                tried += 1
+                idx = np.sort(bright[comb])
+                sub = np.empty((size, 3))
+                for a in range(size):
+                    sub[a] = img_v[idx[a]]
+                rows, sub_chain = _identify_img(_sub_triangles(img, idx, size, sub), db, tol, cache)
+                chain = np.empty_like(sub_chain)
+                for l in range(sub_chain.shape[0]):
+                    for x in range(3):
+                        chain[l, x] = idx[sub_chain[l, x]]
+                if rows.max() >= 0:
+                    for a in range(size):
+                        out[idx[a]] = rows[a]
+                    return out, chain, st
+            # next combination of ``size`` out of ``pool`` in lexicographic order
+            p = size - 1
+            while p >= 0 and comb[p] == pool - size + p:
+                p -= 1
+            if p < 0:
+                break
+            comb[p] += 1
+            for q in range(p + 1, size):
+                comb[q] = comb[q - 1] + 1
+    return out, chain, -1
 
 
 # -- the final step (shared with triangle_voting) -------------------------------------------
