@@ -207,6 +207,10 @@ class PlanarTriangle(Algorithm):
 
     follows: ClassVar[dict] = {"sigma_px": "sigma_px"}
     name: ClassVar[str] = "planar_triangle"
+    #: the paper's method: V <= 6 catalog, pivoting over every image star, no subsets, no coverage
+    #: check, only the pivot's stars reported (``planar_triangle:paper``)
+    published: ClassVar[dict] = {"mag_limit": 6.0, "max_stars": None, "subset_size": None, "small_subset_size": None,
+                                 "assign_all": False, "max_missed_fraction": 1.0}
 
     mag_limit: float = 6.2
     sigma_px: float | None = None
