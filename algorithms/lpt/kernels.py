@@ -217,7 +217,7 @@ def match_bound(chars, g, img):
     b = chars.start[g + 1]
     if img.nz <= 62:
         bits = 0
-        for q in range(a, b):
+        for q in range(np.uint64(a), np.uint64(b)):
             bits |= img.mask[chars.level[q]]
         return _popcount(bits)
     n_pairs = 0
@@ -244,38 +244,40 @@ def shift_scores(chars, g, img, search, sets, planes):
     tol = search.sector_tol
     nw = sets.shape[1]
     nz = img.nz
-    for t in range(nz):
-        for w in range(nw):
+    # unsigned indices throughout: no negative-index wraparound tests
+    for t in range(np.uint64(nz)):
+        for w in range(np.uint64(nw)):
             sets[t, w] = 0
-    for q in range(chars.start[g], chars.start[g + 1]):
+    for q in range(np.uint64(chars.start[g]), np.uint64(chars.start[g + 1])):
         j = np.int64(chars.sector[q])
         lv = np.int64(chars.level[q])
-        for p in range(img.level_start[lv], img.level_start[lv + 1]):
+        for p in range(np.uint64(img.level_start[lv]), np.uint64(img.level_start[lv + 1])):
             t = img.by_level[p]
             base = j - img.sector[t]
+            row = sets[np.uint64(t)]
             for d in range(-tol, tol + 1):
                 s = base - d
                 if s < 0:
                     s += m
                 elif s >= m:
                     s -= m
-                sets[t, s >> 6] |= np.int64(1) << (s & 63)
+                row[np.uint64(s >> 6)] |= np.int64(1) << (s & 63)
     n_bits = planes.shape[0]
-    for b in range(n_bits):
-        for w in range(nw):
+    for b in range(np.uint64(n_bits)):
+        for w in range(np.uint64(nw)):
             planes[b, w] = 0
     top = 0
-    for t in range(nz):
-        for w in range(nw):
+    for t in range(np.uint64(nz)):
+        for w in range(np.uint64(nw)):
             carry = sets[t, w]
-            b = 0
+            b = np.uint64(0)
             while carry != 0:
                 c = planes[b, w] & carry
                 planes[b, w] ^= carry
                 carry = c
-                b += 1
+                b += np.uint64(1)
             if b > top:
-                top = b
+                top = np.int64(b)
     cand = sets[nz]            # shifts still reaching the best so far; bits >= m are never set in planes
     for w in range(nw):
         cand[w] = -1
