@@ -76,7 +76,9 @@ class Grid(PlanarAlgorithm):
        buffer and R reconstructed.
     3. Match: every database pattern (the whole database, as Padgett and Luo et al. describe
        it) is scored by the number of its cells also set in the image pattern (the AND of the
-       two bit grids). Padgett.
+       two bit grids). Padgett. The database is indexed by cell, so the scores are accumulated
+       from the image's cells over the patterns holding them (the same sums, added in the same
+       order, as a pattern-by-pattern scan).
     4. Modified-grid options (reconstructed interpretation of Na et al.; defaults on, since
        Luo et al. compare against the modified grid): ``soft_edge``/``soft_diag`` credit for a
        database cell next to an image star's cell (0.4 / 0.2; 0 / 0 = Padgett's exact cells);

@@ -85,10 +85,12 @@ class LPT(PlanarAlgorithm):
        database): the score of a guide star is the largest, over the m circular shifts, number
        of image characters matched by a non-zero database character within ``level_tol`` rows
        and ``sector_tol`` sectors (tolerant matching is not an equality, so KMP cannot be used
-       as such; all shifts are scored at once by voting, which gives exactly the brute-force
-       circular comparison's scores). Among equal scores the database string with fewer
-       unmatched characters ranks first (a sparse pattern otherwise ties with every string
-       that contains it). Reconstructed.
+       as such; all shifts are scored at once with bit-parallel shift sets over the strings'
+       non-zero characters, which gives exactly the brute-force circular comparison's scores,
+       and strings that provably cannot enter the candidate list are skipped, which leaves the
+       list exactly as a full scan makes it). Among equal scores the database string with fewer
+       unmatched characters ranks first, then the lower guide row (a sparse pattern otherwise
+       ties with every string that contains it). Reconstructed.
     5. The ``n_candidates`` best guide stars with at least ``min_score`` matched characters
        seed an attitude (the reference star and the roll the shift gives, refined by the
        matched characters) that must be confirmed by reprojection exactly as in

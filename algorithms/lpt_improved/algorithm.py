@@ -92,7 +92,8 @@ class ImprovedLPT(PlanarAlgorithm):
        ``count_tol_above=None`` (= ``count_tol``). starid's default epsilon2 = 3 (reconstruction):
        guide stars lost to magnitude noise or the image edge leave the image with fewer
        non-zero entries than its database row far more often than with more. starid evaluates the same sum over the image's non-zero entries
-       only (an exact identity, see :func:`kernels.sad_search`).
+       only (an exact identity, see :func:`kernels.sad_search`), on a table stored entry by entry
+       so that the window's rows are read contiguously.
     6. Reference stars near the image centre first (paper), at most ``max_refs``.
 
     starid's additions (reconstructions; the paper stops at step 5 and, with a single

@@ -9,8 +9,8 @@ import pytest
 
 from starid import Camera, ConfigError, SimConfig, Simulator
 from starid_algorithms.lpt import LPT
-from starid_algorithms.lpt.kernels import (ImageString, StringSearch, dense_string, index_image, match_bound,
-                                           shift_scores, sparse_strings)
+from starid_algorithms.lpt.kernels import (ImageString, StringSearch, dense_string, index_image, least_needed,
+                                           match_bound, rank_key, shift_scores, sparse_strings)
 
 
 @pytest.fixture(scope="module")
@@ -67,6 +67,16 @@ def test_shift_scores_equal_brute_force_circular_match(m, sector_tol):
             expect = _brute_force(rows[g], img, m, 1, sector_tol)
             assert shift_scores(chars, g, image, search, sets, planes) == expect
             assert match_bound(chars, g, image) >= expect[0]
+
+
+def test_least_needed_is_the_pruning_threshold():
+    """The scan skips a string whose best score is below least_needed: exactly those keep_best would drop."""
+    for threshold in (1, 1023, 1024, 2047, 2048, 5119, 6141, 9300):
+        for n_chars in (0, 1, 3, 7, 20, 60):
+            for min_score in (1, 2, 4):
+                need = least_needed(threshold, n_chars, min_score)
+                assert need >= min_score and rank_key(need, n_chars) > threshold
+                assert need == min_score or rank_key(need - 1, n_chars) <= threshold
 
 
 def test_luo_setup(catalog):
