@@ -236,9 +236,9 @@ def shift_scores(chars, g, img, search, sets, planes):
     ``k + s + d`` (mod m), ``|d| <= sector_tol``: the circular string match of the LPT
     algorithm, every shift at once, and the smallest shift among equals (0 when nothing
     matches). Bit-parallel: each image character's set of matching shifts is a bit set over
-    the m shifts (``sets``, int64 (nz + 1, words), the last row a work row; OR makes each character count at most once per
-    shift), the sets are summed as bit-sliced counters (``planes``, int64 (bits, words)) and
-    the maximum is read from the top bit plane down.
+    the m shifts (``sets``, int64 (nz + 1, words), the last row a work row; OR makes each
+    character count at most once per shift), the sets are summed as bit-sliced counters
+    (``planes``, int64 (bits, words)) and the maximum is read from the top bit plane down.
     """
     m = search.n_sectors
     tol = search.sector_tol

@@ -59,7 +59,8 @@ def test_shift_scores_equal_brute_force_circular_match(m, sector_tol):
     for i, img in enumerate(images):
         sec = np.flatnonzero(img)
         nz = sec.size
-        level_start, by_level, mask = np.zeros(18, dtype=np.int64), np.zeros(3 * m, dtype=np.int64), np.zeros(17, dtype=np.int64)
+        level_start, mask = np.zeros(18, dtype=np.int64), np.zeros(17, dtype=np.int64)
+        by_level = np.zeros(3 * m, dtype=np.int64)
         index_image(sec, img[sec], nz, search, level_start, by_level, mask)
         image = ImageString(sec, img[sec], nz, level_start, by_level, mask)
         for g in range(len(rows)):      # every string against every image: true matches and unrelated ones
