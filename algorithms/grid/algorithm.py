@@ -16,22 +16,26 @@ from starid.plugin import Database, Explanation
 
 from ..lpt_improved.planar import (PlanarAlgorithm, acceptance, effective_double_px, explain_pattern, neighbour_lists,
                                    prepare_image, radius_for, select_guides, sensor_of)
-from .kernels import GridSpec, GridTable, build_patterns, identify_kernel
+from .kernels import GridSpec, GridTable, build_patterns, by_cell, by_pattern, identify_kernel
 
 
 @dataclass(frozen=True, eq=False)
 class GridDatabase(Database):
     """One sparse binary grid per guide star (per orientation choice).
 
-    cells : uint16 sorted occupied cells (row * g + col) of all patterns, concatenated.
-    start : int32 (k + 1,) pattern p's cells are ``cells[start[p]:start[p+1]]``.
+    patterns : uint16 (int32 beyond 65536 patterns) the patterns holding each cell, ascending,
+        grouped by cell (row * g + col): cell c's are ``patterns[cell_start[c]:cell_start[c+1]]``.
+    cell_start : int32 (g * g + 1,) offsets into ``patterns``.
+    start : int32 (k + 1,) pattern p has ``start[p+1] - start[p]`` occupied cells (:attr:`cells`
+        lists them: ``cells[start[p]:start[p+1]]``, sorted).
     guide, orient : int16/int32 (k,) guide rows of each pattern's reference and orientation star.
     guide_unit : float32 (g, 3) ICRS unit vectors of the guide stars, sorted by z.
     guide_hip : int64 (g,) their catalog ids.
     radius_deg : half side of the pattern square (the pattern radius); f_px, double_px: geometry.
     """
 
-    cells: np.ndarray
+    patterns: np.ndarray
+    cell_start: np.ndarray
     start: np.ndarray
     guide: np.ndarray
     orient: np.ndarray
@@ -42,8 +46,13 @@ class GridDatabase(Database):
     double_px: float
 
     @property
+    def cells(self) -> np.ndarray:
+        """uint16 sorted occupied cells of every pattern, concatenated (from the cell index; not stored)."""
+        return by_pattern(self.patterns, self.cell_start)[0].astype(np.uint16)
+
+    @property
     def table(self) -> GridTable:
-        return GridTable(self.cells, self.start, self.guide, self.orient)
+        return GridTable(self.patterns, self.cell_start, self.start, self.guide, self.orient)
 
 
 @dataclass(frozen=True)
@@ -67,7 +76,9 @@ class Grid(PlanarAlgorithm):
        buffer and R reconstructed.
     3. Match: every database pattern (the whole database, as Padgett and Luo et al. describe
        it) is scored by the number of its cells also set in the image pattern (the AND of the
-       two bit grids). Padgett.
+       two bit grids). Padgett. The database is indexed by cell, so the scores are accumulated
+       from the image's cells over the patterns holding them (the same sums, added in the same
+       order, as a pattern-by-pattern scan).
     4. Modified-grid options (reconstructed interpretation of Na et al.; defaults on, since
        Luo et al. compare against the modified grid): ``soft_edge``/``soft_diag`` credit for a
        database cell next to an image star's cell (0.4 / 0.2; 0 / 0 = Padgett's exact cells);
@@ -121,7 +132,8 @@ class Grid(PlanarAlgorithm):
         cells, start, guide, orient = build_patterns(guides.unit.astype(np.float64), nbr, off, float(camera.f_px),
                                                      spec, self.db_orientations)
         rd = np.int16 if len(guides.hip) <= np.iinfo(np.int16).max else np.int32
-        return GridDatabase(cells.astype(np.uint16), start.astype(np.int32), guide.astype(rd), orient.astype(rd),
+        patterns, cell_start = by_cell(cells, start, self.grid_size ** 2)
+        return GridDatabase(patterns, cell_start, start.astype(np.int32), guide.astype(rd), orient.astype(rd),
                             guides.unit, guides.hip, radius, float(camera.f_px), double_px)
 
     def _run(self, db: GridDatabase, observation: Observation):

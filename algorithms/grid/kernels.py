@@ -34,12 +34,37 @@ class GridSpec(NamedTuple):
 
 
 class GridTable(NamedTuple):
-    """Database patterns as a kernel bundle: cells of pattern p are ``cells[start[p]:start[p+1]]``."""
+    """Database patterns as a kernel bundle, indexed by cell.
 
-    cells: np.ndarray      # uint16 sorted cell indices (row * g + col)
-    start: np.ndarray      # int64 (k + 1,)
+    The patterns with cell c set are ``patterns[cell_start[c]:cell_start[c+1]]``, ascending;
+    pattern p has ``start[p+1] - start[p]`` cells.
+    """
+
+    patterns: np.ndarray   # uint16 (int32 beyond 65535 patterns) pattern indices, grouped by cell
+    cell_start: np.ndarray # int32 (g * g + 1,)
+    start: np.ndarray      # int32 (k + 1,) offsets of each pattern's cells (their count)
     guide: np.ndarray      # guide row of each pattern's reference star
     orient: np.ndarray     # guide row of its orientation star
+
+
+def by_cell(cells: np.ndarray, start: np.ndarray, n_cells: int) -> tuple[np.ndarray, np.ndarray]:
+    """Invert the pattern -> cells lists: ``(patterns, cell_start)``, each cell's patterns ascending."""
+    owner = np.repeat(np.arange(start.size - 1), np.diff(start))
+    order = np.argsort(cells, kind="stable")          # stable: patterns stay ascending within a cell
+    cell_start = np.zeros(n_cells + 1, dtype=np.int32)
+    np.cumsum(np.bincount(cells, minlength=n_cells), out=cell_start[1:])
+    dtype = np.uint16 if start.size - 1 <= np.iinfo(np.uint16).max + 1 else np.int32
+    return owner[order].astype(dtype), cell_start
+
+
+def by_pattern(patterns: np.ndarray, cell_start: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The pattern -> cells lists back from :func:`by_cell`'s index: ``(cells, start)``, cells ascending."""
+    cell = np.repeat(np.arange(cell_start.size - 1), np.diff(cell_start))
+    order = np.lexsort((cell, patterns))
+    n_pat = int(patterns.max()) + 1 if patterns.size else 0
+    start = np.zeros(n_pat + 1, dtype=np.int64)
+    np.cumsum(np.bincount(patterns.astype(np.int64), minlength=n_pat), out=start[1:])
+    return cell[order], start
 
 
 @njit(cache=True)
@@ -166,7 +191,8 @@ def identify_kernel(x_px, y_px, sensor, table, guides_unit, spec, acc, trace):
     ``image_orientations`` nearest neighbours beyond the buffer as orientation star: the image
     pattern's cell credits; every database pattern is scored by the credit of its cells (the
     bitwise AND of Padgett's binary grids when there is no soft credit), the whole database
-    as in the paper; the ``n_candidates`` best with at least ``min_score`` seed an attitude
+    as in the paper (through the cell index: only the patterns holding a credited cell are
+    touched); the ``n_candidates`` best with at least ``min_score`` seed an attitude
     (reference and orientation star to their guide stars, Wahba) that :func:`confirm` must
     accept. ``trace`` (int64, 4): reference star, orientation star, pattern, 1000 x score.
     """
@@ -180,6 +206,7 @@ def identify_kernel(x_px, y_px, sensor, table, guides_unit, spec, acc, trace):
     weight = np.zeros(spec.g * spec.g)
     touched = np.empty(spec.g * spec.g, dtype=np.int64)
     n_pat = table.guide.shape[0]
+    raw = np.zeros(n_pat)
     n_best = spec.n_candidates
     best_p = np.empty(n_best, dtype=np.int64)
     best_sc = np.empty(n_best)
@@ -194,14 +221,24 @@ def identify_kernel(x_px, y_px, sensor, table, guides_unit, spec, acc, trace):
             o = cand[a]
             nc = grid_cells(r_px, phi, k, o, spec, cells)
             nt = image_weights(cells, nc, spec, weight, touched)
+            # credit of every pattern: each credited cell adds its weight to the patterns holding it,
+            # cells in ascending order (each pattern's sum is then added up in the same order as
+            # over its own sorted cells, so it is the same float)
+            touched[:nt] = np.sort(touched[:nt])
+            for i in range(nt):
+                c = touched[i]
+                w = weight[c]
+                for q in range(np.uint64(table.cell_start[c]), np.uint64(table.cell_start[c + 1])):
+                    raw[table.patterns[q]] += w
             found = 0
             for p in range(n_pat):
-                raw = 0.0
-                for q in range(table.start[p], table.start[p + 1]):
-                    raw += weight[table.cells[q]]
-                if raw < spec.min_score:
+                score = raw[p]
+                raw[p] = 0.0
+                if score < spec.min_score:
                     continue
-                sc = raw / math.sqrt(nc * (table.start[p + 1] - table.start[p])) if spec.normalise else raw
+                sc = score / math.sqrt(nc * (table.start[p + 1] - table.start[p])) if spec.normalise else score
+                if found == n_best and sc <= best_sc[n_best - 1]:
+                    continue   # keep_best would drop it
                 found = keep_best(best_sc, best_p, found, n_best, sc, p)
             for i in range(nt):
                 weight[touched[i]] = 0.0

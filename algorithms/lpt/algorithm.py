@@ -16,27 +16,47 @@ from starid.plugin import Database, Explanation
 
 from ..lpt_improved.planar import (PlanarAlgorithm, acceptance, effective_double_px, explain_pattern, image_neighbours,
                                    neighbour_lists, plane_polar, prepare_image, radius_for, select_guides, sensor_of)
-from .kernels import StringSearch, build_strings, identify_kernel, lpt_string
+from .kernels import StringSearch, Strings, build_strings, identify_kernel, lpt_string, sparse_strings
 
 
 @dataclass(frozen=True, eq=False)
 class LPTDatabase(Database):
-    """One LPT string per guide star.
+    """One LPT string per guide star, stored as its non-zero characters.
 
-    strings : uint8 (g, m) character k = log-radius row (1..n_levels) of the nearest neighbour
-        in angle sector k of the reference star's log-polar plane, 0 = empty; row = guide row.
+    The string of guide row g has character k = log-radius row (1..n_levels) of the nearest
+    neighbour in angle sector k of the reference star's log-polar plane, 0 = empty
+    (:attr:`strings` gives them all dense, uint8 (g, n_sectors)). Stored, CSR by guide row,
+    sectors ascending:
+    char_sector : uint8 (uint16 beyond 256 sectors) sectors k of the non-zero characters.
+    char_level : uint8 their rows.
+    char_start : int32 (g + 1,) guide g's characters are ``char_start[g]:char_start[g+1]``.
     guide_unit : float32 (g, 3) ICRS unit vectors of the guide stars, sorted by z.
     guide_hip : int64 (g,) their catalog ids.
-    radius_deg, f_px, double_px, r_min_px : the geometry the strings were built with.
+    radius_deg, f_px, double_px, r_min_px, n_sectors : the geometry the strings were built with.
     """
 
-    strings: np.ndarray
+    char_sector: np.ndarray
+    char_level: np.ndarray
+    char_start: np.ndarray
     guide_unit: np.ndarray
     guide_hip: np.ndarray
     radius_deg: float
     f_px: float
     double_px: float
     r_min_px: float
+    n_sectors: int
+
+    @property
+    def chars(self) -> Strings:
+        return Strings(self.char_sector, self.char_level, self.char_start)
+
+    @property
+    def strings(self) -> np.ndarray:
+        """The dense strings, uint8 (g, n_sectors) (not stored; for tests and inspection)."""
+        out = np.zeros((self.char_start.size - 1, self.n_sectors), dtype=np.uint8)
+        g = np.repeat(np.arange(self.char_start.size - 1), np.diff(self.char_start))
+        out[g, self.char_sector] = self.char_level
+        return out
 
 
 @dataclass(frozen=True)
@@ -65,10 +85,12 @@ class LPT(PlanarAlgorithm):
        database): the score of a guide star is the largest, over the m circular shifts, number
        of image characters matched by a non-zero database character within ``level_tol`` rows
        and ``sector_tol`` sectors (tolerant matching is not an equality, so KMP cannot be used
-       as such; all shifts are scored at once by voting, which gives exactly the brute-force
-       circular comparison's scores). Among equal scores the database string with fewer
-       unmatched characters ranks first (a sparse pattern otherwise ties with every string
-       that contains it). Reconstructed.
+       as such; all shifts are scored at once with bit-parallel shift sets over the strings'
+       non-zero characters, which gives exactly the brute-force circular comparison's scores,
+       and strings that provably cannot enter the candidate list are skipped, which leaves the
+       list exactly as a full scan makes it). Among equal scores the database string with fewer
+       unmatched characters ranks first, then the lower guide row (a sparse pattern otherwise
+       ties with every string that contains it). Reconstructed.
     5. The ``n_candidates`` best guide stars with at least ``min_score`` matched characters
        seed an attitude (the reference star and the roll the shift gives, refined by the
        matched characters) that must be confirmed by reprojection exactly as in
@@ -104,10 +126,12 @@ class LPT(PlanarAlgorithm):
         double_px = effective_double_px(self.double_px, radius, camera)
         guides = select_guides(catalog, self.mag_limit, double_px, camera, self.name)
         nbr, off = neighbour_lists(guides.unit, math.radians(radius))
-        db = LPTDatabase(np.zeros((0, self.n_sectors), dtype=np.uint8), guides.unit, guides.hip, radius,
-                         float(camera.f_px), double_px, max(double_px, 1.0))
+        empty = sparse_strings(np.zeros((0, self.n_sectors), dtype=np.uint8))
+        db = LPTDatabase(*empty, guides.unit, guides.hip, radius, float(camera.f_px), double_px, max(double_px, 1.0),
+                         self.n_sectors)
         strings = build_strings(guides.unit.astype(np.float64), nbr, off, float(camera.f_px), self._search(db))
-        return LPTDatabase(strings, guides.unit, guides.hip, radius, float(camera.f_px), double_px, db.r_min_px)
+        return LPTDatabase(*sparse_strings(strings), guides.unit, guides.hip, radius, float(camera.f_px), double_px,
+                           db.r_min_px, self.n_sectors)
 
     def _run(self, db: LPTDatabase, observation: Observation):
         cam = observation.camera
@@ -115,7 +139,7 @@ class LPT(PlanarAlgorithm):
         eps0_extra = math.pi / self.n_sectors * (1 + self.sector_tol) * math.tan(math.radians(db.radius_deg))
         acc = acceptance(cam, self.sigma_px, self.beta, self.min_matches, self.confirm_fraction, eps0_extra)
         trace = np.full(4, -1, dtype=np.int64)
-        rows, attitude, ok = identify_kernel(observation.x_px, observation.y_px, sensor_of(cam), db.strings,
+        rows, attitude, ok = identify_kernel(observation.x_px, observation.y_px, sensor_of(cam), db.chars,
                                              db.guide_unit, search, acc, trace)
         return rows, attitude, ok, trace
 

@@ -67,9 +67,23 @@ def lpt_string(r_px, phi, n, search, out, owner):
     return nz
 
 
+class Strings(NamedTuple):
+    """The database strings as a kernel bundle: their non-zero characters, CSR by guide row.
+
+    Guide ``g``'s characters are ``q`` in ``start[g]:start[g+1]``, sectors ascending:
+    ``sector[q]`` (uint8; uint16 beyond 256 sectors) and its row ``level[q]`` (uint8). An empty
+    sector (character 0) never matches, so the match reads these alone; :func:`dense_string`
+    gives a guide's string back in the layout of :func:`lpt_string`.
+    """
+
+    sector: np.ndarray
+    level: np.ndarray
+    start: np.ndarray
+
+
 @njit(cache=True)
 def build_strings(unit, nbr, nbr_off, f_px, search):
-    """LPT string of every guide star (rows of ``unit``), uint8 ``(g, n_sectors)``."""
+    """LPT string of every guide star (rows of ``unit``), dense uint8 ``(g, n_sectors)``."""
     n_guide = unit.shape[0]
     strings = np.zeros((n_guide, search.n_sectors), dtype=np.uint8)
     r_px, phi = polar_buffers(nbr_off)
@@ -85,41 +99,204 @@ def build_strings(unit, nbr, nbr_off, f_px, search):
     return strings
 
 
-@njit(cache=True)
-def shift_scores(row, img_sector, img_level, nz, search, mark, stamp, score):
-    """Score of every circular shift of one database string against the image string.
+def sparse_strings(strings: np.ndarray) -> Strings:
+    """The :class:`Strings` bundle of dense strings ``(g, m)`` (built once, in ``build``)."""
+    g_idx, sector = np.nonzero(strings)          # row-major: guide by guide, sectors ascending
+    start = np.zeros(strings.shape[0] + 1, dtype=np.int32)
+    np.cumsum(np.bincount(g_idx, minlength=strings.shape[0]), out=start[1:])
+    sector_dtype = np.uint8 if strings.shape[1] <= 256 else np.uint16
+    return Strings(sector.astype(sector_dtype), strings[g_idx, sector].astype(np.uint8), start)
 
-    ``score[s]`` = the number of image characters (sector ``k``, level ``L``) for which the
-    database string has a non-zero character within ``level_tol`` of ``L`` in sector
+
+@njit(cache=True)
+def dense_string(chars, g, out):
+    """Guide ``g``'s string in the layout of :func:`lpt_string`, written into ``out`` (length m)."""
+    for k in range(out.shape[0]):
+        out[k] = 0
+    for q in range(chars.start[g], chars.start[g + 1]):
+        out[chars.sector[q]] = chars.level[q]
+
+
+class ImageString(NamedTuple):
+    """One image string, indexed for the match (:func:`index_image`).
+
+    The image characters ``t < nz`` (sector ``sector[t]``, row ``level[t]``); for each database
+    row L, the characters within ``level_tol`` of it: ``by_level[level_start[L]:level_start[L+1]]``,
+    and as bits ``mask[L]`` (bit t; used when ``nz <= 62``).
+    """
+
+    sector: np.ndarray
+    level: np.ndarray
+    nz: int
+    level_start: np.ndarray
+    by_level: np.ndarray
+    mask: np.ndarray
+
+
+@njit(cache=True)
+def index_image(img_sector, img_level, nz, search, level_start, by_level, mask):
+    """Fill ``level_start`` (n_levels + 2), ``by_level`` and ``mask`` (n_levels + 1) of an :class:`ImageString`."""
+    q = 0
+    level_start[0] = 0
+    level_start[1] = 0
+    mask[0] = 0
+    for lv in range(1, search.n_levels + 1):
+        bits = 0
+        for t in range(nz):
+            if abs(lv - img_level[t]) <= search.level_tol:
+                by_level[q] = t
+                q += 1
+                if nz <= 62:
+                    bits |= 1 << t
+        mask[lv] = bits
+        level_start[lv + 1] = q
+
+
+@njit(cache=True, inline="always")
+def _popcount(x):
+    c = 0
+    while x:
+        x &= x - 1
+        c += 1
+    return c
+
+
+@njit(cache=True, inline="always")
+def _lowest_bit(x):
+    """Index of the lowest set bit of a non-zero int64 word."""
+    x = x & -x
+    n = 0
+    if x & 0xFFFFFFFF == 0:
+        n += 32
+        x >>= 32
+    if x & 0xFFFF == 0:
+        n += 16
+        x >>= 16
+    if x & 0xFF == 0:
+        n += 8
+        x >>= 8
+    if x & 0xF == 0:
+        n += 4
+        x >>= 4
+    if x & 0x3 == 0:
+        n += 2
+        x >>= 2
+    if x & 0x1 == 0:
+        n += 1
+    return n
+
+
+@njit(cache=True, inline="always")
+def rank_key(matched, n_chars):
+    """Ranking key of a match: more matched characters first; among equals, fewer unmatched database characters.
+
+    Strictly increasing in ``matched`` for a fixed ``n_chars``, so a bound on ``matched`` bounds it.
+    """
+    return 1024 * matched - min(n_chars - matched, 1023)
+
+
+@njit(cache=True, inline="always")
+def least_needed(threshold, n_chars, min_score):
+    """Smallest score ``>= min_score`` whose :func:`rank_key` is above ``threshold`` (the last of a full list)."""
+    need = max(min_score, threshold // 1024 - 1)
+    while rank_key(need, n_chars) <= threshold:
+        need += 1
+    return need
+
+
+@njit(cache=True, inline="always")
+def match_bound(chars, g, img):
+    """Upper bound of guide ``g``'s best score, without trying shifts.
+
+    Under any shift an image character counts only if some database character is within
+    ``level_tol`` rows of it: the bound is the number of image characters level-compatible
+    with at least one of ``g``'s characters (bit masks when ``nz <= 62``), else the number of
+    compatible (database, image) character pairs, and at most ``nz``.
+    """
+    a = chars.start[g]
+    b = chars.start[g + 1]
+    if img.nz <= 62:
+        bits = 0
+        for q in range(np.uint64(a), np.uint64(b)):
+            bits |= img.mask[chars.level[q]]
+        return _popcount(bits)
+    n_pairs = 0
+    for q in range(a, b):
+        lv = chars.level[q]
+        n_pairs += img.level_start[lv + 1] - img.level_start[lv]
+    return min(n_pairs, img.nz)
+
+
+@njit(cache=True, inline="always")
+def shift_scores(chars, g, img, search, sets, planes):
+    """Best circular shift of guide ``g``'s string against the image string: ``(best_score, best_shift)``.
+
+    The score of shift ``s`` is the number of image characters (sector ``k``, row ``L``) for
+    which the database string has a non-zero character within ``level_tol`` of ``L`` in sector
     ``k + s + d`` (mod m), ``|d| <= sector_tol``: the circular string match of the LPT
-    algorithm, all shifts at once. Each image character counts at most once per shift
-    (``mark``/``stamp`` bookkeeping). Returns ``(best_score, best_shift, n_chars)``, the
-    smallest shift among equals, and the database string's number of non-zero characters.
+    algorithm, every shift at once, and the smallest shift among equals (0 when nothing
+    matches). Bit-parallel: each image character's set of matching shifts is a bit set over
+    the m shifts (``sets``, int64 (nz + 1, words), the last row a work row; OR makes each
+    character count at most once per shift), the sets are summed as bit-sliced counters
+    (``planes``, int64 (bits, words)) and the maximum is read from the top bit plane down.
     """
     m = search.n_sectors
-    for s in range(m):
-        score[s] = 0
-    n_chars = 0
-    for j in range(m):
-        c = int(row[j])
-        if c == 0:
-            continue
-        n_chars += 1
-        for t in range(nz):
-            if abs(c - img_level[t]) > search.level_tol:
-                continue
-            for d in range(-search.sector_tol, search.sector_tol + 1):
-                s = (j - img_sector[t] - d) % m
-                if mark[t, s] != stamp:
-                    mark[t, s] = stamp
-                    score[s] += 1
+    tol = search.sector_tol
+    nw = sets.shape[1]
+    nz = img.nz
+    # unsigned indices throughout: no negative-index wraparound tests
+    for t in range(np.uint64(nz)):
+        for w in range(np.uint64(nw)):
+            sets[t, w] = 0
+    for q in range(np.uint64(chars.start[g]), np.uint64(chars.start[g + 1])):
+        j = np.int64(chars.sector[q])
+        lv = np.int64(chars.level[q])
+        for p in range(np.uint64(img.level_start[lv]), np.uint64(img.level_start[lv + 1])):
+            t = img.by_level[p]
+            base = j - img.sector[t]
+            row = sets[np.uint64(t)]
+            for d in range(-tol, tol + 1):
+                s = base - d
+                if s < 0:
+                    s += m
+                elif s >= m:
+                    s -= m
+                row[np.uint64(s >> 6)] |= np.int64(1) << (s & 63)
+    n_bits = planes.shape[0]
+    for b in range(np.uint64(n_bits)):
+        for w in range(np.uint64(nw)):
+            planes[b, w] = 0
+    top = 0
+    for t in range(np.uint64(nz)):
+        for w in range(np.uint64(nw)):
+            carry = sets[t, w]
+            b = np.uint64(0)
+            while carry != 0:
+                c = planes[b, w] & carry
+                planes[b, w] ^= carry
+                carry = c
+                b += np.uint64(1)
+            if b > top:
+                top = np.int64(b)
+    cand = sets[nz]            # shifts still reaching the best so far; bits >= m are never set in planes
+    for w in range(nw):
+        cand[w] = -1
     best = 0
-    best_s = 0
-    for s in range(m):
-        if score[s] > best:
-            best = score[s]
-            best_s = s
-    return best, best_s, n_chars
+    for b in range(top - 1, -1, -1):
+        hit = False
+        for w in range(nw):
+            if cand[w] & planes[b, w] != 0:
+                hit = True
+        if hit:
+            best += 1 << b
+            for w in range(nw):
+                cand[w] &= planes[b, w]
+    if best == 0:
+        return 0, 0
+    first_w = 0
+    while cand[first_w] == 0:
+        first_w += 1
+    return best, first_w * 64 + _lowest_bit(sets[nz, first_w])
 
 
 @njit(cache=True)
@@ -151,19 +328,23 @@ def refined_roll(row, img_sector, img_level, img_phi, nz, shift, search):
 
 
 @njit(cache=True)
-def identify_kernel(x_px, y_px, sensor, strings, guides_unit, search, acc, trace):
+def identify_kernel(x_px, y_px, sensor, chars, guides_unit, search, acc, trace):
     """LPT identification of one image; returns ``(rows, attitude, accepted)``.
 
     For reference stars from the image centre outwards (at most ``max_refs``): its LPT string;
     every database string is compared under every circular shift (:func:`shift_scores`, the
     whole database, as in the paper); the ``n_candidates`` best guide stars scoring at least
-    ``min_score`` (ties: the string with fewer unmatched characters first) seed an attitude (reference star to guide star, roll from the shift) that
-    :func:`confirm` must accept. ``trace`` (int64, 4): reference star, -1, guide row, score.
+    ``min_score`` (ties: the string with fewer unmatched characters first, then guide order)
+    seed an attitude (reference star to guide star, roll from the shift) that :func:`confirm`
+    must accept. A string whose :func:`match_bound` cannot reach ``min_score``, or, once the
+    candidate list is full, cannot rank above its last, is skipped without trying its shifts:
+    the candidates are exactly those of the full scan.
+    ``trace`` (int64, 4): reference star, -1, guide row, score.
     """
     n = x_px.shape[0]
     rows, unit, usable, order = begin_identify(x_px, y_px, sensor, search.double_px, trace)
     m = search.n_sectors
-    n_guide = strings.shape[0]
+    n_guide = chars.start.shape[0] - 1
     nbrs = np.empty(n, dtype=np.int64)
     r_px = np.empty(n)
     phi = np.empty(n)
@@ -172,9 +353,16 @@ def identify_kernel(x_px, y_px, sensor, strings, guides_unit, search, acc, trace
     img_level = np.empty(m, dtype=np.int64)
     img_phi = np.empty(m)
     owner = np.empty(m, dtype=np.int64)
-    mark = np.zeros((m, m), dtype=np.int64)
-    score = np.zeros(m, dtype=np.int64)
-    stamp = 0
+    level_start = np.zeros(search.n_levels + 2, dtype=np.int64)
+    by_level = np.empty(m * (2 * search.level_tol + 1), dtype=np.int64)
+    mask = np.zeros(search.n_levels + 1, dtype=np.int64)
+    n_words = (m + 63) // 64
+    n_bits = 1
+    while (1 << n_bits) <= m:
+        n_bits += 1
+    sets = np.zeros((m + 1, n_words), dtype=np.int64)
+    planes = np.zeros((n_bits + 1, n_words), dtype=np.int64)
+    row = np.zeros(m, dtype=np.uint8)
     n_best = search.n_candidates
     best_item = np.empty(n_best, dtype=np.int64)   # guide row * m + shift
     best_sc = np.empty(n_best, dtype=np.int64)
@@ -193,18 +381,24 @@ def identify_kernel(x_px, y_px, sensor, strings, guides_unit, search, acc, trace
                 img_level[q] = img[j]
                 img_phi[q] = phi[owner[j]]
                 q += 1
+        index_image(img_sector, img_level, nz, search, level_start, by_level, mask)
+        image = ImageString(img_sector, img_level, nz, level_start, by_level, mask)
         found = 0
+        need = search.min_score
         for g in range(n_guide):
-            stamp += 1
-            matched, sh, n_chars = shift_scores(strings[g], img_sector, img_level, nz, search, mark, stamp, score)
-            if matched < search.min_score:
+            n_chars = chars.start[g + 1] - chars.start[g]
+            if found == n_best:
+                need = least_needed(best_sc[n_best - 1], n_chars, search.min_score)
+            if need > nz or match_bound(chars, g, image) < need:
                 continue
-            # more matched characters first; among equals, fewer unmatched database characters
-            sc = 1024 * matched - min(n_chars - matched, 1023)
-            found = keep_best(best_sc, best_item, found, n_best, sc, g * m + sh)
+            matched, sh = shift_scores(chars, g, image, search, sets, planes)
+            if matched < need:
+                continue
+            found = keep_best(best_sc, best_item, found, n_best, rank_key(matched, n_chars), g * m + sh)
         for c in range(found):
             g = best_item[c] // m
-            roll = refined_roll(strings[g], img_sector, img_level, img_phi, nz, best_item[c] % m, search)
+            dense_string(chars, g, row)
+            roll = refined_roll(row, img_sector, img_level, img_phi, nz, best_item[c] % m, search)
             A = seed_attitude_roll(unit, s, guides_unit, g, roll)
             ok, A = confirm(unit, rows, A, guides_unit, sensor, acc)
             if ok:

@@ -23,7 +23,10 @@ from .planar import (PlanarAlgorithm, acceptance, effective_double_px, explain_p
 class ImprovedLPTDatabase(Database):
     """The feature database (Luo et al., their eq. 11: one record per navigation star).
 
-    feature : uint8 (k, m) feature vectors, rows sorted by their number of non-zero entries.
+    columns : uint8 (m, k) the feature vectors stored by entry: ``columns[i, r]`` is entry i of
+        feature row r (:attr:`feature` is its (k, m) transpose); rows sorted by their number of
+        non-zero entries. The search reads one entry of every row in a window at a time, so this
+        layout makes each read contiguous.
     total : int32 (k,) sum of each row (for the sparse difference).
     count_start : int32 (m + 2,) first row with 0, 1, ..., m + 1 non-zero entries.
     guide, align : int16/int32 (k,) guide rows of each row's reference and alignment star.
@@ -33,7 +36,7 @@ class ImprovedLPTDatabase(Database):
     double_px : the double-star separation applied (``double_px``, at most R / 10).
     """
 
-    feature: np.ndarray
+    columns: np.ndarray
     total: np.ndarray
     count_start: np.ndarray
     guide: np.ndarray
@@ -45,8 +48,13 @@ class ImprovedLPTDatabase(Database):
     double_px: float
 
     @property
+    def feature(self) -> np.ndarray:
+        """The feature vectors, (k, m), one row per record (a view of :attr:`columns`)."""
+        return self.columns.T
+
+    @property
     def table(self) -> FeatureTable:
-        return FeatureTable(self.feature, self.total, self.count_start, self.guide, self.align)
+        return FeatureTable(self.columns, self.total, self.count_start, self.guide, self.align)
 
 
 def _row_dtype(n: int):
@@ -84,7 +92,8 @@ class ImprovedLPT(PlanarAlgorithm):
        ``count_tol_above=None`` (= ``count_tol``). starid's default epsilon2 = 3 (reconstruction):
        guide stars lost to magnitude noise or the image edge leave the image with fewer
        non-zero entries than its database row far more often than with more. starid evaluates the same sum over the image's non-zero entries
-       only (an exact identity, see :func:`kernels.sad_search`).
+       only (an exact identity, see :func:`kernels.sad_search`), on a table stored entry by entry
+       so that the window's rows are read contiguously.
     6. Reference stars near the image centre first (paper), at most ``max_refs``.
 
     starid's additions (reconstructions; the paper stops at step 5 and, with a single
@@ -138,7 +147,7 @@ class ImprovedLPT(PlanarAlgorithm):
         count_start = np.searchsorted(count, np.arange(self.n_sectors + 2)).astype(np.int32)
         rd = _row_dtype(len(guides.hip))
         return ImprovedLPTDatabase(
-            feature=np.ascontiguousarray(feature, dtype=np.uint8 if max_value == 255 else np.uint16),
+            columns=np.ascontiguousarray(feature.T, dtype=np.uint8 if max_value == 255 else np.uint16),
             total=feature.sum(axis=1).astype(np.int32), count_start=count_start, guide=guide.astype(rd),
             align=align.astype(rd), guide_unit=guides.unit, guide_hip=guides.hip, radius_deg=radius,
             f_px=float(camera.f_px), double_px=double_px)

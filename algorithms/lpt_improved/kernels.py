@@ -19,7 +19,7 @@ from .planar import (begin_identify, confirm_pair, guide_pattern, keep_best, no_
 class FeatureTable(NamedTuple):
     """The feature database as a kernel bundle (see ``ImprovedLPTDatabase``)."""
 
-    feature: np.ndarray       # uint8/uint16 (k, m), rows sorted by their number of non-zero entries
+    columns: np.ndarray       # uint8/uint16 (m, k): column r is feature row r; rows sorted by non-zero count
     total: np.ndarray         # int32 (k,) sum of each row
     count_start: np.ndarray   # int32 (m + 2,) first row with that many non-zero entries
     guide: np.ndarray         # int32 (k,) guide row of the reference star of each feature row
@@ -103,27 +103,41 @@ def build_features(unit, nbr, nbr_off, f_px, n_sectors, log_scale, db_alignments
 
 
 @njit(cache=True)
-def sad_search(table, vec, nz_idx, nz, count_tol, n_best, best_row, best_sad, count_tol_above=-1):
+def sad_search(table, vec, nz_idx, nz, count_tol, n_best, best_row, best_sad, count_tol_above, acc):
     """The ``n_best`` rows of smallest sum of absolute differences to ``vec`` (Luo et al. eq. 9).
 
     Only rows whose number of non-zero entries ``L_c`` satisfies
     ``L_s - count_tol <= L_c <= L_s + count_tol_above`` are compared (their eq. 10, epsilon1 =
-    ``count_tol``, epsilon2 = ``count_tol_above``, which defaults to ``count_tol``). The sum is evaluated on the
+    ``count_tol``, epsilon2 = ``count_tol_above``; a negative value means ``count_tol``). The sum is evaluated on the
     image's ``nz`` non-zero entries ``nz_idx`` only, by the exact identity
-    ``sum_i |a_i - c_i| = sum_i c_i + sum_{a_i != 0} (|a_i - c_i| - c_i)``. Writes the best rows
-    (ascending difference, ties by row) to ``best_row``/``best_sad`` and returns how many.
+    ``sum_i |a_i - c_i| = sum_i c_i + sum_{a_i != 0} (|a_i - c_i| - c_i)``, one feature entry at
+    a time over the whole window of rows (the table is stored by entry, so each pass reads
+    contiguous bytes; ``acc``, int32 with at least as many entries as the table has rows, holds the
+    running sums). Writes the best rows (ascending difference, ties by row) to
+    ``best_row``/``best_sad`` and returns how many.
     """
-    m = table.feature.shape[1]
+    m = table.columns.shape[0]
     lo = max(nz - count_tol, 0)
     hi = min(nz + (count_tol if count_tol_above < 0 else count_tol_above), m)
+    # unsigned row indices: no negative-index wraparound test, so the inner loops vectorise
+    r0 = np.uint64(table.count_start[lo])
+    r1 = np.uint64(table.count_start[hi + 1])
+    total = table.total
+    for r in range(r0, r1):
+        acc[r] = total[r]
+    for t in range(nz):
+        i = nz_idx[t]
+        a = np.int32(vec[i])
+        col = table.columns[i]
+        for r in range(r0, r1):
+            c = np.int32(col[r])
+            d = a - c
+            acc[r] += max(d, -d) - c
     found = 0
-    for r in range(table.count_start[lo], table.count_start[hi + 1]):
-        s = int(table.total[r])
-        for t in range(nz):
-            i = nz_idx[t]
-            c = int(table.feature[r, i])
-            s += abs(int(vec[i]) - c) - c
-        found = keep_best(best_sad, best_row, found, n_best, -s, r)   # negated: smallest difference first
+    for r in range(r0, r1):
+        if found == n_best and -acc[r] <= best_sad[found - 1]:
+            continue   # keep_best would drop it
+        found = keep_best(best_sad, best_row, found, n_best, -acc[r], np.int64(r))   # negated: smallest first
     for c in range(found):
         best_sad[c] = -best_sad[c]
     return found
@@ -153,6 +167,7 @@ def identify_kernel(x_px, y_px, sensor, table, guides_unit, search, acc, trace):
     best_row = np.empty(search.n_candidates, dtype=np.int64)
     best_sad = np.empty(search.n_candidates, dtype=np.int64)
     seed = np.full(n, -1, dtype=np.int64)
+    sums = np.empty(table.total.shape[0], dtype=np.int32)
     for t in range(min(search.max_refs, order.shape[0])):
         s = order[t]
         k = reference_pattern(unit, usable, x_px, y_px, s, search.cos_radius, sensor.f_px, nbrs, r_px, phi)
@@ -164,7 +179,7 @@ def identify_kernel(x_px, y_px, sensor, table, guides_unit, search, acc, trace):
                     nz_idx[q] = i
                     q += 1
             found = sad_search(table, vec, nz_idx, nz, search.count_tol, search.n_candidates, best_row, best_sad,
-                               search.count_tol_above)
+                               search.count_tol_above, sums)
             for c in range(found):
                 r = best_row[c]
                 ok, A = confirm_pair(unit, rows, seed, s, nbrs[a], table.guide[r], table.align[r], guides_unit,

@@ -10,7 +10,7 @@ import pytest
 
 from starid import Camera, ConfigError, SimConfig, Simulator
 from starid_algorithms.grid import Grid
-from starid_algorithms.grid.kernels import GridSpec, grid_cells, image_weights
+from starid_algorithms.grid.kernels import GridSpec, by_cell, by_pattern, grid_cells, image_weights
 
 
 @pytest.fixture(scope="module")
@@ -32,6 +32,14 @@ def test_database_layout(db):
         c = db.cells[db.start[p]:db.start[p + 1]]
         assert np.all(np.diff(c.astype(int)) > 0)                       # sorted, distinct
         assert np.any((c // 40 == 20) & (c % 40 >= 20))                # the orientation star, on +x
+    cells, start = by_pattern(db.patterns, db.cell_start)              # the cell index inverts exactly
+    assert np.array_equal(start, db.start)
+    patterns, cell_start = by_cell(cells, start, 40 * 40)
+    assert np.array_equal(patterns, db.patterns) and np.array_equal(cell_start, db.cell_start)
+    for c in (0, 820, 1599):
+        p = db.patterns[db.cell_start[c]:db.cell_start[c + 1]].astype(int)
+        assert np.all(np.diff(p) > 0)
+        assert all(c in cells[start[q]:start[q + 1]] for q in p)
 
 
 def test_grid_cells_match_numpy():

@@ -9,7 +9,8 @@ import pytest
 
 from starid import Camera, ConfigError, SimConfig, Simulator
 from starid_algorithms.lpt import LPT
-from starid_algorithms.lpt.kernels import StringSearch, shift_scores
+from starid_algorithms.lpt.kernels import (ImageString, StringSearch, dense_string, index_image, least_needed,
+                                           match_bound, rank_key, shift_scores, sparse_strings)
 
 
 @pytest.fixture(scope="module")
@@ -22,36 +23,60 @@ def test_database_layout(db):
     assert db.strings.max() <= 16
     assert np.all(np.diff(db.guide_unit[:, 2]) >= 0)
     assert (db.strings > 0).sum(axis=1).mean() > 3
+    assert db.char_sector.dtype == np.uint8 and db.char_level.dtype == np.uint8 and db.char_start.dtype == np.int32
+    assert np.array_equal(np.diff(db.char_start), (db.strings > 0).sum(axis=1))
+    row = np.zeros(100, dtype=np.uint8)
+    for g in (0, 17, db.guide_hip.size - 1):
+        dense_string(db.chars, g, row)
+        assert np.array_equal(row, db.strings[g])
 
 
 def _brute_force(row, img, m, level_tol, sector_tol):
-    """Oracle: compare the image string with every circular shift of the database string."""
-    scores = []
-    for s in range(m):
-        count = 0
-        for k in np.flatnonzero(img):
-            js = [(k + s + d) % m for d in range(-sector_tol, sector_tol + 1)]
-            count += any(row[j] and abs(int(row[j]) - int(img[k])) <= level_tol for j in js)
-        scores.append(count)
-    return max(scores), int(np.argmax(scores))
+    """Oracle: compare the image string with every circular shift of the database string (numpy)."""
+    k = np.flatnonzero(img)
+    shifts = np.arange(m)[:, None, None]
+    d = np.arange(-sector_tol, sector_tol + 1)[None, None, :]
+    c = row[(k[None, :, None] + shifts + d) % m].astype(int)                 # (shift, image char, d)
+    hit = (c > 0) & (np.abs(c - img[k].astype(int)[None, :, None]) <= level_tol)
+    scores = hit.any(axis=2).sum(axis=1)
+    return int(scores.max()), int(np.argmax(scores))
 
 
-@pytest.mark.parametrize("sector_tol", [0, 1])
-def test_shift_scores_equal_brute_force_circular_match(sector_tol):
+@pytest.mark.parametrize("m,sector_tol", [(60, 0), (60, 1), (100, 2), (130, 1)])
+def test_shift_scores_equal_brute_force_circular_match(m, sector_tol):
     rng = np.random.default_rng(1)
-    m = 60
     search = StringSearch(m, 16, 0.0, 1.0, 0.0, 1, sector_tol, 1, 1, 1, 0.0)
-    mark = np.zeros((m, m), dtype=np.int64)
-    score = np.zeros(m, dtype=np.int64)
-    for stamp in range(1, 30):
-        row = np.zeros(m, dtype=np.uint8)
-        row[rng.choice(m, 8, replace=False)] = rng.integers(1, 17, 8)
-        img = np.roll(row, -int(rng.integers(m))).astype(np.int64)
+    rows = np.zeros((30, m), dtype=np.uint8)
+    images = []
+    for i in range(30):
+        rows[i, rng.choice(m, 8 + i % 5, replace=False)] = rng.integers(1, 17, 8 + i % 5)
+        img = np.roll(rows[i], -int(rng.integers(m))).astype(np.int64)
         img[rng.choice(m, 3, replace=False)] = rng.integers(0, 17, 3)
+        images.append(img)
+    chars = sparse_strings(rows)
+    words = (m + 63) // 64
+    sets, planes = np.zeros((m + 1, words), dtype=np.int64), np.zeros((9, words), dtype=np.int64)
+    for i, img in enumerate(images):
         sec = np.flatnonzero(img)
-        best, shift, n_chars = shift_scores(row, sec, img[sec], sec.size, search, mark, stamp, score)
-        assert (best, shift) == _brute_force(row, img, m, 1, sector_tol)
-        assert n_chars == np.count_nonzero(row)
+        nz = sec.size
+        level_start, mask = np.zeros(18, dtype=np.int64), np.zeros(17, dtype=np.int64)
+        by_level = np.zeros(3 * m, dtype=np.int64)
+        index_image(sec, img[sec], nz, search, level_start, by_level, mask)
+        image = ImageString(sec, img[sec], nz, level_start, by_level, mask)
+        for g in range(len(rows)):      # every string against every image: true matches and unrelated ones
+            expect = _brute_force(rows[g], img, m, 1, sector_tol)
+            assert shift_scores(chars, g, image, search, sets, planes) == expect
+            assert match_bound(chars, g, image) >= expect[0]
+
+
+def test_least_needed_is_the_pruning_threshold():
+    """The scan skips a string whose best score is below least_needed: exactly those keep_best would drop."""
+    for threshold in (1, 1023, 1024, 2047, 2048, 5119, 6141, 9300):
+        for n_chars in (0, 1, 3, 7, 20, 60):
+            for min_score in (1, 2, 4):
+                need = least_needed(threshold, n_chars, min_score)
+                assert need >= min_score and rank_key(need, n_chars) > threshold
+                assert need == min_score or rank_key(need - 1, n_chars) <= threshold
 
 
 def test_luo_setup(catalog):

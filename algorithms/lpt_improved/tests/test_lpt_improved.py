@@ -86,7 +86,7 @@ def test_sad_search_matches_brute_force(above):
     nz = (feat > 0).sum(axis=1)
     order = np.argsort(nz, kind="stable")
     feat, nz = feat[order], nz[order]
-    table = FeatureTable(feat, feat.sum(axis=1).astype(np.int32),
+    table = FeatureTable(np.ascontiguousarray(feat.T), feat.sum(axis=1).astype(np.int32),
                          np.searchsorted(nz, np.arange(m + 2)).astype(np.int32),
                          np.arange(400, dtype=np.int32), np.arange(400, dtype=np.int32))
     for trial in range(10):
@@ -94,7 +94,7 @@ def test_sad_search_matches_brute_force(above):
         vec[rng.integers(m)] = rng.integers(0, 7)
         idx = np.flatnonzero(vec)
         best_row, best_sad = np.empty(3, dtype=np.int64), np.empty(3, dtype=np.int64)
-        found = sad_search(table, vec, idx, idx.size, 1, 3, best_row, best_sad, above)
+        found = sad_search(table, vec, idx, idx.size, 1, 3, best_row, best_sad, above, np.empty(400, dtype=np.int32))
         sad = np.abs(feat.astype(np.int64) - vec).sum(axis=1)
         ok = (nz >= idx.size - 1) & (nz <= idx.size + above)
         expect = np.lexsort((np.arange(400), sad))
