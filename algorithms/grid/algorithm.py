@@ -93,6 +93,9 @@ class Grid(PlanarAlgorithm):
     """
 
     name: ClassVar[str] = "grid"
+    #: the paper's procedure: one reference star (nearest the centre), its best match only, one
+    #: orientation (``grid:paper``)
+    published: ClassVar[dict] = {"max_refs": 1, "n_candidates": 1, "image_orientations": 1}
 
     buffer_px: float = 30.0
     grid_size: int = 40

@@ -100,6 +100,8 @@ class LPT(PlanarAlgorithm):
     """
 
     name: ClassVar[str] = "lpt"
+    #: the paper's procedure: one reference star (nearest the centre), its best match only (``lpt:paper``)
+    published: ClassVar[dict] = {"max_refs": 1, "n_candidates": 1}
 
     n_sectors: int = 100
     n_levels: int = 16

@@ -115,6 +115,9 @@ class ImprovedLPT(PlanarAlgorithm):
     """
 
     name: ClassVar[str] = "lpt_improved"
+    #: the paper's procedure: one reference star (nearest the centre), its best match only, one
+    #: alignment, the count window Ls-1..Ls+1 (``lpt_improved:paper``)
+    published: ClassVar[dict] = {"max_refs": 1, "n_candidates": 1, "image_alignments": 1, "count_tol_above": 1}
 
     n_sectors: int = 100
     log_scale: float = 1.0

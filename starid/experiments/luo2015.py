@@ -15,7 +15,7 @@ algorithm runs with its own defaults on the same images.
 
 The paper identifies with one reference star and its best database match. starid's defaults
 try several reference stars and candidates; the paper's procedure runs beside them as the
-``<name>:paper`` rows (:data:`PAPER_PROCEDURE`), so "as published" and "as improved" are both
+``<name>:paper`` rows (each plugin's ``published`` parameters), so "as published" and "as improved" are both
 in every figure.
 """
 
@@ -38,13 +38,6 @@ PAPER_ALGORITHMS = ("lpt_improved", "lpt", "grid")
 PAPER_PARAMS = {"mag_limit": 6.5, "radius_deg": 6.0, "double_px": 20.0}
 CAMERA = {"fov_deg": 20.0, "resolution_px": 1024, "pixel_um": 12.0}
 SIM = {"sky_mag_limit": 6.5, "mag_limit": 6.5, "sigma_mag": 0.0, "min_stars": 3}
-#: The paper's procedure: one reference star (the one nearest the centre), its best match only,
-#: one image orientation (docs/algorithms/lpt_improved.md, lpt.md, grid.md).
-PAPER_PROCEDURE = {
-    "lpt_improved": {"max_refs": 1, "n_candidates": 1, "image_alignments": 1, "count_tol_above": 1},
-    "lpt": {"max_refs": 1, "n_candidates": 1},
-    "grid": {"max_refs": 1, "n_candidates": 1, "image_orientations": 1},
-}
 #: Section 4's star count: "The average number of the stars in FOV is 30.32, with 68 used as the
 #: maximum and 3 as the minimum."
 PAPER_STARS = {"min": 3, "max": 68, "mean": 30.32}
@@ -66,8 +59,7 @@ SWEEPS = {
 
 def variants() -> tuple:
     paper = tuple(Variant(n, tuple(PAPER_PARAMS.items())) for n in PAPER_ALGORITHMS)
-    published = tuple(Variant(n, tuple({**PAPER_PARAMS, **PAPER_PROCEDURE[n]}.items()), f"{n}:paper")
-                      for n in PAPER_ALGORITHMS)
+    published = tuple(Variant.as_published(n, **PAPER_PARAMS) for n in PAPER_ALGORITHMS)
     return paper + published + registered_beyond(PAPER_ALGORITHMS)
 
 
