@@ -10,15 +10,9 @@ from scipy.stats import binom
 import starid
 from starid.errors import ConfigError
 from starid.plugin import Explanation
-from starid.testing import CHECKS, check_algorithm
 from starid_algorithms.tetra import Tetra
 from starid_algorithms.tetra.kernels import (EMPTY, PAIRS, binom_sf, canonical_order, pattern_keys, ratio_bin,
                                              table_insert, table_lookup)
-
-
-@pytest.mark.parametrize("check", CHECKS)
-def test_conformance(check):
-    check_algorithm(Tetra, checks=[check])
 
 
 @lru_cache(maxsize=2)
