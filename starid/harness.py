@@ -104,6 +104,13 @@ def _image_fields(trials: TrialSet, i: int, obs: Observation) -> dict:
             "n_redraws": int(trials.n_redraws[i])}
 
 
+def constant_columns(values: dict, index: pd.Index) -> pd.DataFrame:
+    """One column per item of ``values``, the value repeated on every row of ``index`` (one block,
+    not one insertion per column)."""
+    return pd.DataFrame({k: pd.Series([v] * len(index), index=index, dtype=object if v is None else None)
+                         for k, v in values.items()}, index=index)
+
+
 def param_columns(params: dict) -> dict:
     """An algorithm's parameters as ``param_<key>`` columns (scalars as they are, anything else as text)."""
     return {f"param_{k}": v if isinstance(v, (bool, int, float, str, type(None))) else repr(v)
@@ -188,14 +195,8 @@ def run(algorithms, trials: TrialSet, catalog: Catalog, simulator=None, rule: Su
             iterator = tqdm(iterator, desc=label, unit="img", leave=False)
         rows = [trial_row(prepared, trials, i, catalog, rule, keep_ids) for i in iterator]
         df = rows_to_frame(prepared, rows)
-        for key, value in param_columns(algorithm.params()).items():
-            df[key] = value
-        frames.append(df)
+        frames.append(pd.concat([df, constant_columns(param_columns(algorithm.params()), df.index)], axis=1))
     out = pd.concat(frames, ignore_index=True)
-    if simulator is not None:
-        for key, value in simulator.params().items():
-            out[key] = value
-    for key, value in versions().items():
-        out[key] = value
-    return out
+    tail = {**(simulator.params() if simulator is not None else {}), **versions()}
+    return pd.concat([out, constant_columns(tail, out.index)], axis=1)
 

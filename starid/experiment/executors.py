@@ -32,7 +32,7 @@ import pandas as pd
 
 from ..catalog import Catalog, load_csv, load_hipparcos
 from ..errors import ConfigError
-from ..harness import failed_row, param_columns, prepare, rows_to_frame, trial_row
+from ..harness import constant_columns, failed_row, param_columns, prepare, rows_to_frame, trial_row
 from ..provenance import versions
 from ..registry import algorithm_info
 from ..scoring import CRASHED, ERROR, TIMEOUT, SuccessRule
@@ -128,11 +128,7 @@ def execute_task(task: Task, beat=None) -> pd.DataFrame:
     df["plugin_dist"] = dist
     df["plugin_version"] = dist_version
     params = algorithm.params() if algorithm is not None else dict(chunk.variant.params)
-    for k, v in param_columns(params).items():
-        df[k] = v
-    for k, v in versions().items():
-        df[k] = v
-    return df
+    return pd.concat([df, constant_columns({**param_columns(params), **versions()}, df.index)], axis=1)
 
 
 class _Unmade:

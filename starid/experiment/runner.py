@@ -20,6 +20,7 @@ import numpy as np
 import pandas as pd
 
 from ..catalog import load_csv, load_hipparcos
+from ..harness import constant_columns
 from ..provenance import now, versions
 from ..registry import algorithm_info
 from ..scoring import SuccessRule
@@ -174,17 +175,11 @@ def assemble(placements: list[Placement], experiment: Experiment, read) -> pd.Da
     frames = []
     for pl in placements:
         df = read(pl.chunk.key)
-        lead = {"study": pl.study, "point": pl.point}
-        for k, v in pl.grid_values.items():
-            lead[f"grid_{k}"] = v
-        for k, v in reversed(list(lead.items())):
-            df.insert(0, k, v)
-        df["seed"] = experiment.seed
-        for k, v in SimConfig(**pl.chunk.settings).as_dict().items():
-            df[f"sim_{k}"] = v
-        for k, v in camera.as_dict().items():
-            df[f"camera_{k}"] = v
-        frames.append(df)
+        lead = {"study": pl.study, "point": pl.point, **{f"grid_{k}": v for k, v in pl.grid_values.items()}}
+        tail = {"seed": experiment.seed,
+                **{f"sim_{k}": v for k, v in SimConfig(**pl.chunk.settings).as_dict().items()},
+                **{f"camera_{k}": v for k, v in camera.as_dict().items()}}
+        frames.append(pd.concat([constant_columns(lead, df.index), df, constant_columns(tail, df.index)], axis=1))
     out = pd.concat(frames, ignore_index=True)
     return _uniform_types(out)
 
