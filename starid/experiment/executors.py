@@ -125,10 +125,9 @@ def execute_task(task: Task, beat=None) -> pd.DataFrame:
     df = rows_to_frame(prepared, rows)
     if image_stats is not None:     # what render -> extract did to each image
         df = df.merge(image_stats, on="trial", how="left")
-    df["plugin_dist"] = dist
-    df["plugin_version"] = dist_version
     params = algorithm.params() if algorithm is not None else dict(chunk.variant.params)
-    return pd.concat([df, constant_columns({**param_columns(params), **versions()}, df.index)], axis=1)
+    tail = {"plugin_dist": dist, "plugin_version": dist_version, **param_columns(params), **versions()}
+    return pd.concat([df, constant_columns(tail, df.index)], axis=1)
 
 
 class _Unmade:
