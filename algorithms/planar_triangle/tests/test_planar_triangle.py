@@ -12,6 +12,8 @@ from starid import ConfigError, Observation, SimConfig, Simulator
 from starid import summarize
 from starid.kernels import kvector_query
 from starid.registry import get_algorithm
+from starid_algorithms.planar_triangle.testing import (assert_explain_draws_triangles,
+                                                      assert_sigma_follows_with_1px_floor)
 from starid_algorithms.planar_triangle import PlanarTriangle
 from starid_algorithms.planar_triangle.kernels import (
     MOMENT_BLOCK, _moment_filter, _signatures, identify_rows, identify_subsets, triangle_features,
@@ -300,32 +302,10 @@ def test_brightest_subsets_rescue_the_real_sky(db, db6, catalog, camera):
 
 
 def test_sigma_px_follows_the_simulator_with_a_1px_floor():
-    assert PlanarTriangle.follows == {"sigma_px": "sigma_px"}
-    assert PlanarTriangle().sigma_px is None and PlanarTriangle().sigma_window_px == 1.0
-    for world, window in ((0.0, 1.0), (0.5, 1.0), (1.0, 1.0), (3.0, 3.0)):
-        alg = PlanarTriangle().resolved(SimConfig(sigma_px=world))
-        assert alg.sigma_px == world and alg.sigma_window_px == window
-    pinned = PlanarTriangle(sigma_px=2.0).resolved(SimConfig(sigma_px=0.0))
-    assert pinned.sigma_px == 2.0 and pinned.sigma_window_px == 2.0
+    assert_sigma_follows_with_1px_floor(PlanarTriangle)
 
 
 # --- explain --------------------------------------------------------------------------------
 
 def test_explain_draws_its_reasoning(db, catalog, camera):
-    from starid.plugin import Explanation
-
-    alg = PlanarTriangle()
-    sim = Simulator(catalog, camera, SimConfig(sigma_px=1.0, sigma_mag=0.5), seed=8)
-    n_drawn = 0
-    for t in range(4):
-        obs = sim.observation(t)
-        ex = alg.explain(db, obs)
-        assert isinstance(ex, Explanation) and ex.caption
-        hip = alg.identify(db, obs).hip
-        if np.any(hip >= 0):
-            n_drawn += 1
-            assert ex.segments.shape[0] >= 3 and ex.highlight.size >= 3
-            assert np.all((ex.segments[..., 0] >= 0) & (ex.segments[..., 0] < camera.width_px))
-    assert n_drawn >= 3
-    tiny = Observation(np.array([10.0, 20.0]), np.array([10.0, 30.0]), np.array([3.0, 4.0]), camera)
-    assert isinstance(alg.explain(db, tiny), Explanation)
+    assert_explain_draws_triangles(PlanarTriangle(), db, catalog, camera)

@@ -14,6 +14,8 @@ from starid.harness import Prepared, score
 from starid.kernels import chord
 from starid.plugin import check_identification
 from starid.registry import get_algorithm
+from starid_algorithms.planar_triangle.testing import (assert_explain_draws_triangles,
+                                                      assert_sigma_follows_with_1px_floor)
 from starid_algorithms.triangle_voting import TriangleVoting
 from starid_algorithms.triangle_voting.kernels import triangle_features
 
@@ -205,32 +207,10 @@ def test_extensions_help(catalog, camera):
 
 
 def test_sigma_px_follows_the_simulator_with_a_1px_floor():
-    assert TriangleVoting.follows == {"sigma_px": "sigma_px"}
-    assert TriangleVoting().sigma_px is None and TriangleVoting().sigma_window_px == 1.0
-    for world, window in ((0.0, 1.0), (0.5, 1.0), (1.0, 1.0), (3.0, 3.0)):
-        alg = TriangleVoting().resolved(SimConfig(sigma_px=world))
-        assert alg.sigma_px == world and alg.sigma_window_px == window
-    pinned = TriangleVoting(sigma_px=2.0).resolved(SimConfig(sigma_px=0.0))
-    assert pinned.sigma_px == 2.0 and pinned.sigma_window_px == 2.0
+    assert_sigma_follows_with_1px_floor(TriangleVoting)
 
 
 # --- explain --------------------------------------------------------------------------------
 
 def test_explain_draws_its_reasoning(db, catalog, camera):
-    from starid.plugin import Explanation
-
-    alg = TriangleVoting()
-    sim = Simulator(catalog, camera, SimConfig(sigma_px=1.0, sigma_mag=0.5), seed=8)
-    n_drawn = 0
-    for t in range(4):
-        obs = sim.observation(t)
-        ex = alg.explain(db, obs)
-        assert isinstance(ex, Explanation) and ex.caption
-        hip = alg.identify(db, obs).hip
-        if np.any(hip >= 0):
-            n_drawn += 1
-            assert ex.segments.shape[0] >= 3 and ex.highlight.size >= 3
-            assert np.all((ex.segments[..., 0] >= 0) & (ex.segments[..., 0] < camera.width_px))
-    assert n_drawn >= 3
-    tiny = Observation(np.array([10.0, 20.0]), np.array([10.0, 30.0]), np.array([3.0, 4.0]), camera)
-    assert isinstance(alg.explain(db, tiny), Explanation)
+    assert_explain_draws_triangles(TriangleVoting(), db, catalog, camera)
