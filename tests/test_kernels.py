@@ -185,3 +185,17 @@ def test_explained_counts_the_detections_of_stars_to_the_check_limit(catalog, ca
         _, again, _, _ = refine_explained(unit, guide.unit, extra, frame, c_fov, eps, rows_g, rows_x)
         assert again >= count - 1
     assert agree >= 18      # measured: 20 of 20
+
+
+def test_order_by_is_lexsort_and_sort_rows_agrees():
+    from starid.kernels import order_by, sort_rows
+
+    rng = np.random.default_rng(0)
+    mag = rng.integers(0, 4, 50).astype(float)                   # many exact ties
+    x = rng.integers(0, 5, 50).astype(float)
+    y = rng.uniform(0, 100, 50)
+    want = np.lexsort((y, x, mag))
+    assert np.array_equal(order_by(mag, x, y), want)
+    rows = rng.permutation(50)
+    sort_rows(rows, 50, mag, x, y)
+    assert np.array_equal(rows, want)

@@ -35,7 +35,7 @@ from scipy.spatial import cKDTree
 from starid.camera import Camera
 from starid.catalog import Catalog
 from starid.errors import ConfigError
-from starid.kernels import backproject_px, reproject_assign, verify_pairwise, wahba_rows
+from starid.kernels import backproject_px, reproject_assign, sort_rows, verify_pairwise, wahba_rows
 from starid.observation import Observation
 from starid.params import check_number, check_whole
 from starid.plugin import Algorithm, Explanation, Identification
@@ -209,28 +209,6 @@ def relative_angle(phi, phi0):
 
 
 @njit(cache=True)
-def _before(key, x_px, y_px, i, j):
-    """Strict order: by ``key``, exact ties by position (so the input order never matters)."""
-    if key[i] != key[j]:
-        return key[i] < key[j]
-    if x_px[i] != x_px[j]:
-        return x_px[i] < x_px[j]
-    return y_px[i] < y_px[j]
-
-
-@njit(cache=True)
-def _sort_rows(rows, n, key, x_px, y_px):
-    """Insertion sort of ``rows[:n]`` by :func:`_before` (short lists)."""
-    for a in range(1, n):
-        r = rows[a]
-        b = a - 1
-        while b >= 0 and _before(key, x_px, y_px, r, rows[b]):
-            rows[b + 1] = rows[b]
-            b -= 1
-        rows[b + 1] = r
-
-
-@njit(cache=True)
 def prepare_image(x_px, y_px, sensor, double_px):
     """Back-projected unit vectors, the usable mask and the reference order of one image.
 
@@ -265,7 +243,7 @@ def prepare_image(x_px, y_px, sensor, double_px):
     if m > 64:   # long lists: argsort first, then fix exact-tie runs
         pre = np.argsort(key[order], kind="mergesort")
         order = order[pre]
-    _sort_rows(order, m, key, x_px, y_px)
+    sort_rows(order, m, key, x_px, y_px)
     return unit, usable, order
 
 
@@ -294,7 +272,7 @@ def image_neighbours(unit, usable, x_px, y_px, s, cos_radius, out):
         tmp = out[:k].copy()
         for a in range(k):
             out[a] = tmp[pre[a]]
-    _sort_rows(out, k, key, x_px, y_px)
+    sort_rows(out, k, key, x_px, y_px)
     return k
 
 

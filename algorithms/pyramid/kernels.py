@@ -1,8 +1,7 @@
 """numba kernels of the Pyramid algorithm (Mortari, Samaan, Bruccoleri & Junkins 2004).
 
-The pair-angle helpers at the top (:func:`brightness_order`, :func:`isolated`,
-:func:`pair_windows`) are shared with the geometric-voting plugin, which searches the same kind
-of star-pair k-vector.
+The pair-angle helpers at the top (:func:`isolated`, :func:`pair_windows`) are shared with the
+geometric-voting plugin, which searches the same kind of star-pair k-vector.
 
 Bundles (``typing.NamedTuple``, passed to numba as tuples):
 
@@ -18,7 +17,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from starid.kernels import backproject_px, chord_rows, kvector_query, reproject_assign, wahba_rows
+from starid.kernels import backproject_px, chord_rows, kvector_query, order_by, reproject_assign, wahba_rows
 
 #: at most this many catalog triangles are kept per image triad (more = ambiguous anyway)
 TRIANGLE_CAP = 64
@@ -65,30 +64,6 @@ class Sensor(NamedTuple):
 
 
 @njit(cache=True)
-def _brighter(mag, x_px, y_px, i, j):
-    """Strict order: brighter first, exact ties by x then y (independent of input order)."""
-    if mag[i] != mag[j]:
-        return mag[i] < mag[j]
-    if x_px[i] != x_px[j]:
-        return x_px[i] < x_px[j]
-    return y_px[i] < y_px[j]
-
-
-@njit(cache=True)
-def brightness_order(x_px, y_px, mag):
-    """Indices of the detections, brightest first (ties broken on position)."""
-    order = np.argsort(mag, kind="mergesort")
-    for a in range(1, order.shape[0]):          # insertion pass: fixes the (rare) exact ties
-        cur = order[a]
-        b = a - 1
-        while b >= 0 and _brighter(mag, x_px, y_px, cur, order[b]):
-            order[b + 1] = order[b]
-            b -= 1
-        order[b + 1] = cur
-    return order
-
-
-@njit(cache=True)
 def isolated(v_cam, d_min):
     """True for detections with no other detection within chord ``d_min`` (doubles, coincident)."""
     n = v_cam.shape[0]
@@ -104,7 +79,7 @@ def isolated(v_cam, d_min):
 @njit(cache=True)
 def select_stars(x_px, y_px, mag, v_cam, d_min, max_stars):
     """The usable detections (isolated), brightest first, at most ``max_stars`` of them."""
-    order = brightness_order(x_px, y_px, mag)
+    order = order_by(mag, x_px, y_px)
     ok = isolated(v_cam, d_min)
     sel = np.empty(min(order.shape[0], max_stars), dtype=np.int64)
     m = 0

@@ -16,7 +16,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from starid.kernels import backproject_px, chord_rows, reproject_assign, wahba_rows
+from starid.kernels import backproject_px, chord_rows, order_by, reproject_assign, wahba_rows
 
 #: An empty slot (no slot word reaches it: keys are < bins^5 <= 84^5 < 2^32 - 1).
 EMPTY = np.uint64(0xFFFFFFFFFFFFFFFF)
@@ -262,26 +262,6 @@ def field_patterns(unit, field_rows, field_offsets, min_edge, max_edge):
 
 
 @njit(cache=True)
-def brightness_order(x_px, y_px, mag):
-    """Star indices by increasing magnitude; exact ties by x then y (input-order free)."""
-    n = mag.shape[0]
-    idx = np.arange(n)
-    for i in range(1, n):
-        j = i
-        while j > 0:
-            a = idx[j]
-            b = idx[j - 1]
-            before = mag[a] < mag[b] or (mag[a] == mag[b] and (x_px[a] < x_px[b] or (x_px[a] == x_px[b]
-                                                                                    and y_px[a] < y_px[b])))
-            if not before:
-                break
-            idx[j] = b
-            idx[j - 1] = a
-            j -= 1
-    return idx
-
-
-@njit(cache=True)
 def binom_sf(k, m, q):
     """P(X >= k) for X ~ Binomial(m, q) (terms by recurrence from the k-th)."""
     if k <= 0:
@@ -367,7 +347,7 @@ def _verify(unit, rows, guide_unit, tol, n_stars, out_row):
 def identify_kernel(x_px, y_px, mag, table, tol, record):
     """Tetra identification of one image: ``(hip, row)`` per star (catalog id and guide row, -1 = none).
 
-    1. The ``n_image`` brightest detections (``brightness_order``) form every 4-star pattern,
+    1. The ``n_image`` brightest detections (``starid.kernels.order_by``) form every 4-star pattern,
        in breadth-first brightness order (all patterns of the 4 brightest, then those adding the
        5th, ...), skipping patterns whose largest edge is outside ``[min_edge, max_edge]``.
     2. Each pattern's sorted edge ratios, with a window of ``beta`` propagated sigmas around
@@ -394,7 +374,7 @@ def identify_kernel(x_px, y_px, mag, table, tol, record):
     if n < 4:
         return hip, result
     unit = backproject_px(x_px, y_px, tol.f_px, tol.cx_px, tol.cy_px)
-    order = brightness_order(x_px, y_px, mag)
+    order = order_by(mag, x_px, y_px)
     m = min(n, tol.n_image)
     edge_tol = tol.beta * math.sqrt(2.0) * tol.sigma
     bins = table.bins

@@ -10,6 +10,7 @@ Euclidean distance between two unit vectors, ``2 sin(theta / 2)`` (:func:`rad_to
 * :mod:`.kvector` -- Mortari's k-vector range search;
 * :mod:`.verify` -- pairwise angular verification, identification by reprojection;
 * :mod:`.attitude` -- Wahba's problem;
+* :mod:`.order` -- brightest (or nearest) first, input-order free;
 * :mod:`.assign` -- the final step: with the attitude, assign every detection (``assign_all``), and
   the whole-image check of a hypothesis (``explained``).
 """
@@ -20,11 +21,13 @@ from .attitude import wahba_rows
 from .geometry import (angular_distance_rad, backproject_px, chord, chord_rows, chord_to_rad, pairwise_chords,
                        project_cam, rad_to_chord, triangle_sides, triple_product)
 from .kvector import KVector, kvector_build, kvector_make, kvector_query, kvector_range
+from .order import before, order_by, sort_rows
 from .verify import keep_unique, reproject_assign, verify_pairwise, z_band_rows, z_bound
 
 __all__ = [
-    "DeepSky", "Frame", "KVector", "assign_all", "camera_frame", "check_stars", "deep_sky", "explained",
-    "field_chord", "refine_explained", "angular_distance_rad", "backproject_px", "chord", "chord_rows", "chord_to_rad", "keep_unique",
-    "kvector_build", "kvector_make", "kvector_query", "kvector_range", "pairwise_chords", "project_cam",
-    "rad_to_chord", "reproject_assign", "triangle_sides", "triple_product", "verify_pairwise", "wahba_rows", "z_band_rows", "z_bound",
+    "angular_distance_rad", "assign_all", "backproject_px", "before", "camera_frame", "check_stars", "chord",
+    "chord_rows", "chord_to_rad", "deep_sky", "DeepSky", "explained", "field_chord", "Frame", "keep_unique",
+    "KVector", "kvector_build", "kvector_make", "kvector_query", "kvector_range", "order_by", "pairwise_chords",
+    "project_cam", "rad_to_chord", "refine_explained", "reproject_assign", "sort_rows", "triangle_sides",
+    "triple_product", "verify_pairwise", "wahba_rows", "z_band_rows", "z_bound",
 ]

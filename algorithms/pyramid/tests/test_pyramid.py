@@ -11,7 +11,7 @@ import pytest
 
 from starid import ConfigError, Observation, SimConfig, Simulator
 from starid_algorithms.pyramid import Pyramid
-from starid_algorithms.pyramid.kernels import brightness_order, neighbours_within, select_stars, triad_triangles
+from starid_algorithms.pyramid.kernels import neighbours_within, select_stars, triad_triangles
 from starid_algorithms.pyramid.testing import noisy_results, wide_field_seconds
 
 
@@ -53,14 +53,6 @@ def test_neighbours_within_matches_searchsorted(db):
         a, b = neighbours_within(db.nbr_chord, db.nbr_start, g, lo, hi)
         assert (a - db.nbr_start[g], b - db.nbr_start[g]) == (np.searchsorted(seg, lo, "left"),
                                                              np.searchsorted(seg, hi, "right"))
-
-
-def test_brightness_order_is_lexsort():
-    rng = np.random.default_rng(0)
-    mag = rng.integers(0, 4, 50).astype(float)                   # many exact ties
-    x = rng.integers(0, 5, 50).astype(float)
-    y = rng.uniform(0, 100, 50)
-    assert np.array_equal(brightness_order(x, y, mag), np.lexsort((y, x, mag)))
 
 
 def _triangles_oracle(db, v, i, j, k, eps):
