@@ -47,6 +47,11 @@ from starid.plugin import Algorithm, Explanation, Identification
 RADIUS_FOV_FRACTION = 0.3
 NEIGHBOURS_TARGET = 6.0
 MAX_DEFAULT_RADIUS_DEG = 20.0
+#: A matched pair is tried only when its separation agrees with its guide pair's within this many
+#: first windows of :func:`confirm` (``Acceptance.eps0``). Measured on 1,000 images (seed 7) each of
+#: the real sky at 1 px / 0.5 Mv, the V <= 6 sky, and 2 px with 3 false stars: every accepted pair
+#: was within 1.5 windows; 92 % of the rejected ones were beyond 2.
+SEPARATION_TOL = 2.0
 #: Floor of the centroid noise the tolerances assume (px): a noise-free world still needs a window.
 SIGMA_FLOOR_PX = 1.0
 SKY_DEG2 = 4.0 * math.pi * (180.0 / math.pi) ** 2
@@ -418,8 +423,18 @@ def keep_best(best_score, best_item, found, n_best, score, item):
 def confirm_pair(unit, rows, seed, s, o, guide_s, guide_o, guides_unit, sensor, acc):
     """Seed an attitude on two matched stars (``s`` -> ``guide_s``, ``o`` -> ``guide_o``, Wahba) and :func:`confirm` it.
 
-    ``seed`` is an all -1 work array (length of the image), left all -1. Returns ``(accepted, attitude)``.
+    A pair whose separation differs from its guide pair's by more than :data:`SEPARATION_TOL`
+    first windows (``acc.eps0``, as chords) is rejected at once: a rotation keeps separations, so
+    only noise can make them differ. ``seed`` is an all -1 work array (length of the image), left
+    all -1. Returns ``(accepted, attitude)``.
     """
+    d_image = 0.0
+    d_guide = 0.0
+    for c in range(3):
+        d_image += (unit[s, c] - unit[o, c]) ** 2
+        d_guide += (float(guides_unit[guide_s, c]) - float(guides_unit[guide_o, c])) ** 2
+    if abs(math.sqrt(d_image) - math.sqrt(d_guide)) > SEPARATION_TOL * acc.eps0:
+        return False, np.eye(3)
     seed[s] = guide_s
     seed[o] = guide_o
     A = wahba_rows(unit, seed, guides_unit)
