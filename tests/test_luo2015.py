@@ -27,3 +27,21 @@ def test_star_count_table_beside_the_papers(tmp_path):
     assert ours["mean"] == n.mean() and ours["mean"] > 2 * paper["mean"]
     assert (paper["min"], paper["max"], paper["mean"]) == (3, 68, 30.32)
     assert "65 of them in a 20 x 20 deg field" in table.notes[0]
+
+
+def test_density_study_runs_the_printed_points_at_the_papers_star_count():
+    full = luo2015.experiment(trials=12, seed=4)
+    (study,) = (s for s in full.studies if s.name == "density")
+    points = study.grid.points()
+    assert [(p["sigma_px"], p["false_stars"]) for p in points] == [(0.5, 0), (0.0, 1), (0.0, 3)]
+    assert all(p["sky_mag_limit"] == p["mag_limit"] == luo2015.DENSE_MAG for p in points)
+    assert {dict(v.params)["mag_limit"] for v in study.variants} == {luo2015.DENSE_MAG}
+    exp = Experiment(full.name, (study,), trials=12, seed=4, camera=full.camera, sim=full.sim)
+    frame = run_experiment(exp, None, jobs=1, progress=False)
+    table = luo2015.density(frame)
+    assert list(table.frame["condition"].unique()) == ["0.5 px", "1 false star", "3 false stars"]
+    row = table.frame[(table.frame["condition"] == "3 false stars") & (table.frame["label"].str.startswith("grid:paper"))]
+    assert row["paper_id_rate"].item() == 0.865 and row["trials"].item() == 12
+    mean = frame.drop_duplicates(["point", "trial"])["n_true_stars"].mean()
+    assert f"{mean:.1f} stars per image" in table.notes[0]
+    assert "| lpt_improved:paper[" in table.markdown
