@@ -199,3 +199,30 @@ def test_order_by_is_lexsort_and_sort_rows_agrees():
     rows = rng.permutation(50)
     sort_rows(rows, 50, mag, x, y)
     assert np.array_equal(rows, want)
+
+
+def test_no_two_kernel_bundles_share_a_name_and_fields():
+    """numba's dispatcher caches a namedtuple argument's type by its class name and values, so two
+    bundle classes with the same name and fields slow every call of whichever is used second
+    (measured: 300 us per identify); one class per bundle, shared where two plugins need it."""
+    import importlib
+    import inspect
+    import pkgutil
+
+    import starid.kernels
+    import starid_algorithms
+
+    modules = [importlib.import_module(m.name) for m in pkgutil.walk_packages(starid.kernels.__path__, "starid.kernels.")]
+    for pkg in pkgutil.iter_modules(starid_algorithms.__path__, "starid_algorithms."):
+        for sub in ("algorithm", "kernels", "planar"):
+            try:
+                modules.append(importlib.import_module(f"{pkg.name}.{sub}"))
+            except ModuleNotFoundError:
+                pass
+    seen = {}
+    for module in modules:
+        for cls in vars(module).values():
+            if inspect.isclass(cls) and issubclass(cls, tuple) and hasattr(cls, "_fields"):
+                other = seen.setdefault((cls.__name__, cls._fields), cls)
+                assert other is cls, f"{other.__module__}.{cls.__name__} and {cls.__module__}.{cls.__name__}"
+    assert ("Frame", ("f_px", "cx_px", "cy_px", "width_px", "height_px")) in seen

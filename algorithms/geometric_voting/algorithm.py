@@ -11,13 +11,13 @@ import numpy as np
 
 from starid.camera import Camera
 from starid.catalog import Catalog
-from starid.kernels import rad_to_chord
+from starid.kernels import Frame, camera_frame, rad_to_chord
 from starid.observation import Observation
 from starid.params import check_flag, check_number, check_whole
 from starid.plugin import Algorithm, Explanation, Identification
 from starid_algorithms.pyramid.algorithm import (SIGMA_FLOOR_PX, PairDatabase, build_pair_database,
-                                                 check_pair_params, hip_of, sensor_of)
-from starid_algorithms.pyramid.kernels import PairTol, Sensor
+                                                 check_pair_params, hip_of)
+from starid_algorithms.pyramid.kernels import PairTol
 
 from .kernels import VoteRule, identify_kernel, voting_kernel
 
@@ -184,7 +184,7 @@ class GeometricVoting(Algorithm):
 
 
 @lru_cache(maxsize=64)
-def _bundles(algorithm: GeometricVoting, camera: Camera, c_max: float) -> tuple[PairTol, Sensor, VoteRule]:
+def _bundles(algorithm: GeometricVoting, camera: Camera, c_max: float) -> tuple[PairTol, Frame, VoteRule]:
     """The kernel's bundles for one (algorithm, camera, database chord limit), built once rather
     than per image (immutable tuples: sharing them between calls and threads is safe).
 
@@ -196,4 +196,4 @@ def _bundles(algorithm: GeometricVoting, camera: Camera, c_max: float) -> tuple[
                   c_max=c_max, c_fov=rad_to_chord(camera.half_diagonal_rad), max_window=int(algorithm.max_window),
                   max_stars=int(algorithm.max_stars), max_triads=0, confirm_fraction=float(algorithm.confirm_fraction),
                   min_extra=int(algorithm.min_extra))
-    return tol, sensor_of(camera), algorithm.rule()
+    return tol, camera_frame(camera), algorithm.rule()

@@ -5,7 +5,7 @@ The star selection and the k-vector windows of the image pairs are the Pyramid p
 
 Bundles (``typing.NamedTuple``, passed to numba as tuples): ``kv`` (:class:`starid.kernels.KVector`),
 :class:`~starid_algorithms.pyramid.kernels.PairTol` (tolerances and work limits),
-:class:`~starid_algorithms.pyramid.kernels.Sensor` (camera geometry) and :class:`VoteRule` (the
+:class:`~starid.kernels.Frame` (camera geometry) and :class:`VoteRule` (the
 voting and verification choices).
 
 Vote counters: one ``(m, n_guide)`` array per call (``m`` = selected stars, one row per star, so

@@ -10,12 +10,13 @@ import numpy as np
 
 from starid.camera import Camera
 from starid.catalog import Catalog
+from starid.kernels import camera_frame
 from starid.observation import Observation
 from starid.params import check_flag, check_number, check_whole
 from starid.plugin import Database, Explanation
 
 from ..lpt_improved.planar import (PlanarAlgorithm, acceptance, effective_double_px, explain_pattern, neighbour_lists,
-                                   prepare_image, radius_for, select_guides, sensor_of)
+                                   prepare_image, radius_for, select_guides)
 from .kernels import GridSpec, GridTable, build_patterns, by_cell, by_pattern, identify_kernel
 
 
@@ -143,7 +144,7 @@ class Grid(PlanarAlgorithm):
         cam = observation.camera
         acc = acceptance(cam, self.sigma_px, self.beta, self.min_matches, self.confirm_fraction)
         trace = np.full(4, -1, dtype=np.int64)
-        rows, attitude, ok = identify_kernel(observation.x_px, observation.y_px, sensor_of(cam), db.table,
+        rows, attitude, ok = identify_kernel(observation.x_px, observation.y_px, camera_frame(cam), db.table,
                                              db.guide_unit, self._spec_for(db), acc, trace)
         return rows, attitude, ok, trace
 
@@ -153,7 +154,7 @@ class Grid(PlanarAlgorithm):
         x, y = observation.x_px, observation.y_px
         ref, orient = int(trace[0]), int(trace[1])
         if ref < 0:
-            _, usable, order = prepare_image(x, y, sensor_of(observation.camera), database.double_px)
+            _, usable, order = prepare_image(x, y, camera_frame(observation.camera), database.double_px)
             if len(order) >= 2:
                 ref = int(order[0])
                 d = np.hypot(x - x[ref], y - y[ref])

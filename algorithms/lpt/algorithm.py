@@ -10,12 +10,13 @@ import numpy as np
 
 from starid.camera import Camera
 from starid.catalog import Catalog
+from starid.kernels import camera_frame
 from starid.observation import Observation
 from starid.params import check_whole
 from starid.plugin import Database, Explanation
 
 from ..lpt_improved.planar import (PlanarAlgorithm, acceptance, effective_double_px, explain_pattern, image_neighbours,
-                                   neighbour_lists, plane_polar, prepare_image, radius_for, select_guides, sensor_of)
+                                   neighbour_lists, plane_polar, prepare_image, radius_for, select_guides)
 from .kernels import StringSearch, Strings, build_strings, identify_kernel, lpt_string, sparse_strings
 
 
@@ -141,7 +142,7 @@ class LPT(PlanarAlgorithm):
         eps0_extra = math.pi / self.n_sectors * (1 + self.sector_tol) * math.tan(math.radians(db.radius_deg))
         acc = acceptance(cam, self.sigma_px, self.beta, self.min_matches, self.confirm_fraction, eps0_extra)
         trace = np.full(4, -1, dtype=np.int64)
-        rows, attitude, ok = identify_kernel(observation.x_px, observation.y_px, sensor_of(cam), db.chars,
+        rows, attitude, ok = identify_kernel(observation.x_px, observation.y_px, camera_frame(cam), db.chars,
                                              db.guide_unit, search, acc, trace)
         return rows, attitude, ok, trace
 
@@ -149,7 +150,7 @@ class LPT(PlanarAlgorithm):
         """The reference star, its neighbours within R and the boundaries of its occupied sectors."""
         rows, _, ok, trace = self._run(database, observation)
         x, y = observation.x_px, observation.y_px
-        sensor = sensor_of(observation.camera)
+        sensor = camera_frame(observation.camera)
         unit, usable, order = prepare_image(x, y, sensor, database.double_px)
         cos_r = math.cos(math.radians(database.radius_deg))
         nbrs = np.empty(len(x), dtype=np.int64)

@@ -10,13 +10,14 @@ import numpy as np
 
 from starid.camera import Camera
 from starid.catalog import Catalog
+from starid.kernels import camera_frame
 from starid.observation import Observation
 from starid.params import check_number, check_whole
 from starid.plugin import Database, Explanation
 
 from .kernels import FeatureTable, Search, build_features, feature_vector, identify_kernel
 from .planar import (PlanarAlgorithm, acceptance, effective_double_px, explain_pattern, image_neighbours,
-                     neighbour_lists, plane_polar, prepare_image, radius_for, select_guides, sensor_of)
+                     neighbour_lists, plane_polar, prepare_image, radius_for, select_guides)
 
 
 @dataclass(frozen=True, eq=False)
@@ -162,7 +163,7 @@ class ImprovedLPT(PlanarAlgorithm):
 
     def _run(self, db: ImprovedLPTDatabase, observation: Observation):
         cam = observation.camera
-        sensor = sensor_of(cam)._replace(f_px=float(cam.f_px))
+        sensor = camera_frame(cam)._replace(f_px=float(cam.f_px))
         acc = acceptance(cam, self.sigma_px, self.beta, self.min_matches, self.confirm_fraction)
         trace = np.full(4, -1, dtype=np.int64)
         rows, attitude, ok = identify_kernel(observation.x_px, observation.y_px, sensor, db.table, db.guide_unit,
@@ -174,7 +175,7 @@ class ImprovedLPT(PlanarAlgorithm):
         rows, _, ok, trace = self._run(database, observation)
         ref, align = int(trace[0]), int(trace[1])
         x, y = observation.x_px, observation.y_px
-        sensor = sensor_of(observation.camera)
+        sensor = camera_frame(observation.camera)
         unit, usable, order = prepare_image(x, y, sensor, database.double_px)
         cos_r = math.cos(math.radians(database.radius_deg))
         if ref < 0:   # nothing accepted: show the first reference star's pattern

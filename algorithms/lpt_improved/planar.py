@@ -35,7 +35,7 @@ from scipy.spatial import cKDTree
 from starid.camera import Camera
 from starid.catalog import Catalog
 from starid.errors import ConfigError
-from starid.kernels import backproject_px, reproject_assign, sort_rows, verify_pairwise, wahba_rows
+from starid.kernels import backproject_px, camera_frame, reproject_assign, sort_rows, verify_pairwise, wahba_rows
 from starid.observation import Observation
 from starid.params import check_number, check_whole
 from starid.plugin import Algorithm, Explanation, Identification
@@ -62,21 +62,6 @@ def default_radius_deg(camera: Camera, n_guides: int) -> float:
     fov = min(camera.fov_x_deg, camera.fov_y_deg)
     dense = math.sqrt(NEIGHBOURS_TARGET / (math.pi * max(n_guides, 1) / SKY_DEG2))
     return min(max(RADIUS_FOV_FRACTION * fov, min(dense, 0.5 * fov)), MAX_DEFAULT_RADIUS_DEG)
-
-
-class Sensor(NamedTuple):
-    """The camera as a kernel bundle."""
-
-    f_px: float
-    cx_px: float
-    cy_px: float
-    width_px: float
-    height_px: float
-
-
-def sensor_of(camera: Camera) -> Sensor:
-    return Sensor(float(camera.f_px), float(camera.cx_px), float(camera.cy_px), float(camera.width_px),
-                  float(camera.height_px))
 
 
 class Guides(NamedTuple):
@@ -515,7 +500,7 @@ def explain_pattern(observation: Observation, rows: np.ndarray, guide_hip: np.nd
     Points: the reference star, its alignment star and every identified star, labelled.
     """
     x, y = observation.x_px, observation.y_px
-    sensor = sensor_of(observation.camera)
+    sensor = camera_frame(observation.camera)
     segments, labels, points = [], [], []
     highlight = []
     if ref >= 0:

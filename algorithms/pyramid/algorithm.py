@@ -16,12 +16,12 @@ from scipy.spatial import cKDTree
 from starid.camera import Camera
 from starid.catalog import Catalog
 from starid.errors import ConfigError
-from starid.kernels import KVector, kvector_make, rad_to_chord
+from starid.kernels import KVector, camera_frame, kvector_make, rad_to_chord
 from starid.observation import Observation
 from starid.params import check_flag, check_number, check_whole
 from starid.plugin import Algorithm, Database, Explanation, Identification
 
-from .kernels import PairTol, Sensor, pyramid_kernel
+from .kernels import PairTol, pyramid_kernel
 
 #: centroid-noise floor of every window: a noise-free world still gets a 1 px tolerance
 SIGMA_FLOOR_PX = 1.0
@@ -117,11 +117,6 @@ def hip_of(database: PairDatabase, rows: np.ndarray) -> np.ndarray:
     return np.where(rows >= 0, database.guide_hip[np.maximum(rows, 0)], -1).astype(np.int64)
 
 
-def sensor_of(camera: Camera) -> Sensor:
-    return Sensor(float(camera.f_px), float(camera.cx_px), float(camera.cy_px), float(camera.width_px),
-                  float(camera.height_px))
-
-
 @dataclass(frozen=True)
 class Pyramid(Algorithm):
     """Pyramid: star-pair k-vector, Mortari's triad order, chirality, a fourth star confirming the triangle.
@@ -209,7 +204,7 @@ class Pyramid(Algorithm):
         cam = observation.camera
         db = database
         return pyramid_kernel(observation.x_px, observation.y_px, observation.mag, db.kv, db.pairs, db.nbr,
-                              db.nbr_chord, db.nbr_start, db.guide_unit, self.tolerances(cam, database), sensor_of(cam),
+                              db.nbr_chord, db.nbr_start, db.guide_unit, self.tolerances(cam, database), camera_frame(cam),
                               self.unique_triangle, self.accept_triangle)
 
     def identify(self, database: PairDatabase, observation: Observation) -> Identification:

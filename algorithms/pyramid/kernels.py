@@ -7,7 +7,7 @@ Bundles (``typing.NamedTuple``, passed to numba as tuples):
 
 * ``kv`` -- :class:`starid.kernels.KVector` over the sorted chords of the catalog pairs;
 * :class:`PairTol` -- the tolerances and work limits of one identification;
-* :class:`Sensor` -- the camera geometry reprojection needs.
+* the camera geometry reprojection needs is the core's :class:`starid.kernels.Frame`.
 """
 
 from __future__ import annotations
@@ -47,16 +47,6 @@ class PairTol(NamedTuple):
     max_triads: int
     confirm_fraction: float
     min_extra: int
-
-
-class Sensor(NamedTuple):
-    """Pinhole geometry: focal length and principal point in px, sensor size in px."""
-
-    f_px: float
-    cx_px: float
-    cy_px: float
-    width_px: float
-    height_px: float
 
 
 # --------------------------------------------------------------------------------------------
