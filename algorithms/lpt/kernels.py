@@ -348,6 +348,7 @@ def identify_kernel(x_px, y_px, sensor, chars, guides_unit, search, acc, trace):
     nbrs = np.empty(n, dtype=np.int64)
     r_px = np.empty(n)
     phi = np.empty(n)
+    unsolved = np.full(n, -2, dtype=np.int64)   # the roll-seeded attitudes come from no assignment
     img = np.zeros(m, dtype=np.int64)
     img_sector = np.empty(m, dtype=np.int64)
     img_level = np.empty(m, dtype=np.int64)
@@ -400,7 +401,7 @@ def identify_kernel(x_px, y_px, sensor, chars, guides_unit, search, acc, trace):
             dense_string(chars, g, row)
             roll = refined_roll(row, img_sector, img_level, img_phi, nz, best_item[c] % m, search)
             A = seed_attitude_roll(unit, s, guides_unit, g, roll)
-            ok, A = confirm(unit, rows, A, guides_unit, sensor, acc)
+            ok, A = confirm(unit, rows, A, guides_unit, sensor, acc, unsolved)
             if ok:
                 trace[0] = s
                 trace[2] = g

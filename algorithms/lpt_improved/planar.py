@@ -287,7 +287,7 @@ def seed_attitude_roll(unit, s, guides_unit, g, roll):
 
 
 @njit(cache=True)
-def confirm(unit, rows, attitude, guides_unit, sensor, acc):
+def confirm(unit, rows, attitude, guides_unit, sensor, acc, solved_from):
     """Accept or reject a seed attitude by reprojection; fills ``rows`` (guide row per star or -1).
 
     Passes of ``reproject_assign`` (first with ``acc.eps0``, then ``acc.eps``) and Wahba
@@ -296,6 +296,9 @@ def confirm(unit, rows, attitude, guides_unit, sensor, acc):
     majority). The identification stands when at least ``acc.min_matches`` stars are assigned
     and they are at least ``acc.fraction`` of the guide stars the attitude puts on the sensor;
     a random field, whose seed attitudes predict guide stars where none are seen, fails here.
+    ``solved_from`` is the assignment ``attitude`` was solved from by Wahba (all -2 when it was
+    not): a pass that reproduces the assignment the attitude was solved from cannot change
+    anything, so the remaining passes are skipped (the result is the same as running them).
     Returns ``(accepted, attitude)``.
     """
     n = unit.shape[0]
@@ -304,18 +307,32 @@ def confirm(unit, rows, attitude, guides_unit, sensor, acc):
     n_prev = -1
     n_seen = 0
     n_pred = 0
+    solved = solved_from.copy()   # the assignment A was last solved from
+    stale = False
     for it in range(5):
         n_seen, n_pred = reproject_assign(A, unit, guides_unit, acc.c_fov + eps, eps, rows, sensor.f_px,
                                           sensor.cx_px, sensor.cy_px, sensor.width_px, sensor.height_px)
         if n_seen < 2:
             return False, A
-        A = wahba_rows(unit, rows, guides_unit)
+        # A solved from this very assignment already: Wahba would return A again (and, after the
+        # first pass, assigning with the same A and eps would return this assignment again)
+        stale = True
+        for i in range(n):
+            if rows[i] != solved[i]:
+                stale = False
+                break
+        if not stale:
+            A = wahba_rows(unit, rows, guides_unit)
+            solved[:] = rows
+        elif it > 0 or acc.eps0 == acc.eps:
+            break   # the next pass (same A, same eps) would return this assignment and stop there
         if it > 0 and n_seen <= n_prev and eps == acc.eps:
             break
         n_prev = n_seen
         eps = acc.eps
-    n_seen, n_pred = reproject_assign(A, unit, guides_unit, acc.c_fov + eps, eps, rows, sensor.f_px,
-                                      sensor.cx_px, sensor.cy_px, sensor.width_px, sensor.height_px)
+    if not stale:   # when stale, the last pass used this A with acc.eps already
+        n_seen, n_pred = reproject_assign(A, unit, guides_unit, acc.c_fov + eps, eps, rows, sensor.f_px,
+                                          sensor.cx_px, sensor.cy_px, sensor.width_px, sensor.height_px)
     keep = verify_pairwise(unit, rows, guides_unit, acc.eps, 2, 0.5)
     n_keep = 0
     for i in range(n):
@@ -423,9 +440,10 @@ def confirm_pair(unit, rows, seed, s, o, guide_s, guide_o, guides_unit, sensor, 
     seed[s] = guide_s
     seed[o] = guide_o
     A = wahba_rows(unit, seed, guides_unit)
+    ok, A = confirm(unit, rows, A, guides_unit, sensor, acc, seed)
     seed[s] = -1
     seed[o] = -1
-    return confirm(unit, rows, A, guides_unit, sensor, acc)
+    return ok, A
 
 
 @njit(cache=True)
