@@ -12,7 +12,7 @@ from starid.camera import Camera
 from starid.catalog import Catalog
 from starid.kernels import camera_frame
 from starid.observation import Observation
-from starid.params import check_number, check_whole
+from starid.params import check_flag, check_number, check_whole
 from starid.plugin import Database, Explanation
 
 from .kernels import FeatureTable, Search, build_features, feature_vector, identify_kernel
@@ -31,6 +31,7 @@ class ImprovedLPTDatabase(Database):
     total : int32 (k,) sum of each row (for the sparse difference).
     count_start : int32 (m + 2,) first row with 0, 1, ..., m + 1 non-zero entries.
     guide, align : int16/int32 (k,) guide rows of each row's reference and alignment star.
+    align_chord : float32 (k,) the chord between the two (what ``pair_filter`` compares).
     guide_unit : float32 (g, 3) ICRS unit vectors of the guide stars, sorted by z.
     guide_hip : int64 (g,) their catalog ids.
     radius_deg : the neighbourhood radius R; f_px : focal length (px) the plane distances use;
@@ -42,6 +43,7 @@ class ImprovedLPTDatabase(Database):
     count_start: np.ndarray
     guide: np.ndarray
     align: np.ndarray
+    align_chord: np.ndarray
     guide_unit: np.ndarray
     guide_hip: np.ndarray
     radius_deg: float
@@ -55,7 +57,7 @@ class ImprovedLPTDatabase(Database):
 
     @property
     def table(self) -> FeatureTable:
-        return FeatureTable(self.columns, self.total, self.count_start, self.guide, self.align)
+        return FeatureTable(self.columns, self.total, self.count_start, self.guide, self.align, self.align_chord)
 
 
 def _row_dtype(n: int):
@@ -112,13 +114,18 @@ class ImprovedLPT(PlanarAlgorithm):
       non-guide star nearer than the true alignment star; 1 is the paper;
     * ``db_alignments`` (default 1 = paper): database rows for the k nearest catalog neighbours
       as alignment stars, against a missing alignment star (k times the memory);
+    * ``pair_filter`` (default on; off in the paper): only database rows whose reference and
+      alignment stars are as far apart as the image pair (within two first windows of the
+      acceptance, a rotation keeps separations) are ranked, so the ``n_candidates`` are the
+      best plausible rows rather than the best rows;
     * ``sigma_px`` follows the simulator's centroid noise (``None`` = follow).
     """
 
     name: ClassVar[str] = "lpt_improved"
     #: the paper's procedure: one reference star (nearest the centre), its best match only, one
-    #: alignment, the count window Ls-1..Ls+1 (``lpt_improved:paper``)
-    published: ClassVar[dict] = {"max_refs": 1, "n_candidates": 1, "image_alignments": 1, "count_tol_above": 1}
+    #: alignment, the count window Ls-1..Ls+1, ranked on the feature alone (``lpt_improved:paper``)
+    published: ClassVar[dict] = {"max_refs": 1, "n_candidates": 1, "image_alignments": 1, "count_tol_above": 1,
+                                 "pair_filter": False}
 
     n_sectors: int = 100
     log_scale: float = 1.0
@@ -126,6 +133,7 @@ class ImprovedLPT(PlanarAlgorithm):
     count_tol_above: int | None = 3
     image_alignments: int = 2
     db_alignments: int = 1
+    pair_filter: bool = True
 
     def __post_init__(self):
         super().__post_init__()
@@ -136,6 +144,7 @@ class ImprovedLPT(PlanarAlgorithm):
             check_whole("count_tol_above", self.count_tol_above, 0)
         check_whole("image_alignments", self.image_alignments, 1)
         check_whole("db_alignments", self.db_alignments, 1)
+        check_flag("pair_filter", self.pair_filter)
 
     def build(self, catalog: Catalog, camera: Camera) -> ImprovedLPTDatabase:
         radius = radius_for(self, catalog, camera)
@@ -150,16 +159,18 @@ class ImprovedLPT(PlanarAlgorithm):
         feature, count, guide, align = feature[order], count[order], guide[order], align[order]
         count_start = np.searchsorted(count, np.arange(self.n_sectors + 2)).astype(np.int32)
         rd = _row_dtype(len(guides.hip))
+        align_chord = np.linalg.norm(guides.unit[guide].astype(np.float64) - guides.unit[align], axis=1)
         return ImprovedLPTDatabase(
             columns=np.ascontiguousarray(feature.T, dtype=np.uint8 if max_value == 255 else np.uint16),
             total=feature.sum(axis=1).astype(np.int32), count_start=count_start, guide=guide.astype(rd),
-            align=align.astype(rd), guide_unit=guides.unit, guide_hip=guides.hip, radius_deg=radius,
+            align=align.astype(rd), align_chord=align_chord.astype(np.float32), guide_unit=guides.unit, guide_hip=guides.hip, radius_deg=radius,
             f_px=float(camera.f_px), double_px=double_px)
 
     def _search(self, db: ImprovedLPTDatabase) -> Search:
         return Search(self.n_sectors, float(self.log_scale), math.cos(math.radians(db.radius_deg)), self.count_tol,
                       self.count_tol if self.count_tol_above is None else self.count_tol_above,
-                      self.max_refs, self.image_alignments, self.n_candidates, float(db.double_px))
+                      self.max_refs, self.image_alignments, self.n_candidates, float(db.double_px),
+                      bool(self.pair_filter))
 
     def _run(self, db: ImprovedLPTDatabase, observation: Observation):
         cam = observation.camera

@@ -12,7 +12,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from .planar import (begin_identify, confirm_pair, guide_pattern, keep_best, no_match, polar_buffers,
+from .planar import (SEPARATION_TOL, begin_identify, confirm_pair, guide_pattern, keep_best, no_match, polar_buffers,
                      reference_pattern, relative_angle)
 
 
@@ -24,6 +24,7 @@ class FeatureTable(NamedTuple):
     count_start: np.ndarray   # int32 (m + 2,) first row with that many non-zero entries
     guide: np.ndarray         # int32 (k,) guide row of the reference star of each feature row
     align: np.ndarray         # int32 (k,) guide row of its alignment star
+    align_chord: np.ndarray   # float32 (k,) chord between the two
 
 
 class Search(NamedTuple):
@@ -38,6 +39,7 @@ class Search(NamedTuple):
     image_alignments: int
     n_candidates: int
     double_px: float
+    pair_filter: bool       # rank only rows whose alignment pair has the image pair's separation
 
 
 @njit(cache=True)
@@ -103,7 +105,8 @@ def build_features(unit, nbr, nbr_off, f_px, n_sectors, log_scale, db_alignments
 
 
 @njit(cache=True)
-def sad_search(table, vec, nz_idx, nz, count_tol, n_best, best_row, best_sad, count_tol_above, acc):
+def sad_search(table, vec, nz_idx, nz, count_tol, n_best, best_row, best_sad, count_tol_above, acc, chord,
+               chord_tol):
     """The ``n_best`` rows of smallest sum of absolute differences to ``vec`` (Luo et al. eq. 9).
 
     Only rows whose number of non-zero entries ``L_c`` satisfies
@@ -113,8 +116,9 @@ def sad_search(table, vec, nz_idx, nz, count_tol, n_best, best_row, best_sad, co
     ``sum_i |a_i - c_i| = sum_i c_i + sum_{a_i != 0} (|a_i - c_i| - c_i)``, one feature entry at
     a time over the whole window of rows (the table is stored by entry, so each pass reads
     contiguous bytes; ``acc``, int32 with at least as many entries as the table has rows, holds the
-    running sums). Writes the best rows (ascending difference, ties by row) to
-    ``best_row``/``best_sad`` and returns how many.
+    running sums). With ``chord_tol >= 0`` only rows whose alignment pair is ``chord`` apart
+    within ``chord_tol`` are ranked (``pair_filter``). Writes the best rows (ascending
+    difference, ties by row) to ``best_row``/``best_sad`` and returns how many.
     """
     m = table.columns.shape[0]
     lo = max(nz - count_tol, 0)
@@ -137,6 +141,8 @@ def sad_search(table, vec, nz_idx, nz, count_tol, n_best, best_row, best_sad, co
     for r in range(r0, r1):
         if found == n_best and -acc[r] <= best_sad[found - 1]:
             continue   # keep_best would drop it
+        if chord_tol >= 0 and abs(table.align_chord[r] - chord) > chord_tol:
+            continue   # a rotation keeps separations: this row cannot be the image's pattern
         found = keep_best(best_sad, best_row, found, n_best, -acc[r], np.int64(r))   # negated: smallest first
     for c in range(found):
         best_sad[c] = -best_sad[c]
@@ -168,6 +174,7 @@ def identify_kernel(x_px, y_px, sensor, table, guides_unit, search, acc, trace):
     best_sad = np.empty(search.n_candidates, dtype=np.int64)
     seed = np.full(n, -1, dtype=np.int64)
     sums = np.empty(table.total.shape[0], dtype=np.int32)
+    chord_tol = SEPARATION_TOL * acc.eps0 if search.pair_filter else -1.0
     for t in range(min(search.max_refs, order.shape[0])):
         s = order[t]
         k = reference_pattern(unit, usable, x_px, y_px, s, search.cos_radius, sensor.f_px, nbrs, r_px, phi)
@@ -178,8 +185,11 @@ def identify_kernel(x_px, y_px, sensor, table, guides_unit, search, acc, trace):
                 if vec[i] != 0:
                     nz_idx[q] = i
                     q += 1
+            o = nbrs[a]
+            chord = math.sqrt((unit[s, 0] - unit[o, 0]) ** 2 + (unit[s, 1] - unit[o, 1]) ** 2
+                              + (unit[s, 2] - unit[o, 2]) ** 2)
             found = sad_search(table, vec, nz_idx, nz, search.count_tol, search.n_candidates, best_row, best_sad,
-                               search.count_tol_above, sums)
+                               search.count_tol_above, sums, chord, chord_tol)
             for c in range(found):
                 r = best_row[c]
                 ok, A = confirm_pair(unit, rows, seed, s, nbrs[a], table.guide[r], table.align[r], guides_unit,

@@ -88,15 +88,20 @@ def test_sad_search_matches_brute_force(above):
     feat, nz = feat[order], nz[order]
     table = FeatureTable(np.ascontiguousarray(feat.T), feat.sum(axis=1).astype(np.int32),
                          np.searchsorted(nz, np.arange(m + 2)).astype(np.int32),
-                         np.arange(400, dtype=np.int32), np.arange(400, dtype=np.int32))
+                         np.arange(400, dtype=np.int32), np.arange(400, dtype=np.int32),
+                         rng.uniform(0.0, 0.1, 400).astype(np.float32))
     for trial in range(10):
         vec = feat[rng.integers(400)].astype(np.int64)
         vec[rng.integers(m)] = rng.integers(0, 7)
         idx = np.flatnonzero(vec)
         best_row, best_sad = np.empty(3, dtype=np.int64), np.empty(3, dtype=np.int64)
-        found = sad_search(table, vec, idx, idx.size, 1, 3, best_row, best_sad, above, np.empty(400, dtype=np.int32))
+        chord, tol = (0.05, 0.02) if trial % 2 else (0.0, -1.0)   # odd trials: with the pair filter
+        found = sad_search(table, vec, idx, idx.size, 1, 3, best_row, best_sad, above, np.empty(400, dtype=np.int32),
+                           chord, tol)
         sad = np.abs(feat.astype(np.int64) - vec).sum(axis=1)
         ok = (nz >= idx.size - 1) & (nz <= idx.size + above)
+        if tol >= 0:
+            ok &= np.abs(table.align_chord.astype(np.float64) - chord) <= tol
         expect = np.lexsort((np.arange(400), sad))
         expect = expect[ok[expect]][:3]
         assert found == min(3, ok.sum())
