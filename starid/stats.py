@@ -35,9 +35,11 @@ def mcnemar(trials: pd.DataFrame, a: str, b: str, by: str = "label") -> dict:
 
     Correct vs anything else; under equal rates the discordant trials are binomial(1/2).
     """
-    key = "trial" if "point" not in trials.columns else ["point", "trial"]
-    wide = trials.assign(ok=trials["status"] == CORRECT).pivot_table(index=key, columns=by, values="ok",
-                                                                      aggfunc="first")
+    key = ["trial"] if "point" not in trials.columns else ["point", "trial"]
+    # only the columns the test reads: a wide trial frame (one column per parameter) would be
+    # copied whole, block by block, by the pivot
+    part = trials[[*key, by]].assign(ok=(trials["status"] == CORRECT).to_numpy())
+    wide = part.pivot_table(index=key, columns=by, values="ok", aggfunc="first")
     both = wide[[a, b]].dropna().astype(bool)
     only_a = int((both[a] & ~both[b]).sum())
     only_b = int((both[b] & ~both[a]).sum())
