@@ -212,7 +212,8 @@ def test_no_two_kernel_bundles_share_a_name_and_fields():
     import starid.kernels
     import starid_algorithms
 
-    modules = [importlib.import_module(m.name) for m in pkgutil.walk_packages(starid.kernels.__path__, "starid.kernels.")]
+    prefix = "starid.kernels."
+    modules = [importlib.import_module(m.name) for m in pkgutil.walk_packages(starid.kernels.__path__, prefix)]
     for pkg in pkgutil.iter_modules(starid_algorithms.__path__, "starid_algorithms."):
         for sub in ("algorithm", "kernels", "planar"):
             try:

@@ -40,7 +40,8 @@ def test_density_study_runs_the_printed_points_at_the_papers_star_count():
     frame = run_experiment(exp, None, jobs=1, progress=False)
     table = luo2015.density(frame)
     assert list(table.frame["condition"].unique()) == ["0.5 px", "1 false star", "3 false stars"]
-    row = table.frame[(table.frame["condition"] == "3 false stars") & (table.frame["label"].str.startswith("grid:paper"))]
+    t = table.frame
+    row = t[(t["condition"] == "3 false stars") & (t["label"].str.startswith("grid:paper"))]
     assert row["paper_id_rate"].item() == 0.865 and row["trials"].item() == 12
     mean = frame.drop_duplicates(["point", "trial"])["n_true_stars"].mean()
     assert f"{mean:.1f} stars per image" in table.notes[0]

@@ -163,8 +163,8 @@ class ImprovedLPT(PlanarAlgorithm):
         return ImprovedLPTDatabase(
             columns=np.ascontiguousarray(feature.T, dtype=np.uint8 if max_value == 255 else np.uint16),
             total=feature.sum(axis=1).astype(np.int32), count_start=count_start, guide=guide.astype(rd),
-            align=align.astype(rd), align_chord=align_chord.astype(np.float32), guide_unit=guides.unit, guide_hip=guides.hip, radius_deg=radius,
-            f_px=float(camera.f_px), double_px=double_px)
+            align=align.astype(rd), align_chord=align_chord.astype(np.float32), guide_unit=guides.unit,
+            guide_hip=guides.hip, radius_deg=radius, f_px=float(camera.f_px), double_px=double_px)
 
     def _search(self, db: ImprovedLPTDatabase) -> Search:
         return Search(self.n_sectors, float(self.log_scale), math.cos(math.radians(db.radius_deg)), self.count_tol,

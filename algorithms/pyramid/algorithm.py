@@ -204,8 +204,8 @@ class Pyramid(Algorithm):
         cam = observation.camera
         db = database
         return pyramid_kernel(observation.x_px, observation.y_px, observation.mag, db.kv, db.pairs, db.nbr,
-                              db.nbr_chord, db.nbr_start, db.guide_unit, self.tolerances(cam, database), camera_frame(cam),
-                              self.unique_triangle, self.accept_triangle)
+                              db.nbr_chord, db.nbr_start, db.guide_unit, self.tolerances(cam, database),
+                              camera_frame(cam), self.unique_triangle, self.accept_triangle)
 
     def identify(self, database: PairDatabase, observation: Observation) -> Identification:
         rows, attitude, _, _ = self._run(database, observation)
