@@ -58,7 +58,7 @@ def variants(names: list[str], overrides: list[str] | None) -> tuple[Variant, ..
 
 def check_all_failed(frame: pd.DataFrame) -> list[str]:
     """Labels every one of whose trials failed (error, timeout, crash)."""
-    failed = frame.assign(f=frame["status"].isin(FAILED)).groupby("label", sort=False)["f"].all()
+    failed = frame["status"].isin(FAILED).groupby(frame["label"], sort=False).all()
     return [label for label, all_failed in failed.items() if all_failed]
 
 
