@@ -12,6 +12,8 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
+from starid.kernels import chord_rows
+
 from .planar import (SEPARATION_TOL, begin_identify, confirm_pair, guide_pattern, keep_best, no_match, polar_buffers,
                      reference_pattern, relative_angle)
 
@@ -185,11 +187,8 @@ def identify_kernel(x_px, y_px, sensor, table, guides_unit, search, acc, trace):
                 if vec[i] != 0:
                     nz_idx[q] = i
                     q += 1
-            o = nbrs[a]
-            chord = math.sqrt((unit[s, 0] - unit[o, 0]) ** 2 + (unit[s, 1] - unit[o, 1]) ** 2
-                              + (unit[s, 2] - unit[o, 2]) ** 2)
             found = sad_search(table, vec, nz_idx, nz, search.count_tol, search.n_candidates, best_row, best_sad,
-                               search.count_tol_above, sums, chord, chord_tol)
+                               search.count_tol_above, sums, chord_rows(unit, s, unit, nbrs[a]), chord_tol)
             for c in range(found):
                 r = best_row[c]
                 ok, A = confirm_pair(unit, rows, seed, s, nbrs[a], table.guide[r], table.align[r], guides_unit,

@@ -35,7 +35,8 @@ from scipy.spatial import cKDTree
 from starid.camera import Camera
 from starid.catalog import Catalog
 from starid.errors import ConfigError
-from starid.kernels import backproject_px, camera_frame, reproject_assign, sort_rows, verify_pairwise, wahba_rows
+from starid.kernels import (backproject_px, camera_frame, chord_rows, reproject_assign, sort_rows, verify_pairwise,
+                            wahba_rows)
 from starid.observation import Observation
 from starid.params import check_number, check_whole
 from starid.plugin import Algorithm, Explanation, Identification
@@ -430,12 +431,8 @@ def confirm_pair(unit, rows, seed, s, o, guide_s, guide_o, guides_unit, sensor, 
     only noise can make them differ. ``seed`` is an all -1 work array (length of the image), left
     all -1. Returns ``(accepted, attitude)``.
     """
-    d_image = 0.0
-    d_guide = 0.0
-    for c in range(3):
-        d_image += (unit[s, c] - unit[o, c]) ** 2
-        d_guide += (float(guides_unit[guide_s, c]) - float(guides_unit[guide_o, c])) ** 2
-    if abs(math.sqrt(d_image) - math.sqrt(d_guide)) > SEPARATION_TOL * acc.eps0:
+    if abs(chord_rows(unit, s, unit, o) - chord_rows(guides_unit, guide_s, guides_unit, guide_o)) > \
+            SEPARATION_TOL * acc.eps0:
         return False, np.eye(3)
     seed[s] = guide_s
     seed[o] = guide_o
