@@ -187,17 +187,20 @@ def test_explained_counts_the_detections_of_stars_to_the_check_limit(catalog, ca
     assert agree >= 18      # measured: 20 of 20
 
 
-def test_order_by_is_lexsort_and_sort_rows_agrees():
+@pytest.mark.parametrize("n", [50, 200])   # below and above PRESORT_ROWS
+def test_order_by_is_lexsort_and_sort_rows_agrees(n):
     from starid.kernels import order_by, sort_rows
+    from starid.kernels.order import PRESORT_ROWS
 
+    assert 50 <= PRESORT_ROWS < 200
     rng = np.random.default_rng(0)
-    mag = rng.integers(0, 4, 50).astype(float)                   # many exact ties
-    x = rng.integers(0, 5, 50).astype(float)
-    y = rng.uniform(0, 100, 50)
+    mag = rng.integers(0, 4, n).astype(float)                    # many exact ties
+    x = rng.integers(0, 5, n).astype(float)
+    y = rng.uniform(0, 100, n)
     want = np.lexsort((y, x, mag))
     assert np.array_equal(order_by(mag, x, y), want)
-    rows = rng.permutation(50)
-    sort_rows(rows, 50, mag, x, y)
+    rows = rng.permutation(n)
+    sort_rows(rows, n, mag, x, y)
     assert np.array_equal(rows, want)
 
 

@@ -231,9 +231,6 @@ def prepare_image(x_px, y_px, sensor, double_px):
         if usable[i]:
             order[m] = i
             m += 1
-    if m > 64:   # long lists: argsort first, then fix exact-tie runs
-        pre = np.argsort(key[order], kind="mergesort")
-        order = order[pre]
     sort_rows(order, m, key, x_px, y_px)
     return unit, usable, order
 
@@ -255,14 +252,6 @@ def image_neighbours(unit, usable, x_px, y_px, s, cos_radius, out):
             key[j] = -c
             out[k] = j
             k += 1
-    if k > 64:
-        sub = np.empty(k)
-        for a in range(k):
-            sub[a] = key[out[a]]
-        pre = np.argsort(sub, kind="mergesort")
-        tmp = out[:k].copy()
-        for a in range(k):
-            out[a] = tmp[pre[a]]
     sort_rows(out, k, key, x_px, y_px)
     return k
 

@@ -20,10 +20,20 @@ def before(key, x_px, y_px, i, j):
     return y_px[i] < y_px[j]
 
 
+#: Above this many rows :func:`sort_rows` merge-sorts by key first, so that its insertion pass
+#: only settles exact ties (insertion sort alone is quadratic).
+PRESORT_ROWS = 64
+
+
 @njit(cache=True)
 def sort_rows(rows, n, key, x_px, y_px):
-    """Insertion sort of ``rows[:n]`` in place by :func:`before` (stable; meant for short or nearly
-    sorted lists)."""
+    """Sort ``rows[:n]`` in place by :func:`before` (stable): an insertion sort, after a stable
+    merge sort by ``key`` alone when there are more than :data:`PRESORT_ROWS` of them."""
+    if n > PRESORT_ROWS:
+        pre = np.argsort(key[rows[:n]], kind="mergesort")
+        head = rows[:n].copy()
+        for a in range(n):
+            rows[a] = head[pre[a]]
     for a in range(1, n):
         r = rows[a]
         b = a - 1
@@ -35,8 +45,7 @@ def sort_rows(rows, n, key, x_px, y_px):
 
 @njit(cache=True)
 def order_by(key, x_px, y_px):
-    """Indices of all detections in :func:`before` order (a stable sort by ``key``, then an insertion
-    pass that settles the exact ties)."""
-    order = np.argsort(key, kind="mergesort")
+    """Indices of all detections in :func:`before` order."""
+    order = np.arange(key.shape[0])
     sort_rows(order, order.shape[0], key, x_px, y_px)
     return order
