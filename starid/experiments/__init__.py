@@ -39,6 +39,12 @@ def registered_beyond(paper: tuple[str, ...]) -> tuple[str, ...]:
     return tuple(i.name for i in available_algorithms() if i.status == "ok" and i.name not in paper)
 
 
+def rate_cells(s: pd.DataFrame) -> list[str]:
+    """Each summary row's id rate with its interval, and the paper's (``paper_id_rate``) beside where it gives one."""
+    return [rate_ci(r, lo, hi) + (f" (paper {pct(p)})" if not np.isnan(p) else "")
+            for r, lo, hi, p in zip(s["id_rate"], s["id_rate_lo"], s["id_rate_hi"], s["paper_id_rate"])]
+
+
 def sweep_table(frame: pd.DataFrame, study: str, axis: str, paper: dict, unit: str, title: str,
                 name: str) -> Table:
     """Id rate (with its interval) of every label at every value of ``axis`` in ``study``; the
@@ -46,8 +52,7 @@ def sweep_table(frame: pd.DataFrame, study: str, axis: str, paper: dict, unit: s
     part = frame[frame["study"] == study]
     s = summarize(part, by=(f"grid_{axis}", "label")).rename(columns={f"grid_{axis}": axis})
     s["paper_id_rate"] = [paper.get((float(v), a), np.nan) for v, a in zip(s[axis], s["algorithm"])]
-    cells = s.assign(cell=[rate_ci(r, lo, hi) + (f" (paper {pct(p)})" if not np.isnan(p) else "")
-                           for r, lo, hi, p in zip(s["id_rate"], s["id_rate_lo"], s["id_rate_hi"], s["paper_id_rate"])])
+    cells = s.assign(cell=rate_cells(s))
     wide = cells.pivot(index="label", columns=axis, values="cell").reindex(index=list(dict.fromkeys(s["label"])))
     wide.columns = [f"{unit} = {c:g}" for c in wide.columns]
     return Table(name, title, s, markdown(wide.reset_index()))

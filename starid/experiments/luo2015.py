@@ -28,9 +28,9 @@ import numpy as np
 import pandas as pd
 
 from ..experiment import Experiment, Grid, Study, Variant
-from ..report.tables import Table, markdown, pct, rate_ci
+from ..report.tables import Table, markdown, rate_ci
 from ..stats import summarize
-from . import registered_beyond, sweep_points, sweep_table
+from . import rate_cells, registered_beyond, sweep_points, sweep_table
 
 NAME = "luo2015"
 TITLE = "Luo, Xu, Zhang & Sun (2015)"
@@ -69,12 +69,16 @@ SWEEPS = {
 }
 
 
-def variants(**params) -> tuple:
-    """The three plugins with the paper's guide list and R, then as published, then every other registered one."""
+def paper_variants(**params) -> tuple:
+    """The three plugins with the paper's guide list and R (``params`` on top), then as published."""
     params = {**PAPER_PARAMS, **params}
-    paper = tuple(Variant(n, tuple(params.items())) for n in PAPER_ALGORITHMS)
-    published = tuple(Variant.as_published(n, **params) for n in PAPER_ALGORITHMS)
-    return paper + published + registered_beyond(PAPER_ALGORITHMS)
+    return (tuple(Variant(n, tuple(params.items())) for n in PAPER_ALGORITHMS)
+            + tuple(Variant.as_published(n, **params) for n in PAPER_ALGORITHMS))
+
+
+def variants() -> tuple:
+    """:func:`paper_variants`, then every other registered algorithm with its defaults."""
+    return paper_variants() + registered_beyond(PAPER_ALGORITHMS)
 
 
 def dense_study() -> Study:
@@ -82,7 +86,7 @@ def dense_study() -> Study:
     n = len(DENSE_POINTS)
     grid = Grid({"sigma_px": [p[1] for p in DENSE_POINTS], "false_stars": [p[2] for p in DENSE_POINTS],
                  "sky_mag_limit": [DENSE_MAG] * n, "mag_limit": [DENSE_MAG] * n}, mode="zip")
-    return Study("density", variants(mag_limit=DENSE_MAG)[:2 * len(PAPER_ALGORITHMS)], grid)
+    return Study("density", paper_variants(mag_limit=DENSE_MAG), grid)
 
 
 def experiment(trials: int = DEFAULT_TRIALS, seed: int = 0) -> Experiment:
@@ -149,8 +153,7 @@ def density(frame: pd.DataFrame) -> Table:
     names = {(sigma, fs): name for name, sigma, fs in DENSE_POINTS}
     s.insert(0, "condition", [names[(float(a), int(b))] for a, b in zip(s["grid_sigma_px"], s["grid_false_stars"])])
     s["paper_id_rate"] = [DENSE_PAPER[c].get(a, np.nan) for c, a in zip(s["condition"], s["algorithm"])]
-    s["cell"] = [rate_ci(r, lo, hi) + ("" if np.isnan(p) else f" (paper {pct(p)})")
-                 for r, lo, hi, p in zip(s["id_rate"], s["id_rate_lo"], s["id_rate_hi"], s["paper_id_rate"])]
+    s["cell"] = rate_cells(s)
     wide = s.pivot(index="label", columns="condition", values="cell")
     wide = wide.reindex(index=list(dict.fromkeys(s["label"])), columns=[p[0] for p in DENSE_POINTS])
     stars_mean = part.drop_duplicates(["point", "trial"])["n_true_stars"].mean()
