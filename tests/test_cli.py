@@ -93,3 +93,16 @@ def test_identify_refuses_malformed_input_and_writes_nothing(tmp_path, capsys, t
     import re
     assert re.search(message, capsys.readouterr().err)
     assert not out.exists()
+
+
+def test_a_closed_output_pipe_ends_quietly():
+    """``starid info ptp | head -1``: the reader is gone before starid prints; no traceback."""
+    import subprocess
+    import sys
+
+    proc = subprocess.Popen([sys.executable, "-m", "starid", "info", "ptp"], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE)
+    proc.stdout.close()  # the reader leaves before starid has imported, let alone printed
+    stderr = proc.stderr.read().decode()
+    assert proc.wait(timeout=120) == 141
+    assert "Traceback" not in stderr and "BrokenPipe" not in stderr, stderr

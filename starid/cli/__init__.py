@@ -3,12 +3,14 @@
 Commands: ``list``, ``info``, ``check``, ``run``, ``sweep``, ``experiment``, ``reproduce``, ``table6``,
 ``identify``, ``simulate``, ``report``, ``show`` (``starid COMMAND --help`` for each). Bad input exits with status 2
 and one line saying what is wrong; Ctrl-C exits 130 and SIGTERM 143, keeping every finished
-chunk of a results folder (run the same command again to resume).
+chunk of a results folder (run the same command again to resume); a closed output pipe
+(``starid info ptp | head``) exits 141 without a traceback.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import signal
 import sys
 import warnings
@@ -62,6 +64,11 @@ def main(argv: list[str] | None = None) -> int:
     except Terminated:
         print("starid: terminated; finished chunks are kept (run the same command again to resume)", file=sys.stderr)
         return 143
+    except BrokenPipeError:
+        # the reader went away (``starid info ptp | head``): stop quietly, as a shell tool does;
+        # stdout goes to devnull so that the interpreter's final flush cannot fail again
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141
     finally:
         signal.signal(signal.SIGTERM, previous)
 
