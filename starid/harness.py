@@ -60,10 +60,12 @@ def _describe(exc: BaseException) -> str:
 
 def prepare(algorithm: Algorithm, catalog: Catalog, camera, warmup: Observation | None,
             label: str | None = None) -> Prepared:
-    """Build the database once and warm the JIT up on ``warmup`` (never scored)."""
+    """Derive the sensor-dependent parameters, build the database once and warm the JIT up on
+    ``warmup`` (never scored). The prepared algorithm is the derived one (:meth:`Algorithm.derived`)."""
     label = label or algorithm.name
     t0 = time.perf_counter()
     try:
+        algorithm = algorithm.derived(catalog, camera)
         database = algorithm.build(catalog, camera)
     except (Exception, SystemExit) as exc:
         return Prepared(algorithm, label, None, time.perf_counter() - t0, 0.0, f"build failed: {_describe(exc)}")
@@ -195,7 +197,7 @@ def run(algorithms, trials: TrialSet, catalog: Catalog, simulator=None, rule: Su
             iterator = tqdm(iterator, desc=label, unit="img", leave=False)
         rows = [trial_row(prepared, trials, i, catalog, rule, keep_ids) for i in iterator]
         df = rows_to_frame(prepared, rows)
-        frames.append(pd.concat([df, constant_columns(param_columns(algorithm.params()), df.index)], axis=1))
+        frames.append(pd.concat([df, constant_columns(param_columns(prepared.algorithm.params()), df.index)], axis=1))
     out = pd.concat(frames, ignore_index=True)
     tail = {**(simulator.params() if simulator is not None else {}), **versions()}
     return pd.concat([out, constant_columns(tail, out.index)], axis=1)

@@ -20,7 +20,13 @@ An algorithm is a small class (a frozen dataclass is the easy way) that
   (called outside the harness) and applies its own floor (a 0 px world still needs a window);
 * optionally lists in ``published`` the parameter overrides that turn its defaults into the
   method exactly as its paper publishes it (starid's extensions and flight precautions off), so
-  "as published" and "as improved" can run side by side: the variant ``NAME:paper``.
+  "as published" and "as improved" can run side by side: the variant ``NAME:paper``;
+* optionally overrides :meth:`Algorithm.derived` when some defaults depend on the sensor (a
+  radius from the field of view, a tolerance from the pixel scale, a magnitude limit from the
+  star density): such a parameter defaults to ``None`` = "derive it from the catalog and camera",
+  ``derived`` returns the algorithm with those values filled in, and ``build`` uses the same
+  method, so one rule serves both. The harness builds and records the derived instance, so result
+  rows show the values used.
 
 The harness, not the plugin, decides whether an identification is correct. Plugins register
 through the entry-point group ``starid.algorithms`` (see ``pyproject.toml``), or in process
@@ -155,6 +161,17 @@ class Algorithm(abc.ABC):
         if not dataclasses.is_dataclass(self):
             raise PluginError(f"{self.name}: 'follows' needs the algorithm to be a dataclass")
         return dataclasses.replace(self, **fill)
+
+    def derived(self, catalog: Catalog, camera: Camera) -> "Algorithm":
+        """This algorithm with every parameter it derives from ``catalog`` and ``camera`` when left
+        ``None`` set to the value ``build`` uses; pinned parameters are kept.
+
+        The default derives nothing and returns ``self``. A plugin whose defaults depend on the
+        sensor overrides it (and calls it in ``build``); the conformance check ``derived`` holds it
+        to keeping pinned values and to being idempotent. The harness builds, times and records the
+        result, so ``param_*`` columns show the values actually used.
+        """
+        return self
 
     @classmethod
     def summary(cls) -> str:

@@ -15,7 +15,8 @@ registers). Checks: the class is default-constructible and documented; identify 
 0-3 stars and coincident detections are handled; only valid catalog ids or -1 are returned,
 never one id for two stars; the order of the input stars does not change the answer; noise-free
 trials are identified; fields of random points (no real star) give no identification; the
-observation is not written to; ``explain``, when present, returns valid drawable data. The
+observation is not written to; ``explain``, when present, returns valid drawable data;
+``derived`` keeps pinned parameters, returns the same class and is idempotent. The
 checks raise :class:`ConformanceError` (not ``assert``, so ``python -O`` cannot skip them).
 Databases are built once per (class, catalog, camera) and cached.
 """
@@ -35,7 +36,7 @@ from .scoring import CORRECT, MISIDENTIFIED, SuccessRule, score_trial
 from .simulate import SimConfig, Simulator
 
 CHECKS = ("default_constructible", "deterministic", "few_stars", "coincident_stars", "valid_ids", "order_invariant",
-          "noise_free_identified", "random_fields", "read_only_input", "large_ids", "explain")
+          "noise_free_identified", "random_fields", "read_only_input", "large_ids", "explain", "derived")
 
 #: Trials the checks use (fixed, so a failure can be reproduced with ``Simulator(..., seed=SEED)``).
 SEED = 20151
@@ -183,6 +184,18 @@ def _check_explain(cls, algorithm, db, catalog, camera):
         result = method(db, obs.for_plugin())
         _require(isinstance(result, Explanation), f"explain must return a starid.plugin.Explanation, got "
                                                   f"{type(result).__name__}")
+
+
+def _check_derived(cls, algorithm, db, catalog, camera):
+    derived = algorithm.derived(catalog, camera)
+    _require(type(derived) is cls, f"derived() must return a {cls.__name__}, got {type(derived).__name__}")
+    before, after = algorithm.params(), derived.params()
+    _require(before.keys() == after.keys(), "derived() changed which parameters there are")
+    changed = sorted(k for k in before if before[k] is not None and after[k] != before[k])
+    _require(not changed, f"derived() changed pinned parameter(s) {changed}; it may only fill those left None")
+    again = derived.derived(catalog, camera).params()
+    _require(again == after, "derived() is not idempotent: deriving the derived algorithm changed "
+                             f"{sorted(k for k in after if again[k] != after[k])}")
 
 
 _FUNCTIONS = {name: globals()[f"_check_{name}"] for name in CHECKS}

@@ -16,7 +16,7 @@ from starid.params import check_flag, check_number, check_whole
 from starid.plugin import Database, Explanation
 
 from ..lpt_improved.planar import (PlanarAlgorithm, acceptance, effective_double_px, explain_pattern, neighbour_lists,
-                                   prepare_image, radius_for, select_guides)
+                                   prepare_image, select_guides)
 from .kernels import GridSpec, GridTable, build_patterns, by_cell, by_pattern, identify_kernel
 
 
@@ -128,7 +128,7 @@ class Grid(PlanarAlgorithm):
         return self._spec(db.radius_deg, db.double_px)._replace(half_px=db.f_px * math.tan(math.radians(db.radius_deg)))
 
     def build(self, catalog: Catalog, camera: Camera) -> GridDatabase:
-        radius = radius_for(self, catalog, camera)
+        radius = self.derived(catalog, camera).radius_deg
         double_px = effective_double_px(self.double_px, radius, camera)
         guides = select_guides(catalog, self.mag_limit, double_px, camera, self.name)
         spec = self._spec(radius, double_px)._replace(half_px=camera.f_px * math.tan(math.radians(radius)))

@@ -16,7 +16,7 @@ from starid.params import check_whole
 from starid.plugin import Database, Explanation
 
 from ..lpt_improved.planar import (PlanarAlgorithm, acceptance, effective_double_px, explain_pattern, image_neighbours,
-                                   neighbour_lists, plane_polar, prepare_image, radius_for, select_guides)
+                                   neighbour_lists, plane_polar, prepare_image, select_guides)
 from .kernels import StringSearch, Strings, build_strings, identify_kernel, lpt_string, sparse_strings
 
 
@@ -125,7 +125,7 @@ class LPT(PlanarAlgorithm):
                             self.max_refs, self.n_candidates, float(db.double_px))
 
     def build(self, catalog: Catalog, camera: Camera) -> LPTDatabase:
-        radius = radius_for(self, catalog, camera)
+        radius = self.derived(catalog, camera).radius_deg
         double_px = effective_double_px(self.double_px, radius, camera)
         guides = select_guides(catalog, self.mag_limit, double_px, camera, self.name)
         nbr, off = neighbour_lists(guides.unit, math.radians(radius))

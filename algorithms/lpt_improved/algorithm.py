@@ -17,7 +17,7 @@ from starid.plugin import Database, Explanation
 
 from .kernels import FeatureTable, Search, build_features, feature_vector, identify_kernel
 from .planar import (PlanarAlgorithm, acceptance, effective_double_px, explain_pattern, image_neighbours,
-                     neighbour_lists, plane_polar, prepare_image, radius_for, select_guides)
+                     neighbour_lists, plane_polar, prepare_image, select_guides)
 
 
 @dataclass(frozen=True, eq=False)
@@ -147,7 +147,7 @@ class ImprovedLPT(PlanarAlgorithm):
         check_flag("pair_filter", self.pair_filter)
 
     def build(self, catalog: Catalog, camera: Camera) -> ImprovedLPTDatabase:
-        radius = radius_for(self, catalog, camera)
+        radius = self.derived(catalog, camera).radius_deg
         double_px = effective_double_px(self.double_px, radius, camera)
         guides = select_guides(catalog, self.mag_limit, double_px, camera, self.name)
         nbr, off = neighbour_lists(guides.unit, math.radians(radius))

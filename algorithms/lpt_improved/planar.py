@@ -24,6 +24,7 @@ Angles in radians unless a name says ``_deg``; plane distances in pixels (``_px`
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from typing import ClassVar, NamedTuple
@@ -481,16 +482,16 @@ class PlanarAlgorithm(Algorithm):
         check_whole("min_matches", self.min_matches, 3)
         check_number("confirm_fraction", self.confirm_fraction, lo=0, hi=1)
 
+    def derived(self, catalog: Catalog, camera: Camera) -> "PlanarAlgorithm":
+        """``radius_deg`` None -> :func:`default_radius_deg` for ``camera`` and the guide stars' number."""
+        if self.radius_deg is not None:
+            return self
+        n_guides = int(np.count_nonzero(catalog.v_mag <= self.mag_limit))
+        return dataclasses.replace(self, radius_deg=default_radius_deg(camera, n_guides))
+
     def identify(self, database, observation: Observation) -> Identification:
         rows, attitude, ok, _ = self._run(database, observation)
         return Identification(rows_to_hip(rows, database.guide_hip), attitude if ok else None)
-
-
-def radius_for(alg, catalog: Catalog, camera: Camera) -> float:
-    """R in degrees: the parameter, or the default of :func:`planar.default_radius_deg`."""
-    if alg.radius_deg is not None:
-        return float(alg.radius_deg)
-    return default_radius_deg(camera, int(np.count_nonzero(catalog.v_mag <= alg.mag_limit)))
 
 
 def explain_pattern(observation: Observation, rows: np.ndarray, guide_hip: np.ndarray, ref: int, align: int,

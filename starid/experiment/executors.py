@@ -101,7 +101,7 @@ def execute_task(task: Task, beat=None) -> pd.DataFrame:
             prepared = prepare(algorithm, catalog, task.camera, trials.warmup, chunk.variant.label)
             _CACHE["prepared"][key] = prepared
         elif prepared.label != chunk.variant.label:
-            prepared = type(prepared)(algorithm, chunk.variant.label, prepared.database, prepared.build_s,
+            prepared = type(prepared)(prepared.algorithm, chunk.variant.label, prepared.database, prepared.build_s,
                                       prepared.compile_s, prepared.error)
         dist, dist_version = info.dist or "in process", info.dist_version
     except Exception as exc:  # an algorithm that cannot even be made is that algorithm's failure
@@ -125,7 +125,7 @@ def execute_task(task: Task, beat=None) -> pd.DataFrame:
     df = rows_to_frame(prepared, rows)
     if image_stats is not None:     # what render -> extract did to each image
         df = df.merge(image_stats, on="trial", how="left")
-    params = algorithm.params() if algorithm is not None else dict(chunk.variant.params)
+    params = prepared.algorithm.params() if algorithm is not None else dict(chunk.variant.params)
     tail = {"plugin_dist": dist, "plugin_version": dist_version, **param_columns(params), **versions()}
     return pd.concat([df, constant_columns(tail, df.index)], axis=1)
 
