@@ -152,8 +152,17 @@ class PTP(Algorithm):
       reconstruction); ``majority=False`` drops every conflicting star;
     * ``sigma_px`` is the centroid noise the tolerances assume (1 px in Table 6). It follows the
       simulator (``None``, the default: the harness sets it to the simulated noise), with a floor
-      of ``SIGMA_FLOOR_PX`` = 1 px so a noise-free world still gets windows wide enough for the
-      catalog's and the float32 tables' rounding (and today's 1 px results are unchanged);
+      ``sigma_floor_px`` so a noise-free world still gets windows wide enough for the catalog's and the
+      float32 tables' rounding (and today's 1 px results are unchanged);
+    * camera-dependent, ``None`` = derived from the camera in ``build`` (:func:`camera_rules`; the values
+      used are stored in the database as ``d_min_deg`` and ``sigma_floor_px``): with
+      r = f_paper / f_px the camera's pixel in Table 4 pixels (exactly 1 on the Table 4 camera),
+      ``d_min_deg`` = 0.05 max(1, r) (the paper's 0.05 deg is 5.1 px on its camera: two stars closer than
+      about the pixel-based tolerance are swapped) and ``sigma_floor_px`` = min(1, 1/r) (1 px on the
+      paper's camera, 35.2 arcsec: the rounding it covers is an angle). Both are the paper's on the
+      Table 4 camera and on finer pixels; on Luo et al.'s 20 deg / 1024 px camera 0.10 deg and 0.50 px
+      (noise-free, the old 0.05 deg / 1 px misidentified 4.8 % of the images, seed 11: stars 3-6 px
+      apart were swapped inside the 3 sqrt(2) x 1 px = 300 arcsec tolerance);
     * ``verify`` (starid's extension, on by default): the paper stops after the sharing-star
       validation and computes the attitude "from the correctly identified stars"; starid checks
       the pairings' mutual angular distances first, because under the harness's rule one wrong
@@ -193,9 +202,9 @@ class PTP(Algorithm):
 
     name: ClassVar[str] = "ptp"
     #: the paper's method (section 2): no pairwise verification, confirmation or hypotheses, 4 image
-    #: slaves, D_ms <= 5 deg, a conflicting star is a failure (``ptp:paper``)
+    #: slaves, 0.05 deg <= D_ms <= 5 deg on every camera, a conflicting star is a failure (``ptp:paper``)
     published: ClassVar[dict] = {"verify": False, "confirm_fraction": 0.0, "image_slaves": 4, "hypotheses": 0,
-                                 "d_max_deg": 5.0, "majority": False}
+                                 "d_max_deg": 5.0, "majority": False, "d_min_deg": D_MIN_DEG}
     follows: ClassVar[dict] = {"sigma_px": "sigma_px"}
 
     mag_limit: float = 6.0
