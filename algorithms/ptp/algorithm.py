@@ -22,8 +22,26 @@ from .kernels import Tables, Tolerances, View, build_triangles, identify_kernel,
 
 #: Sides and D_ms are chords of unit vectors times this (section 2.1: 5 deg -> 872.8).
 CHORD_SCALE = 10000.0
-#: Smallest centroid noise (px) the windows assume, whatever ``sigma_px`` says.
+#: Smallest centroid noise (px) the windows assume, whatever ``sigma_px`` says, on the paper's camera.
 SIGMA_FLOOR_PX = 1.0
+#: The paper's double-star limit d_min (section 2.1: D_ms >= 8.728, i.e. 0.05 deg), on its camera.
+D_MIN_DEG = 0.05
+#: The paper's camera (Table 4: 10 x 10 deg, 1024 px, f = 70.2262 mm), the reference of the rules below.
+PAPER_CAMERA = Camera()
+
+
+def camera_rules(camera: Camera) -> tuple[float, float]:
+    """``(d_min_deg, sigma_floor_px)`` derived from ``camera`` when the parameters are ``None``.
+
+    ``r = f_paper / f_camera`` is the camera's pixel (IFOV) in the paper camera's pixels (exactly 1.0 on
+    the Table 4 camera). On coarser pixels (r > 1), the paper's values hold in the units they matter in:
+    d_min stays 5.1 px (0.05 deg on the paper's camera; ``0.05 r`` deg), because two stars are confused
+    when their separation is comparable to the pixel-based tolerance; the noise floor stays 35.2 arcsec
+    (1 px on the paper's camera; ``1 / r`` px), because it only has to cover the catalog's and the
+    float32 tables' rounding, which are angles. On finer pixels both stay the paper's (0.05 deg, 1 px).
+    """
+    r = PAPER_CAMERA.f_px / camera.f_px
+    return D_MIN_DEG * max(1.0, r), SIGMA_FLOOR_PX * min(1.0, 1.0 / r)
 
 
 @dataclass(frozen=True, eq=False)
@@ -39,6 +57,8 @@ class PTPDatabase(Database):
     guide_hip : int64 (g,) catalog id of each guide row; guide rows are sorted by z (declination).
     guide_unit : float32 (g, 3) ICRS unit vectors of the guide stars, for verification and
         confirmation (float32: 0.02 arcsec, far below the tolerances).
+    d_min_deg, sigma_floor_px : the values used (``PTP.d_min_deg`` and ``PTP.sigma_floor_px``, or, when
+        those are None, derived from the build camera by :func:`camera_rules`); identify uses these.
     deep : :class:`starid.kernels.DeepSky`, the stars to V <= ``deep_mag_limit`` for ``assign_all``
         (empty unless ``assign_all``).
     """
@@ -53,6 +73,8 @@ class PTPDatabase(Database):
     deep: DeepSky
     extra_unit: np.ndarray
     explained_variance: float
+    d_min_deg: float = D_MIN_DEG
+    sigma_floor_px: float = SIGMA_FLOOR_PX
 
     @property
     def proj(self) -> np.ndarray:
@@ -70,6 +92,16 @@ def _view(camera: Camera) -> View:
     """The camera as the kernel needs it: the core frame and ``c_fov``, the chord from the boresight to
     the farthest corner."""
     return View(camera_frame(camera), rad_to_chord(camera.half_diagonal_rad))
+
+
+def _chord(deg: float) -> float:
+    """An angle as a scaled chord (0.05 deg -> 8.728, 5 deg -> 872.8)."""
+    return CHORD_SCALE * rad_to_chord(math.radians(deg))
+
+
+@lru_cache(maxsize=64)
+def _tolerances(algorithm: "PTP", d_min_deg: float, sigma_floor_px: float) -> Tolerances:
+    return algorithm._tol(d_min_deg, sigma_floor_px)
 
 
 def _index_dtype(n: int):
@@ -120,8 +152,17 @@ class PTP(Algorithm):
       reconstruction); ``majority=False`` drops every conflicting star;
     * ``sigma_px`` is the centroid noise the tolerances assume (1 px in Table 6). It follows the
       simulator (``None``, the default: the harness sets it to the simulated noise), with a floor
-      of ``SIGMA_FLOOR_PX`` = 1 px so a noise-free world still gets windows wide enough for the
-      catalog's and the float32 tables' rounding (and today's 1 px results are unchanged);
+      ``sigma_floor_px`` so a noise-free world still gets windows wide enough for the catalog's and the
+      float32 tables' rounding (and today's 1 px results are unchanged);
+    * camera-dependent, ``None`` = derived from the camera in ``build`` (:func:`camera_rules`; the values
+      used are stored in the database as ``d_min_deg`` and ``sigma_floor_px``): with
+      r = f_paper / f_px the camera's pixel in Table 4 pixels (exactly 1 on the Table 4 camera),
+      ``d_min_deg`` = 0.05 max(1, r) (the paper's 0.05 deg is 5.1 px on its camera: two stars closer than
+      about the pixel-based tolerance are swapped) and ``sigma_floor_px`` = min(1, 1/r) (1 px on the
+      paper's camera, 35.2 arcsec: the rounding it covers is an angle). Both are the paper's on the
+      Table 4 camera and on finer pixels; on Luo et al.'s 20 deg / 1024 px camera 0.10 deg and 0.50 px
+      (noise-free, the old 0.05 deg / 1 px misidentified 4.8 % of the images, seed 11: stars 3-6 px
+      apart were swapped inside the 3 sqrt(2) x 1 px = 300 arcsec tolerance);
     * ``verify`` (starid's extension, on by default): the paper stops after the sharing-star
       validation and computes the attitude "from the correctly identified stars"; starid checks
       the pairings' mutual angular distances first, because under the harness's rule one wrong
@@ -161,15 +202,16 @@ class PTP(Algorithm):
 
     name: ClassVar[str] = "ptp"
     #: the paper's method (section 2): no pairwise verification, confirmation or hypotheses, 4 image
-    #: slaves, D_ms <= 5 deg, a conflicting star is a failure (``ptp:paper``)
+    #: slaves, 0.05 deg <= D_ms <= 5 deg on every camera, a conflicting star is a failure (``ptp:paper``)
     published: ClassVar[dict] = {"verify": False, "confirm_fraction": 0.0, "image_slaves": 4, "hypotheses": 0,
-                                 "d_max_deg": 5.0, "majority": False}
+                                 "d_max_deg": 5.0, "majority": False, "d_min_deg": D_MIN_DEG}
     follows: ClassVar[dict] = {"sigma_px": "sigma_px"}
 
     mag_limit: float = 6.0
     sigma_px: float | None = None
+    sigma_floor_px: float | None = None
     n_slaves: int = 4
-    d_min_deg: float = 0.05
+    d_min_deg: float | None = None
     d_max_deg: float = 6.0
     beta: float = 3.0
     side_beta: float = 3.0
@@ -196,10 +238,14 @@ class PTP(Algorithm):
         if self.sigma_px is not None:
             check_number("sigma_px", self.sigma_px, lo=0)   # None: follow the simulator
         check_whole("n_slaves", self.n_slaves, 2)
-        check_number("d_min_deg", self.d_min_deg, lo=0)
+        if self.sigma_floor_px is not None:
+            check_number("sigma_floor_px", self.sigma_floor_px, lo=0, lo_open=True)   # None: from the camera
         check_number("d_max_deg", self.d_max_deg, hi=90, hi_open=True)
-        if not self.d_min_deg < self.d_max_deg:
-            raise ConfigError(f"d_min_deg ({self.d_min_deg!r}) must be smaller than d_max_deg ({self.d_max_deg!r})")
+        if self.d_min_deg is not None:                   # None: from the camera
+            check_number("d_min_deg", self.d_min_deg, lo=0)
+            if not self.d_min_deg < self.d_max_deg:
+                raise ConfigError(f"d_min_deg ({self.d_min_deg!r}) must be smaller than d_max_deg "
+                                  f"({self.d_max_deg!r})")
         for name in ("beta", "side_beta"):
             check_number(name, getattr(self, name), lo=0, lo_open=True)
         check_whole("min_shared", self.min_shared, 0, 3)
@@ -218,25 +264,29 @@ class PTP(Algorithm):
         for name in ("exclude_doubles", "swap_slaves", "majority", "verify"):
             check_flag(name, getattr(self, name))
 
-    @property
-    def sigma_eff_px(self) -> float:
-        """The centroid noise the windows use: ``sigma_px`` (None = 0) floored at ``SIGMA_FLOOR_PX``."""
-        return max(self.sigma_px or 0.0, SIGMA_FLOOR_PX)
+    def camera_settings(self, camera: Camera) -> tuple[float, float]:
+        """``(d_min_deg, sigma_floor_px)`` on ``camera``: the parameters, or :func:`camera_rules` where None."""
+        d_min_deg, floor_px = camera_rules(camera)
+        return (d_min_deg if self.d_min_deg is None else float(self.d_min_deg),
+                floor_px if self.sigma_floor_px is None else float(self.sigma_floor_px))
 
-    @cached_property
-    def _d_min(self) -> float:
-        """d_min as a scaled chord (8.728 for 0.05 deg)."""
-        return CHORD_SCALE * rad_to_chord(math.radians(self.d_min_deg))
+    def sigma_eff_px(self, sigma_floor_px: float = SIGMA_FLOOR_PX) -> float:
+        """The centroid noise the windows use: ``sigma_px`` (None = 0) floored at ``sigma_floor_px``
+        (the database's; the default is the paper camera's 1 px)."""
+        return max(self.sigma_px or 0.0, sigma_floor_px)
+
+    def tolerances(self, database: PTPDatabase) -> Tolerances:
+        """The parameters, with the database's d_min and noise floor, as the kernel's tolerance bundle."""
+        return _tolerances(self, database.d_min_deg, database.sigma_floor_px)
 
     @cached_property
     def _d_max(self) -> float:
         """d_max as a scaled chord (872.8 for 5 deg)."""
         return CHORD_SCALE * rad_to_chord(math.radians(self.d_max_deg))
 
-    @cached_property
-    def _tol(self) -> Tolerances:
-        """The parameters as the kernel's tolerance bundle."""
-        return Tolerances(self.sigma_eff_px, CHORD_SCALE, self._d_min, self._d_max, int(self.n_slaves),
+    def _tol(self, d_min_deg: float, sigma_floor_px: float) -> Tolerances:
+        return Tolerances(self.sigma_eff_px(sigma_floor_px), CHORD_SCALE, _chord(d_min_deg), self._d_max,
+                          int(self.n_slaves),
                           float(self.beta), float(self.side_beta), bool(self.exclude_doubles),
                           bool(self.swap_slaves), int(self.min_shared), bool(self.majority), bool(self.verify),
                           float(self.verify_min_fraction), float(self.confirm_fraction), int(self.max_stars),
@@ -245,9 +295,14 @@ class PTP(Algorithm):
                           float(self.check_fraction))
 
     def build(self, catalog: Catalog, camera: Camera) -> PTPDatabase:
+        d_min_deg, sigma_floor_px = self.camera_settings(camera)
+        if not d_min_deg < self.d_max_deg:
+            raise ConfigError(f"ptp: d_min ({d_min_deg:g} deg on this camera) must be smaller than d_max_deg "
+                              f"({self.d_max_deg!r})")
+        d_min = _chord(d_min_deg)
         guide = catalog.brighter_than(self.mag_limit)
         if self.exclude_doubles:
-            pairs = cKDTree(guide.unit_icrs).query_pairs(self._d_min / CHORD_SCALE, output_type="ndarray")
+            pairs = cKDTree(guide.unit_icrs).query_pairs(d_min / CHORD_SCALE, output_type="ndarray")
             double = np.zeros(len(guide), dtype=bool)
             double[pairs.ravel()] = True
             guide = guide.subset(~double)
@@ -262,12 +317,12 @@ class PTP(Algorithm):
         for i, js in enumerate(lists):
             js = np.asarray(js, dtype=np.int64)
             d = CHORD_SCALE * np.linalg.norm(unit[js] - unit[i], axis=1)
-            ok = (js != i) & (d >= self._d_min) & (d <= self._d_max)
+            ok = (js != i) & (d >= d_min) & (d <= self._d_max)
             js, d = js[ok], d[ok]
             neighbours.append(js[np.argsort(d, kind="stable")])
             offsets.append(offsets[-1] + js.size)
         ids, sides = build_triangles(unit, np.concatenate(neighbours), np.asarray(offsets, dtype=np.int64),
-                                     self._d_min, self._d_max, int(self.n_slaves), CHORD_SCALE)
+                                     d_min, self._d_max, int(self.n_slaves), CHORD_SCALE)
         if len(ids) < 2:
             raise ConfigError("ptp: the catalog yields fewer than two feature triangles")
         mean = sides.mean(axis=0)
@@ -283,11 +338,12 @@ class PTP(Algorithm):
                            deep=deep_sky(catalog, self.deep_mag_limit if self.assign_all else -math.inf),
                            extra_unit=check_stars(catalog, guide_hip,
                                                   self.check_mag_limit if self.hypotheses else -math.inf),
-                           explained_variance=float(eigval[-1] / eigval.sum()))
+                           explained_variance=float(eigval[-1] / eigval.sum()),
+                           d_min_deg=d_min_deg, sigma_floor_px=sigma_floor_px)
 
     def identify(self, database: PTPDatabase, observation: Observation) -> Identification:
         hip = identify_kernel(observation.x_px, observation.y_px, observation.mag, _view(observation.camera),
-                              database.tables(), self._tol)
+                              database.tables(), self.tolerances(database))
         return Identification(hip)
 
     def explain(self, database: PTPDatabase, observation: Observation) -> Explanation:
@@ -297,12 +353,13 @@ class PTP(Algorithm):
         hip = self.identify(database, observation).hip
         x, y, mag = observation.x_px, observation.y_px, observation.mag
         sel = select_stars(x, y, mag, self.max_stars) if n else np.zeros(0, dtype=np.int64)
-        sel = sel[mag[sel] <= self._tol.star_mag_max]
+        tol = self.tolerances(database)
+        sel = sel[mag[sel] <= tol.star_mag_max]
         unit = observation.camera.backproject(x[sel], y[sel])
         dist = CHORD_SCALE * np.linalg.norm(unit[:, None] - unit[None], axis=2)
         usable = np.ones(sel.size, dtype=bool)
         if self.exclude_doubles:
-            close = (dist < self._d_min) & ~np.eye(sel.size, dtype=bool)
+            close = (dist < tol.d_min) & ~np.eye(sel.size, dtype=bool)
             usable = ~close.any(axis=1)
         n_img = max(self.n_slaves, self.image_slaves)
         out = np.empty(n_img, dtype=np.int64)
@@ -310,7 +367,7 @@ class PTP(Algorithm):
         for m in range(sel.size):
             if not usable[m]:
                 continue
-            k = nearest_slaves(dist[m], unit, usable, m, self._d_min, self._d_max, n_img, out)
+            k = nearest_slaves(dist[m], unit, usable, m, tol.d_min, self._d_max, n_img, out)
             triangles += [(m, out[a], out[b]) for a in range(k) for b in range(a + 1, k)]
         db_tri = {frozenset(t) for t in database.guide_hip[database.ids.astype(np.int64)].tolist()}
         segments, highlight, seen, matched = [], [], set(), None

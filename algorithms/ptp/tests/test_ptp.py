@@ -17,7 +17,7 @@ from starid.kernels import assign_all, backproject_px, camera_frame, deep_sky, w
 from starid.plugin import Explanation, check_identification
 from starid import run, summarize
 from starid_algorithms.ptp import PTP
-from starid_algorithms.ptp.algorithm import CHORD_SCALE
+from starid_algorithms.ptp.algorithm import CHORD_SCALE, camera_rules
 from starid_algorithms.ptp.kernels import nearest_slaves, projection_sigma, select_stars
 
 
@@ -117,9 +117,10 @@ def test_sigma_px_follows_the_simulator_with_a_floor():
     assert PTP.follows == {"sigma_px": "sigma_px"} and PTP().sigma_px is None
     assert PTP().resolved(SimConfig(sigma_px=2.5)).sigma_px == 2.5
     assert PTP(sigma_px=0.3).resolved(SimConfig(sigma_px=2.5)).sigma_px == 0.3      # pinned stays
-    assert PTP().sigma_eff_px == 1.0 and PTP(sigma_px=0.0).sigma_eff_px == 1.0
-    assert PTP().resolved(SimConfig()).sigma_eff_px == 1.0                            # noise-free: floor
-    assert PTP(sigma_px=2.0).sigma_eff_px == 2.0
+    assert PTP().sigma_eff_px() == 1.0 and PTP(sigma_px=0.0).sigma_eff_px() == 1.0
+    assert PTP().resolved(SimConfig()).sigma_eff_px() == 1.0                          # noise-free: floor
+    assert PTP(sigma_px=2.0).sigma_eff_px() == 2.0
+    assert PTP(sigma_px=0.3).sigma_eff_px(0.5) == 0.5
 
 
 def test_coincident_detections_without_d_min(catalog, camera):
@@ -152,7 +153,7 @@ def test_assign_all_is_the_core_final_step(db, catalog, camera):
     the deep catalog, within side_beta sqrt(2) sigma; it adds stars (noisy images, 1 px / 0.5 mag)."""
     algo = PTP(assign_all=True)
     deep_db = dataclasses.replace(db, deep=deep_sky(catalog, algo.deep_mag_limit))
-    eps = algo.side_beta * math.sqrt(2.0) * algo.sigma_eff_px / camera.f_px
+    eps = algo.side_beta * math.sqrt(2.0) * algo.sigma_eff_px() / camera.f_px
     guide_row = {h: r for r, h in enumerate(db.guide_hip.tolist())}
     sim = Simulator(catalog, camera, SimConfig(sigma_px=1.0, sigma_mag=0.5), seed=22)
     gained = 0
@@ -207,3 +208,32 @@ def test_hypotheses_recover_sparse_real_sky_fields(db, catalog):
     # measured on these 150 trials: default 0.947, hypotheses=0 0.853, one misidentified image in each
     assert s.loc["ptp", "id_rate"] >= s.loc["literal", "id_rate"] + 0.05
     assert s["misid_rate"].max() <= 0.01
+
+
+def test_camera_rules_reduce_to_the_paper_on_table4(db, catalog):
+    """d_min and the noise floor follow the camera's pixel; on the Table 4 camera exactly the paper's."""
+    assert camera_rules(Camera()) == (0.05, 1.0)
+    assert (db.d_min_deg, db.sigma_floor_px) == (0.05, 1.0)
+    assert camera_rules(Camera.from_fov(10.0, 2048)) == (0.05, 1.0)        # finer pixels: unchanged
+    d_min, floor = camera_rules(Camera.from_fov(20.0, 1024))                  # Luo et al.'s camera
+    assert d_min == pytest.approx(0.1008, abs=1e-4) and floor == pytest.approx(0.4962, abs=1e-4)
+    assert PTP(d_min_deg=0.07, sigma_floor_px=2.0).camera_settings(Camera.from_fov(20.0, 1024)) == (0.07, 2.0)
+    with pytest.raises(ConfigError):
+        PTP(d_max_deg=0.08).build(catalog, Camera.from_fov(20.0, 1024))   # derived d_min 0.1 > d_max
+
+
+def test_no_misidentification_on_a_coarse_20_deg_camera(catalog):
+    """Luo et al.'s camera (20 deg, 1024 px: 71 arcsec/px), stars to V 6.5, noise-free. With the paper
+    camera's 0.05 deg and 1 px floor (old defaults) these five images (seed 7) were misidentified: guide
+    pairs 228-404 arcsec apart (3-6 px), and V 6-6.5 stars 205-396 arcsec from a guide star, fit the 300 arcsec
+    (3 sqrt(2) x 1 px) tolerance and were swapped. Derived from the camera: d_min 0.1 deg, floor 0.5 px."""
+    cam = Camera.from_fov(20.0, 1024)
+    algo = PTP()
+    base = algo.build(catalog, cam)
+    assert base.d_min_deg == pytest.approx(0.1008, abs=1e-4) and base.sigma_floor_px < 0.5
+    sim = Simulator(catalog, cam, SimConfig(mag_limit=6.5, sky_mag_limit=6.5, min_stars=3), seed=7)
+    for t in (12, 33, 60, 84, 90):
+        o = sim.observation(t)
+        hip = algo.identify(base, o.for_plugin()).hip
+        assert not np.any((hip >= 0) & (hip != o.truth_hip)), t
+        assert np.sum(hip == o.truth_hip) >= 10, t
