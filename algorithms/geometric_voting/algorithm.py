@@ -82,7 +82,22 @@ class GeometricVoting(Algorithm):
 
     Database: every pair of guide stars (V <= ``mag_limit``) closer than the field's diagonal,
     keyed by its chord 2 sin(theta/2), with Mortari's k-vector -- the Pyramid plugin's database
-    without the per-star lists.
+    without the per-star lists, plus the ``mag_limit`` and ``d_min_deg`` actually used
+    (:class:`VotingDatabase`).
+
+    Camera-derived parameters (None = derived in ``build``; exactly V <= 6.0 and 0.05 deg on the
+    default 10 deg Table 4 camera, :data:`REF_CAMERA`):
+
+    * ``mag_limit``: a catalog star collects chance votes from an image pair at about
+      4 pi n eps c (n guide stars per steradian, eps ~ the pixel angle, c ~ the pair limit
+      c_max), so the guide stars are cut to N_6 (f_px / f_ref) (c_max_ref / c_max), N_6 = the
+      catalog's stars with V <= 6.0, and never fainter than 6.0 (:func:`derived_mag_limit`). On
+      Luo et al.'s 20 deg, 1024 px camera: V <= 5.07 -- with V <= 6.0 the chance vote per image
+      pair rises from 0.30 (10 deg) to 0.68 and a median of 100 catalog stars tie or beat the
+      true star's votes;
+    * ``d_min_deg``: 0.05 deg scaled by the pixel angle, i.e. 5.1 px on every camera
+      (:func:`derived_d_min_deg`); it must exceed eps (4.2 px at 1 px) or a voter with a
+      neighbour within eps cannot be confirmed by the reprojection (0.05 deg is 2.6 px at 20 deg).
 
     Identification (the paper's two rounds):
 
