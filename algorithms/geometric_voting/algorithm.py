@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from functools import lru_cache
+from types import SimpleNamespace
 from typing import ClassVar
 
 import numpy as np
@@ -22,6 +23,55 @@ from starid_algorithms.pyramid.kernels import PairTol
 from .kernels import VoteRule, identify_kernel, voting_kernel
 
 
+#: the camera on which the plugin's fixed values were chosen (Table 4: 10 x 10 deg, 1024 x 1024 px),
+#: and those values: guide stars V <= 6.0, doubles closer than 0.05 deg (5.1 px there)
+REF_CAMERA = Camera()
+REF_MAG_LIMIT = 6.0
+REF_D_MIN_DEG = 0.05
+
+
+def pair_limit_rad(camera: Camera, max_pair_deg: float) -> float:
+    """The largest pair angle the database stores (as ``build_pair_database`` computes it)."""
+    return min(2.0 * camera.half_diagonal_rad, math.radians(max_pair_deg))
+
+
+def derived_d_min_deg(camera: Camera) -> float:
+    """``d_min_deg`` = None: the reference's 0.05 deg scaled by the pixel angle, i.e. the same
+    5.1 px on every camera (exactly 0.05 on the reference camera)."""
+    return REF_D_MIN_DEG * (REF_CAMERA.f_px / camera.f_px)
+
+
+def derived_mag_limit(catalog: Catalog, camera: Camera, max_pair_deg: float) -> float:
+    """``mag_limit`` = None: the faintest guide limit (at most 6.0) at which a catalog star collects
+    no more chance votes per image pair than V <= 6.0 gives on the reference camera.
+
+    A catalog star with neighbours at n per steradian gets a chance vote from an image pair at
+    separation c when one of them falls in the annulus c +- eps: 4 pi n eps c on average (the
+    model ``expected_votes`` subtracts). With eps proportional to the pixel angle 1/f_px and c to
+    the pair limit c_max, that is proportional to n c_max / f_px, so the guide stars may number
+    N_6 (f_px / f_ref) (c_max_ref / c_max), N_6 = the catalog's stars with V <= 6.0: the limit is
+    the V of that many-th brightest star. It never exceeds 6.0 (the guide stars must be
+    detectable; a narrower field keeps 6.0), and on the reference camera it is exactly 6.0.
+    """
+    v = np.sort(np.asarray(catalog.v_mag, dtype=np.float64))
+    n_ref = int(np.searchsorted(v, REF_MAG_LIMIT, side="right"))
+    scale = (camera.f_px / REF_CAMERA.f_px) * (pair_limit_rad(REF_CAMERA, max_pair_deg)
+                                                / pair_limit_rad(camera, max_pair_deg))
+    k = int(round(scale * n_ref))
+    if k >= n_ref:
+        return REF_MAG_LIMIT
+    return float(v[max(k, 3) - 1])
+
+
+@dataclass(frozen=True, eq=False)
+class VotingDatabase(PairDatabase):
+    """The Pyramid plugin's :class:`PairDatabase` with the guide limit and double-star distance
+    actually used (``mag_limit``/``d_min_deg`` None: derived from the camera), for reports."""
+
+    mag_limit: float = REF_MAG_LIMIT
+    d_min_deg: float = REF_D_MIN_DEG
+
+
 @dataclass(frozen=True)
 class GeometricVoting(Algorithm):
     """Geometric voting: every image pair's angle votes for catalog stars, then pairwise verification.
@@ -32,7 +82,22 @@ class GeometricVoting(Algorithm):
 
     Database: every pair of guide stars (V <= ``mag_limit``) closer than the field's diagonal,
     keyed by its chord 2 sin(theta/2), with Mortari's k-vector -- the Pyramid plugin's database
-    without the per-star lists.
+    without the per-star lists, plus the ``mag_limit`` and ``d_min_deg`` actually used
+    (:class:`VotingDatabase`).
+
+    Camera-derived parameters (None = derived in ``build``; exactly V <= 6.0 and 0.05 deg on the
+    default 10 deg Table 4 camera, :data:`REF_CAMERA`):
+
+    * ``mag_limit``: a catalog star collects chance votes from an image pair at about
+      4 pi n eps c (n guide stars per steradian, eps ~ the pixel angle, c ~ the pair limit
+      c_max), so the guide stars are cut to N_6 (f_px / f_ref) (c_max_ref / c_max), N_6 = the
+      catalog's stars with V <= 6.0, and never fainter than 6.0 (:func:`derived_mag_limit`). On
+      Luo et al.'s 20 deg, 1024 px camera: V <= 5.07 -- with V <= 6.0 the chance vote per image
+      pair rises from 0.30 (10 deg) to 0.68 and a median of 100 catalog stars tie or beat the
+      true star's votes;
+    * ``d_min_deg``: 0.05 deg scaled by the pixel angle, i.e. 5.1 px on every camera
+      (:func:`derived_d_min_deg`); it must exceed eps (4.2 px at 1 px) or a voter with a
+      neighbour within eps cannot be confirmed by the reprojection (0.05 deg is 2.6 px at 20 deg).
 
     Identification (the paper's two rounds):
 
@@ -101,10 +166,10 @@ class GeometricVoting(Algorithm):
                                  "round_voters": 0, "report_all": False}
     follows: ClassVar[dict] = {"sigma_px": "sigma_px"}
 
-    mag_limit: float = 6.0
+    mag_limit: float | None = None
     sigma_px: float | None = None
     beta: float = 3.0
-    d_min_deg: float = 0.05
+    d_min_deg: float | None = None
     max_pair_deg: float = 20.0
     max_stars: int = 15
     max_window: int = 10000
@@ -120,7 +185,10 @@ class GeometricVoting(Algorithm):
     report_all: bool = True
 
     def __post_init__(self):
-        check_pair_params(self)
+        # the shared checks, with the camera-derived parameters at their reference values when None
+        check_pair_params(SimpleNamespace(**{**self.params(),
+                                             "mag_limit": REF_MAG_LIMIT if self.mag_limit is None else self.mag_limit,
+                                             "d_min_deg": REF_D_MIN_DEG if self.d_min_deg is None else self.d_min_deg}))
         check_whole("max_stars", self.max_stars, 3, 255)
         check_whole("round_voters", self.round_voters, 0, 255)
         check_whole("round_step", self.round_step, 1, 255)
@@ -134,9 +202,14 @@ class GeometricVoting(Algorithm):
     def tolerances(self, camera: Camera, database: PairDatabase) -> PairTol:
         return _bundles(self, camera, database.c_max)[0]
 
-    def build(self, catalog: Catalog, camera: Camera) -> PairDatabase:
-        return build_pair_database(catalog, camera, self.mag_limit, self.d_min_deg, self.max_pair_deg, self.name,
-                                   neighbour_lists=False)
+    def build(self, catalog: Catalog, camera: Camera) -> VotingDatabase:
+        mag_limit = derived_mag_limit(catalog, camera, self.max_pair_deg) if self.mag_limit is None \
+            else float(self.mag_limit)
+        d_min_deg = _d_min_deg(self, camera)
+        db = build_pair_database(catalog, camera, mag_limit, d_min_deg, self.max_pair_deg, self.name,
+                                 neighbour_lists=False)
+        return VotingDatabase(**{f.name: getattr(db, f.name) for f in fields(db)}, mag_limit=mag_limit,
+                              d_min_deg=d_min_deg)
 
     def rule(self) -> VoteRule:
         return VoteRule(once_per_pair=bool(self.once_per_pair), expected=bool(self.expected_votes),
@@ -192,8 +265,13 @@ def _bundles(algorithm: GeometricVoting, camera: Camera, c_max: float) -> tuple[
     deviations of the difference between an image chord and its catalog chord when each centroid
     has noise ``sigma_px`` per axis."""
     sigma = max(algorithm.sigma_px or 0.0, SIGMA_FLOOR_PX) / camera.f_px
-    tol = PairTol(eps=algorithm.beta * math.sqrt(2.0) * sigma, d_min=rad_to_chord(math.radians(algorithm.d_min_deg)),
+    tol = PairTol(eps=algorithm.beta * math.sqrt(2.0) * sigma, d_min=rad_to_chord(math.radians(_d_min_deg(algorithm, camera))),
                   c_max=c_max, c_fov=rad_to_chord(camera.half_diagonal_rad), max_window=int(algorithm.max_window),
                   max_stars=int(algorithm.max_stars), max_triads=0, confirm_fraction=float(algorithm.confirm_fraction),
                   min_extra=int(algorithm.min_extra))
     return tol, camera_frame(camera), algorithm.rule()
+
+
+def _d_min_deg(algorithm: GeometricVoting, camera: Camera) -> float:
+    """The double-star distance used on ``camera``: ``d_min_deg``, or derived when None."""
+    return derived_d_min_deg(camera) if algorithm.d_min_deg is None else float(algorithm.d_min_deg)

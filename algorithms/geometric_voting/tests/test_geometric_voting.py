@@ -8,7 +8,7 @@ tests come from ``starid_algorithms.pyramid.testing``.
 import numpy as np
 import pytest
 
-from starid import ConfigError, SimConfig, Simulator
+from starid import Camera, ConfigError, SimConfig, Simulator
 from starid_algorithms.geometric_voting import GeometricVoting
 from starid_algorithms.geometric_voting.kernels import cast_votes, pick_candidates, vote
 from starid_algorithms.pyramid.kernels import pair_windows, select_stars
@@ -151,3 +151,27 @@ def test_paper_literal_variant_runs(db, catalog, camera):
 def test_invalid_parameters(kwargs):
     with pytest.raises(ConfigError):
         GeometricVoting(**kwargs)
+
+
+def test_camera_derived_defaults_on_a_20_degree_camera(catalog, camera):
+    """Luo et al.'s camera (20 deg, 1024 px, sky and detection V <= 6.5, noise-free): with the guide
+    limit and double-star distance of the 10 deg camera (V <= 6.0, 0.05 deg) the chance votes bury the
+    true stars and a voter 2.6-4.2 px from another detection cannot be confirmed: 5 of these 12
+    images. Derived from the camera (V <= 5.07, 0.1008 deg = 5.1 px): all 12. The default camera
+    keeps exactly 6.0 and 0.05."""
+    wide = Camera.from_fov(20.0, 1024)
+    algo = GeometricVoting()
+    db = algo.build(catalog, wide)
+    sim = Simulator(catalog, wide, SimConfig(mag_limit=6.5, sky_mag_limit=6.5, min_stars=3), seed=7)
+    n_ok = 0
+    for t in range(12):
+        obs = sim.observation(t)
+        hip = algo.identify(db, obs).hip
+        assert np.all(hip[hip >= 0] == obs.truth_hip[hip >= 0])
+        n_ok += int(np.sum(hip >= 0) >= 3)
+    assert n_ok == 12
+    assert 5.0 < db.mag_limit < 5.1 and db.d_min_deg == pytest.approx(0.05 * camera.f_px / wide.f_px)
+    ref = algo.build(catalog, camera)
+    assert ref.mag_limit == 6.0 and ref.d_min_deg == 0.05 and ref.guide_hip.size == 4966
+    fixed = GeometricVoting(mag_limit=5.5, d_min_deg=0.02).build(catalog, wide)
+    assert fixed.mag_limit == 5.5 and fixed.d_min_deg == 0.02
