@@ -30,6 +30,7 @@ SIGMA_FLOOR_PX = 1.0  # smallest centroid noise the windows assume (px)
 #: on the reference camera (Table 4, 10 x 10 deg; 15.2 with the embedded catalog): the faintest
 #: limit needed, on a grid of ``MAG_STEP``, so that catalog stars x field solid angle >= the reference's.
 REFERENCE_MAG_LIMIT = 6.2
+REFERENCE_CAMERA = Camera(width_px=1024, height_px=1024, pixel_um=12.0, focal_mm=70.2262)  # Zhou & Ye's Table 4
 MAG_STEP = 0.1
 #: ``min_area_deg2=None``: this fraction of ``fov_db_deg`` squared (0.1 deg^2 at 10 deg), the same
 #: triangle shape at any field: the height over the longest side is >= 0.002 ``fov_db_deg``.
@@ -48,7 +49,7 @@ def derived_mag_limit(catalog: Catalog, camera: Camera) -> float:
     angle >= N(V <= 6.2) x the reference camera's solid angle; the catalog's faintest star at most.
     Exactly 6.2 on the reference camera (whatever the catalog)."""
     v = np.sort(np.asarray(catalog.v_mag, dtype=np.float64))
-    target = np.count_nonzero(v <= REFERENCE_MAG_LIMIT) * sensor_solid_angle(Camera())
+    target = np.count_nonzero(v <= REFERENCE_MAG_LIMIT) * sensor_solid_angle(REFERENCE_CAMERA)
     omega = sensor_solid_angle(camera)
     top = math.ceil(float(v[-1]) / MAG_STEP)
     for k in range(math.floor(float(v[0]) / MAG_STEP), top + 1):
@@ -157,11 +158,19 @@ class PlanarTriangle(Algorithm):
       ``SIGMA_FLOOR_PX = 1`` px (a noise-free world still needs a window; at <= 1 px the results
       are those of the former fixed 1 px).
 
-    * ``fov_db_deg = 10``: the triangle must fit in the 10 x 10 deg square sensor; a circle of
-      diameter 10 deg is the largest that fits at any roll. Cole's 6.94 deg (for an 8 deg
-      circular FOV) came from his quad-tree level, not from the method.
-    * ``min_area_deg2 = 0.1``: rejects nearly collinear triangles: with sides up to 10 deg
-      the height stays >= 0.02 deg (~2 px), below which chirality is within the noise.
+    Camera-dependent parameters default to None = derived from the camera in ``build`` (the values
+    used are stored in the database, ``mag_limit`` / ``fov_db_deg`` / ``min_area_deg2``); on the
+    Table 4 camera the rules give exactly the former fixed 6.2, 10 and 0.1:
+
+    * ``fov_db_deg = None``: the sensor's short-side field of view rounded down to 0.01 deg
+      (``derived_fov_db_deg``; 10 on Table 4, 20 on Luo's camera): the triangle must fit in the
+      square sensor; a circle of that diameter is the largest that fits at any roll. A fixed 10
+      deg on a 20 deg field left the triples of the 8 brightest stars (median enclosing circle
+      14 deg) mostly unstored: 42-47 % of noise-free images identified. Cole's 6.94 deg (for an
+      8 deg circular FOV) came from his quad-tree level, not from the method.
+    * ``min_area_deg2 = None``: ``MIN_AREA_FOV2 * fov_db_deg^2`` (0.1 at 10 deg, 0.4 at 20): rejects
+      nearly collinear triangles: the height over the longest side stays >= 0.002 ``fov_db_deg``
+      (0.02 deg, ~2 px of a 1024 px sensor), below which chirality is within the noise.
     * ``climit = 100_000`` (paper 10,000): Cole's limit was for sigma ~ 21-27 urad and 663k
       triangles; hits grow with the window width (sigma = 171 urad here, x6.3) and the
       database size (1.1 M, x1.7), so the same guard is ~10x larger. With 10,000 most image
@@ -216,8 +225,13 @@ class PlanarTriangle(Algorithm):
       brightest, at most ``max_wide_subsets``. Measured (seed 7, real sky, V <= 6 database, with
       the 4-star stage): +0.4 to +1.3 points (500 and 1,000 images) for 1.2x the mean time; with
       the V <= 6.2 database it rescued 2 of 1,000 images, so it is not the default.
-    * ``mag_limit = 6.2`` (extension; the paper's database is V <= 6, ``mag_limit=6.0``): in the
-      real sky magnitude noise brings V 6-6.5 stars among the brightest detections; a database
+    * ``mag_limit = None`` (``derived_mag_limit``): the smallest multiple of 0.1 mag whose guide
+      stars are, per field of this camera, at least as many on average as V <= 6.2 gives on the
+      Table 4 camera (15.2 per field with the embedded catalog): 6.2 there, 5.0 on a 20 deg field,
+      6.6 on an 8 deg one. The same field statistics at any field size; a fixed 6.2 with 20 deg
+      triangles would hold 29.8 M triangles (14x; V <= 5.0: 0.56 M, 12 MB). Why 6.2 on Table 4
+      (extension; the paper's database is V <= 6, ``mag_limit=6.0``): in the real sky magnitude
+      noise brings V 6-6.5 stars among the brightest detections; a database
       0.2 mag deeper holds most of them (41.9 MB, 2.1 M triangles; the paper's was 178 MB).
       Measured on seed 7 (1,000 images, real sky, 1 px / 0.5 Mv, same process): V <= 6.0 with
       the 4-star stage 93.1 %, V <= 6.1 95.1 %, V <= 6.2 96.5 % (0.1 % misidentified).
