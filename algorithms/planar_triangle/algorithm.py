@@ -26,6 +26,44 @@ DEG2_TO_CHORD2 = (math.pi / 180.0) ** 2
 
 SIGMA_FLOOR_PX = 1.0  # smallest centroid noise the windows assume (px)
 
+#: ``mag_limit=None``: the database keeps the mean number of guide stars in the field that V <= 6.2 gives
+#: on the reference camera (Table 4, 10 x 10 deg; 15.2 with the embedded catalog): the faintest
+#: limit needed, on a grid of ``MAG_STEP``, so that catalog stars x field solid angle >= the reference's.
+REFERENCE_MAG_LIMIT = 6.2
+REFERENCE_CAMERA = Camera(width_px=1024, height_px=1024, pixel_um=12.0, focal_mm=70.2262)  # Zhou & Ye's Table 4
+MAG_STEP = 0.1
+#: ``min_area_deg2=None``: this fraction of ``fov_db_deg`` squared (0.1 deg^2 at 10 deg), the same
+#: triangle shape at any field: the height over the longest side is >= 0.002 ``fov_db_deg``.
+MIN_AREA_FOV2 = 1e-3
+
+
+def sensor_solid_angle(camera: Camera) -> float:
+    """Solid angle (sr) of the camera's rectangular field, about the principal point."""
+    a, b = camera.width_px / 2.0 / camera.f_px, camera.height_px / 2.0 / camera.f_px
+    return 4.0 * math.asin(a * b / math.sqrt((1.0 + a * a) * (1.0 + b * b)))
+
+
+def derived_mag_limit(catalog: Catalog, camera: Camera) -> float:
+    """The guide-star limit with the reference's mean number of guide stars in the field (see
+    :data:`REFERENCE_MAG_LIMIT`): the smallest multiple of ``MAG_STEP`` with N(V <= m) x solid
+    angle >= N(V <= 6.2) x the reference camera's solid angle; the catalog's faintest star at most.
+    Exactly 6.2 on the reference camera (whatever the catalog)."""
+    v = np.sort(np.asarray(catalog.v_mag, dtype=np.float64))
+    target = np.count_nonzero(v <= REFERENCE_MAG_LIMIT) * sensor_solid_angle(REFERENCE_CAMERA)
+    omega = sensor_solid_angle(camera)
+    top = math.ceil(float(v[-1]) / MAG_STEP)
+    for k in range(math.floor(float(v[0]) / MAG_STEP), top + 1):
+        m = round(k * MAG_STEP, 1)
+        if np.searchsorted(v, m, side="right") * omega >= target:
+            return m
+    return round(top * MAG_STEP, 1)
+
+
+def derived_fov_db_deg(camera: Camera) -> float:
+    """The largest circle that fits in the sensor at any roll: the short side's field of view,
+    rounded down to 0.01 deg (10.0 on the Table 4 camera, whose side is 10.000006 deg)."""
+    return math.floor(min(camera.fov_x_deg, camera.fov_y_deg) * 100.0 + 1e-6) / 100.0
+
 
 @dataclass(frozen=True, eq=False)
 class PlanarTriangleDatabase(Database):
@@ -42,6 +80,8 @@ class PlanarTriangleDatabase(Database):
         diagonal (read only by the distance extension).
     rules: what a stored triangle satisfies (chord of ``fov_db_rad``, ``fov_db_rad``, the
         smallest stored area in chord units).
+    mag_limit, fov_db_deg, min_area_deg2: the values the database was built with (the parameters,
+        or when None the values derived from the catalog and camera).
     deep: every catalog star (``starid.kernels.DeepSky``: float32 unit vectors sorted by z, int64
         ids), for the coverage check and ``assign_all``; deep_v_mag: float32 their V magnitudes.
     """
@@ -57,6 +97,9 @@ class PlanarTriangleDatabase(Database):
     rules: Rules
     deep: DeepSky
     deep_v_mag: np.ndarray
+    mag_limit: float
+    fov_db_deg: float
+    min_area_deg2: float
 
     def moment_of(self, t: int) -> float:
         """Polar moment of triangle ``t`` (area order)."""
@@ -115,11 +158,19 @@ class PlanarTriangle(Algorithm):
       ``SIGMA_FLOOR_PX = 1`` px (a noise-free world still needs a window; at <= 1 px the results
       are those of the former fixed 1 px).
 
-    * ``fov_db_deg = 10``: the triangle must fit in the 10 x 10 deg square sensor; a circle of
-      diameter 10 deg is the largest that fits at any roll. Cole's 6.94 deg (for an 8 deg
-      circular FOV) came from his quad-tree level, not from the method.
-    * ``min_area_deg2 = 0.1``: rejects nearly collinear triangles: with sides up to 10 deg
-      the height stays >= 0.02 deg (~2 px), below which chirality is within the noise.
+    Camera-dependent parameters default to None = derived from the camera in ``build`` (the values
+    used are stored in the database, ``mag_limit`` / ``fov_db_deg`` / ``min_area_deg2``); on the
+    Table 4 camera the rules give exactly the former fixed 6.2, 10 and 0.1:
+
+    * ``fov_db_deg = None``: the sensor's short-side field of view rounded down to 0.01 deg
+      (``derived_fov_db_deg``; 10 on Table 4, 20 on Luo's camera): the triangle must fit in the
+      square sensor; a circle of that diameter is the largest that fits at any roll. A fixed 10
+      deg on a 20 deg field left the triples of the 8 brightest stars (median enclosing circle
+      14 deg) mostly unstored: 42-47 % of noise-free images identified. Cole's 6.94 deg (for an
+      8 deg circular FOV) came from his quad-tree level, not from the method.
+    * ``min_area_deg2 = None``: ``MIN_AREA_FOV2 * fov_db_deg^2`` (0.1 at 10 deg, 0.4 at 20): rejects
+      nearly collinear triangles: the height over the longest side stays >= 0.002 ``fov_db_deg``
+      (0.02 deg, ~2 px of a 1024 px sensor), below which chirality is within the noise.
     * ``climit = 100_000`` (paper 10,000): Cole's limit was for sigma ~ 21-27 urad and 663k
       triangles; hits grow with the window width (sigma = 171 urad here, x6.3) and the
       database size (1.1 M, x1.7), so the same guard is ~10x larger. With 10,000 most image
@@ -174,8 +225,13 @@ class PlanarTriangle(Algorithm):
       brightest, at most ``max_wide_subsets``. Measured (seed 7, real sky, V <= 6 database, with
       the 4-star stage): +0.4 to +1.3 points (500 and 1,000 images) for 1.2x the mean time; with
       the V <= 6.2 database it rescued 2 of 1,000 images, so it is not the default.
-    * ``mag_limit = 6.2`` (extension; the paper's database is V <= 6, ``mag_limit=6.0``): in the
-      real sky magnitude noise brings V 6-6.5 stars among the brightest detections; a database
+    * ``mag_limit = None`` (``derived_mag_limit``): the smallest multiple of 0.1 mag whose guide
+      stars are, per field of this camera, at least as many on average as V <= 6.2 gives on the
+      Table 4 camera (15.2 per field with the embedded catalog): 6.2 there, 5.0 on a 20 deg field,
+      6.6 on an 8 deg one. The same field statistics at any field size; a fixed 6.2 with 20 deg
+      triangles would hold 29.8 M triangles (14x; V <= 5.0: 0.56 M, 12 MB). Why 6.2 on Table 4
+      (extension; the paper's database is V <= 6, ``mag_limit=6.0``): in the real sky magnitude
+      noise brings V 6-6.5 stars among the brightest detections; a database
       0.2 mag deeper holds most of them (41.9 MB, 2.1 M triangles; the paper's was 178 MB).
       Measured on seed 7 (1,000 images, real sky, 1 px / 0.5 Mv, same process): V <= 6.0 with
       the 4-star stage 93.1 %, V <= 6.1 95.1 %, V <= 6.2 96.5 % (0.1 % misidentified).
@@ -212,10 +268,10 @@ class PlanarTriangle(Algorithm):
     published: ClassVar[dict] = {"mag_limit": 6.0, "max_stars": None, "subset_size": None, "small_subset_size": None,
                                  "assign_all": False, "max_missed_fraction": 1.0}
 
-    mag_limit: float = 6.2
+    mag_limit: float | None = None
     sigma_px: float | None = None
-    fov_db_deg: float = 10.0
-    min_area_deg2: float = 0.1
+    fov_db_deg: float | None = None
+    min_area_deg2: float | None = None
     beta: float = 3.0
     climit: int = 100_000
     pivot_limit: int | None = None
@@ -246,11 +302,14 @@ class PlanarTriangle(Algorithm):
         return max(self.sigma_px or 0.0, SIGMA_FLOOR_PX)
 
     def __post_init__(self):
-        check_number("mag_limit", self.mag_limit)
+        if self.mag_limit is not None:
+            check_number("mag_limit (or None: from the field's size)", self.mag_limit)
         if self.sigma_px is not None:
             check_number("sigma_px (or None: follow the simulator)", self.sigma_px, lo=0)
-        check_number("fov_db_deg", self.fov_db_deg, lo=0, hi=90, lo_open=True, hi_open=True)
-        check_number("min_area_deg2", self.min_area_deg2, lo=0)
+        if self.fov_db_deg is not None:
+            check_number("fov_db_deg (or None: the sensor's)", self.fov_db_deg, lo=0, hi=90, lo_open=True, hi_open=True)
+        if self.min_area_deg2 is not None:
+            check_number("min_area_deg2 (or None: from fov_db_deg)", self.min_area_deg2, lo=0)
         check_number("beta", self.beta, lo=0, lo_open=True)
         if self.pivot_limit is not None:
             check_whole("pivot_limit (or None: no limit)", self.pivot_limit, 0)
@@ -275,16 +334,27 @@ class PlanarTriangle(Algorithm):
         for field in ("abort_if_finalists_grow", "consistent_chain", "extend", "assign_all"):
             check_flag(field, getattr(self, field))
 
+    def geometry(self, catalog: Catalog, camera: Camera) -> tuple[float, float, float]:
+        """``(mag_limit, fov_db_deg, min_area_deg2)`` the database is built with: each parameter,
+        or when None derived (:func:`derived_mag_limit`, :func:`derived_fov_db_deg`,
+        ``MIN_AREA_FOV2 * fov_db_deg ** 2``); 6.2, 10 and 0.1 on the Table 4 camera."""
+        mag_limit = float(self.mag_limit) if self.mag_limit is not None else derived_mag_limit(catalog, camera)
+        fov_db_deg = float(self.fov_db_deg) if self.fov_db_deg is not None else derived_fov_db_deg(camera)
+        min_area = (float(self.min_area_deg2) if self.min_area_deg2 is not None
+                    else round(MIN_AREA_FOV2 * fov_db_deg * fov_db_deg, 12))
+        return mag_limit, fov_db_deg, min_area
+
     def build(self, catalog: Catalog, camera: Camera) -> PlanarTriangleDatabase:
-        guide = catalog.brighter_than(self.mag_limit)
+        mag_limit, fov_db_deg, min_area_deg2 = self.geometry(catalog, camera)
+        guide = catalog.brighter_than(mag_limit)
         n = len(guide)
         if n < 3:
-            raise ConfigError(f"only {n} guide stars with V <= {self.mag_limit}; need at least 3")
+            raise ConfigError(f"only {n} guide stars with V <= {mag_limit}; need at least 3")
         if n > MAX_GUIDE_STARS:
             raise ConfigError(f"{n} guide stars exceed the uint16 index limit of {MAX_GUIDE_STARS}")
         unit = np.ascontiguousarray(guide.unit_icrs)
-        fov_db_rad = math.radians(self.fov_db_deg)
-        rules = Rules(float(rad_to_chord(fov_db_rad)), fov_db_rad, self.min_area_deg2 * DEG2_TO_CHORD2)
+        fov_db_rad = math.radians(fov_db_deg)
+        rules = Rules(float(rad_to_chord(fov_db_rad)), fov_db_rad, min_area_deg2 * DEG2_TO_CHORD2)
         ptr, idx = _neighbour_csr(unit, rules.chord_max, symmetric=False)
         counts = scan_triangles(unit, ptr, idx, rules, np.zeros(1, dtype=np.int64), False)[0]
         offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
@@ -304,7 +374,8 @@ class PlanarTriangle(Algorithm):
             tri_area=kvector_make(area32[order], np.float32, np.int32),
             tri_moment=moment_sorted, tri_moment_perm=moment_perm, guide_hip=guide.hip.astype(np.int64),
             guide_unit=unit, nbr_ptr=nptr.astype(np.int32), nbr_idx=nidx.astype(np.uint16), rules=rules,
-            deep=deep, deep_v_mag=deep_v_mag(catalog, deep))
+            deep=deep, deep_v_mag=deep_v_mag(catalog, deep), mag_limit=mag_limit, fov_db_deg=fov_db_deg,
+            min_area_deg2=min_area_deg2)
 
     def _stages(self, n_chosen: int) -> np.ndarray:
         """Rows ``(size, pool, max_subsets)`` of the subset stages (see ``kernels.identify_subsets``)."""
@@ -330,7 +401,7 @@ class PlanarTriangle(Algorithm):
         x, y, mag = observation.x_px, observation.y_px, observation.mag
         # The stars the triangles are built from: those bright enough to be guide stars (with a
         # margin for magnitude noise), at most ``max_stars`` (``wide_stars``) of them, brightest first.
-        usable = np.flatnonzero(mag <= self.mag_limit + self.mag_margin)
+        usable = np.flatnonzero(mag <= database.mag_limit + self.mag_margin)
         n_chosen = self._n_chosen()
         if n_chosen is not None and usable.size > n_chosen:
             usable = usable[np.lexsort((y[usable], x[usable], mag[usable]))[:n_chosen]]
@@ -358,7 +429,7 @@ class PlanarTriangle(Algorithm):
         cam = observation.camera
         tol = self._tolerance(cam)
         small = self.small_subset_size is not None and stage == len(self._stages(1)) - 1 and stage > 0
-        rules = Finish(tol.beta * math.sqrt(2.0) * tol.sigma_rad, float(self.mag_margin), float(self.mag_limit),
+        rules = Finish(tol.beta * math.sqrt(2.0) * tol.sigma_rad, float(self.mag_margin), float(database.mag_limit),
                        float(self.coverage_mag_margin), float(self.max_missed_fraction), bool(self.assign_all or small))
         hip, attitude, accepted = finish(observation.x_px, observation.y_px, observation.mag, all_rows,
                                          database.guide_unit, database.guide_hip, database.deep, database.deep_v_mag,

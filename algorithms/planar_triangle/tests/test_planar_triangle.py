@@ -99,7 +99,7 @@ def test_signatures_describe_how_triangles_share_stars():
 # --- database -------------------------------------------------------------------------------
 
 def test_database_invariants(db, catalog):
-    guide = catalog.brighter_than(PlanarTriangle().mag_limit)
+    guide = catalog.brighter_than(db.mag_limit)
     assert db.guide_hip.shape == (len(guide),) and np.array_equal(db.guide_hip, guide.hip)
     assert db.tri_stars.dtype == np.uint16
     assert db.tri_area.values.dtype == np.float32
@@ -227,7 +227,7 @@ def test_parameter_validation(kwargs):
 
 def test_defaults_are_documented():
     alg = PlanarTriangle()
-    assert alg.mag_limit == 6.2 and alg.small_subset_size == 4 and alg.wide_stars is None and alg.sigma_px is None and alg.restarts == 0 and alg.max_stars == 8
+    assert alg.mag_limit is None and alg.fov_db_deg is None and alg.min_area_deg2 is None and alg.small_subset_size == 4 and alg.wide_stars is None and alg.sigma_px is None and alg.restarts == 0 and alg.max_stars == 8
     for name in alg.params():
         assert name in PlanarTriangle.__doc__ or name in ("mag_limit", "sigma_px", "beta",
                                                            "min_support")
@@ -309,3 +309,28 @@ def test_sigma_px_follows_the_simulator_with_a_1px_floor():
 
 def test_explain_draws_its_reasoning(db, catalog, camera):
     assert_explain_draws_triangles(PlanarTriangle(), db, catalog, camera)
+
+
+# --- camera-derived geometry ----------------------------------------------------------------
+
+def test_derived_geometry_is_the_former_defaults_on_the_table4_camera(db):
+    # Table 6 must not move: V <= 6.2, 10 deg triangles, 0.1 deg^2 on the default camera
+    assert (db.mag_limit, db.fov_db_deg, db.min_area_deg2) == (6.2, 10.0, 0.1)
+
+
+def test_wide_field_camera_gets_its_own_triangles(catalog):
+    """Luo's 20 x 20 deg camera: with 10 deg triangles most triples of the 8 brightest stars
+    (median enclosing circle 14 deg) were never looked up and 42-47 % of noise-free images were
+    identified (seed 7); the derived 20 deg triangles and V <= 5.0 guide stars (the same mean
+    number per field as V <= 6.2 at 10 deg) identify them."""
+    from starid import Camera
+    camera = Camera.from_fov(20.0, 1024)
+    alg = PlanarTriangle()
+    db = alg.build(catalog, camera)
+    sim = Simulator(catalog, camera, SimConfig(mag_limit=6.5, sky_mag_limit=6.5, min_stars=3), seed=7)
+    for t in (0, 2, 3, 6, 8, 10):  # 0 and 6 fail with 10 deg triangles
+        obs = sim.observation(t)
+        hip = alg.identify(db, obs).hip
+        assert np.all((hip == -1) | (hip == obs.truth_hip))
+        assert np.count_nonzero(hip >= 0) >= 0.8 * len(obs)
+    assert (db.mag_limit, db.fov_db_deg, db.min_area_deg2) == (5.0, 20.0, 0.4)
