@@ -92,6 +92,25 @@ class Camera:
         """Angular size of one pixel at the boresight (the IFOV)."""
         return 1.0 / self.f_px
 
+    @property
+    def pixel_ratio(self) -> float:
+        """This camera's pixel (IFOV) in pixels of :data:`REFERENCE_CAMERA` (exactly 1.0 for ``Camera()``).
+
+        Plugins whose defaults were chosen on the reference camera scale pixel-sized limits with it.
+        """
+        return REFERENCE_CAMERA.f_px / self.f_px
+
+    @property
+    def solid_angle_sr(self) -> float:
+        """Solid angle of the rectangular sensor seen through the principal point (sr)."""
+        x0, x1 = -self.cx_px / self.f_px, (self.width_px - self.cx_px) / self.f_px
+        y0, y1 = -self.cy_px / self.f_px, (self.height_px - self.cy_px) / self.f_px
+
+        def corner(x, y):   # solid angle of the rectangle [0, x] x [0, y] on the plane z = 1 (signed)
+            return math.atan2(x * y, math.sqrt(1.0 + x * x + y * y))
+
+        return corner(x1, y1) - corner(x0, y1) - corner(x1, y0) + corner(x0, y0)
+
     def project(self, v_cam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Project camera-frame vectors ``(n, 3)`` (``vz > 0``) to pixel coordinates."""
         v_cam = np.ascontiguousarray(v_cam, dtype=np.float64).reshape(-1, 3)
@@ -110,3 +129,8 @@ class Camera:
     def as_dict(self) -> dict:
         return {"width_px": self.width_px, "height_px": self.height_px, "pixel_um": self.pixel_um,
                 "focal_mm": self.focal_mm, "cx_px": self.cx_px, "cy_px": self.cy_px}
+
+
+#: The camera starid's default parameters were chosen on: Zhou & Ye's Table 4 (10 x 10 deg,
+#: 1024 x 1024 px). Plugins derive camera-dependent defaults relative to it (``Camera.pixel_ratio``).
+REFERENCE_CAMERA = Camera()

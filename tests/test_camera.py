@@ -56,3 +56,19 @@ def test_from_fov():
 def test_invalid_camera(kwargs):
     with pytest.raises(ConfigError):
         Camera(**kwargs)
+
+
+def test_pixel_ratio_and_solid_angle():
+    import math
+
+    from starid.camera import REFERENCE_CAMERA
+
+    assert Camera().pixel_ratio == 1.0 and REFERENCE_CAMERA == Camera()
+    wide = Camera.from_fov(20.0, 1024)
+    assert wide.pixel_ratio == pytest.approx(math.tan(math.radians(10)) / math.tan(math.radians(5)), rel=1e-6)
+    assert Camera.from_fov(90.0, 1000).solid_angle_sr == pytest.approx(4 * math.pi / 6, rel=1e-12)  # a cube face
+    # off-centre principal point: the two halves of a sensor add up to the whole
+    half = dict(width_px=500, height_px=1000, cx_px=500.0, cy_px=500.0)
+    left, right = Camera(**half), Camera(**{**half, "cx_px": 0.0})
+    assert left.solid_angle_sr + right.solid_angle_sr == pytest.approx(Camera(width_px=1000, height_px=1000).solid_angle_sr,
+                                                                       rel=1e-12)

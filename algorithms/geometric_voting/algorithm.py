@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, fields
 from functools import lru_cache
@@ -10,7 +11,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from starid.camera import Camera
+from starid.camera import REFERENCE_CAMERA, Camera
 from starid.catalog import Catalog
 from starid.kernels import Frame, camera_frame, rad_to_chord
 from starid.observation import Observation
@@ -23,9 +24,8 @@ from starid_algorithms.pyramid.kernels import PairTol
 from .kernels import VoteRule, identify_kernel, voting_kernel
 
 
-#: the camera on which the plugin's fixed values were chosen (Table 4: 10 x 10 deg, 1024 x 1024 px),
-#: and those values: guide stars V <= 6.0, doubles closer than 0.05 deg (5.1 px there)
-REF_CAMERA = Camera()
+#: the values chosen on :data:`starid.camera.REFERENCE_CAMERA` (Table 4: 10 x 10 deg, 1024 x 1024 px):
+#: guide stars V <= 6.0, doubles closer than 0.05 deg (5.1 px there)
 REF_MAG_LIMIT = 6.0
 REF_D_MIN_DEG = 0.05
 
@@ -37,8 +37,9 @@ def pair_limit_rad(camera: Camera, max_pair_deg: float) -> float:
 
 def derived_d_min_deg(camera: Camera) -> float:
     """``d_min_deg`` = None: the reference's 0.05 deg scaled by the pixel angle, i.e. the same
-    5.1 px on every camera (exactly 0.05 on the reference camera)."""
-    return REF_D_MIN_DEG * (REF_CAMERA.f_px / camera.f_px)
+    5.1 px on every camera (exactly 0.05 on the reference camera), at most the 1 deg a pinned value
+    may be (a 170 deg, 1024 px camera would otherwise get 6.5 deg)."""
+    return min(REF_D_MIN_DEG * camera.pixel_ratio, 1.0)
 
 
 def derived_mag_limit(catalog: Catalog, camera: Camera, max_pair_deg: float) -> float:
@@ -55,7 +56,7 @@ def derived_mag_limit(catalog: Catalog, camera: Camera, max_pair_deg: float) -> 
     """
     v = np.sort(np.asarray(catalog.v_mag, dtype=np.float64))
     n_ref = int(np.searchsorted(v, REF_MAG_LIMIT, side="right"))
-    scale = (camera.f_px / REF_CAMERA.f_px) * (pair_limit_rad(REF_CAMERA, max_pair_deg)
+    scale = (1.0 / camera.pixel_ratio) * (pair_limit_rad(REFERENCE_CAMERA, max_pair_deg)
                                                 / pair_limit_rad(camera, max_pair_deg))
     k = int(round(scale * n_ref))
     if k >= n_ref:
@@ -86,7 +87,7 @@ class GeometricVoting(Algorithm):
     (:class:`VotingDatabase`).
 
     Camera-derived parameters (None = derived in ``build``; exactly V <= 6.0 and 0.05 deg on the
-    default 10 deg Table 4 camera, :data:`REF_CAMERA`):
+    default 10 deg Table 4 camera, :data:`starid.camera.REFERENCE_CAMERA`):
 
     * ``mag_limit``: a catalog star collects chance votes from an image pair at about
       4 pi n eps c (n guide stars per steradian, eps ~ the pixel angle, c ~ the pair limit
@@ -202,10 +203,16 @@ class GeometricVoting(Algorithm):
     def tolerances(self, camera: Camera, database: PairDatabase) -> PairTol:
         return _bundles(self, camera, database.c_max)[0]
 
+    def derived(self, catalog: Catalog, camera: Camera) -> "GeometricVoting":
+        """``mag_limit`` and ``d_min_deg`` left None set for ``camera`` (:func:`derived_mag_limit`,
+        :func:`derived_d_min_deg`)."""
+        return dataclasses.replace(
+            self, mag_limit=derived_mag_limit(catalog, camera, self.max_pair_deg) if self.mag_limit is None
+            else self.mag_limit, d_min_deg=_d_min_deg(self, camera))
+
     def build(self, catalog: Catalog, camera: Camera) -> VotingDatabase:
-        mag_limit = derived_mag_limit(catalog, camera, self.max_pair_deg) if self.mag_limit is None \
-            else float(self.mag_limit)
-        d_min_deg = _d_min_deg(self, camera)
+        settled = self.derived(catalog, camera)
+        mag_limit, d_min_deg = float(settled.mag_limit), float(settled.d_min_deg)
         db = build_pair_database(catalog, camera, mag_limit, d_min_deg, self.max_pair_deg, self.name,
                                  neighbour_lists=False)
         return VotingDatabase(**{f.name: getattr(db, f.name) for f in fields(db)}, mag_limit=mag_limit,

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from typing import ClassVar
@@ -9,7 +10,7 @@ from typing import ClassVar
 import numpy as np
 from scipy.spatial import cKDTree
 
-from starid.camera import Camera
+from starid.camera import REFERENCE_CAMERA, Camera
 from starid.catalog import Catalog
 from starid.errors import ConfigError
 from starid.params import check_flag, check_number, check_whole
@@ -30,17 +31,10 @@ SIGMA_FLOOR_PX = 1.0  # smallest centroid noise the windows assume (px)
 #: on the reference camera (Table 4, 10 x 10 deg; 15.2 with the embedded catalog): the faintest
 #: limit needed, on a grid of ``MAG_STEP``, so that catalog stars x field solid angle >= the reference's.
 REFERENCE_MAG_LIMIT = 6.2
-REFERENCE_CAMERA = Camera(width_px=1024, height_px=1024, pixel_um=12.0, focal_mm=70.2262)  # Zhou & Ye's Table 4
 MAG_STEP = 0.1
 #: ``min_area_deg2=None``: this fraction of ``fov_db_deg`` squared (0.1 deg^2 at 10 deg), the same
 #: triangle shape at any field: the height over the longest side is >= 0.002 ``fov_db_deg``.
 MIN_AREA_FOV2 = 1e-3
-
-
-def sensor_solid_angle(camera: Camera) -> float:
-    """Solid angle (sr) of the camera's rectangular field, about the principal point."""
-    a, b = camera.width_px / 2.0 / camera.f_px, camera.height_px / 2.0 / camera.f_px
-    return 4.0 * math.asin(a * b / math.sqrt((1.0 + a * a) * (1.0 + b * b)))
 
 
 def derived_mag_limit(catalog: Catalog, camera: Camera) -> float:
@@ -49,8 +43,8 @@ def derived_mag_limit(catalog: Catalog, camera: Camera) -> float:
     angle >= N(V <= 6.2) x the reference camera's solid angle; the catalog's faintest star at most.
     Exactly 6.2 on the reference camera (whatever the catalog)."""
     v = np.sort(np.asarray(catalog.v_mag, dtype=np.float64))
-    target = np.count_nonzero(v <= REFERENCE_MAG_LIMIT) * sensor_solid_angle(REFERENCE_CAMERA)
-    omega = sensor_solid_angle(camera)
+    target = np.count_nonzero(v <= REFERENCE_MAG_LIMIT) * REFERENCE_CAMERA.solid_angle_sr
+    omega = camera.solid_angle_sr
     top = math.ceil(float(v[-1]) / MAG_STEP)
     for k in range(math.floor(float(v[0]) / MAG_STEP), top + 1):
         m = round(k * MAG_STEP, 1)
@@ -334,18 +328,19 @@ class PlanarTriangle(Algorithm):
         for field in ("abort_if_finalists_grow", "consistent_chain", "extend", "assign_all"):
             check_flag(field, getattr(self, field))
 
-    def geometry(self, catalog: Catalog, camera: Camera) -> tuple[float, float, float]:
-        """``(mag_limit, fov_db_deg, min_area_deg2)`` the database is built with: each parameter,
-        or when None derived (:func:`derived_mag_limit`, :func:`derived_fov_db_deg`,
-        ``MIN_AREA_FOV2 * fov_db_deg ** 2``); 6.2, 10 and 0.1 on the Table 4 camera."""
+    def derived(self, catalog: Catalog, camera: Camera) -> "PlanarTriangle":
+        """``mag_limit``, ``fov_db_deg`` and ``min_area_deg2`` left None set for ``camera``
+        (:func:`derived_mag_limit`, :func:`derived_fov_db_deg`, ``MIN_AREA_FOV2 * fov_db_deg ** 2``);
+        6.2, 10 and 0.1 on the Table 4 camera."""
         mag_limit = float(self.mag_limit) if self.mag_limit is not None else derived_mag_limit(catalog, camera)
         fov_db_deg = float(self.fov_db_deg) if self.fov_db_deg is not None else derived_fov_db_deg(camera)
         min_area = (float(self.min_area_deg2) if self.min_area_deg2 is not None
                     else round(MIN_AREA_FOV2 * fov_db_deg * fov_db_deg, 12))
-        return mag_limit, fov_db_deg, min_area
+        return dataclasses.replace(self, mag_limit=mag_limit, fov_db_deg=fov_db_deg, min_area_deg2=min_area)
 
     def build(self, catalog: Catalog, camera: Camera) -> PlanarTriangleDatabase:
-        mag_limit, fov_db_deg, min_area_deg2 = self.geometry(catalog, camera)
+        settled = self.derived(catalog, camera)
+        mag_limit, fov_db_deg, min_area_deg2 = settled.mag_limit, settled.fov_db_deg, settled.min_area_deg2
         guide = catalog.brighter_than(mag_limit)
         n = len(guide)
         if n < 3:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from functools import cached_property, lru_cache
@@ -24,23 +25,22 @@ from .kernels import Tables, Tolerances, View, build_triangles, identify_kernel,
 CHORD_SCALE = 10000.0
 #: Smallest centroid noise (px) the windows assume, whatever ``sigma_px`` says, on the paper's camera.
 SIGMA_FLOOR_PX = 1.0
-#: The paper's double-star limit d_min (section 2.1: D_ms >= 8.728, i.e. 0.05 deg), on its camera.
+#: The paper's double-star limit d_min (section 2.1: D_ms >= 8.728, i.e. 0.05 deg), on its camera
+#: (Table 4, which is :data:`starid.camera.REFERENCE_CAMERA`).
 D_MIN_DEG = 0.05
-#: The paper's camera (Table 4: 10 x 10 deg, 1024 px, f = 70.2262 mm), the reference of the rules below.
-PAPER_CAMERA = Camera()
 
 
 def camera_rules(camera: Camera) -> tuple[float, float]:
     """``(d_min_deg, sigma_floor_px)`` derived from ``camera`` when the parameters are ``None``.
 
-    ``r = f_paper / f_camera`` is the camera's pixel (IFOV) in the paper camera's pixels (exactly 1.0 on
+    ``r = camera.pixel_ratio`` is the camera's pixel (IFOV) in the paper camera's pixels (exactly 1.0 on
     the Table 4 camera). On coarser pixels (r > 1), the paper's values hold in the units they matter in:
     d_min stays 5.1 px (0.05 deg on the paper's camera; ``0.05 r`` deg), because two stars are confused
     when their separation is comparable to the pixel-based tolerance; the noise floor stays 35.2 arcsec
     (1 px on the paper's camera; ``1 / r`` px), because it only has to cover the catalog's and the
     float32 tables' rounding, which are angles. On finer pixels both stay the paper's (0.05 deg, 1 px).
     """
-    r = PAPER_CAMERA.f_px / camera.f_px
+    r = camera.pixel_ratio
     return D_MIN_DEG * max(1.0, r), SIGMA_FLOOR_PX * min(1.0, 1.0 / r)
 
 
@@ -264,11 +264,11 @@ class PTP(Algorithm):
         for name in ("exclude_doubles", "swap_slaves", "majority", "verify"):
             check_flag(name, getattr(self, name))
 
-    def camera_settings(self, camera: Camera) -> tuple[float, float]:
-        """``(d_min_deg, sigma_floor_px)`` on ``camera``: the parameters, or :func:`camera_rules` where None."""
+    def derived(self, catalog: Catalog, camera: Camera) -> "PTP":
+        """``d_min_deg`` and ``sigma_floor_px`` left None set by :func:`camera_rules` for ``camera``."""
         d_min_deg, floor_px = camera_rules(camera)
-        return (d_min_deg if self.d_min_deg is None else float(self.d_min_deg),
-                floor_px if self.sigma_floor_px is None else float(self.sigma_floor_px))
+        return dataclasses.replace(self, d_min_deg=d_min_deg if self.d_min_deg is None else self.d_min_deg,
+                                   sigma_floor_px=floor_px if self.sigma_floor_px is None else self.sigma_floor_px)
 
     def sigma_eff_px(self, sigma_floor_px: float = SIGMA_FLOOR_PX) -> float:
         """The centroid noise the windows use: ``sigma_px`` (None = 0) floored at ``sigma_floor_px``
@@ -276,8 +276,15 @@ class PTP(Algorithm):
         return max(self.sigma_px or 0.0, sigma_floor_px)
 
     def tolerances(self, database: PTPDatabase) -> Tolerances:
-        """The parameters, with the database's d_min and noise floor, as the kernel's tolerance bundle."""
-        return _tolerances(self, database.d_min_deg, database.sigma_floor_px)
+        """The parameters as the kernel's tolerance bundle; d_min and the noise floor, when left None
+        (an instance that was not :meth:`derived`, e.g. outside the harness), are the database's."""
+        if self.d_min_deg is None or self.sigma_floor_px is None:
+            return _tolerances(self, database.d_min_deg, database.sigma_floor_px)
+        return self._derived_tol
+
+    @cached_property
+    def _derived_tol(self) -> Tolerances:
+        return self._tol(self.d_min_deg, self.sigma_floor_px)
 
     @cached_property
     def _d_max(self) -> float:
@@ -295,7 +302,8 @@ class PTP(Algorithm):
                           float(self.check_fraction))
 
     def build(self, catalog: Catalog, camera: Camera) -> PTPDatabase:
-        d_min_deg, sigma_floor_px = self.camera_settings(camera)
+        settled = self.derived(catalog, camera)
+        d_min_deg, sigma_floor_px = float(settled.d_min_deg), float(settled.sigma_floor_px)
         if not d_min_deg < self.d_max_deg:
             raise ConfigError(f"ptp: d_min ({d_min_deg:g} deg on this camera) must be smaller than d_max_deg "
                               f"({self.d_max_deg!r})")

@@ -217,7 +217,10 @@ def test_camera_rules_reduce_to_the_paper_on_table4(db, catalog):
     assert camera_rules(Camera.from_fov(10.0, 2048)) == (0.05, 1.0)        # finer pixels: unchanged
     d_min, floor = camera_rules(Camera.from_fov(20.0, 1024))                  # Luo et al.'s camera
     assert d_min == pytest.approx(0.1008, abs=1e-4) and floor == pytest.approx(0.4962, abs=1e-4)
-    assert PTP(d_min_deg=0.07, sigma_floor_px=2.0).camera_settings(Camera.from_fov(20.0, 1024)) == (0.07, 2.0)
+    pinned = PTP(d_min_deg=0.07, sigma_floor_px=2.0).derived(catalog, Camera.from_fov(20.0, 1024))
+    assert (pinned.d_min_deg, pinned.sigma_floor_px) == (0.07, 2.0)
+    luo = PTP().derived(catalog, Camera.from_fov(20.0, 1024))
+    assert (luo.d_min_deg, luo.sigma_floor_px) == (d_min, floor)
     with pytest.raises(ConfigError):
         PTP(d_max_deg=0.08).build(catalog, Camera.from_fov(20.0, 1024))   # derived d_min 0.1 > d_max
 
