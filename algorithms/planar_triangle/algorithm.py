@@ -152,9 +152,10 @@ class PlanarTriangle(Algorithm):
       ``SIGMA_FLOOR_PX = 1`` px (a noise-free world still needs a window; at <= 1 px the results
       are those of the former fixed 1 px).
 
-    Camera-dependent parameters default to None = derived from the camera in ``build`` (the values
-    used are stored in the database, ``mag_limit`` / ``fov_db_deg`` / ``min_area_deg2``); on the
-    Table 4 camera the rules give exactly the former fixed 6.2, 10 and 0.1:
+    Camera-dependent parameters default to None = derived from the catalog and camera
+    (:meth:`derived`, which the harness calls before ``build``; the values used are also stored in
+    the database, ``mag_limit`` / ``fov_db_deg`` / ``min_area_deg2``); on the Table 4 camera the
+    rules give exactly the former fixed 6.2, 10 and 0.1:
 
     * ``fov_db_deg = None``: the sensor's short-side field of view rounded down to 0.01 deg
       (``derived_fov_db_deg``; 10 on Table 4, 20 on Luo's camera): the triangle must fit in the

@@ -154,9 +154,9 @@ class PTP(Algorithm):
       simulator (``None``, the default: the harness sets it to the simulated noise), with a floor
       ``sigma_floor_px`` so a noise-free world still gets windows wide enough for the catalog's and the
       float32 tables' rounding (and today's 1 px results are unchanged);
-    * camera-dependent, ``None`` = derived from the camera in ``build`` (:func:`camera_rules`; the values
-      used are stored in the database as ``d_min_deg`` and ``sigma_floor_px``): with
-      r = f_paper / f_px the camera's pixel in Table 4 pixels (exactly 1 on the Table 4 camera),
+    * camera-dependent, ``None`` = derived from the camera (:meth:`derived` by :func:`camera_rules`; the
+      values used are also stored in the database as ``d_min_deg`` and ``sigma_floor_px``): with
+      r = ``camera.pixel_ratio`` = f_paper / f_px the camera's pixel in Table 4 pixels (exactly 1 on the Table 4 camera),
       ``d_min_deg`` = 0.05 max(1, r) (the paper's 0.05 deg is 5.1 px on its camera: two stars closer than
       about the pixel-based tolerance are swapped) and ``sigma_floor_px`` = min(1, 1/r) (1 px on the
       paper's camera, 35.2 arcsec: the rounding it covers is an angle). Both are the paper's on the
