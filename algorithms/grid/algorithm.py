@@ -128,9 +128,10 @@ class Grid(PlanarAlgorithm):
         return self._spec(db.radius_deg, db.double_px)._replace(half_px=db.f_px * math.tan(math.radians(db.radius_deg)))
 
     def build(self, catalog: Catalog, camera: Camera) -> GridDatabase:
-        radius = self.derived(catalog, camera).radius_deg
+        settled = self.derived(catalog, camera)
+        radius = settled.radius_deg
         double_px = effective_double_px(self.double_px, radius, camera)
-        guides = select_guides(catalog, self.mag_limit, double_px, camera, self.name)
+        guides = select_guides(catalog, settled.mag_limit, double_px, camera, self.name)
         spec = self._spec(radius, double_px)._replace(half_px=camera.f_px * math.tan(math.radians(radius)))
         nbr, off = neighbour_lists(guides.unit, math.acos(spec.cos_radius))
         cells, start, guide, orient = build_patterns(guides.unit.astype(np.float64), nbr, off, float(camera.f_px),

@@ -125,9 +125,10 @@ class LPT(PlanarAlgorithm):
                             self.max_refs, self.n_candidates, float(db.double_px))
 
     def build(self, catalog: Catalog, camera: Camera) -> LPTDatabase:
-        radius = self.derived(catalog, camera).radius_deg
+        settled = self.derived(catalog, camera)
+        radius = settled.radius_deg
         double_px = effective_double_px(self.double_px, radius, camera)
-        guides = select_guides(catalog, self.mag_limit, double_px, camera, self.name)
+        guides = select_guides(catalog, settled.mag_limit, double_px, camera, self.name)
         nbr, off = neighbour_lists(guides.unit, math.radians(radius))
         empty = sparse_strings(np.zeros((0, self.n_sectors), dtype=np.uint8))
         db = LPTDatabase(*empty, guides.unit, guides.hip, radius, float(camera.f_px), double_px, max(double_px, 1.0),

@@ -147,9 +147,10 @@ class ImprovedLPT(PlanarAlgorithm):
         check_flag("pair_filter", self.pair_filter)
 
     def build(self, catalog: Catalog, camera: Camera) -> ImprovedLPTDatabase:
-        radius = self.derived(catalog, camera).radius_deg
+        settled = self.derived(catalog, camera)
+        radius = settled.radius_deg
         double_px = effective_double_px(self.double_px, radius, camera)
-        guides = select_guides(catalog, self.mag_limit, double_px, camera, self.name)
+        guides = select_guides(catalog, settled.mag_limit, double_px, camera, self.name)
         nbr, off = neighbour_lists(guides.unit, math.radians(radius))
         max_value = 255 if self.log_scale * math.log(camera.f_px * math.tan(math.radians(radius))) < 255 else 65535
         feature, count, guide, align = build_features(guides.unit.astype(np.float64), nbr, off, float(camera.f_px),

@@ -41,7 +41,11 @@ from starid.kernels import (backproject_px, camera_frame, chord_rows, reproject_
 from starid.observation import Observation
 from starid.params import check_number, check_whole
 from starid.plugin import Algorithm, Explanation, Identification
+from starid.simulate import SimConfig
 
+#: Guide-star limit when ``mag_limit`` is None and no simulator resolved it: the detection limit of
+#: starid's default sensor (``SimConfig().mag_limit``).
+DEFAULT_MAG_LIMIT = SimConfig().mag_limit
 #: Default neighbourhood radius R: 0.3 x the smaller field of view (6 deg at 20 deg, Luo et al.'s
 #: set-up), but at least the radius that holds :data:`NEIGHBOURS_TARGET` guide stars on average
 #: (sparse skies, small fields: 4.0 deg for V <= 6 guide stars on the 10 deg Table 4 camera), at
@@ -449,7 +453,9 @@ def rows_to_hip(rows, hip):
 class PlanarAlgorithm(Algorithm):
     """Parameters, checks and ``identify`` the three log-polar / grid plugins share (subclass as a frozen dataclass).
 
-    mag_limit : guide stars V <= this. radius_deg : neighbourhood radius R (None = :func:`default_radius_deg`).
+    mag_limit : guide stars V <= this (None = follow the simulator's detection limit, as the papers'
+    navigation lists end where the sensor stops seeing; outside the harness the default sensor's
+    6.0). radius_deg : neighbourhood radius R (None = :func:`default_radius_deg`).
     double_px : pairs closer than this (px) are unresolvable doubles. max_refs : reference stars tried.
     n_candidates : database matches tried per pattern. sigma_px : centroid noise the windows assume
     (None = follow the simulator; floor :data:`SIGMA_FLOOR_PX`). beta : window in sigmas.
@@ -457,9 +463,9 @@ class PlanarAlgorithm(Algorithm):
     A subclass defines ``_run(database, observation) -> (rows, attitude, accepted, trace)``.
     """
 
-    follows: ClassVar[dict] = {"sigma_px": "sigma_px"}
+    follows: ClassVar[dict] = {"sigma_px": "sigma_px", "mag_limit": "mag_limit"}
 
-    mag_limit: float = 6.0
+    mag_limit: float | None = None
     radius_deg: float | None = None
     double_px: float = 20.0
     max_refs: int = 10
@@ -470,7 +476,8 @@ class PlanarAlgorithm(Algorithm):
     confirm_fraction: float = 0.5
 
     def __post_init__(self):
-        check_number("mag_limit", self.mag_limit)
+        if self.mag_limit is not None:
+            check_number("mag_limit", self.mag_limit)
         if self.radius_deg is not None:
             check_number("radius_deg", self.radius_deg, lo=0, hi=60, lo_open=True)
         if self.sigma_px is not None:
@@ -483,11 +490,16 @@ class PlanarAlgorithm(Algorithm):
         check_number("confirm_fraction", self.confirm_fraction, lo=0, hi=1)
 
     def derived(self, catalog: Catalog, camera: Camera) -> "PlanarAlgorithm":
-        """``radius_deg`` None -> :func:`default_radius_deg` for ``camera`` and the guide stars' number."""
-        if self.radius_deg is not None:
+        """``mag_limit`` None (not resolved from a simulator) -> the default sensor's detection limit,
+        :data:`DEFAULT_MAG_LIMIT`; ``radius_deg`` None -> :func:`default_radius_deg` for ``camera`` and
+        the guide stars' number."""
+        mag_limit = DEFAULT_MAG_LIMIT if self.mag_limit is None else self.mag_limit
+        radius_deg = self.radius_deg
+        if radius_deg is None:
+            radius_deg = default_radius_deg(camera, int(np.count_nonzero(catalog.v_mag <= mag_limit)))
+        if (mag_limit, radius_deg) == (self.mag_limit, self.radius_deg):
             return self
-        n_guides = int(np.count_nonzero(catalog.v_mag <= self.mag_limit))
-        return dataclasses.replace(self, radius_deg=default_radius_deg(camera, n_guides))
+        return dataclasses.replace(self, mag_limit=mag_limit, radius_deg=radius_deg)
 
     def identify(self, database, observation: Observation) -> Identification:
         rows, attitude, ok, _ = self._run(database, observation)
