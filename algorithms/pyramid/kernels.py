@@ -311,7 +311,8 @@ def pyramid_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_
     tri = np.empty((TRIANGLE_CAP, 3), dtype=np.int64)
     tri_pos = np.empty(3, dtype=np.int64)
     pyr_star = np.empty(4, dtype=np.int64)
-    pyr_row = np.empty(4, dtype=np.int64)
+    cand_star = np.empty(4, dtype=np.int64)
+    cand_row = np.empty(4, dtype=np.int64)
     trial_rows = np.empty(n, dtype=np.int64)
     n_triads = 0
     for dj in range(1, m - 1):
@@ -339,24 +340,26 @@ def pyramid_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_
                     if rows.max() < 0:
                         return rows, np.zeros((3, 3)), pyramid, n_triads
                     return rows, wahba_rows(v_cam, rows, guide_unit), pyramid, n_triads
-                n_pyr = 0
+                n_ok = 0
                 for t in range(n_tri):
                     r, big_r = fourth_star(v_cam, sel, tri_pos, tri[t], nbr, nbr_chord, nbr_start, guide_unit,
                                            tol.eps)
                     if r < 0:
                         continue
-                    n_pyr += 1
-                    if n_pyr > 1:
-                        break
                     for a in range(3):
-                        pyr_star[a] = sel[tri_pos[a]]
-                        pyr_row[a] = tri[t, a]
-                    pyr_star[3] = sel[r]
-                    pyr_row[3] = big_r
-                if n_pyr != 1:
-                    continue
-                if _confirm(v_cam, pyr_star, pyr_row, guide_unit, tol, cam, trial_rows):
+                        cand_star[a] = sel[tri_pos[a]]
+                        cand_row[a] = tri[t, a]
+                    cand_star[3] = sel[r]
+                    cand_row[3] = big_r
+                    if not _confirm(v_cam, cand_star, cand_row, guide_unit, tol, cam, trial_rows):
+                        continue
+                    n_ok += 1
+                    if n_ok > 1:
+                        break
+                    pyr_star[:] = cand_star
                     rows[:] = trial_rows
+                if n_ok == 1:
                     pyramid[:] = pyr_star
                     return rows, wahba_rows(v_cam, rows, guide_unit), pyramid, n_triads
+                rows[:] = -1
     return rows, np.zeros((3, 3)), pyramid, n_triads
