@@ -31,6 +31,8 @@ SIGMA_FLOOR_PX = 1.0
 REFERENCE_F_PX = 70.2262 * 1000.0 / 12.0
 #: pyramid's double-star separation on the reference camera (5.1 of its pixels)
 D_MIN_REFERENCE_DEG = 0.05
+#: largest double-star separation (deg): the parameter's upper bound, and the cap of the derived value
+D_MIN_MAX_DEG = 1.0
 
 
 def d_min_for(camera: Camera) -> float:
@@ -38,9 +40,11 @@ def d_min_for(camera: Camera) -> float:
 
     0.05 deg on the reference camera (5.11 px, wider than the 4.24 px reprojection radius of the
     1 px window floor), scaled by the camera's pixel angle, so that it stays wider than that radius on
-    any camera: exactly 0.05 on the reference camera, 0.1008 on a 20 deg, 1024 px one.
+    any camera: exactly 0.05 on the reference camera, 0.1008 on a 20 deg, 1024 px one. Capped at
+    ``D_MIN_MAX_DEG`` (the parameter's own upper bound), which only binds on fish-eye lenses (f below
+    293 px: fields wider than about 121 deg on 1024 px), where 5.11 px would clear the sky of guide stars.
     """
-    return D_MIN_REFERENCE_DEG * (REFERENCE_F_PX / camera.f_px)
+    return min(D_MIN_MAX_DEG, D_MIN_REFERENCE_DEG * (REFERENCE_F_PX / camera.f_px))
 
 
 @dataclass(frozen=True, eq=False)
@@ -124,7 +128,7 @@ def check_pair_params(algo) -> None:
         check_number("sigma_px", algo.sigma_px, lo=0)
     check_number("beta", algo.beta, lo=0, lo_open=True)
     if algo.d_min_deg is not None:
-        check_number("d_min_deg", algo.d_min_deg, lo=0, hi=1)
+        check_number("d_min_deg", algo.d_min_deg, lo=0, hi=D_MIN_MAX_DEG)
     check_number("max_pair_deg", algo.max_pair_deg, lo=0, lo_open=True, hi=180)
     check_whole("max_stars", algo.max_stars, 3)
     check_whole("max_window", algo.max_window, 1)
@@ -161,7 +165,9 @@ class Pyramid(Algorithm):
        same sign of the triple products b_i.(b_j x b_k) and r_I.(r_J x r_K) (chirality,
        "spectral" test); the triangle must be unique (``unique_triangle``);
     4. a fourth star r with exactly one catalog star R at the right distance from I, J and K
-       confirms the triangle: the pyramid;
+       confirms the triangle: the pyramid (with ``unique_triangle=False``, each candidate
+       triangle's pyramid goes through the confirmation below, and the triad is accepted when
+       exactly one of them is confirmed);
     5. the remaining stars are identified from the pyramid's attitude (Wahba,
        ``starid.kernels.wahba_rows``) by reprojection (``starid.kernels.reproject_assign``,
        the same +-eps), and the attitude is re-solved from all of them.
@@ -172,7 +178,10 @@ class Pyramid(Algorithm):
       paper sets eps from the centroid accuracy; the 1 px floor gives noise-free worlds a window;
       ``sigma_px`` follows the simulator's centroid noise when left None);
     * detections closer than ``d_min_deg`` to another, and guide stars with such a neighbour,
-      are not used (double stars; reconstructed, as in starid's PTP);
+      are not used (double stars; reconstructed, as in starid's PTP); left None it is derived from
+      the camera in ``build`` as a fixed 5.11 px (0.05 deg on the Table 4 camera, scaled by the
+      pixel angle: :func:`d_min_for`), so that it stays wider than the 4.24 px reprojection
+      radius of the 1 px window floor; the value used is the database's ``d_min_deg``;
     * triads are formed from the ``max_stars`` brightest detections (reconstructed; the paper
       uses its input order, starid needs an order independent of the input's);
     * ``unique_triangle=False`` (LOST's reading) tries every candidate triangle of a triad and
