@@ -287,11 +287,12 @@ def pyramid_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_
        consecutive triads share few stars and a spurious star does not spoil a whole run;
        at most ``tol.max_triads`` of them;
     4. the triad's catalog triangles (:func:`triad_triangles`, with the chirality test);
-       ``unique_triangle``: go on only if exactly one survives (the paper); otherwise each
-       candidate is tried and the triad is accepted when exactly one completes a pyramid;
-    5. the fourth star (:func:`fourth_star`) completes the pyramid;
+       ``unique_triangle``: go on only if exactly one survives (the paper);
+    5. the fourth star (:func:`fourth_star`) completes each candidate triangle's pyramid;
     6. attitude, the remaining stars by reprojection and the confirmation test
-       (:func:`_confirm`); a pyramid that fails it is discarded and the search goes on.
+       (:func:`_confirm`) for each candidate pyramid; the triad is accepted when exactly one of
+       them is confirmed, else the search goes on. (Counting candidates before confirmation let
+       random fourth stars of false triangles veto the true pyramid on coarse-pixel cameras.)
     """
     n = x_px.shape[0]
     rows = np.full(n, -1, dtype=np.int64)
