@@ -26,6 +26,26 @@ from .kernels import PairTol, pyramid_kernel
 #: centroid-noise floor of every window: a noise-free world still gets a 1 px tolerance
 SIGMA_FLOOR_PX = 1.0
 
+#: focal length in pixels of the reference camera (Zhou & Ye's Table 4: 70.2262 mm, 12 um pixels,
+#: 10 x 10 deg), written as :attr:`starid.camera.Camera.f_px` computes it
+REFERENCE_F_PX = 70.2262 * 1000.0 / 12.0
+#: pyramid's double-star separation on the reference camera (5.1 of its pixels)
+D_MIN_REFERENCE_DEG = 0.05
+#: largest double-star separation (deg): the parameter's upper bound, and the cap of the derived value
+D_MIN_MAX_DEG = 1.0
+
+
+def d_min_for(camera: Camera) -> float:
+    """Pyramid's default double-star separation on ``camera``, in degrees: a fixed number of pixels.
+
+    0.05 deg on the reference camera (5.11 px, wider than the 4.24 px reprojection radius of the
+    1 px window floor), scaled by the camera's pixel angle, so that it stays wider than that radius on
+    any camera: exactly 0.05 on the reference camera, 0.1008 on a 20 deg, 1024 px one. Capped at
+    ``D_MIN_MAX_DEG`` (the parameter's own upper bound), which only binds on fish-eye lenses (f below
+    293 px: fields wider than about 121 deg on 1024 px), where 5.11 px would clear the sky of guide stars.
+    """
+    return min(D_MIN_MAX_DEG, D_MIN_REFERENCE_DEG * (REFERENCE_F_PX / camera.f_px))
+
 
 @dataclass(frozen=True, eq=False)
 class PairDatabase(Database):
@@ -43,6 +63,8 @@ class PairDatabase(Database):
     degree : uint16/int32 (g,) how many pairs each guide star belongs to (its neighbours within
         ``c_max``), for geometric voting's expected random votes.
     c_max : the largest pair chord stored (not read by identify as an array).
+    d_min_deg : the double-star separation the guide stars were cut with (degrees; the value used,
+        reported where the parameter was left to the camera).
     """
 
     kv: KVector
@@ -54,6 +76,7 @@ class PairDatabase(Database):
     nbr_start: np.ndarray
     degree: np.ndarray
     c_max: float
+    d_min_deg: float = 0.0
 
 
 def build_pair_database(catalog: Catalog, camera: Camera, mag_limit: float, d_min_deg: float,
@@ -95,7 +118,7 @@ def build_pair_database(catalog: Catalog, camera: Camera, mag_limit: float, d_mi
                         pairs=np.ascontiguousarray(pairs[order].astype(row_dtype)),
                         guide_unit=unit.astype(np.float32), guide_hip=guide.hip[by_z].astype(np.int64),
                         nbr=nbr, nbr_chord=nbr_chord, nbr_start=nbr_start,
-                        degree=degree.astype(deg_dtype), c_max=float(c_max))
+                        degree=degree.astype(deg_dtype), c_max=float(c_max), d_min_deg=float(d_min_deg))
 
 
 def check_pair_params(algo) -> None:
@@ -104,7 +127,8 @@ def check_pair_params(algo) -> None:
     if algo.sigma_px is not None:
         check_number("sigma_px", algo.sigma_px, lo=0)
     check_number("beta", algo.beta, lo=0, lo_open=True)
-    check_number("d_min_deg", algo.d_min_deg, lo=0, hi=1)
+    if algo.d_min_deg is not None:
+        check_number("d_min_deg", algo.d_min_deg, lo=0, hi=D_MIN_MAX_DEG)
     check_number("max_pair_deg", algo.max_pair_deg, lo=0, lo_open=True, hi=180)
     check_whole("max_stars", algo.max_stars, 3)
     check_whole("max_window", algo.max_window, 1)
@@ -141,7 +165,9 @@ class Pyramid(Algorithm):
        same sign of the triple products b_i.(b_j x b_k) and r_I.(r_J x r_K) (chirality,
        "spectral" test); the triangle must be unique (``unique_triangle``);
     4. a fourth star r with exactly one catalog star R at the right distance from I, J and K
-       confirms the triangle: the pyramid;
+       confirms the triangle: the pyramid (with ``unique_triangle=False``, each candidate
+       triangle's pyramid goes through the confirmation below, and the triad is accepted when
+       exactly one of them is confirmed);
     5. the remaining stars are identified from the pyramid's attitude (Wahba,
        ``starid.kernels.wahba_rows``) by reprojection (``starid.kernels.reproject_assign``,
        the same +-eps), and the attitude is re-solved from all of them.
@@ -152,7 +178,10 @@ class Pyramid(Algorithm):
       paper sets eps from the centroid accuracy; the 1 px floor gives noise-free worlds a window;
       ``sigma_px`` follows the simulator's centroid noise when left None);
     * detections closer than ``d_min_deg`` to another, and guide stars with such a neighbour,
-      are not used (double stars; reconstructed, as in starid's PTP);
+      are not used (double stars; reconstructed, as in starid's PTP); left None it is derived from
+      the camera in ``build`` as a fixed 5.11 px (0.05 deg on the Table 4 camera, scaled by the
+      pixel angle: :func:`d_min_for`), so that it stays wider than the 4.24 px reprojection
+      radius of the 1 px window floor; the value used is the database's ``d_min_deg``;
     * triads are formed from the ``max_stars`` brightest detections (reconstructed; the paper
       uses its input order, starid needs an order independent of the input's);
     * ``unique_triangle=False`` (LOST's reading) tries every candidate triangle of a triad and
@@ -173,7 +202,7 @@ class Pyramid(Algorithm):
     mag_limit: float = 6.0
     sigma_px: float | None = None
     beta: float = 3.0
-    d_min_deg: float = 0.05
+    d_min_deg: float | None = None
     max_pair_deg: float = 20.0
     max_stars: int = 40
     max_triads: int = 1000
@@ -192,13 +221,14 @@ class Pyramid(Algorithm):
     def tolerances(self, camera: Camera, database: PairDatabase) -> PairTol:
         sigma = max(self.sigma_px or 0.0, SIGMA_FLOOR_PX) / camera.f_px
         half_diag = camera.half_diagonal_rad
-        return PairTol(eps=self.beta * math.sqrt(2.0) * sigma, d_min=rad_to_chord(math.radians(self.d_min_deg)),
+        return PairTol(eps=self.beta * math.sqrt(2.0) * sigma, d_min=rad_to_chord(math.radians(database.d_min_deg)),
                        c_max=database.c_max, c_fov=rad_to_chord(half_diag), max_window=int(self.max_window),
                        max_stars=int(self.max_stars), max_triads=int(self.max_triads),
                        confirm_fraction=float(self.confirm_fraction), min_extra=int(self.min_extra))
 
     def build(self, catalog: Catalog, camera: Camera) -> PairDatabase:
-        return build_pair_database(catalog, camera, self.mag_limit, self.d_min_deg, self.max_pair_deg, self.name)
+        d_min_deg = d_min_for(camera) if self.d_min_deg is None else self.d_min_deg
+        return build_pair_database(catalog, camera, self.mag_limit, d_min_deg, self.max_pair_deg, self.name)
 
     def _run(self, database: PairDatabase, observation: Observation):
         cam = observation.camera

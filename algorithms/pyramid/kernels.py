@@ -287,11 +287,12 @@ def pyramid_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_
        consecutive triads share few stars and a spurious star does not spoil a whole run;
        at most ``tol.max_triads`` of them;
     4. the triad's catalog triangles (:func:`triad_triangles`, with the chirality test);
-       ``unique_triangle``: go on only if exactly one survives (the paper); otherwise each
-       candidate is tried and the triad is accepted when exactly one completes a pyramid;
-    5. the fourth star (:func:`fourth_star`) completes the pyramid;
+       ``unique_triangle``: go on only if exactly one survives (the paper);
+    5. the fourth star (:func:`fourth_star`) completes each candidate triangle's pyramid;
     6. attitude, the remaining stars by reprojection and the confirmation test
-       (:func:`_confirm`); a pyramid that fails it is discarded and the search goes on.
+       (:func:`_confirm`) for each candidate pyramid; the triad is accepted when exactly one of
+       them is confirmed, else the search goes on. (Counting candidates before confirmation let
+       random fourth stars of false triangles veto the true pyramid on coarse-pixel cameras.)
     """
     n = x_px.shape[0]
     rows = np.full(n, -1, dtype=np.int64)
@@ -311,7 +312,8 @@ def pyramid_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_
     tri = np.empty((TRIANGLE_CAP, 3), dtype=np.int64)
     tri_pos = np.empty(3, dtype=np.int64)
     pyr_star = np.empty(4, dtype=np.int64)
-    pyr_row = np.empty(4, dtype=np.int64)
+    cand_star = np.empty(4, dtype=np.int64)
+    cand_row = np.empty(4, dtype=np.int64)
     trial_rows = np.empty(n, dtype=np.int64)
     n_triads = 0
     for dj in range(1, m - 1):
@@ -339,24 +341,26 @@ def pyramid_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_
                     if rows.max() < 0:
                         return rows, np.zeros((3, 3)), pyramid, n_triads
                     return rows, wahba_rows(v_cam, rows, guide_unit), pyramid, n_triads
-                n_pyr = 0
+                n_ok = 0
                 for t in range(n_tri):
                     r, big_r = fourth_star(v_cam, sel, tri_pos, tri[t], nbr, nbr_chord, nbr_start, guide_unit,
                                            tol.eps)
                     if r < 0:
                         continue
-                    n_pyr += 1
-                    if n_pyr > 1:
-                        break
                     for a in range(3):
-                        pyr_star[a] = sel[tri_pos[a]]
-                        pyr_row[a] = tri[t, a]
-                    pyr_star[3] = sel[r]
-                    pyr_row[3] = big_r
-                if n_pyr != 1:
-                    continue
-                if _confirm(v_cam, pyr_star, pyr_row, guide_unit, tol, cam, trial_rows):
+                        cand_star[a] = sel[tri_pos[a]]
+                        cand_row[a] = tri[t, a]
+                    cand_star[3] = sel[r]
+                    cand_row[3] = big_r
+                    if not _confirm(v_cam, cand_star, cand_row, guide_unit, tol, cam, trial_rows):
+                        continue
+                    n_ok += 1
+                    if n_ok > 1:
+                        break
+                    pyr_star[:] = cand_star
                     rows[:] = trial_rows
+                if n_ok == 1:
                     pyramid[:] = pyr_star
                     return rows, wahba_rows(v_cam, rows, guide_unit), pyramid, n_triads
+                rows[:] = -1
     return rows, np.zeros((3, 3)), pyramid, n_triads

@@ -9,8 +9,9 @@ import math
 import numpy as np
 import pytest
 
-from starid import ConfigError, Observation, SimConfig, Simulator
+from starid import Camera, ConfigError, Observation, SimConfig, Simulator
 from starid_algorithms.pyramid import Pyramid
+from starid_algorithms.pyramid.algorithm import d_min_for
 from starid_algorithms.pyramid.kernels import neighbours_within, select_stars, triad_triangles
 from starid_algorithms.pyramid.testing import noisy_results, wide_field_seconds
 
@@ -155,5 +156,40 @@ def test_invalid_parameters(kwargs):
 def test_follows_the_simulator(camera):
     assert Pyramid().resolved(SimConfig(sigma_px=2.0)).sigma_px == 2.0
     assert Pyramid(sigma_px=0.5).resolved(SimConfig(sigma_px=2.0)).sigma_px == 0.5
-    db_like = type("D", (), {"c_max": 0.2})()
+    db_like = type("D", (), {"c_max": 0.2, "d_min_deg": 0.05})()
     assert Pyramid(sigma_px=0.0).tolerances(camera, db_like).eps == pytest.approx(3 * math.sqrt(2) / camera.f_px)
+
+
+@pytest.fixture(scope="module")
+def luo_camera():
+    return Camera.from_fov(20.0, 1024)           # Luo et al.'s camera: 20 x 20 deg, 1024 px
+
+
+def test_double_star_separation_follows_the_pixel(db, catalog, luo_camera):
+    # a fixed number of pixels (5.11), exactly 0.05 deg on the Table 4 camera, stored in the database
+    assert Pyramid().d_min_deg is None and db.d_min_deg == 0.05
+    assert d_min_for(luo_camera) == pytest.approx(0.05 * 5852.1833 / 2903.6963, rel=1e-6)
+    d_min_px = math.radians(d_min_for(luo_camera)) * luo_camera.f_px
+    eps_px = Pyramid().tolerances(luo_camera, db).eps * luo_camera.f_px
+    assert d_min_px == pytest.approx(5.107, abs=1e-3) and eps_px == pytest.approx(4.243, abs=1e-3)
+    pinned = Pyramid(d_min_deg=0.05)
+    assert pinned.tolerances(luo_camera, pinned.build(catalog, luo_camera)).d_min == pytest.approx(
+        2 * math.sin(math.radians(0.05) / 2))
+
+
+def test_luo_camera_images_the_old_rules_missed(catalog, luo_camera):
+    """Three noise-free images of Luo's camera (V <= 6.5 sky and detections) that the old rules
+    left unidentified: in trials 10 and 15 every true triad also had spurious pyramids (a random
+    fourth star among ~40 detections for some of ~50 catalog triangles), which vetoed it before
+    confirmation; in trial 90 the brightest star (HIP 100345) has a V 6.09 neighbour 2.92 px away,
+    inside the 4.24 px reprojection radius but outside a fixed 0.05 deg (2.56 px here), so every
+    pyramid it completed failed confirmation. Each fix alone leaves at least one of them failing."""
+    algo = Pyramid()
+    db = algo.build(catalog, luo_camera)
+    sim = Simulator(catalog, luo_camera, SimConfig(mag_limit=6.5, sky_mag_limit=6.5, min_stars=3), seed=7)
+    for trial in (10, 15, 90):
+        obs = sim.observation(trial)
+        hip = algo.identify(db, obs).hip
+        found = hip >= 0
+        assert found.sum() >= 10, trial
+        assert np.array_equal(hip[found], obs.truth_hip[found]), trial
