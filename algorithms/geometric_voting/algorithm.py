@@ -6,7 +6,6 @@ import dataclasses
 import math
 from dataclasses import dataclass, fields
 from functools import lru_cache
-from types import SimpleNamespace
 from typing import ClassVar
 
 import numpy as np
@@ -18,28 +17,19 @@ from starid.observation import Observation
 from starid.params import check_flag, check_number, check_whole
 from starid.plugin import Algorithm, Explanation, Identification
 from starid_algorithms.pyramid.algorithm import (SIGMA_FLOOR_PX, PairDatabase, build_pair_database,
-                                                 check_pair_params, hip_of)
+                                                 check_pair_params, d_min_for, hip_of)
 from starid_algorithms.pyramid.kernels import PairTol
 
 from .kernels import VoteRule, identify_kernel, voting_kernel
 
 
-#: the values chosen on :data:`starid.camera.REFERENCE_CAMERA` (Table 4: 10 x 10 deg, 1024 x 1024 px):
-#: guide stars V <= 6.0, doubles closer than 0.05 deg (5.1 px there)
+#: the guide limit chosen on :data:`starid.camera.REFERENCE_CAMERA` (Table 4: 10 x 10 deg, 1024 x 1024 px)
 REF_MAG_LIMIT = 6.0
-REF_D_MIN_DEG = 0.05
 
 
 def pair_limit_rad(camera: Camera, max_pair_deg: float) -> float:
     """The largest pair angle the database stores (as ``build_pair_database`` computes it)."""
     return min(2.0 * camera.half_diagonal_rad, math.radians(max_pair_deg))
-
-
-def derived_d_min_deg(camera: Camera) -> float:
-    """``d_min_deg`` = None: the reference's 0.05 deg scaled by the pixel angle, i.e. the same
-    5.1 px on every camera (exactly 0.05 on the reference camera), at most the 1 deg a pinned value
-    may be (a 170 deg, 1024 px camera would otherwise get 6.5 deg)."""
-    return min(REF_D_MIN_DEG * camera.pixel_ratio, 1.0)
 
 
 def derived_mag_limit(catalog: Catalog, camera: Camera, max_pair_deg: float) -> float:
@@ -66,11 +56,10 @@ def derived_mag_limit(catalog: Catalog, camera: Camera, max_pair_deg: float) -> 
 
 @dataclass(frozen=True, eq=False)
 class VotingDatabase(PairDatabase):
-    """The Pyramid plugin's :class:`PairDatabase` with the guide limit and double-star distance
-    actually used (``mag_limit``/``d_min_deg`` None: derived from the camera), for reports."""
+    """The Pyramid plugin's :class:`PairDatabase` (which keeps the double-star distance used) with
+    the guide limit used (``mag_limit`` None: derived from the camera)."""
 
     mag_limit: float = REF_MAG_LIMIT
-    d_min_deg: float = REF_D_MIN_DEG
 
 
 @dataclass(frozen=True)
@@ -96,8 +85,8 @@ class GeometricVoting(Algorithm):
       Luo et al.'s 20 deg, 1024 px camera: V <= 5.07 -- with V <= 6.0 the chance vote per image
       pair rises from 0.30 (10 deg) to 0.68 and a median of 100 catalog stars tie or beat the
       true star's votes;
-    * ``d_min_deg``: 0.05 deg scaled by the pixel angle, i.e. 5.1 px on every camera
-      (:func:`derived_d_min_deg`); it must exceed eps (4.2 px at 1 px) or a voter with a
+    * ``d_min_deg``: 0.05 deg scaled by the pixel angle, i.e. 5.1 px on every camera, at most 1 deg
+      (pyramid's :func:`~starid_algorithms.pyramid.algorithm.d_min_for`); it must exceed eps (4.2 px at 1 px) or a voter with a
       neighbour within eps cannot be confirmed by the reprojection (0.05 deg is 2.6 px at 20 deg).
 
     Identification (the paper's two rounds):
@@ -186,10 +175,7 @@ class GeometricVoting(Algorithm):
     report_all: bool = True
 
     def __post_init__(self):
-        # the shared checks, with the camera-derived parameters at their reference values when None
-        check_pair_params(SimpleNamespace(**{**self.params(),
-                                             "mag_limit": REF_MAG_LIMIT if self.mag_limit is None else self.mag_limit,
-                                             "d_min_deg": REF_D_MIN_DEG if self.d_min_deg is None else self.d_min_deg}))
+        check_pair_params(self)
         check_whole("max_stars", self.max_stars, 3, 255)
         check_whole("round_voters", self.round_voters, 0, 255)
         check_whole("round_step", self.round_step, 1, 255)
@@ -201,22 +187,21 @@ class GeometricVoting(Algorithm):
         check_number("min_fraction", self.min_fraction, lo=0, hi=1)
 
     def tolerances(self, camera: Camera, database: PairDatabase) -> PairTol:
-        return _bundles(self, camera, database.c_max)[0]
+        return _bundles(self, camera, database.c_max, database.d_min_deg)[0]
 
     def derived(self, catalog: Catalog, camera: Camera) -> "GeometricVoting":
         """``mag_limit`` and ``d_min_deg`` left None set for ``camera`` (:func:`derived_mag_limit`,
-        :func:`derived_d_min_deg`)."""
+        :func:`~starid_algorithms.pyramid.algorithm.d_min_for`)."""
         return dataclasses.replace(
             self, mag_limit=derived_mag_limit(catalog, camera, self.max_pair_deg) if self.mag_limit is None
-            else self.mag_limit, d_min_deg=_d_min_deg(self, camera))
+            else self.mag_limit, d_min_deg=d_min_for(camera) if self.d_min_deg is None else self.d_min_deg)
 
     def build(self, catalog: Catalog, camera: Camera) -> VotingDatabase:
         settled = self.derived(catalog, camera)
         mag_limit, d_min_deg = float(settled.mag_limit), float(settled.d_min_deg)
         db = build_pair_database(catalog, camera, mag_limit, d_min_deg, self.max_pair_deg, self.name,
                                  neighbour_lists=False)
-        return VotingDatabase(**{f.name: getattr(db, f.name) for f in fields(db)}, mag_limit=mag_limit,
-                              d_min_deg=d_min_deg)
+        return VotingDatabase(**{f.name: getattr(db, f.name) for f in fields(db)}, mag_limit=mag_limit)
 
     def rule(self) -> VoteRule:
         return VoteRule(once_per_pair=bool(self.once_per_pair), expected=bool(self.expected_votes),
@@ -226,12 +211,12 @@ class GeometricVoting(Algorithm):
                         report_all=bool(self.report_all))
 
     def _run(self, database: PairDatabase, observation: Observation):
-        tol, sensor, rule = _bundles(self, observation.camera, database.c_max)
+        tol, sensor, rule = _bundles(self, observation.camera, database.c_max, database.d_min_deg)
         return voting_kernel(observation.x_px, observation.y_px, observation.mag, database.kv, database.pairs,
                              database.degree, database.guide_unit, tol, sensor, rule)
 
     def identify(self, database: PairDatabase, observation: Observation) -> Identification:
-        tol, sensor, rule = _bundles(self, observation.camera, database.c_max)
+        tol, sensor, rule = _bundles(self, observation.camera, database.c_max, database.d_min_deg)
         hip, attitude, found = identify_kernel(observation.x_px, observation.y_px, observation.mag, database.kv,
                                                database.pairs, database.degree, database.guide_unit,
                                                database.guide_hip, tol, sensor, rule)
@@ -264,21 +249,19 @@ class GeometricVoting(Algorithm):
 
 
 @lru_cache(maxsize=64)
-def _bundles(algorithm: GeometricVoting, camera: Camera, c_max: float) -> tuple[PairTol, Frame, VoteRule]:
-    """The kernel's bundles for one (algorithm, camera, database chord limit), built once rather
+def _bundles(algorithm: GeometricVoting, camera: Camera, c_max: float,
+             d_min_deg: float) -> tuple[PairTol, Frame, VoteRule]:
+    """The kernel's bundles for one (algorithm, camera, database chord limit and double-star
+    distance), built once rather
     than per image (immutable tuples: sharing them between calls and threads is safe).
 
     eps = ``beta`` sqrt(2) sigma with sigma = max(``sigma_px``, 1 px) / f_px: three standard
     deviations of the difference between an image chord and its catalog chord when each centroid
     has noise ``sigma_px`` per axis."""
     sigma = max(algorithm.sigma_px or 0.0, SIGMA_FLOOR_PX) / camera.f_px
-    tol = PairTol(eps=algorithm.beta * math.sqrt(2.0) * sigma, d_min=rad_to_chord(math.radians(_d_min_deg(algorithm, camera))),
+    tol = PairTol(eps=algorithm.beta * math.sqrt(2.0) * sigma, d_min=rad_to_chord(math.radians(d_min_deg)),
                   c_max=c_max, c_fov=rad_to_chord(camera.half_diagonal_rad), max_window=int(algorithm.max_window),
                   max_stars=int(algorithm.max_stars), max_triads=0, confirm_fraction=float(algorithm.confirm_fraction),
                   min_extra=int(algorithm.min_extra))
     return tol, camera_frame(camera), algorithm.rule()
 
-
-def _d_min_deg(algorithm: GeometricVoting, camera: Camera) -> float:
-    """The double-star distance used on ``camera``: ``d_min_deg``, or derived when None."""
-    return derived_d_min_deg(camera) if algorithm.d_min_deg is None else float(algorithm.d_min_deg)

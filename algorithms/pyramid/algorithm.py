@@ -6,6 +6,7 @@ geometric-voting plugin.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from typing import ClassVar
@@ -26,10 +27,7 @@ from .kernels import PairTol, pyramid_kernel
 #: centroid-noise floor of every window: a noise-free world still gets a 1 px tolerance
 SIGMA_FLOOR_PX = 1.0
 
-#: focal length in pixels of the reference camera (Zhou & Ye's Table 4: 70.2262 mm, 12 um pixels,
-#: 10 x 10 deg), written as :attr:`starid.camera.Camera.f_px` computes it
-REFERENCE_F_PX = 70.2262 * 1000.0 / 12.0
-#: pyramid's double-star separation on the reference camera (5.1 of its pixels)
+#: pyramid's double-star separation on :data:`starid.camera.REFERENCE_CAMERA` (5.1 of its pixels)
 D_MIN_REFERENCE_DEG = 0.05
 #: largest double-star separation (deg): the parameter's upper bound, and the cap of the derived value
 D_MIN_MAX_DEG = 1.0
@@ -44,7 +42,7 @@ def d_min_for(camera: Camera) -> float:
     ``D_MIN_MAX_DEG`` (the parameter's own upper bound), which only binds on fish-eye lenses (f below
     293 px: fields wider than about 121 deg on 1024 px), where 5.11 px would clear the sky of guide stars.
     """
-    return min(D_MIN_MAX_DEG, D_MIN_REFERENCE_DEG * (REFERENCE_F_PX / camera.f_px))
+    return min(D_MIN_MAX_DEG, D_MIN_REFERENCE_DEG * camera.pixel_ratio)
 
 
 @dataclass(frozen=True, eq=False)
@@ -123,7 +121,8 @@ def build_pair_database(catalog: Catalog, camera: Camera, mag_limit: float, d_mi
 
 def check_pair_params(algo) -> None:
     """Checks of the parameters both pair-angle plugins share."""
-    check_number("mag_limit", algo.mag_limit)
+    if algo.mag_limit is not None:                  # None: derived from the camera (geometric voting)
+        check_number("mag_limit", algo.mag_limit)
     if algo.sigma_px is not None:
         check_number("sigma_px", algo.sigma_px, lo=0)
     check_number("beta", algo.beta, lo=0, lo_open=True)
@@ -179,9 +178,9 @@ class Pyramid(Algorithm):
       ``sigma_px`` follows the simulator's centroid noise when left None);
     * detections closer than ``d_min_deg`` to another, and guide stars with such a neighbour,
       are not used (double stars; reconstructed, as in starid's PTP); left None it is derived from
-      the camera in ``build`` as a fixed 5.11 px (0.05 deg on the Table 4 camera, scaled by the
-      pixel angle: :func:`d_min_for`), so that it stays wider than the 4.24 px reprojection
-      radius of the 1 px window floor; the value used is the database's ``d_min_deg``;
+      the camera (:meth:`derived`) as a fixed 5.11 px (0.05 deg on the Table 4 camera, scaled by
+      the pixel angle: :func:`d_min_for`), so that it stays wider than the 4.24 px reprojection
+      radius of the 1 px window floor; the value used is also the database's ``d_min_deg``;
     * triads are formed from the ``max_stars`` brightest detections (reconstructed; the paper
       uses its input order, starid needs an order independent of the input's);
     * ``unique_triangle=False`` (LOST's reading) tries every candidate triangle of a triad and
@@ -226,8 +225,12 @@ class Pyramid(Algorithm):
                        max_stars=int(self.max_stars), max_triads=int(self.max_triads),
                        confirm_fraction=float(self.confirm_fraction), min_extra=int(self.min_extra))
 
+    def derived(self, catalog: Catalog, camera: Camera) -> "Pyramid":
+        """``d_min_deg`` left None set to :func:`d_min_for` ``camera``."""
+        return self if self.d_min_deg is not None else dataclasses.replace(self, d_min_deg=d_min_for(camera))
+
     def build(self, catalog: Catalog, camera: Camera) -> PairDatabase:
-        d_min_deg = d_min_for(camera) if self.d_min_deg is None else self.d_min_deg
+        d_min_deg = self.derived(catalog, camera).d_min_deg
         return build_pair_database(catalog, camera, self.mag_limit, d_min_deg, self.max_pair_deg, self.name)
 
     def _run(self, database: PairDatabase, observation: Observation):
