@@ -112,3 +112,13 @@ def test_conformance_holds_derived_to_its_contract(cls, message):
 def test_conformance_passes_a_plugin_that_derives_nothing_and_one_that_derives_right():
     assert check_algorithm(Plain, checks=["derived"]) == ["derived"]
     assert check_algorithm(FieldSized, checks=["derived"]) == ["derived"]
+
+
+def test_info_names_the_derived_value_on_the_default_camera(capsys):
+    from starid.cli import main
+
+    assert main(["info", "ptp", "--no-build"]) == 0
+    lines = {line.split()[0]: line for line in capsys.readouterr().out.splitlines() if line.startswith("  d_min_deg")
+             or line.startswith("  sigma_px")}
+    assert "(None: derived from the camera; 0.05 on the default one)" in lines["d_min_deg"]
+    assert "(None: follows the simulator sigma_px)" in lines["sigma_px"]

@@ -10,6 +10,7 @@ import typing
 from ..catalog import load_hipparcos
 from ..experiment.spec import Variant
 from ..camera import Camera
+from ..simulate import SimConfig
 from ..registry import algorithm_info, available_algorithms
 
 
@@ -43,17 +44,30 @@ def meaning_of(cls, name: str) -> str:
     return ""
 
 
+def _derived_defaults(cls) -> dict:
+    """The values :meth:`Algorithm.derived` gives the parameters left None, on the default camera and
+    the embedded catalog after following the default simulator; {} when it cannot be made."""
+    try:
+        return cls().resolved(SimConfig()).derived(load_hipparcos(), Camera()).params()
+    except Exception:   # a plugin whose derivation fails still gets its parameter list
+        return {}
+
+
 def parameter_table(cls) -> list[dict]:
-    """Each dataclass field of an algorithm: name, type, default, unit, what ``follows`` it, meaning."""
+    """Each dataclass field of an algorithm: name, type, default, unit, what ``follows`` it, the value
+    ``derived`` gives it on the default camera when it defaults to None, meaning."""
     hints = typing.get_type_hints(cls)
+    derived = _derived_defaults(cls)
     rows = []
     for f in dataclasses.fields(cls):
         kind = hints.get(f.name, object)
         type_text = getattr(kind, "__name__", None) or str(kind).replace("typing.", "")
         follows = cls.follows.get(f.name)
         default = f.default if f.default is not dataclasses.MISSING else "(required)"
+        value = derived.get(f.name) if default is None and not follows else None
         rows.append({"name": f.name, "type": type_text, "default": default, "unit": unit_of(f.name),
-                     "follows": f"simulator {follows}" if follows else "", "meaning": meaning_of(cls, f.name)})
+                     "follows": f"simulator {follows}" if follows else "", "derived": value,
+                     "meaning": meaning_of(cls, f.name)})
     return rows
 
 
@@ -69,6 +83,8 @@ def cmd_info(args) -> int:
     for r in rows:
         unit = f" {r['unit']}" if r["unit"] else ""
         tail = f"  (None: follows the {r['follows']})" if r["follows"] else ""
+        if r["derived"] is not None:
+            tail = f"  (None: derived from the camera; {r['derived']:.6g} on the default one)"
         print(f"  {r['name']:<{width}}  {r['type']:<14} default {r['default']!r}{unit}{tail}")
         if r["meaning"]:
             print(f"  {'':<{width}}  {r['meaning'][:300]}")
