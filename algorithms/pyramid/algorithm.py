@@ -14,7 +14,7 @@ from typing import ClassVar
 import numpy as np
 from scipy.spatial import cKDTree
 
-from starid.camera import Camera
+from starid.camera import REFERENCE_CAMERA, Camera
 from starid.catalog import Catalog
 from starid.errors import ConfigError
 from starid.kernels import KVector, camera_frame, kvector_make, rad_to_chord
@@ -22,7 +22,7 @@ from starid.observation import Observation
 from starid.params import check_flag, check_number, check_whole
 from starid.plugin import Algorithm, Database, Explanation, Identification
 
-from .kernels import PairTol, pyramid_kernel
+from .kernels import TRIANGLE_CAP, PairTol, pyramid_kernel
 
 #: centroid-noise floor of every window: a noise-free world still gets a 1 px tolerance
 SIGMA_FLOOR_PX = 1.0
@@ -43,6 +43,26 @@ def d_min_for(camera: Camera) -> float:
     293 px: fields wider than about 121 deg on 1024 px), where 5.11 px would clear the sky of guide stars.
     """
     return min(D_MIN_MAX_DEG, D_MIN_REFERENCE_DEG * camera.pixel_ratio)
+
+
+def window_eps(camera: Camera, sigma_px: float | None, beta: float) -> float:
+    """Half-width of the pair windows (radians, ~chord): ``beta`` sqrt(2) max(``sigma_px``, 1 px) / f."""
+    return beta * math.sqrt(2.0) * max(sigma_px or 0.0, SIGMA_FLOOR_PX) / camera.f_px
+
+
+def max_triangles_for(camera: Camera, sigma_px: float | None, beta: float, max_window: int) -> int:
+    """Pyramid's default cap on the catalog triangles of one triad: ``TRIANGLE_CAP`` (64) scaled with eps^3.
+
+    A triad's chance catalog triangles grow as eps^3 (each of the three sides is a window of width
+    2 eps over the same guide-star density): 64 is the cap at the reference camera's 1 px window
+    floor, and the cap follows the window to keep cutting the same tail -- exactly 64 there, 512 at
+    2 px on the reference camera, 523 at 1 px and 4,191 at 2 px on a 20 deg / 1024 px camera (whose
+    true triads match a median of about 330 catalog triangles at 2 px).
+    Never below 64, and at most ``max_window`` (the work bound per pair window; only wide-angle
+    cameras reach it).
+    """
+    ratio = window_eps(camera, sigma_px, beta) / window_eps(REFERENCE_CAMERA, None, 3.0)
+    return int(min(max(TRIANGLE_CAP, math.floor(TRIANGLE_CAP * ratio ** 3 + 1e-9)), max(max_window, TRIANGLE_CAP)))
 
 
 @dataclass(frozen=True, eq=False)
@@ -192,7 +212,13 @@ class Pyramid(Algorithm):
     * ``accept_triangle`` (the paper's n = 3 case): with exactly three usable stars a unique
       triangle is reported without a fourth star (off by default: no confirmation possible);
     * ``max_window``: an image pair whose window holds more catalog pairs is not used (keeps
-      wide-angle cameras fast).
+      wide-angle cameras fast);
+    * ``max_triangles``: a triad matching more catalog triangles is skipped; left None it is derived
+      (:meth:`derived`, :func:`max_triangles_for`) as 64 scaled with eps^3, since chance triangles
+      grow as eps^3: 64 at the reference camera's 1 px window, ~4,200 at 2 px on a 20 deg / 1024 px
+      camera, whose true triads match ~330 catalog triangles (a fixed 64 skipped every triad there);
+    * in the image, a detection closer than max(``d_min_deg``, eps) to another is set aside: within
+      eps, reprojection sees two detections near its prediction and can never confirm it.
     """
 
     name: ClassVar[str] = "pyramid"
@@ -206,6 +232,7 @@ class Pyramid(Algorithm):
     max_stars: int = 40
     max_triads: int = 1000
     max_window: int = 10000
+    max_triangles: int | None = None
     unique_triangle: bool = False
     confirm_fraction: float = 0.5
     min_extra: int = 1
@@ -214,20 +241,30 @@ class Pyramid(Algorithm):
     def __post_init__(self):
         check_pair_params(self)
         check_whole("max_triads", self.max_triads, 1)
+        if self.max_triangles is not None:
+            check_whole("max_triangles", self.max_triangles, 1)
         check_flag("unique_triangle", self.unique_triangle)
         check_flag("accept_triangle", self.accept_triangle)
 
     def tolerances(self, camera: Camera, database: PairDatabase) -> PairTol:
-        sigma = max(self.sigma_px or 0.0, SIGMA_FLOOR_PX) / camera.f_px
         half_diag = camera.half_diagonal_rad
-        return PairTol(eps=self.beta * math.sqrt(2.0) * sigma, d_min=rad_to_chord(math.radians(database.d_min_deg)),
+        eps = window_eps(camera, self.sigma_px, self.beta)
+        # a detection with another one within eps of it can never be confirmed by reprojection (two
+        # detections near its prediction), so the image's isolation radius is at least eps
+        return PairTol(eps=eps, d_min=max(rad_to_chord(math.radians(database.d_min_deg)), eps),
                        c_max=database.c_max, c_fov=rad_to_chord(half_diag), max_window=int(self.max_window),
                        max_stars=int(self.max_stars), max_triads=int(self.max_triads),
                        confirm_fraction=float(self.confirm_fraction), min_extra=int(self.min_extra))
 
     def derived(self, catalog: Catalog, camera: Camera) -> "Pyramid":
-        """``d_min_deg`` left None set to :func:`d_min_for` ``camera``."""
-        return self if self.d_min_deg is not None else dataclasses.replace(self, d_min_deg=d_min_for(camera))
+        """``d_min_deg`` left None set to :func:`d_min_for` ``camera``, ``max_triangles`` left None to
+        :func:`max_triangles_for` the camera and this window."""
+        fill = {}
+        if self.d_min_deg is None:
+            fill["d_min_deg"] = d_min_for(camera)
+        if self.max_triangles is None:
+            fill["max_triangles"] = max_triangles_for(camera, self.sigma_px, self.beta, self.max_window)
+        return dataclasses.replace(self, **fill) if fill else self
 
     def build(self, catalog: Catalog, camera: Camera) -> PairDatabase:
         d_min_deg = self.derived(catalog, camera).d_min_deg
@@ -238,7 +275,8 @@ class Pyramid(Algorithm):
         db = database
         return pyramid_kernel(observation.x_px, observation.y_px, observation.mag, db.kv, db.pairs, db.nbr,
                               db.nbr_chord, db.nbr_start, db.guide_unit, self.tolerances(cam, database),
-                              camera_frame(cam), self.unique_triangle, self.accept_triangle)
+                              camera_frame(cam), self.unique_triangle, self.accept_triangle,
+                              self.max_triangles or max_triangles_for(cam, self.sigma_px, self.beta, self.max_window))
 
     def identify(self, database: PairDatabase, observation: Observation) -> Identification:
         rows, attitude, _, _ = self._run(database, observation)

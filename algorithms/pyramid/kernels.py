@@ -19,7 +19,9 @@ from numba import njit
 
 from starid.kernels import backproject_px, chord_rows, kvector_query, order_by, reproject_assign, wahba_rows
 
-#: at most this many catalog triangles are kept per image triad (more = ambiguous anyway)
+#: catalog triangles kept per image triad on :data:`starid.camera.REFERENCE_CAMERA` at the 1 px window
+#: floor (a triad matching more is skipped); scaled with the window's volume on other cameras and noise
+#: levels (``starid_algorithms.pyramid.algorithm.max_triangles_for``)
 TRIANGLE_CAP = 64
 
 
@@ -272,7 +274,7 @@ def _confirm(v_cam, pyr_star, pyr_row, guide_unit, tol, cam, rows):
 
 @njit(cache=True)
 def pyramid_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_unit, tol, cam, unique_triangle,
-                   accept_triangle):
+                   accept_triangle, max_triangles):
     """Pyramid identification of one image. Returns ``(rows, attitude, pyramid, n_triads)``.
 
     ``rows[s]`` is the guide row of detection ``s`` (-1 = unidentified); ``attitude`` the ICRS ->
@@ -286,8 +288,9 @@ def pyramid_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_
     3. triads in Mortari's order: ``for dj: for dk: for i: j = i + dj, k = j + dk``, so that
        consecutive triads share few stars and a spurious star does not spoil a whole run;
        at most ``tol.max_triads`` of them;
-    4. the triad's catalog triangles (:func:`triad_triangles`, with the chirality test);
-       ``unique_triangle``: go on only if exactly one survives (the paper);
+    4. the triad's catalog triangles (:func:`triad_triangles`, with the chirality test); a triad
+       matching more than ``max_triangles`` is skipped; ``unique_triangle``: go on only if exactly
+       one survives (the paper);
     5. the fourth star (:func:`fourth_star`) completes each candidate triangle's pyramid;
     6. attitude, the remaining stars by reprojection and the confirmation test
        (:func:`_confirm`) for each candidate pyramid; the triad is accepted when exactly one of
@@ -309,7 +312,7 @@ def pyramid_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_
     cap = 2 * max(tol.max_window, 1)
     work = (np.full(n_guide, -1, dtype=np.int32), np.zeros(n_guide, dtype=np.int32),
             np.empty(cap, dtype=np.int32), np.empty(cap, dtype=np.int32))
-    tri = np.empty((TRIANGLE_CAP, 3), dtype=np.int64)
+    tri = np.empty((max(max_triangles, 1), 3), dtype=np.int64)
     tri_pos = np.empty(3, dtype=np.int64)
     pyr_star = np.empty(4, dtype=np.int64)
     cand_star = np.empty(4, dtype=np.int64)
@@ -328,7 +331,7 @@ def pyramid_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_
                     continue
                 n_tri = triad_triangles(v_cam, sel[i], sel[j], sel[k], (start[i, j], stop[i, j]),
                                         (start[i, k], stop[i, k]), pairs, guide_unit, tol.eps, work, n_triads, tri)
-                if n_tri == 0 or n_tri > TRIANGLE_CAP or (unique_triangle and n_tri != 1):
+                if n_tri == 0 or n_tri > max_triangles or (unique_triangle and n_tri != 1):
                     continue
                 tri_pos[0] = i
                 tri_pos[1] = j

@@ -11,7 +11,7 @@ import pytest
 
 from starid import Camera, ConfigError, Observation, SimConfig, Simulator
 from starid_algorithms.pyramid import Pyramid
-from starid_algorithms.pyramid.algorithm import d_min_for
+from starid_algorithms.pyramid.algorithm import d_min_for, max_triangles_for
 from starid_algorithms.pyramid.kernels import neighbours_within, select_stars, triad_triangles
 from starid_algorithms.pyramid.testing import noisy_results, wide_field_seconds
 
@@ -147,7 +147,7 @@ def test_three_stars_and_paper_literal_variant(catalog, camera, db):
 
 @pytest.mark.parametrize("kwargs", [{"sigma_px": -1}, {"beta": 0}, {"max_stars": 2}, {"max_triads": 0},
                                     {"unique_triangle": 1}, {"confirm_fraction": 1.5}, {"max_pair_deg": 0},
-                                    {"d_min_deg": "x"}])
+                                    {"d_min_deg": "x"}, {"max_triangles": 0}])
 def test_invalid_parameters(kwargs):
     with pytest.raises(ConfigError):
         Pyramid(**kwargs)
@@ -173,8 +173,10 @@ def test_double_star_separation_follows_the_pixel(db, catalog, luo_camera):
     eps_px = Pyramid().tolerances(luo_camera, db).eps * luo_camera.f_px
     assert d_min_px == pytest.approx(5.107, abs=1e-3) and eps_px == pytest.approx(4.243, abs=1e-3)
     pinned = Pyramid(d_min_deg=0.05)
-    assert pinned.tolerances(luo_camera, pinned.build(catalog, luo_camera)).d_min == pytest.approx(
-        2 * math.sin(math.radians(0.05) / 2))
+    pinned_db = pinned.build(catalog, luo_camera)
+    assert pinned_db.d_min_deg == 0.05                  # the catalog is cut at the pinned value
+    tol = pinned.tolerances(luo_camera, pinned_db)      # the image's isolation radius never below eps
+    assert tol.d_min == tol.eps > 2 * math.sin(math.radians(0.05) / 2)
 
 
 def test_luo_camera_images_the_old_rules_missed(catalog, luo_camera):
@@ -188,6 +190,40 @@ def test_luo_camera_images_the_old_rules_missed(catalog, luo_camera):
     db = algo.build(catalog, luo_camera)
     sim = Simulator(catalog, luo_camera, SimConfig(mag_limit=6.5, sky_mag_limit=6.5, min_stars=3), seed=7)
     for trial in (10, 15, 90):
+        obs = sim.observation(trial)
+        hip = algo.identify(db, obs).hip
+        found = hip >= 0
+        assert found.sum() >= 10, trial
+        assert np.array_equal(hip[found], obs.truth_hip[found]), trial
+
+
+def test_triangle_cap_follows_the_window(camera, luo_camera):
+    # 64 at the reference camera's 1 px window floor, scaled with eps^3, bounded by max_window
+    assert max_triangles_for(camera, None, 3.0, 10000) == 64 == max_triangles_for(camera, 1.0, 3.0, 10000)
+    assert max_triangles_for(camera, 2.0, 3.0, 10000) == 512
+    assert max_triangles_for(luo_camera, 2.0, 3.0, 10000) > 4000
+    assert max_triangles_for(Camera.from_fov(170.0), 2.0, 3.0, 10000) == 10000
+    algo = Pyramid(sigma_px=2.0).derived(None, luo_camera)
+    assert algo.max_triangles == max_triangles_for(luo_camera, 2.0, 3.0, 10000)
+    assert Pyramid(max_triangles=7).derived(None, luo_camera).max_triangles == 7
+    assert algo.derived(None, luo_camera) == algo
+    # the image's isolation radius is at least the reprojection radius eps (8.49 px here, d_min 5.11 px)
+    db_like = type("D", (), {"c_max": 0.4, "d_min_deg": d_min_for(luo_camera)})()
+    tol = algo.tolerances(luo_camera, db_like)
+    assert tol.d_min == tol.eps and tol.eps * luo_camera.f_px == pytest.approx(8.485, abs=1e-3)
+    assert Pyramid().tolerances(luo_camera, db_like).d_min == pytest.approx(
+        2 * math.sin(math.radians(d_min_for(luo_camera)) / 2))
+
+
+def test_luo_camera_two_pixel_noise(catalog, luo_camera):
+    """Luo's camera at 2 px centroid noise (eps = 8.49 px = 0.167 deg): a true triad matches a median
+    of ~330 catalog triangles, so a fixed cap of 64 skipped every triad and these four seed-7 images
+    (all unidentified by the old code, after its 1,000 triads) went without a result."""
+    algo = Pyramid(sigma_px=2.0)
+    db = algo.build(catalog, luo_camera)
+    sim = Simulator(catalog, luo_camera, SimConfig(sigma_px=2.0, mag_limit=6.5, sky_mag_limit=6.5, min_stars=3),
+                    seed=7)
+    for trial in (0, 1, 2, 5):
         obs = sim.observation(trial)
         hip = algo.identify(db, obs).hip
         found = hip >= 0
