@@ -17,7 +17,8 @@ from starid.observation import Observation
 from starid.params import check_flag, check_number, check_whole
 from starid.plugin import Algorithm, Explanation, Identification
 from starid_algorithms.pyramid.algorithm import (SIGMA_FLOOR_PX, PairDatabase, build_pair_database,
-                                                 check_pair_params, d_min_for, hip_of)
+                                                 check_pair_params, d_min_for, hip_of,
+                                                 pair_limit_rad)
 from starid_algorithms.pyramid.kernels import PairTol
 
 from .kernels import VoteRule, identify_kernel, voting_kernel
@@ -25,11 +26,6 @@ from .kernels import VoteRule, identify_kernel, voting_kernel
 
 #: the guide limit chosen on :data:`starid.camera.REFERENCE_CAMERA` (Table 4: 10 x 10 deg, 1024 x 1024 px)
 REF_MAG_LIMIT = 6.0
-
-
-def pair_limit_rad(camera: Camera, max_pair_deg: float) -> float:
-    """The largest pair angle the database stores (as ``build_pair_database`` computes it)."""
-    return min(2.0 * camera.half_diagonal_rad, math.radians(max_pair_deg))
 
 
 def derived_mag_limit(catalog: Catalog, camera: Camera, max_pair_deg: float) -> float:

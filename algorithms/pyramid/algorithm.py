@@ -45,6 +45,11 @@ def d_min_for(camera: Camera) -> float:
     return min(D_MIN_MAX_DEG, D_MIN_REFERENCE_DEG * camera.pixel_ratio)
 
 
+def pair_limit_rad(camera: Camera, max_pair_deg: float) -> float:
+    """The largest pair angle the pair database stores: the field's diagonal, at most ``max_pair_deg``."""
+    return min(2.0 * camera.half_diagonal_rad, math.radians(max_pair_deg))
+
+
 def window_eps(camera: Camera, sigma_px: float | None, beta: float) -> float:
     """Half-width of the pair windows (radians, ~chord): ``beta`` sqrt(2) max(``sigma_px``, 1 px) / f."""
     return beta * math.sqrt(2.0) * max(sigma_px or 0.0, SIGMA_FLOOR_PX) / camera.f_px
@@ -112,7 +117,7 @@ def build_pair_database(catalog: Catalog, camera: Camera, mag_limit: float, d_mi
         raise ConfigError(f"{who}: only {len(guide)} usable catalog stars have V <= {mag_limit}")
     by_z = np.lexsort((guide.hip, guide.unit_icrs[:, 2]))
     unit = np.ascontiguousarray(guide.unit_icrs[by_z])
-    theta_max = min(2.0 * camera.half_diagonal_rad, math.radians(max_pair_deg))
+    theta_max = pair_limit_rad(camera, max_pair_deg)
     c_max = rad_to_chord(theta_max)
     pairs = cKDTree(unit).query_pairs(c_max, output_type="ndarray").astype(np.int64)
     if len(pairs) < 2:
