@@ -9,7 +9,7 @@ from typing import ClassVar
 import numpy as np
 from scipy.spatial import cKDTree
 
-from starid.camera import Camera
+from starid.camera import REFERENCE_CAMERA, Camera
 from starid.catalog import Catalog
 from starid.errors import ConfigError
 from starid.params import check_choice, check_flag, check_number, check_whole
@@ -218,6 +218,11 @@ class PVector(Algorithm):
     """Detections (triangle included) the attitude must explain, at least."""
     check_fraction: float = 0.5
     """... and at least this fraction of the detections."""
+    chance_tail: float = 0.05
+    """The confirmation count actually required is max(``k_min``, k), k the smallest count a wrong
+    correspondence reaches by chance with probability <= ``chance_tail`` (Poisson, mean n_obs n_guide
+    eps_d^2 / pi: :func:`kernels.chance_k_min`); 0 = ``k_min`` alone. 2 on the Table 4 camera at 1 px
+    (unchanged), 4 on a 20 deg, 1024 px camera at 2 px."""
 
     def __post_init__(self):
         check_number("mag_limit", self.mag_limit)
@@ -247,6 +252,7 @@ class PVector(Algorithm):
         check_number("check_mag_limit", self.check_mag_limit)
         check_whole("check_min_stars", self.check_min_stars, 4)
         check_number("check_fraction", self.check_fraction, lo=0, hi=1)
+        check_number("chance_tail", self.chance_tail, lo=0, hi=1)
         tol = K.Tolerances(
             mag_limit=float(self.mag_limit),
             c_rmin=rad_to_chord(math.radians(self.min_sep_deg)),
@@ -269,7 +275,9 @@ class PVector(Algorithm):
             hypotheses=int(self.hypotheses),
             image_neighbours=int(self.image_neighbours),
             check_min_stars=int(self.check_min_stars),
-            check_fraction=float(self.check_fraction))
+            check_fraction=float(self.check_fraction),
+            chance_tail=float(self.chance_tail),
+            eps_ref=float(self.beta) * math.sqrt(2.0) * SIGMA_FLOOR_PX / REFERENCE_CAMERA.f_px)
         object.__setattr__(self, "_tol", tol)
 
     # ------------------------------------------------------------------ build
