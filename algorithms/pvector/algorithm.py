@@ -175,7 +175,8 @@ class PVector(Algorithm):
     beta: float = 3.0
     """Tolerance factor (3 sigma)."""
     k_min: int = 2
-    """Other stars a correspondence must identify to be confirmed (, reconstructed)."""
+    """Other stars a correspondence must identify to be confirmed (reconstructed); raised per image when
+    a wrong correspondence would reach it by chance (``chance_tail``)."""
     side_order: str = "sorted"
     """'sorted' (d ascending, reconstructed default) or 'role' (S-N1, S-N2, N1-N2)."""
     neighbour_rule: str = "brightest"
@@ -188,7 +189,10 @@ class PVector(Algorithm):
     """Only the brightest ``max_stars`` detections take part (a time bound for crowded or wide images)."""
     max_candidates: int = 16
     """A triangle matching more database triangles than this is skipped (uninformative; never binds on
-    the Table 4 camera: 1,000 real-sky trials identical with 64; a 40 deg field 30x faster)."""
+    the Table 4 camera: 1,000 real-sky trials identical with 64; a 40 deg field 30x faster). The cap used is
+    ``max_candidates * (eps_d / eps_ref)^3`` when eps_d is wider than eps_ref, the tolerance of the reference
+    camera (``starid.camera.REFERENCE_CAMERA``) at 1 px: the window's volume in side space grows as eps_d^3,
+    and so does the number of triangles it holds by chance (1,050 on a 20 deg, 1024 px camera at 2 px)."""
     confirm_fraction: float = 0.5
     """The attitude must find at least this fraction of the guide stars it puts in the image (0: off)."""
     triangles_per_star: int = 5
