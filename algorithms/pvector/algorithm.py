@@ -9,7 +9,7 @@ from typing import ClassVar
 import numpy as np
 from scipy.spatial import cKDTree
 
-from starid.camera import Camera
+from starid.camera import REFERENCE_CAMERA, Camera
 from starid.catalog import Catalog
 from starid.errors import ConfigError
 from starid.params import check_choice, check_flag, check_number, check_whole
@@ -175,7 +175,8 @@ class PVector(Algorithm):
     beta: float = 3.0
     """Tolerance factor (3 sigma)."""
     k_min: int = 2
-    """Other stars a correspondence must identify to be confirmed (, reconstructed)."""
+    """Other stars a correspondence must identify to be confirmed (reconstructed); raised per image when
+    a wrong correspondence would reach it by chance (``chance_tail``)."""
     side_order: str = "sorted"
     """'sorted' (d ascending, reconstructed default) or 'role' (S-N1, S-N2, N1-N2)."""
     neighbour_rule: str = "brightest"
@@ -188,7 +189,10 @@ class PVector(Algorithm):
     """Only the brightest ``max_stars`` detections take part (a time bound for crowded or wide images)."""
     max_candidates: int = 16
     """A triangle matching more database triangles than this is skipped (uninformative; never binds on
-    the Table 4 camera: 1,000 real-sky trials identical with 64; a 40 deg field 30x faster)."""
+    the Table 4 camera: 1,000 real-sky trials identical with 64; a 40 deg field 30x faster). The cap used is
+    ``max_candidates * (eps_d / eps_ref)^3`` when eps_d is wider than eps_ref, the tolerance of the reference
+    camera (``starid.camera.REFERENCE_CAMERA``) at 1 px: the window's volume in side space grows as eps_d^3,
+    and so does the number of triangles it holds by chance (1,050 on a 20 deg, 1024 px camera at 2 px)."""
     confirm_fraction: float = 0.5
     """The attitude must find at least this fraction of the guide stars it puts in the image (0: off)."""
     triangles_per_star: int = 5
@@ -218,6 +222,11 @@ class PVector(Algorithm):
     """Detections (triangle included) the attitude must explain, at least."""
     check_fraction: float = 0.5
     """... and at least this fraction of the detections."""
+    chance_tail: float = 0.05
+    """The confirmation count actually required is max(``k_min``, k), k the smallest count a wrong
+    correspondence reaches by chance with probability <= ``chance_tail`` (Poisson, mean n_obs n_guide
+    eps_d^2 / pi: :func:`kernels.chance_k_min`); 0 = ``k_min`` alone. 2 on the Table 4 camera at 1 px
+    (unchanged), 4 on a 20 deg, 1024 px camera at 2 px."""
 
     def __post_init__(self):
         check_number("mag_limit", self.mag_limit)
@@ -247,6 +256,7 @@ class PVector(Algorithm):
         check_number("check_mag_limit", self.check_mag_limit)
         check_whole("check_min_stars", self.check_min_stars, 4)
         check_number("check_fraction", self.check_fraction, lo=0, hi=1)
+        check_number("chance_tail", self.chance_tail, lo=0, hi=1)
         tol = K.Tolerances(
             mag_limit=float(self.mag_limit),
             c_rmin=rad_to_chord(math.radians(self.min_sep_deg)),
@@ -269,7 +279,9 @@ class PVector(Algorithm):
             hypotheses=int(self.hypotheses),
             image_neighbours=int(self.image_neighbours),
             check_min_stars=int(self.check_min_stars),
-            check_fraction=float(self.check_fraction))
+            check_fraction=float(self.check_fraction),
+            chance_tail=float(self.chance_tail),
+            eps_ref=float(self.beta) * math.sqrt(2.0) * SIGMA_FLOOR_PX / REFERENCE_CAMERA.f_px)
         object.__setattr__(self, "_tol", tol)
 
     # ------------------------------------------------------------------ build

@@ -76,6 +76,8 @@ class Tolerances(NamedTuple):
     image_neighbours: int
     check_min_stars: int
     check_fraction: float
+    chance_tail: float
+    eps_ref: float
 
 
 @njit(cache=True)
@@ -249,6 +251,32 @@ def match_extras(oc, tri_obs, cat_rows, unit, eps, c_band, out_row):
 
 
 @njit(cache=True)
+def chance_k_min(n_obs, n_guide, eps, tail):
+    """Smallest k with P(X >= k) <= ``tail`` for X ~ Poisson(lam), the number of chance distance
+    matches a WRONG correspondence collects in :func:`match_extras` (0 when ``tail`` <= 0).
+
+    A guide star that a wrong correspondence tests matches an observed star by chance when the
+    detection lies in the region where its three chords agree within eps, about (2 eps)^2 = 4 eps^2
+    sr; the guide stars tested cover the image with the sky density n_guide / (4 pi), so
+    lam = n_obs * n_guide / (4 pi) * 4 eps^2 = n_obs * n_guide * eps^2 / pi. On the Table 4 camera
+    at 1 px (eps = 3 sqrt(2) px = 150 arcsec, 5,000 guide stars) lam <= 0.09 even for 100 detections
+    and the rule gives k <= 2 (k_min unchanged); on a 20 deg, 1024 px camera at 2 px (eps = 600
+    arcsec) with 86 detections lam = 1.2, and a fixed k_min = 2 is reached by chance.
+    """
+    if tail <= 0.0:
+        return 0
+    lam = n_obs * n_guide * eps * eps / math.pi
+    term = math.exp(-lam)     # P(X = 0)
+    below = 0.0               # P(X < k)
+    k = 0
+    while 1.0 - below > tail and k < 1000:
+        below += term
+        k += 1
+        term *= lam / k
+    return k
+
+
+@njit(cache=True)
 def identify_rows(x_px, y_px, mag, frame, db, tol):
     """``(hip, attitude, ok, triangle)``: catalog id per observed star (-1 = unidentified, input
     order), the ICRS -> camera attitude, whether the image was identified, and the input indices of
@@ -284,7 +312,12 @@ def identify_rows(x_px, y_px, mag, frame, db, tol):
     # per-side tolerance: angle noise sqrt(2) sigma; key tolerance ||p||_1 eps_d
     eps = tol.beta * math.sqrt(2.0) * tol.sigma_px / f_px
     eps_key = (abs(p_axis[0]) + abs(p_axis[1]) + abs(p_axis[2])) * eps
-    k_min = tol.k_min
+    # the candidate cap counts side matches in a window of volume ~ eps^3: scaled to the same density
+    # excess as on the reference camera at 1 px (unchanged there and for any smaller window)
+    max_candidates = tol.max_candidates
+    if eps > tol.eps_ref > 0.0:
+        max_candidates = max(max_candidates, int(tol.max_candidates * (eps / tol.eps_ref) ** 3))
+    k_min = max(tol.k_min, chance_k_min(n, unit.shape[0], eps, tol.chance_tail))
     sorted_sides = tol.sorted_sides
     brightest = tol.brightest
     centre_first = tol.centre_first
@@ -356,7 +389,7 @@ def identify_rows(x_px, y_px, mag, frame, db, tol):
                     if (abs(step * tri_sides[t, 0] - d_obs[0]) <= eps and abs(step * tri_sides[t, 1] - d_obs[1]) <= eps
                             and abs(step * tri_sides[t, 2] - d_obs[2]) <= eps):
                         n_side += 1
-                if n_side > tol.max_candidates:
+                if n_side > max_candidates:
                     continue    # an uninformative triangle: its window is far wider than the catalog's spacing
                 n_found = 0
                 ambiguous = False
