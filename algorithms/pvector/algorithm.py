@@ -193,6 +193,10 @@ class PVector(Algorithm):
     ``max_candidates * (eps_d / eps_ref)^3`` when eps_d is wider than eps_ref, the tolerance of the reference
     camera (``starid.camera.REFERENCE_CAMERA``) at 1 px: the window's volume in side space grows as eps_d^3,
     and so does the number of triangles it holds by chance (1,050 on a 20 deg, 1024 px camera at 2 px)."""
+    max_candidates_wide: int = 64
+    """The scaled cap never exceeds this. It is a time bound, tuned on seed 7 (Luo's camera at 2 px, 100
+    images; a bound of 16 / 32 / 64 / 128 / 256 identified 25 / 77 / 94 / 93 / 93 %, median 17 / 27 / 15 / 73 /
+    62 ms): beyond 64 the extra triangles are almost all chance matches, each checked against the whole image."""
     confirm_fraction: float = 0.5
     """The attitude must find at least this fraction of the guide stars it puts in the image (0: off)."""
     triangles_per_star: int = 5
@@ -245,6 +249,7 @@ class PVector(Algorithm):
         check_flag("disc_inside_only", self.disc_inside_only)
         check_whole("max_stars", self.max_stars, 3, 10_000)
         check_whole("max_candidates", self.max_candidates, 1)
+        check_whole("max_candidates_wide", self.max_candidates_wide, 1)
         check_number("confirm_fraction", self.confirm_fraction, lo=0, hi=1)
         check_whole("triangles_per_star", self.triangles_per_star, 2, 10)
         check_choice("search", self.search, SEARCHES)
@@ -281,7 +286,8 @@ class PVector(Algorithm):
             check_min_stars=int(self.check_min_stars),
             check_fraction=float(self.check_fraction),
             chance_tail=float(self.chance_tail),
-            eps_ref=float(self.beta) * math.sqrt(2.0) * SIGMA_FLOOR_PX / REFERENCE_CAMERA.f_px)
+            eps_ref=float(self.beta) * math.sqrt(2.0) * SIGMA_FLOOR_PX / REFERENCE_CAMERA.f_px,
+            max_candidates_wide=int(self.max_candidates_wide))
         object.__setattr__(self, "_tol", tol)
 
     # ------------------------------------------------------------------ build

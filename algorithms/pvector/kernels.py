@@ -78,6 +78,7 @@ class Tolerances(NamedTuple):
     check_fraction: float
     chance_tail: float
     eps_ref: float
+    max_candidates_wide: int
 
 
 @njit(cache=True)
@@ -206,7 +207,7 @@ def triangle_feature(s_len01, s_len02, s_len12, sorted_sides):
 
 
 @njit(cache=True)
-def match_extras(oc, tri_obs, cat_rows, unit, eps, c_band, out_row):
+def match_extras(oc, by_c0, c0_sorted, tri_obs, cat_rows, unit, eps, c_band, out_row):
     """Identify the non-triangle observed stars by their chords to the three triangle stars.
 
     ``oc[i, j]`` is the chord from observed star ``i`` to observed vertex ``tri_obs[j]``, whose
@@ -214,6 +215,10 @@ def match_extras(oc, tri_obs, cat_rows, unit, eps, c_band, out_row):
     matches observed star i when all three chords agree within ``eps``. Only one-to-one matches
     count (a guide star matching two observed stars, or an observed star matched by two guide
     stars, is left out). Fills ``out_row`` (-1 elsewhere) and returns the number of matches.
+
+    ``by_c0`` orders the observed stars by ``oc[:, 0]`` and ``c0_sorted`` holds those chords in that
+    order: a guide star examines only the observed stars whose first chord can agree (a binary search,
+    slightly widened so that the exact test below decides), instead of every observed star.
     """
     n = oc.shape[0]
     n_match = np.zeros(n, dtype=np.int64)
@@ -229,9 +234,12 @@ def match_extras(oc, tri_obs, cat_rows, unit, eps, c_band, out_row):
             if c0 <= c_band:
                 c1 = chord_rows(unit, g, unit, r1)
                 c2 = chord_rows(unit, g, unit, r2)
+                lo = np.searchsorted(c0_sorted, c0 - 2.0 * eps)
+                hi = np.searchsorted(c0_sorted, c0 + 2.0 * eps, side="right")
                 found = -1
                 n_found = 0
-                for i in range(n):
+                for k in range(lo, hi):
+                    i = by_c0[k]
                     if i == tri_obs[0] or i == tri_obs[1] or i == tri_obs[2]:
                         continue
                     if abs(oc[i, 0] - c0) <= eps and abs(oc[i, 1] - c1) <= eps and abs(oc[i, 2] - c2) <= eps:
@@ -241,7 +249,8 @@ def match_extras(oc, tri_obs, cat_rows, unit, eps, c_band, out_row):
                     n_match[found] += 1
                     out_row[found] = g
                 elif n_found > 1:  # one guide star fits several observed stars: none of them counts
-                    for i in range(n):
+                    for k in range(lo, hi):
+                        i = by_c0[k]
                         if i == tri_obs[0] or i == tri_obs[1] or i == tri_obs[2]:
                             continue
                         if abs(oc[i, 0] - c0) <= eps and abs(oc[i, 1] - c1) <= eps and abs(oc[i, 2] - c2) <= eps:
@@ -313,10 +322,12 @@ def identify_rows(x_px, y_px, mag, frame, db, tol):
     eps = tol.beta * math.sqrt(2.0) * tol.sigma_px / f_px
     eps_key = (abs(p_axis[0]) + abs(p_axis[1]) + abs(p_axis[2])) * eps
     # the candidate cap counts side matches in a window of volume ~ eps^3: scaled to the same density
-    # excess as on the reference camera at 1 px (unchanged there and for any smaller window)
+    # excess as on the reference camera at 1 px (unchanged there and for any smaller window), at most
+    # max_candidates_wide (a time bound)
     max_candidates = tol.max_candidates
     if eps > tol.eps_ref > 0.0:
-        max_candidates = max(max_candidates, int(tol.max_candidates * (eps / tol.eps_ref) ** 3))
+        scaled = min(tol.max_candidates * (eps / tol.eps_ref) ** 3, float(tol.max_candidates_wide))
+        max_candidates = max(max_candidates, int(scaled))
     k_min = max(tol.k_min, chance_k_min(n, unit.shape[0], eps, tol.chance_tail))
     sorted_sides = tol.sorted_sides
     brightest = tol.brightest
@@ -384,6 +395,8 @@ def identify_rows(x_px, y_px, mag, frame, db, tol):
                 for i in range(n):
                     c_band = max(c_band, oc[i, 0])
                 c_band += eps
+                by_c0 = np.argsort(oc[:, 0], kind="mergesort")
+                c0_sorted = oc[by_c0, 0]
                 n_side = 0
                 for t in range(start, stop):
                     if (abs(step * tri_sides[t, 0] - d_obs[0]) <= eps and abs(step * tri_sides[t, 1] - d_obs[1]) <= eps
@@ -417,7 +430,7 @@ def identify_rows(x_px, y_px, mag, frame, db, tol):
                                 hyp_obs[n_hyp, j] = tri_obs[j]
                                 hyp_cat[n_hyp, j] = cat_rows[j]
                             n_hyp += 1
-                        confirmed = match_extras(oc, tri_obs, cat_rows, unit, eps, c_band, rows_try)
+                        confirmed = match_extras(oc, by_c0, c0_sorted, tri_obs, cat_rows, unit, eps, c_band, rows_try)
                         if confirmed < k_min:
                             continue
                         if n_found == 0:
