@@ -386,6 +386,15 @@ def identify_rows(x_px, y_px, mag, frame, db, tol):
                     start, stop = kvector_query(db.kv, p_obs - eps_key, p_obs + eps_key)
                 if stop <= start:
                     continue
+                n_side = 0
+                for t in range(start, stop):
+                    if (abs(step * tri_sides[t, 0] - d_obs[0]) <= eps and abs(step * tri_sides[t, 1] - d_obs[1]) <= eps
+                            and abs(step * tri_sides[t, 2] - d_obs[2]) <= eps):
+                        n_side += 1
+                if n_side > max_candidates:
+                    continue    # an uninformative triangle: its window is far wider than the catalog's spacing
+                if n_side == 0:
+                    continue
                 trip_obs = triple_product(v[s], v[n1], v[n2])
                 chir_significant = abs(trip_obs) > eps * max(c01, max(c02, c12))
                 for i in range(n):
@@ -397,13 +406,6 @@ def identify_rows(x_px, y_px, mag, frame, db, tol):
                 c_band += eps
                 by_c0 = np.argsort(oc[:, 0], kind="mergesort")
                 c0_sorted = oc[by_c0, 0]
-                n_side = 0
-                for t in range(start, stop):
-                    if (abs(step * tri_sides[t, 0] - d_obs[0]) <= eps and abs(step * tri_sides[t, 1] - d_obs[1]) <= eps
-                            and abs(step * tri_sides[t, 2] - d_obs[2]) <= eps):
-                        n_side += 1
-                if n_side > max_candidates:
-                    continue    # an uninformative triangle: its window is far wider than the catalog's spacing
                 n_found = 0
                 ambiguous = False
                 for t in range(start, stop):
