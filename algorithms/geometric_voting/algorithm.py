@@ -116,7 +116,14 @@ class GeometricVoting(Algorithm):
       true star's votes;
     * ``d_min_deg``: 0.05 deg scaled by the pixel angle, i.e. 5.1 px on every camera, at most 1 deg
       (pyramid's :func:`~starid_algorithms.pyramid.algorithm.d_min_for`); it must exceed eps (4.2 px at 1 px) or a voter with a
-      neighbour within eps cannot be confirmed by the reprojection (0.05 deg is 2.6 px at 20 deg).
+      neighbour within eps cannot be confirmed by the reprojection (0.05 deg is 2.6 px at 20 deg);
+      in the image (not the catalog) the isolation radius is max(``d_min_deg``, eps), as in pyramid;
+    * ``saturate_votes``: True when ``mag_limit`` is fainter than :func:`derived_mag_limit` allows at
+      the actual window (eps with ``sigma_px``): chance votes then exceed the reference level and
+      ``expected_votes`` counts them as sum_b 1 - exp(-degree p_b) (one vote per image pair at most)
+      instead of the linear degree sum_b p_b, which exceeds the number of image pairs for
+      well-connected stars and buries the true ones (:func:`derived_saturate`). False on the default
+      camera at 1 px or less (Table 4 unchanged), True at 2 px on Luo's 20 deg camera;
 
     Identification (the paper's two rounds):
 

@@ -126,6 +126,10 @@ def rank_votes(v_cam, sel, n_voters, start, stop, tally, degree, tol, expected, 
     catalog star falls in the windows of star a's pairs (pair distances spread as in a disc of
     radius ``c_max``), ``degree[g]`` the star's number of neighbours -- so a star in dense sky does
     not win on its many neighbours alone.
+    With ``saturate`` the chance votes are ``sum_b 1 - exp(-degree[g] p_b)``, ``p_b = 4 eps c_ab /
+    c_max^2`` (:func:`chance_votes`): with ``once_per_pair`` a star gets at most one vote per image
+    pair, and the linear ``degree[g] * w_a`` overstates its chance votes once ``degree p_b`` is not
+    small (wide windows: noise beyond the 1 px floor on coarse pixels).
 
     With ``level`` > 0 only the stars :func:`cast_votes` listed (votes >= ``level``) are ranked
     first; as a score never exceeds the votes, that is the exact answer when the list fills all
