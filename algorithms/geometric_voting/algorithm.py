@@ -18,7 +18,7 @@ from starid.params import check_flag, check_number, check_whole
 from starid.plugin import Algorithm, Explanation, Identification
 from starid_algorithms.pyramid.algorithm import (SIGMA_FLOOR_PX, PairDatabase, build_pair_database,
                                                  check_pair_params, d_min_for, hip_of,
-                                                 pair_limit_rad)
+                                                 pair_limit_rad, window_eps)
 from starid_algorithms.pyramid.kernels import PairTol
 
 from .kernels import VoteRule, identify_kernel, voting_kernel
@@ -28,34 +28,67 @@ from .kernels import VoteRule, identify_kernel, voting_kernel
 REF_MAG_LIMIT = 6.0
 
 
-def derived_mag_limit(catalog: Catalog, camera: Camera, max_pair_deg: float) -> float:
+def derived_mag_limit(catalog: Catalog, camera: Camera, max_pair_deg: float, sigma_px: float | None = None,
+                      beta: float = 3.0) -> float:
     """``mag_limit`` = None: the faintest guide limit (at most 6.0) at which a catalog star collects
-    no more chance votes per image pair than V <= 6.0 gives on the reference camera.
+    no more chance votes per image pair than V <= 6.0 gives on the reference camera at its 1 px window.
 
     A catalog star with neighbours at n per steradian gets a chance vote from an image pair at
     separation c when one of them falls in the annulus c +- eps: 4 pi n eps c on average (the
-    model ``expected_votes`` subtracts). With eps proportional to the pixel angle 1/f_px and c to
-    the pair limit c_max, that is proportional to n c_max / f_px, so the guide stars may number
-    N_6 (f_px / f_ref) (c_max_ref / c_max), N_6 = the catalog's stars with V <= 6.0: the limit is
-    the V of that many-th brightest star. It never exceeds 6.0 (the guide stars must be
-    detectable; a narrower field keeps 6.0), and on the reference camera it is exactly 6.0.
+    model ``expected_votes`` subtracts). eps is the pair window (pyramid's :func:`window_eps`:
+    ``beta`` sqrt(2) max(``sigma_px``, 1 px) / f_px) and c scales with the pair limit c_max, so
+    the chance votes are proportional to n eps c_max, and the guide stars may number
+    N_6 (eps_ref / eps) (c_max_ref / c_max), N_6 = the catalog's stars with V <= 6.0, eps_ref the
+    reference camera's 1 px window: the limit is the V of that many-th brightest star. It never
+    exceeds 6.0 (the guide stars must be detectable; a narrower field keeps 6.0). On the reference
+    camera at 1 px of noise or less it is exactly 6.0; more centroid noise widens eps, so lowers it
+    (the reference camera at 2 px: V <= 5.39; a 20 deg, 1024 px camera: V <= 5.07 at 1 px, 4.47 at 2 px).
+
+    The default ``mag_limit`` is this limit at the 1 px floor (``sigma_px`` None): the guide stars
+    are not cut for centroid noise, which would leave too few of them in the field (at 2 px on the
+    20 deg camera, V <= 4.47 leaves 11 of 100 images with fewer than 4 usable guide stars); where
+    the guide stars are fainter than the limit at the actual window, the ranking counts the
+    chance votes with their saturation instead (:func:`derived_saturate`).
     """
     v = np.sort(np.asarray(catalog.v_mag, dtype=np.float64))
     n_ref = int(np.searchsorted(v, REF_MAG_LIMIT, side="right"))
-    scale = (1.0 / camera.pixel_ratio) * (pair_limit_rad(REFERENCE_CAMERA, max_pair_deg)
-                                                / pair_limit_rad(camera, max_pair_deg))
+    scale = ((window_eps(REFERENCE_CAMERA, None, 3.0) / window_eps(camera, sigma_px, beta))
+             * (pair_limit_rad(REFERENCE_CAMERA, max_pair_deg) / pair_limit_rad(camera, max_pair_deg)))
     k = int(round(scale * n_ref))
     if k >= n_ref:
         return REF_MAG_LIMIT
     return float(v[max(k, 3) - 1])
 
 
+def derived_saturate(catalog: Catalog, camera: Camera, mag_limit: float, max_pair_deg: float,
+                     sigma_px: float | None, beta: float) -> bool:
+    """``saturate_votes`` = None: True when the guide stars (V <= ``mag_limit``) are fainter than
+    :func:`derived_mag_limit` allows at the actual window, i.e. when a catalog star collects more
+    chance votes per image pair than on the reference camera at 1 px.
+
+    ``expected_votes`` subtracts the linear expectation ``degree * sum_b p_b`` of the chance votes.
+    With ``once_per_pair`` an image pair gives a catalog star at most one vote, so the true
+    expectation is ``sum_b 1 - exp(-degree p_b)``: the linear one overestimates it, most for the
+    stars with many neighbours, and once ``degree p_b`` approaches 1 it exceeds the number of
+    image pairs -- a true star with all its votes is then ranked below chance stars with fewer
+    neighbours. The linear model is kept where chance votes are at or below the reference level
+    (where it was chosen, and where Table 4 was measured), the saturating one is used beyond it.
+    False on the reference camera at 1 px of noise or less, and on any camera at the 1 px floor
+    with the derived ``mag_limit``; True e.g. at 2 px on a 20 deg, 1024 px camera (V <= 5.07
+    against 4.47 allowed).
+    """
+    return mag_limit > derived_mag_limit(catalog, camera, max_pair_deg, sigma_px, beta)
+
+
 @dataclass(frozen=True, eq=False)
 class VotingDatabase(PairDatabase):
     """The Pyramid plugin's :class:`PairDatabase` (which keeps the double-star distance used) with
-    the guide limit used (``mag_limit`` None: derived from the camera)."""
+    the guide limit used (``mag_limit`` None: derived from the camera) and whether the ranking
+    counts saturating chance votes (``saturate_votes`` None: derived, for the ``sigma_px`` it was
+    built with)."""
 
     mag_limit: float = REF_MAG_LIMIT
+    saturate_votes: bool = False
 
 
 @dataclass(frozen=True)
@@ -83,7 +116,14 @@ class GeometricVoting(Algorithm):
       true star's votes;
     * ``d_min_deg``: 0.05 deg scaled by the pixel angle, i.e. 5.1 px on every camera, at most 1 deg
       (pyramid's :func:`~starid_algorithms.pyramid.algorithm.d_min_for`); it must exceed eps (4.2 px at 1 px) or a voter with a
-      neighbour within eps cannot be confirmed by the reprojection (0.05 deg is 2.6 px at 20 deg).
+      neighbour within eps cannot be confirmed by the reprojection (0.05 deg is 2.6 px at 20 deg);
+      in the image (not the catalog) the isolation radius is max(``d_min_deg``, eps), as in pyramid;
+    * ``saturate_votes``: True when ``mag_limit`` is fainter than :func:`derived_mag_limit` allows at
+      the actual window (eps with ``sigma_px``): chance votes then exceed the reference level and
+      ``expected_votes`` counts them as sum_b 1 - exp(-degree p_b) (one vote per image pair at most)
+      instead of the linear degree sum_b p_b, which exceeds the number of image pairs for
+      well-connected stars and buries the true ones (:func:`derived_saturate`). False on the default
+      camera at 1 px or less (Table 4 unchanged), True at 2 px on Luo's 20 deg camera;
 
     Identification (the paper's two rounds):
 
@@ -169,6 +209,7 @@ class GeometricVoting(Algorithm):
     round_voters: int = 5
     round_step: int = 1
     report_all: bool = True
+    saturate_votes: bool | None = None
 
     def __post_init__(self):
         check_pair_params(self)
@@ -176,6 +217,8 @@ class GeometricVoting(Algorithm):
         check_whole("round_voters", self.round_voters, 0, 255)
         check_whole("round_step", self.round_step, 1, 255)
         check_flag("report_all", self.report_all)
+        if self.saturate_votes is not None:
+            check_flag("saturate_votes", self.saturate_votes)
         check_flag("once_per_pair", self.once_per_pair)
         check_flag("expected_votes", self.expected_votes)
         check_whole("n_candidates", self.n_candidates, 1, 1000)
@@ -183,36 +226,46 @@ class GeometricVoting(Algorithm):
         check_number("min_fraction", self.min_fraction, lo=0, hi=1)
 
     def tolerances(self, camera: Camera, database: PairDatabase) -> PairTol:
-        return _bundles(self, camera, database.c_max, database.d_min_deg)[0]
+        return _bundles(self, camera, database.c_max, database.d_min_deg, _saturates(database))[0]
 
     def derived(self, catalog: Catalog, camera: Camera) -> "GeometricVoting":
-        """``mag_limit`` and ``d_min_deg`` left None set for ``camera`` (:func:`derived_mag_limit`,
-        :func:`~starid_algorithms.pyramid.algorithm.d_min_for`)."""
+        """``mag_limit``, ``d_min_deg`` and ``saturate_votes`` left None set for ``camera``
+        (:func:`derived_mag_limit` at the 1 px floor,
+        :func:`~starid_algorithms.pyramid.algorithm.d_min_for`, :func:`derived_saturate`)."""
+        mag_limit = (derived_mag_limit(catalog, camera, self.max_pair_deg) if self.mag_limit is None
+                     else self.mag_limit)
         return dataclasses.replace(
-            self, mag_limit=derived_mag_limit(catalog, camera, self.max_pair_deg) if self.mag_limit is None
-            else self.mag_limit, d_min_deg=d_min_for(camera) if self.d_min_deg is None else self.d_min_deg)
+            self, mag_limit=mag_limit, d_min_deg=d_min_for(camera) if self.d_min_deg is None else self.d_min_deg,
+            saturate_votes=derived_saturate(catalog, camera, mag_limit, self.max_pair_deg, self.sigma_px, self.beta)
+            if self.saturate_votes is None else self.saturate_votes)
 
     def build(self, catalog: Catalog, camera: Camera) -> VotingDatabase:
         settled = self.derived(catalog, camera)
         mag_limit, d_min_deg = float(settled.mag_limit), float(settled.d_min_deg)
         db = build_pair_database(catalog, camera, mag_limit, d_min_deg, self.max_pair_deg, self.name,
                                  neighbour_lists=False)
-        return VotingDatabase(**{f.name: getattr(db, f.name) for f in fields(db)}, mag_limit=mag_limit)
+        return VotingDatabase(**{f.name: getattr(db, f.name) for f in fields(db)}, mag_limit=mag_limit,
+                              saturate_votes=bool(settled.saturate_votes))
 
-    def rule(self) -> VoteRule:
+    def rule(self, database_saturates: bool = False) -> VoteRule:
+        """The kernel's :class:`VoteRule`; ``saturate_votes`` left None is the database's (what
+        ``build`` derived), ``database_saturates``."""
+        saturate = self.saturate_votes if self.saturate_votes is not None else database_saturates
         return VoteRule(once_per_pair=bool(self.once_per_pair), expected=bool(self.expected_votes),
                         n_candidates=int(self.n_candidates), round_voters=int(self.round_voters),
                         round_step=int(self.round_step),
                         min_support=int(self.min_support), min_fraction=float(self.min_fraction),
-                        report_all=bool(self.report_all))
+                        report_all=bool(self.report_all), saturate=bool(saturate))
 
     def _run(self, database: PairDatabase, observation: Observation):
-        tol, sensor, rule = _bundles(self, observation.camera, database.c_max, database.d_min_deg)
+        tol, sensor, rule = _bundles(self, observation.camera, database.c_max, database.d_min_deg,
+                                       _saturates(database))
         return voting_kernel(observation.x_px, observation.y_px, observation.mag, database.kv, database.pairs,
                              database.degree, database.guide_unit, tol, sensor, rule)
 
     def identify(self, database: PairDatabase, observation: Observation) -> Identification:
-        tol, sensor, rule = _bundles(self, observation.camera, database.c_max, database.d_min_deg)
+        tol, sensor, rule = _bundles(self, observation.camera, database.c_max, database.d_min_deg,
+                                       _saturates(database))
         hip, attitude, found = identify_kernel(observation.x_px, observation.y_px, observation.mag, database.kv,
                                                database.pairs, database.degree, database.guide_unit,
                                                database.guide_hip, tol, sensor, rule)
@@ -244,20 +297,28 @@ class GeometricVoting(Algorithm):
                            points=np.concatenate([xy[voters], xy[extra]]), labels=labels, caption=caption)
 
 
+def _saturates(database: PairDatabase) -> bool:
+    """What ``build`` derived for ``saturate_votes`` (a plain pyramid database: False)."""
+    return bool(getattr(database, "saturate_votes", False))
+
+
 @lru_cache(maxsize=64)
 def _bundles(algorithm: GeometricVoting, camera: Camera, c_max: float,
-             d_min_deg: float) -> tuple[PairTol, Frame, VoteRule]:
-    """The kernel's bundles for one (algorithm, camera, database chord limit and double-star
-    distance), built once rather
+             d_min_deg: float, database_saturates: bool = False) -> tuple[PairTol, Frame, VoteRule]:
+    """The kernel's bundles for one (algorithm, camera, database chord limit, double-star
+    distance and derived ``saturate_votes``), built once rather
     than per image (immutable tuples: sharing them between calls and threads is safe).
 
     eps = ``beta`` sqrt(2) sigma with sigma = max(``sigma_px``, 1 px) / f_px: three standard
     deviations of the difference between an image chord and its catalog chord when each centroid
     has noise ``sigma_px`` per axis."""
     sigma = max(algorithm.sigma_px or 0.0, SIGMA_FLOOR_PX) / camera.f_px
-    tol = PairTol(eps=algorithm.beta * math.sqrt(2.0) * sigma, d_min=rad_to_chord(math.radians(d_min_deg)),
+    eps = algorithm.beta * math.sqrt(2.0) * sigma
+    # as in pyramid: a detection with another one within eps of it can never be confirmed by the
+    # reprojection (two detections near its prediction), so the image's isolation radius is at least eps
+    tol = PairTol(eps=eps, d_min=max(rad_to_chord(math.radians(d_min_deg)), eps),
                   c_max=c_max, c_fov=rad_to_chord(camera.half_diagonal_rad), max_window=int(algorithm.max_window),
                   max_stars=int(algorithm.max_stars), max_triads=0, confirm_fraction=float(algorithm.confirm_fraction),
                   min_extra=int(algorithm.min_extra))
-    return tol, camera_frame(camera), algorithm.rule()
+    return tol, camera_frame(camera), algorithm.rule(database_saturates)
 

@@ -42,6 +42,9 @@ class VoteRule(NamedTuple):
     min_support, min_fraction : ``starid.kernels.verify_pairwise``'s agreement rule.
     report_all : report every star the confirming reprojection identified (else only the
         verified voters).
+    saturate : with ``expected`` and ``once_per_pair``, a catalog star's chance votes are
+        ``sum_b 1 - exp(-degree p_b)`` (at most one vote per image pair) instead of the linear
+        ``degree sum_b p_b`` (see :func:`rank_votes`).
     """
 
     once_per_pair: bool
@@ -52,6 +55,7 @@ class VoteRule(NamedTuple):
     min_support: int
     min_fraction: float
     report_all: bool
+    saturate: bool
 
 
 @njit(cache=True)
@@ -95,8 +99,23 @@ def cast_votes(start, stop, pairs, b_lo, b_hi, once_per_pair, stamp, tally, leve
                         n_listed[b] += 1
 
 
+@njit(cache=True, inline="always")
+def chance_votes(chance, p_b, n_b, d):
+    """The votes a catalog star with ``d`` neighbours collects by chance when one image pair gives it
+    at most one vote (``once_per_pair``): ``sum_b 1 - exp(-d p_b)`` over the star's image pairs b,
+    ``p_b`` = the chance that one given neighbour falls in pair b's window. Memoised per degree in
+    ``chance`` (-1 = not yet computed)."""
+    if chance[d] < 0.0:
+        e = 0.0
+        for i in range(n_b):
+            e -= np.expm1(-(p_b[i] * d))
+        chance[d] = e
+    return chance[d]
+
+
 @njit(cache=True)
-def rank_votes(v_cam, sel, n_voters, start, stop, tally, degree, tol, expected, n_keep, level, listed, n_listed):
+def rank_votes(v_cam, sel, n_voters, start, stop, tally, degree, tol, expected, saturate, n_keep, level,
+               listed, n_listed):
     """Each of the first ``n_voters`` selected stars' ``n_keep`` best catalog stars, from ``tally``.
 
     Returns ``(cand_row, cand_votes)``, shape ``(n_voters, n_keep)``: most votes first, ties to the
@@ -107,6 +126,10 @@ def rank_votes(v_cam, sel, n_voters, start, stop, tally, degree, tol, expected, 
     catalog star falls in the windows of star a's pairs (pair distances spread as in a disc of
     radius ``c_max``), ``degree[g]`` the star's number of neighbours -- so a star in dense sky does
     not win on its many neighbours alone.
+    With ``saturate`` the chance votes are ``sum_b 1 - exp(-degree[g] p_b)``, ``p_b = 4 eps c_ab /
+    c_max^2`` (:func:`chance_votes`): with ``once_per_pair`` a star gets at most one vote per image
+    pair, and the linear ``degree[g] * w_a`` overstates its chance votes once ``degree p_b`` is not
+    small (wide windows: noise beyond the 1 px floor on coarse pixels).
 
     With ``level`` > 0 only the stars :func:`cast_votes` listed (votes >= ``level``) are ranked
     first; as a score never exceeds the votes, that is the exact answer when the list fills all
@@ -117,19 +140,28 @@ def rank_votes(v_cam, sel, n_voters, start, stop, tally, degree, tol, expected, 
     cand_votes = np.zeros((n_voters, n_keep), dtype=np.int64)
     score = np.full((n_voters, n_keep), -np.inf)
     last = n_keep - 1
+    saturate = expected and saturate
+    p_b = np.empty(n_voters)
+    chance = np.empty(np.int64(np.max(degree)) + 1 if saturate and n_guide > 0 else 1)
     for a in range(n_voters):
         w_a = 0.0
+        n_b = 0
         if expected:
             for b in range(n_voters):
                 if b != a and stop[a, b] > start[a, b]:
-                    w_a += 4.0 * tol.eps * chord_rows(v_cam, sel[a], v_cam, sel[b]) / (tol.c_max * tol.c_max)
+                    p = 4.0 * tol.eps * chord_rows(v_cam, sel[a], v_cam, sel[b]) / (tol.c_max * tol.c_max)
+                    w_a += p
+                    p_b[n_b] = p
+                    n_b += 1
+        if saturate:
+            chance[:] = -1.0
         if level > 0:
             for i in range(n_listed[a]):
                 g = np.int64(listed[a, i])
                 c = np.int64(tally[a, g])
                 if c < score[a, last]:          # the score is at most the votes
                     continue
-                x = c - w_a * degree[g]
+                x = c - (chance_votes(chance, p_b, n_b, degree[g]) if saturate else w_a * degree[g])
                 if x < score[a, last] or (x == score[a, last] and g > cand_row[a, last]):
                     continue
                 t = last
@@ -151,7 +183,7 @@ def rank_votes(v_cam, sel, n_voters, start, stop, tally, degree, tol, expected, 
             c = np.int64(tally[a, g])
             if c == 0 or c <= score[a, last]:     # the score is at most the votes
                 continue
-            x = c - w_a * degree[g]
+            x = c - (chance_votes(chance, p_b, n_b, degree[g]) if saturate else w_a * degree[g])
             if x <= score[a, last]:
                 continue
             t = last
@@ -167,7 +199,7 @@ def rank_votes(v_cam, sel, n_voters, start, stop, tally, degree, tol, expected, 
 
 
 @njit(cache=True)
-def vote(v_cam, sel, start, stop, pairs, degree, tol, once_per_pair, expected, n_keep, level):
+def vote(v_cam, sel, start, stop, pairs, degree, tol, once_per_pair, expected, n_keep, level, saturate=False):
     """All selected stars vote in one round: :func:`cast_votes` then :func:`rank_votes`.
 
     Returns ``(cand_row, cand_votes)`` of every selected star (see :func:`rank_votes`; ``level``
@@ -181,10 +213,12 @@ def vote(v_cam, sel, start, stop, pairs, degree, tol, once_per_pair, expected, n
     if once_per_pair:
         tally8 = np.zeros((m, n_guide), dtype=np.uint8)
         cast_votes(start, stop, pairs, 0, m, True, stamp, tally8, level, listed, n_listed)
-        return rank_votes(v_cam, sel, m, start, stop, tally8, degree, tol, expected, n_keep, level, listed, n_listed)
+        return rank_votes(v_cam, sel, m, start, stop, tally8, degree, tol, expected, saturate, n_keep, level, listed,
+                          n_listed)
     tally32 = np.zeros((m, n_guide), dtype=np.int32)
     cast_votes(start, stop, pairs, 0, m, False, stamp, tally32, level, listed, n_listed)
-    return rank_votes(v_cam, sel, m, start, stop, tally32, degree, tol, expected, n_keep, level, listed, n_listed)
+    return rank_votes(v_cam, sel, m, start, stop, tally32, degree, tol, expected, False, n_keep, level, listed,
+                      n_listed)
 
 
 @njit(cache=True)
@@ -237,7 +271,8 @@ def decide(v_cam, sel, n_voters, start, stop, tally, degree, guide_unit, tol, ca
     """
     n = v_cam.shape[0]
     cand_row, cand_votes = rank_votes(v_cam, sel, n_voters, start, stop, tally, degree, tol, rule.expected,
-                                      rule.n_candidates, level, listed, n_listed)
+                                      rule.once_per_pair and rule.saturate, rule.n_candidates, level, listed,
+                                      n_listed)
     voters = sel[:n_voters]
     if rule.n_candidates == 1:
         best_row, best_votes = cand_row[:, 0].copy(), cand_votes[:, 0].copy()
