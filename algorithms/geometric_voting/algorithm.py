@@ -16,7 +16,7 @@ from starid.kernels import Frame, camera_frame, rad_to_chord
 from starid.observation import Observation
 from starid.params import check_flag, check_number, check_whole
 from starid.plugin import Algorithm, Explanation, Identification
-from starid_algorithms.pyramid.algorithm import (SIGMA_FLOOR_PX, PairDatabase, build_pair_database,
+from starid_algorithms.pyramid.algorithm import (PairDatabase, build_pair_database,
                                                  check_pair_params, d_min_for, hip_of,
                                                  pair_limit_rad, window_eps)
 from starid_algorithms.pyramid.kernels import PairTol
@@ -312,8 +312,7 @@ def _bundles(algorithm: GeometricVoting, camera: Camera, c_max: float,
     eps = ``beta`` sqrt(2) sigma with sigma = max(``sigma_px``, 1 px) / f_px: three standard
     deviations of the difference between an image chord and its catalog chord when each centroid
     has noise ``sigma_px`` per axis."""
-    sigma = max(algorithm.sigma_px or 0.0, SIGMA_FLOOR_PX) / camera.f_px
-    eps = algorithm.beta * math.sqrt(2.0) * sigma
+    eps = window_eps(camera, algorithm.sigma_px, algorithm.beta)
     # as in pyramid: a detection with another one within eps of it can never be confirmed by the
     # reprojection (two detections near its prediction), so the image's isolation radius is at least eps
     tol = PairTol(eps=eps, d_min=max(rad_to_chord(math.radians(d_min_deg)), eps),
