@@ -192,7 +192,8 @@ class PVector(Algorithm):
     the Table 4 camera: 1,000 real-sky trials identical with 64; a 40 deg field 30x faster). The cap used is
     ``max_candidates * (eps_d / eps_ref)^3`` when eps_d is wider than eps_ref, the tolerance of the reference
     camera (``starid.camera.REFERENCE_CAMERA``) at 1 px: the window's volume in side space grows as eps_d^3,
-    and so does the number of triangles it holds by chance (1,050 on a 20 deg, 1024 px camera at 2 px)."""
+    and so does the number of triangles it holds by chance (1,050 on a 20 deg, 1024 px camera at 2 px),
+    at most ``max_candidates_wide``."""
     max_candidates_wide: int = 64
     """The scaled cap never exceeds this. It is a time bound, tuned on seed 7 (Luo's camera at 2 px, 100
     images; a bound of 16 / 32 / 64 / 128 / 256 identified 25 / 77 / 94 / 93 / 93 %, median 17 / 27 / 15 / 73 /
