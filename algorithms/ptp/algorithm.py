@@ -30,18 +30,22 @@ SIGMA_FLOOR_PX = 1.0
 D_MIN_DEG = 0.05
 
 
-def camera_rules(camera: Camera) -> tuple[float, float]:
-    """``(d_min_deg, sigma_floor_px)`` derived from ``camera`` when the parameters are ``None``.
+def camera_rules(camera: Camera, sigma_px: float | None = None) -> tuple[float, float]:
+    """``(d_min_deg, sigma_floor_px)`` derived from ``camera`` (and the assumed centroid noise ``sigma_px``,
+    None = noise-free) when the parameters are ``None``.
 
     ``r = camera.pixel_ratio`` is the camera's pixel (IFOV) in the paper camera's pixels (exactly 1.0 on
-    the Table 4 camera). On coarser pixels (r > 1), the paper's values hold in the units they matter in:
-    d_min stays 5.1 px (0.05 deg on the paper's camera; ``0.05 r`` deg), because two stars are confused
-    when their separation is comparable to the pixel-based tolerance; the noise floor stays 35.2 arcsec
-    (1 px on the paper's camera; ``1 / r`` px), because it only has to cover the catalog's and the
-    float32 tables' rounding, which are angles. On finer pixels both stay the paper's (0.05 deg, 1 px).
+    the Table 4 camera). The paper's d_min = 0.05 deg is 5.1 px on its camera, 1.2 times the
+    3 sqrt(2) x 1 px side tolerance: two stars are confused when their separation is comparable to that
+    tolerance, which is set in pixels by the noise. So d_min keeps those 5.1 px on coarser pixels
+    (``0.05 r`` deg) and grows with the noise above 1 px (``0.05 r sigma_px`` deg):
+    ``d_min = 0.05 max(1, r max(1, sigma_px))`` deg. The noise floor stays 35.2 arcsec (1 px on the
+    paper's camera; ``1 / r`` px), because it only has to cover the catalog's and the float32 tables'
+    rounding, which are angles. On finer pixels and at up to 1 px both stay the paper's (0.05 deg, 1 px).
     """
     r = camera.pixel_ratio
-    return D_MIN_DEG * max(1.0, r), SIGMA_FLOOR_PX * min(1.0, 1.0 / r)
+    noise = max(1.0, sigma_px or 0.0)
+    return D_MIN_DEG * max(1.0, r * noise), SIGMA_FLOOR_PX * min(1.0, 1.0 / r)
 
 
 @dataclass(frozen=True, eq=False)
@@ -162,7 +166,16 @@ class PTP(Algorithm):
       paper's camera, 35.2 arcsec: the rounding it covers is an angle). Both are the paper's on the
       Table 4 camera and on finer pixels; on Luo et al.'s 20 deg / 1024 px camera 0.10 deg and 0.50 px
       (noise-free, the old 0.05 deg / 1 px misidentified 4.8 % of the images, seed 11: stars 3-6 px
-      apart were swapped inside the 3 sqrt(2) x 1 px = 300 arcsec tolerance);
+      apart were swapped inside the 3 sqrt(2) x 1 px = 300 arcsec tolerance). Above 1 px of assumed noise
+      (``sigma_px``, set from the simulator before :meth:`derived`) d_min grows with it,
+      0.05 max(1, r max(1, sigma_px)) deg, so it stays 1.2 times the 3 sqrt(2) sigma side tolerance
+      (Luo's camera at 2 px: 0.20 deg = 10.2 px; the 5.1 px d_min misidentified 6.4 % of the images there,
+      detections 5-10 px from a guide star taking its id);
+    * ``nearest_check`` (starid's extension, on by default): after the checks above, the attitude of all
+      the pairings (Wahba) predicts each paired guide star; a pairing whose detection lies beyond the pair
+      tolerance (3 sqrt(2) sigma) from its prediction while another detection lies nearer it is dropped
+      (Luo's camera at 2 px: the swaps 9-14 px apart that d_min does not cover; on the Table 4 camera at
+      1 px it changes no result row);
     * ``verify`` (starid's extension, on by default): the paper stops after the sharing-star
       validation and computes the attitude "from the correctly identified stars"; starid checks
       the pairings' mutual angular distances first, because under the harness's rule one wrong
@@ -204,7 +217,8 @@ class PTP(Algorithm):
     #: the paper's method (section 2): no pairwise verification, confirmation or hypotheses, 4 image
     #: slaves, 0.05 deg <= D_ms <= 5 deg on every camera, a conflicting star is a failure (``ptp:paper``)
     published: ClassVar[dict] = {"verify": False, "confirm_fraction": 0.0, "image_slaves": 4, "hypotheses": 0,
-                                 "d_max_deg": 5.0, "majority": False, "d_min_deg": D_MIN_DEG}
+                                 "d_max_deg": 5.0, "majority": False, "d_min_deg": D_MIN_DEG,
+                                 "nearest_check": False}
     follows: ClassVar[dict] = {"sigma_px": "sigma_px"}
 
     mag_limit: float = 6.0
@@ -232,6 +246,7 @@ class PTP(Algorithm):
     check_mag_limit: float = 7.0
     check_min_stars: int = 5
     check_fraction: float = 0.5
+    nearest_check: bool = True
 
     def __post_init__(self):
         check_number("mag_limit", self.mag_limit)
@@ -261,12 +276,13 @@ class PTP(Algorithm):
         check_number("check_fraction", self.check_fraction, lo=0, hi=1)
         for name in ("verify_min_fraction", "confirm_fraction"):
             check_number(name, getattr(self, name), lo=0, hi=1)
-        for name in ("exclude_doubles", "swap_slaves", "majority", "verify"):
+        for name in ("exclude_doubles", "swap_slaves", "majority", "verify", "nearest_check"):
             check_flag(name, getattr(self, name))
 
     def derived(self, catalog: Catalog, camera: Camera) -> "PTP":
-        """``d_min_deg`` and ``sigma_floor_px`` left None set by :func:`camera_rules` for ``camera``."""
-        d_min_deg, floor_px = camera_rules(camera)
+        """``d_min_deg`` and ``sigma_floor_px`` left None set by :func:`camera_rules` for ``camera`` and
+        ``sigma_px`` (the harness has already set it from the simulator; None = noise-free)."""
+        d_min_deg, floor_px = camera_rules(camera, self.sigma_px)
         return dataclasses.replace(self, d_min_deg=d_min_deg if self.d_min_deg is None else self.d_min_deg,
                                    sigma_floor_px=floor_px if self.sigma_floor_px is None else self.sigma_floor_px)
 
@@ -299,7 +315,7 @@ class PTP(Algorithm):
                           float(self.verify_min_fraction), float(self.confirm_fraction), int(self.max_stars),
                           int(self.max_candidates), int(self.image_slaves), float(self.mag_limit + self.mag_margin),
                           bool(self.assign_all), int(self.hypotheses), int(self.check_min_stars),
-                          float(self.check_fraction))
+                          float(self.check_fraction), bool(self.nearest_check))
 
     def build(self, catalog: Catalog, camera: Camera) -> PTPDatabase:
         settled = self.derived(catalog, camera)

@@ -72,6 +72,7 @@ class Tolerances(NamedTuple):
     hypotheses: int
     check_min_stars: int
     check_fraction: float
+    nearest_check: bool
 
 
 @njit(cache=True)
@@ -489,11 +490,46 @@ def match_rows(unit, view, db, tol):
         if n_seen < tol.confirm_fraction * n_predicted:
             result[:] = -1
             n_found = 0
+    if tol.nearest_check and n_found >= 3:
+        n_found = drop_displaced(unit, result, guide_unit, tol_chord)
     if n_found < 3 and tol.hypotheses > 0:
         if try_hypotheses(unit, view, db, tol, n_match, m_img, m_cat, support, tol_chord, result):
             return result
         result[:] = -1
     return result
+
+
+@njit(cache=True)
+def drop_displaced(unit, result, guide_unit, eps_chord):
+    """Extension (``nearest_check``): the attitude of all pairings in ``result`` (Wahba) predicts each
+    paired guide star; a pairing is dropped when its detection lies farther than ``eps_chord`` (the pair
+    tolerance) from that prediction and another detection lies nearer it. Returns the number of pairings
+    left."""
+    n = unit.shape[0]
+    attitude = wahba_rows(unit, result, guide_unit)
+    pred = np.empty((1, 3))
+    drop = np.zeros(n, dtype=np.bool_)
+    for s in range(n):
+        g = result[s]
+        if g < 0:
+            continue
+        for a in range(3):
+            pred[0, a] = (attitude[a, 0] * guide_unit[g, 0] + attitude[a, 1] * guide_unit[g, 1]
+                          + attitude[a, 2] * guide_unit[g, 2])
+        own = chord_rows(unit, s, pred, 0)
+        if own <= eps_chord:
+            continue
+        for t in range(n):
+            if t != s and chord_rows(unit, t, pred, 0) < own:
+                drop[s] = True
+                break
+    n_found = 0
+    for s in range(n):
+        if drop[s]:
+            result[s] = -1
+        elif result[s] >= 0:
+            n_found += 1
+    return n_found
 
 
 @njit(cache=True)

@@ -223,6 +223,13 @@ def test_camera_rules_reduce_to_the_paper_on_table4(db, catalog):
     assert (luo.d_min_deg, luo.sigma_floor_px) == (d_min, floor)
     with pytest.raises(ConfigError):
         PTP(d_max_deg=0.08).build(catalog, Camera.from_fov(20.0, 1024))   # derived d_min 0.1 > d_max
+    # above 1 px of assumed noise d_min grows with it (1.2 times the 3 sqrt(2) sigma side tolerance)
+    assert camera_rules(Camera(), 1.0) == (0.05, 1.0) and camera_rules(Camera(), 0.5) == (0.05, 1.0)
+    assert camera_rules(Camera(), 2.0) == (0.1, 1.0)
+    assert camera_rules(Camera.from_fov(20.0, 1024), 1.0) == (d_min, floor)
+    assert camera_rules(Camera.from_fov(20.0, 1024), 2.0)[0] == pytest.approx(2 * d_min)
+    assert camera_rules(Camera.from_fov(10.0, 2048), 1.5) == (0.05, 1.0)    # 1.5 fine px < 1 Table 4 px
+    assert PTP(sigma_px=2.0).derived(catalog, Camera.from_fov(20.0, 1024)).d_min_deg == pytest.approx(2 * d_min)
 
 
 def test_no_misidentification_on_a_coarse_20_deg_camera(catalog):
@@ -240,3 +247,24 @@ def test_no_misidentification_on_a_coarse_20_deg_camera(catalog):
         hip = algo.identify(base, o.for_plugin()).hip
         assert not np.any((hip >= 0) & (hip != o.truth_hip)), t
         assert np.sum(hip == o.truth_hip) >= 10, t
+
+
+def test_no_misidentification_on_a_coarse_camera_at_2_px(catalog):
+    """Luo et al.'s camera, stars to V 6.5, 2 px centroid noise. Each of these 20 images (seed 7) was
+    misidentified by the previous defaults (d_min 5.1 px whatever the noise, no displacement check): a
+    detection 5-14 px from a detected guide star took that star's id, inside the 3 sqrt(2) x 2 px = 8.5 px
+    tolerance or just beyond it. d_min now grows with the noise (10.2 px here) and a pairing whose detection
+    lies beyond the tolerance from its star's prediction, with another detection nearer, is dropped."""
+    cam = Camera.from_fov(20.0, 1024)
+    cfg = SimConfig(sigma_px=2.0, mag_limit=6.5, sky_mag_limit=6.5, min_stars=3)
+    algo = PTP().resolved(cfg).derived(catalog, cam)
+    assert algo.d_min_deg == pytest.approx(0.2015, abs=1e-4)
+    base = algo.build(catalog, cam)
+    sim = Simulator(catalog, cam, cfg, seed=7)
+    n_identified = 0
+    for t in (22, 30, 37, 49, 52, 66, 74, 89, 90, 106, 114, 123, 147, 158, 169, 172, 175, 209, 239, 270):
+        o = sim.observation(t)
+        hip = algo.identify(base, o.for_plugin()).hip
+        assert not np.any((hip >= 0) & (hip != o.truth_hip)), t
+        n_identified += np.sum(hip == o.truth_hip) >= 3
+    assert n_identified >= 19
