@@ -928,8 +928,8 @@ def finish(x_px, y_px, mag, rows, guide_unit, guide_hip, deep, deep_mag, frame, 
        identified star; otherwise the identification is dropped.
     4. A guide identification is not reported when two deep stars bright enough to be the detection
        (V <= ``mag`` + ``mag_margin``) are predicted within ``eps_chord`` of it (:func:`_rivals`): a
-       close pair that the window cannot separate (on 71" pixels at 2 px of noise the triangles
-       swapped such pairs in 11 of 300 images).
+       close pair that the window cannot separate (on 71" pixels at 2 px of noise triangle voting
+       misidentified 11 of 300 images; the five examined were such pairs, see triangle_voting.md).
     The ids of step 2 are reported only with ``assign_all``; otherwise those of ``rows``.
     """
     n = rows.shape[0]
