@@ -12,6 +12,7 @@ import numpy as np
 
 from starid.camera import REFERENCE_CAMERA, Camera
 from starid.catalog import Catalog
+from starid.errors import ConfigError
 from starid.kernels import Frame, camera_frame, rad_to_chord
 from starid.observation import Observation
 from starid.params import check_flag, check_number, check_whole
@@ -80,6 +81,41 @@ def derived_saturate(catalog: Catalog, camera: Camera, mag_limit: float, max_pai
     return mag_limit > derived_mag_limit(catalog, camera, max_pair_deg, sigma_px, beta)
 
 
+#: the voting window is never narrower than this many standard deviations of the chord error
+#: (sqrt(2) sigma): the true votes over the chance votes' spread, erf(w / (sqrt(2) s)) / sqrt(w), peaks
+#: at w = 1.40 s (a narrower window loses more true votes than it removes chance ones)
+VOTE_WINDOW_SIGMAS = 1.4
+
+
+def derived_vote_window(catalog: Catalog, camera: Camera, mag_limit: float, max_pair_deg: float,
+                        sigma_px: float | None, beta: float) -> float:
+    """``vote_window_px`` = None: the half-width (px) of the pair windows that *vote*: the noise window
+    eps narrowed to the window at which the guide stars (V <= ``mag_limit``) collect the reference
+    chance votes (V <= 6.0 on the reference camera at its 1 px window), but never below the 1 px
+    floor window nor below ``VOTE_WINDOW_SIGMAS`` standard deviations of the chord error.
+
+    Chance votes per image pair grow as n eps c_max (n guide stars per steradian). When centroid
+    noise widens eps beyond the 1 px floor, they grow with it: at 2 px on the reference camera a
+    window holds about 2,000 catalog pairs and a catalog star gets a chance vote from about half of
+    the image pairs, so a true star's full set of votes barely stands out. The voting window is
+    therefore held at the chance level of the reference: eps_chance = eps_ref (N_6 / N) (c_max_ref
+    / c_max), N the catalog's stars with V <= ``mag_limit``, N_6 those with V <= 6.0. It is only
+    ever narrower than eps, and never narrower than eps at the 1 px floor, so nothing changes at
+    1 px of noise or less on any camera. Verification, the shortlist agreement and the reprojection
+    keep the full eps (they must accept every true pair). Reference camera at 2 px: 4.24 px
+    instead of 8.49 px (1.5 standard deviations of the chord error, 87 % of the true votes kept).
+    """
+    v = np.asarray(catalog.v_mag, dtype=np.float64)
+    n_ref = int(np.count_nonzero(v <= REF_MAG_LIMIT))
+    n = max(int(np.count_nonzero(v <= mag_limit)), 1)
+    eps = window_eps(camera, sigma_px, beta)
+    eps_floor = window_eps(camera, None, beta)
+    eps_chance = (window_eps(REFERENCE_CAMERA, None, 3.0) * (n_ref / n)
+                  * (pair_limit_rad(REFERENCE_CAMERA, max_pair_deg) / pair_limit_rad(camera, max_pair_deg)))
+    eps_optimal = VOTE_WINDOW_SIGMAS * math.sqrt(2.0) * max(sigma_px or 0.0, 1.0) / camera.f_px
+    return min(eps, max(eps_chance, eps_floor, eps_optimal)) * camera.f_px
+
+
 @dataclass(frozen=True, eq=False)
 class VotingDatabase(PairDatabase):
     """The Pyramid plugin's :class:`PairDatabase` (which keeps the double-star distance used) with
@@ -89,6 +125,7 @@ class VotingDatabase(PairDatabase):
 
     mag_limit: float = REF_MAG_LIMIT
     saturate_votes: bool = False
+    vote_window_px: float | None = None
 
 
 @dataclass(frozen=True)
@@ -210,6 +247,7 @@ class GeometricVoting(Algorithm):
     round_step: int = 1
     report_all: bool = True
     saturate_votes: bool | None = None
+    vote_window_px: float | None = None
 
     def __post_init__(self):
         check_pair_params(self)
@@ -219,6 +257,10 @@ class GeometricVoting(Algorithm):
         check_flag("report_all", self.report_all)
         if self.saturate_votes is not None:
             check_flag("saturate_votes", self.saturate_votes)
+        if self.vote_window_px is not None:
+            check_number("vote_window_px", self.vote_window_px, lo=0)
+            if not self.vote_window_px > 0:
+                raise ConfigError(f"vote_window_px must be > 0, got {self.vote_window_px!r}")
         check_flag("once_per_pair", self.once_per_pair)
         check_flag("expected_votes", self.expected_votes)
         check_whole("n_candidates", self.n_candidates, 1, 1000)
@@ -226,7 +268,7 @@ class GeometricVoting(Algorithm):
         check_number("min_fraction", self.min_fraction, lo=0, hi=1)
 
     def tolerances(self, camera: Camera, database: PairDatabase) -> PairTol:
-        return _bundles(self, camera, database.c_max, database.d_min_deg, _saturates(database))[0]
+        return _bundles(self, camera, database.c_max, database.d_min_deg, _saturates(database), _vote_window(database))[0]
 
     def derived(self, catalog: Catalog, camera: Camera) -> "GeometricVoting":
         """``mag_limit``, ``d_min_deg`` and ``saturate_votes`` left None set for ``camera``
@@ -237,7 +279,9 @@ class GeometricVoting(Algorithm):
         return dataclasses.replace(
             self, mag_limit=mag_limit, d_min_deg=d_min_for(camera) if self.d_min_deg is None else self.d_min_deg,
             saturate_votes=derived_saturate(catalog, camera, mag_limit, self.max_pair_deg, self.sigma_px, self.beta)
-            if self.saturate_votes is None else self.saturate_votes)
+            if self.saturate_votes is None else self.saturate_votes,
+            vote_window_px=derived_vote_window(catalog, camera, mag_limit, self.max_pair_deg, self.sigma_px, self.beta)
+            if self.vote_window_px is None else self.vote_window_px)
 
     def build(self, catalog: Catalog, camera: Camera) -> VotingDatabase:
         settled = self.derived(catalog, camera)
@@ -245,7 +289,8 @@ class GeometricVoting(Algorithm):
         db = build_pair_database(catalog, camera, mag_limit, d_min_deg, self.max_pair_deg, self.name,
                                  neighbour_lists=False)
         return VotingDatabase(**{f.name: getattr(db, f.name) for f in fields(db)}, mag_limit=mag_limit,
-                              saturate_votes=bool(settled.saturate_votes))
+                              saturate_votes=bool(settled.saturate_votes),
+                              vote_window_px=float(settled.vote_window_px))
 
     def rule(self, database_saturates: bool = False) -> VoteRule:
         """The kernel's :class:`VoteRule`; ``saturate_votes`` left None is the database's (what
@@ -258,17 +303,17 @@ class GeometricVoting(Algorithm):
                         report_all=bool(self.report_all), saturate=bool(saturate))
 
     def _run(self, database: PairDatabase, observation: Observation):
-        tol, sensor, rule = _bundles(self, observation.camera, database.c_max, database.d_min_deg,
-                                       _saturates(database))
+        tol, sensor, rule, vtol = _bundles(self, observation.camera, database.c_max, database.d_min_deg,
+                                             _saturates(database), _vote_window(database))
         return voting_kernel(observation.x_px, observation.y_px, observation.mag, database.kv, database.pairs,
-                             database.degree, database.guide_unit, tol, sensor, rule)
+                             database.degree, database.guide_unit, tol, sensor, rule, vtol)
 
     def identify(self, database: PairDatabase, observation: Observation) -> Identification:
-        tol, sensor, rule = _bundles(self, observation.camera, database.c_max, database.d_min_deg,
-                                       _saturates(database))
+        tol, sensor, rule, vtol = _bundles(self, observation.camera, database.c_max, database.d_min_deg,
+                                             _saturates(database), _vote_window(database))
         hip, attitude, found = identify_kernel(observation.x_px, observation.y_px, observation.mag, database.kv,
                                                database.pairs, database.degree, database.guide_unit,
-                                               database.guide_hip, tol, sensor, rule)
+                                               database.guide_hip, tol, sensor, rule, vtol)
         return Identification(hip, attitude if found else None)
 
     def explain(self, database: PairDatabase, observation: Observation) -> Explanation:
@@ -297,14 +342,20 @@ class GeometricVoting(Algorithm):
                            points=np.concatenate([xy[voters], xy[extra]]), labels=labels, caption=caption)
 
 
+def _vote_window(database: PairDatabase) -> float | None:
+    """What ``build`` derived for ``vote_window_px`` (a plain pyramid database: None, the full eps)."""
+    return getattr(database, "vote_window_px", None)
+
+
 def _saturates(database: PairDatabase) -> bool:
     """What ``build`` derived for ``saturate_votes`` (a plain pyramid database: False)."""
     return bool(getattr(database, "saturate_votes", False))
 
 
 @lru_cache(maxsize=64)
-def _bundles(algorithm: GeometricVoting, camera: Camera, c_max: float,
-             d_min_deg: float, database_saturates: bool = False) -> tuple[PairTol, Frame, VoteRule]:
+def _bundles(algorithm: GeometricVoting, camera: Camera, c_max: float, d_min_deg: float,
+             database_saturates: bool = False,
+             database_vote_window_px: float | None = None) -> tuple[PairTol, Frame, VoteRule, PairTol]:
     """The kernel's bundles for one (algorithm, camera, database chord limit, double-star
     distance and derived ``saturate_votes``), built once rather
     than per image (immutable tuples: sharing them between calls and threads is safe).
@@ -319,5 +370,11 @@ def _bundles(algorithm: GeometricVoting, camera: Camera, c_max: float,
                   c_max=c_max, c_fov=rad_to_chord(camera.half_diagonal_rad), max_window=int(algorithm.max_window),
                   max_stars=int(algorithm.max_stars), max_triads=0, confirm_fraction=float(algorithm.confirm_fraction),
                   min_extra=int(algorithm.min_extra))
-    return tol, camera_frame(camera), algorithm.rule(database_saturates)
+    # the voting windows (and the chance votes of the ranking): ``vote_window_px`` if pinned, else what
+    # ``build`` derived (:func:`derived_vote_window`), never wider than eps; the same eps when they agree
+    vote_px = algorithm.vote_window_px if algorithm.vote_window_px is not None else database_vote_window_px
+    vtol = tol
+    if vote_px is not None and float(vote_px) < eps * camera.f_px * (1.0 - 1e-9):
+        vtol = tol._replace(eps=float(vote_px) / camera.f_px)
+    return tol, camera_frame(camera), algorithm.rule(database_saturates), vtol
 

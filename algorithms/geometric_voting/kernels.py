@@ -262,7 +262,7 @@ def pick_candidates(v_cam, sel, cand_row, cand_votes, guide_unit, eps):
 
 @njit(cache=True)
 def decide(v_cam, sel, n_voters, start, stop, tally, degree, guide_unit, tol, cam, rule, level, listed, n_listed,
-           rows, votes):
+           rows, votes, vtol):
     """Choice, verification and confirmation from the votes of the first ``n_voters`` selected stars.
 
     Fills ``rows`` (guide row per detection, -1 = unidentified) and ``votes`` (the chosen
@@ -270,7 +270,7 @@ def decide(v_cam, sel, n_voters, start, stop, tally, degree, guide_unit, tol, ca
     on failure leaves every row at -1.
     """
     n = v_cam.shape[0]
-    cand_row, cand_votes = rank_votes(v_cam, sel, n_voters, start, stop, tally, degree, tol, rule.expected,
+    cand_row, cand_votes = rank_votes(v_cam, sel, n_voters, start, stop, tally, degree, vtol, rule.expected,
                                       rule.once_per_pair and rule.saturate, rule.n_candidates, level, listed,
                                       n_listed)
     voters = sel[:n_voters]
@@ -315,7 +315,7 @@ def decide(v_cam, sel, n_voters, start, stop, tally, degree, guide_unit, tol, ca
 
 
 @njit(cache=True)
-def vote_rounds(v_cam, sel, kv, pairs, degree, guide_unit, tol, cam, rule, tally):
+def vote_rounds(v_cam, sel, kv, pairs, degree, guide_unit, tol, cam, rule, tally, vtol):
     """Voting in rounds: the ``rule.round_voters`` brightest selected stars vote, their choice is
     verified and confirmed (:func:`decide`); if that fails, the next ``rule.round_step`` stars
     join, their pairs with every earlier star add votes to the same counters, and the choice is
@@ -334,7 +334,7 @@ def vote_rounds(v_cam, sel, kv, pairs, degree, guide_unit, tol, cam, rule, tally
     last_level = 0
     while True:
         upto = min(m, done + (step if done == 0 else rule.round_step))
-        start, stop = pair_windows(v_cam, sel[:upto], kv, tol)
+        start, stop = pair_windows(v_cam, sel[:upto], kv, vtol)
         level = min(3, upto - 1)    # list the stars with 3 votes or more (enough for every round)
         if level != last_level:
             for a in range(done):   # keep the listed stars that still reach the new level
@@ -347,14 +347,14 @@ def vote_rounds(v_cam, sel, kv, pairs, degree, guide_unit, tol, cam, rule, tally
             last_level = level
         cast_votes(start, stop, pairs, done, upto, rule.once_per_pair, stamp, tally, level, listed, n_listed)
         ok, attitude = decide(v_cam, sel, upto, start, stop, tally, degree, guide_unit, tol, cam, rule, level, listed,
-                              n_listed, rows, votes)
+                              n_listed, rows, votes, vtol)
         if ok or upto == m:
             return rows, votes, attitude
         done = upto
 
 
 @njit(cache=True)
-def voting_kernel(x_px, y_px, mag, kv, pairs, degree, guide_unit, tol, cam, rule):
+def voting_kernel(x_px, y_px, mag, kv, pairs, degree, guide_unit, tol, cam, rule, vtol):
     """Geometric voting on one image. Returns ``(rows, votes, attitude)``.
 
     ``rows[s]``: guide row of detection ``s`` (-1 = unidentified); ``votes[s]``: the votes its
@@ -389,15 +389,15 @@ def voting_kernel(x_px, y_px, mag, kv, pairs, degree, guide_unit, tol, cam, rule
     m = sel.shape[0]
     if rule.once_per_pair:
         tally8 = np.zeros((m, degree.shape[0]), dtype=np.uint8)
-        return vote_rounds(v_cam, sel, kv, pairs, degree, guide_unit, tol, cam, rule, tally8)
+        return vote_rounds(v_cam, sel, kv, pairs, degree, guide_unit, tol, cam, rule, tally8, vtol)
     tally32 = np.zeros((m, degree.shape[0]), dtype=np.int32)
-    return vote_rounds(v_cam, sel, kv, pairs, degree, guide_unit, tol, cam, rule, tally32)
+    return vote_rounds(v_cam, sel, kv, pairs, degree, guide_unit, tol, cam, rule, tally32, vtol)
 
 
 @njit(cache=True)
-def identify_kernel(x_px, y_px, mag, kv, pairs, degree, guide_unit, guide_hip, tol, cam, rule):
+def identify_kernel(x_px, y_px, mag, kv, pairs, degree, guide_unit, guide_hip, tol, cam, rule, vtol):
     """:func:`voting_kernel` with catalog ids: ``(hip, attitude, found)``, hip -1 = unidentified."""
-    rows, _, attitude = voting_kernel(x_px, y_px, mag, kv, pairs, degree, guide_unit, tol, cam, rule)
+    rows, _, attitude = voting_kernel(x_px, y_px, mag, kv, pairs, degree, guide_unit, tol, cam, rule, vtol)
     hip = np.full(rows.shape[0], -1, dtype=np.int64)
     found = False
     for s in range(rows.shape[0]):
