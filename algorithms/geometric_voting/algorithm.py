@@ -121,7 +121,8 @@ class VotingDatabase(PairDatabase):
     """The Pyramid plugin's :class:`PairDatabase` (which keeps the double-star distance used) with
     the guide limit used (``mag_limit`` None: derived from the camera) and whether the ranking
     counts saturating chance votes (``saturate_votes`` None: derived, for the ``sigma_px`` it was
-    built with)."""
+    built with), and the voting window (``vote_window_px`` None: derived, likewise; None in the
+    database = the full eps)."""
 
     mag_limit: float = REF_MAG_LIMIT
     saturate_votes: bool = False
@@ -161,6 +162,11 @@ class GeometricVoting(Algorithm):
       instead of the linear degree sum_b p_b, which exceeds the number of image pairs for
       well-connected stars and buries the true ones (:func:`derived_saturate`). False on the default
       camera at 1 px or less (Table 4 unchanged), True at 2 px on Luo's 20 deg camera;
+    * ``vote_window_px``: the half-width of the windows that vote, eps narrowed to the window at
+      which the guide stars collect the reference chance votes, never below the 1 px floor window
+      nor 1.4 standard deviations of the chord error (:func:`derived_vote_window`): eps itself at
+      1 px or less on every camera, 4.24 px instead of 8.49 px at 2 px on the default and on Luo's
+      camera. Verification, the shortlist agreement and the reprojection keep the full eps;
 
     Identification (the paper's two rounds):
 
@@ -271,9 +277,10 @@ class GeometricVoting(Algorithm):
         return _bundles(self, camera, database.c_max, database.d_min_deg, _saturates(database), _vote_window(database))[0]
 
     def derived(self, catalog: Catalog, camera: Camera) -> "GeometricVoting":
-        """``mag_limit``, ``d_min_deg`` and ``saturate_votes`` left None set for ``camera``
-        (:func:`derived_mag_limit` at the 1 px floor,
-        :func:`~starid_algorithms.pyramid.algorithm.d_min_for`, :func:`derived_saturate`)."""
+        """``mag_limit``, ``d_min_deg``, ``saturate_votes`` and ``vote_window_px`` left None set for
+        ``camera`` (:func:`derived_mag_limit` at the 1 px floor,
+        :func:`~starid_algorithms.pyramid.algorithm.d_min_for`, :func:`derived_saturate`,
+        :func:`derived_vote_window`)."""
         mag_limit = (derived_mag_limit(catalog, camera, self.max_pair_deg) if self.mag_limit is None
                      else self.mag_limit)
         return dataclasses.replace(

@@ -265,6 +265,7 @@ def decide(v_cam, sel, n_voters, start, stop, tally, degree, guide_unit, tol, ca
            rows, votes, vtol):
     """Choice, verification and confirmation from the votes of the first ``n_voters`` selected stars.
 
+    The ranking's chance votes use the voting window ``vtol.eps``; everything after it ``tol.eps``.
     Fills ``rows`` (guide row per detection, -1 = unidentified) and ``votes`` (the chosen
     catalog star's votes, -1 for detections that did not vote); returns ``(ok, attitude)``, and
     on failure leaves every row at -1.
@@ -320,7 +321,8 @@ def vote_rounds(v_cam, sel, kv, pairs, degree, guide_unit, tol, cam, rule, tally
     verified and confirmed (:func:`decide`); if that fails, the next ``rule.round_step`` stars
     join, their pairs with every earlier star add votes to the same counters, and the choice is
     made again -- until a round succeeds or every selected star has voted (that last round has
-    exactly the votes of one round of all). Returns ``(rows, votes, attitude)``."""
+    exactly the votes of one round of all). The windows that vote are ``vtol``'s (see
+    :func:`voting_kernel`). Returns ``(rows, votes, attitude)``."""
     n = v_cam.shape[0]
     m = sel.shape[0]
     rows = np.full(n, -1, dtype=np.int64)
@@ -378,6 +380,10 @@ def voting_kernel(x_px, y_px, mag, kv, pairs, degree, guide_unit, tol, cam, rule
 
     Steps 2-4 run first with the ``rule.round_voters`` brightest stars and, only when that finds
     nothing, again with more of them (:func:`vote_rounds`; starid's extension, for speed).
+
+    ``vtol`` is ``tol`` with the voting window: its ``eps`` (at most ``tol.eps``) sets the pair
+    windows that vote and the chance votes of the ranking; the shortlist agreement, verification and
+    reprojection use ``tol.eps`` (``GeometricVoting``'s derived ``vote_window_px``).
     """
     n = x_px.shape[0]
     if n < 3:
