@@ -122,3 +122,11 @@ def test_info_names_the_derived_value_on_the_default_camera(capsys):
              or line.startswith("  sigma_px")}
     assert "(None: derived from the camera; 0.05 on the default one)" in lines["d_min_deg"]
     assert "(None: follows the simulator sigma_px)" in lines["sigma_px"]
+
+
+def test_info_prints_a_derived_flag_as_a_flag(capsys):
+    from starid.cli import main
+
+    assert main(["info", "geometric_voting", "--no-build"]) == 0
+    line = next(x for x in capsys.readouterr().out.splitlines() if x.startswith("  saturate_votes"))
+    assert "(None: derived from the camera; False on the default one)" in line

@@ -84,7 +84,8 @@ def cmd_info(args) -> int:
         unit = f" {r['unit']}" if r["unit"] else ""
         tail = f"  (None: follows the {r['follows']})" if r["follows"] else ""
         if r["derived"] is not None:
-            tail = f"  (None: derived from the camera; {r['derived']:.6g} on the default one)"
+            value = r["derived"] if isinstance(r["derived"], bool) else f"{r['derived']:.6g}"
+            tail = f"  (None: derived from the camera; {value} on the default one)"
         print(f"  {r['name']:<{width}}  {r['type']:<14} default {r['default']!r}{unit}{tail}")
         if r["meaning"]:
             print(f"  {'':<{width}}  {r['meaning'][:300]}")
