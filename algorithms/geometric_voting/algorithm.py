@@ -29,6 +29,16 @@ from .kernels import VoteRule, identify_kernel, voting_kernel
 REF_MAG_LIMIT = 6.0
 
 
+def reference_chance_window(camera: Camera, max_pair_deg: float) -> float:
+    """The pair window (radians) at which V <= 6.0 guide stars would collect, on ``camera``, the chance
+    votes per image pair they collect on the reference camera at its 1 px window: chance votes grow
+    as n eps c_max, so this is eps_ref (c_max_ref / c_max). :func:`derived_mag_limit` and
+    :func:`derived_vote_window` hold the chance level with it, one by the guide limit, the other by
+    the voting window."""
+    return window_eps(REFERENCE_CAMERA, None, 3.0) * (pair_limit_rad(REFERENCE_CAMERA, max_pair_deg)
+                                                      / pair_limit_rad(camera, max_pair_deg))
+
+
 def derived_mag_limit(catalog: Catalog, camera: Camera, max_pair_deg: float, sigma_px: float | None = None,
                       beta: float = 3.0) -> float:
     """``mag_limit`` = None: the faintest guide limit (at most 6.0) at which a catalog star collects
@@ -53,8 +63,7 @@ def derived_mag_limit(catalog: Catalog, camera: Camera, max_pair_deg: float, sig
     """
     v = np.sort(np.asarray(catalog.v_mag, dtype=np.float64))
     n_ref = int(np.searchsorted(v, REF_MAG_LIMIT, side="right"))
-    scale = ((window_eps(REFERENCE_CAMERA, None, 3.0) / window_eps(camera, sigma_px, beta))
-             * (pair_limit_rad(REFERENCE_CAMERA, max_pair_deg) / pair_limit_rad(camera, max_pair_deg)))
+    scale = reference_chance_window(camera, max_pair_deg) / window_eps(camera, sigma_px, beta)
     k = int(round(scale * n_ref))
     if k >= n_ref:
         return REF_MAG_LIMIT
@@ -110,9 +119,8 @@ def derived_vote_window(catalog: Catalog, camera: Camera, mag_limit: float, max_
     n = max(int(np.count_nonzero(v <= mag_limit)), 1)
     eps = window_eps(camera, sigma_px, beta)
     eps_floor = window_eps(camera, None, beta)
-    eps_chance = (window_eps(REFERENCE_CAMERA, None, 3.0) * (n_ref / n)
-                  * (pair_limit_rad(REFERENCE_CAMERA, max_pair_deg) / pair_limit_rad(camera, max_pair_deg)))
-    eps_optimal = VOTE_WINDOW_SIGMAS * math.sqrt(2.0) * max(sigma_px or 0.0, 1.0) / camera.f_px
+    eps_chance = reference_chance_window(camera, max_pair_deg) * (n_ref / n)
+    eps_optimal = window_eps(camera, sigma_px, VOTE_WINDOW_SIGMAS)
     return min(eps, max(eps_chance, eps_floor, eps_optimal)) * camera.f_px
 
 
