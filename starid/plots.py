@@ -93,6 +93,80 @@ def _figure(width_in: float, height_in: float) -> Figure:
     return Figure(figsize=(width_in, height_in), layout="constrained")
 
 
+#: Where a label may go relative to its point (points), tried in order: beside it first, then farther.
+LABEL_OFFSETS_PT = ((7, -7), (7, 7), (-7, -7), (-7, 7), (9, 0), (-9, 0), (0, 10), (0, -10), (14, -14), (14, 14),
+                    (-14, -14), (-14, 14), (0, 18), (0, -18), (22, 0), (-22, 0))
+
+
+def _renderer(fig):
+    """A renderer with the figure's layout settled (constrained layout runs at draw time)."""
+    if not hasattr(fig.canvas, "get_renderer"):
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+        FigureCanvasAgg(fig)
+    fig.canvas.draw()
+    return fig.canvas.get_renderer()
+
+
+def place_labels(ax, x, y, texts, obstacles_xy=None, obstacle_pt: float = 6.0, required: bool = False,
+                 taken: list | None = None, pad_pt: float = 1.5, **text_kw) -> list:
+    """Annotate point i with ``texts[i]`` at the first of :data:`LABEL_OFFSETS_PT` where its box
+    overlaps no label placed before it (``taken`` carries boxes between calls), no obstacle point
+    (a square of ``obstacle_pt`` around each of ``obstacles_xy``, e.g. the other stars) and stays
+    inside the axes. A label that fits nowhere is left out, unless ``required``: then it goes to
+    the offset with the least overlap, joined to its point by a thin line. Greedy and deterministic,
+    in the order given (put the labels a caption refers to first). Returns the annotations."""
+    renderer = _renderer(ax.figure)
+    taken = [] if taken is None else taken
+    to_px = ax.figure.dpi / 72.0
+    pad = pad_pt * to_px
+    frame = ax.get_window_extent(renderer)
+    points = ax.transData.transform(np.column_stack([x, y])) if len(x) else np.zeros((0, 2))
+    blocks = []
+    if obstacles_xy is not None and len(obstacles_xy):
+        half = 0.5 * obstacle_pt * to_px
+        for ox, oy in ax.transData.transform(np.asarray(obstacles_xy, dtype=float)):
+            blocks.append((ox - half, oy - half, ox + half, oy + half))
+
+    def overlap(box, others):
+        return sum(max(0.0, min(box[2], o[2]) - max(box[0], o[0])) * max(0.0, min(box[3], o[3]) - max(box[1], o[1]))
+                   for o in others)
+
+    out = []
+    for (px, py), xd, yd, text in zip(points, x, y, texts):
+        best = None
+        for dx, dy in LABEL_OFFSETS_PT:
+            ann = ax.annotate(text, (xd, yd), xytext=(dx, dy), textcoords="offset points",
+                              ha="left" if dx > 0 else "right" if dx < 0 else "center",
+                              va="bottom" if dy > 0 else "top" if dy < 0 else "center", **text_kw)
+            ann.set_in_layout(False)
+            bb = ann.get_window_extent(renderer)
+            box = (bb.x0 - pad, bb.y0 - pad, bb.x1 + pad, bb.y1 + pad)
+            inside = bb.x0 >= frame.x0 and bb.x1 <= frame.x1 and bb.y0 >= frame.y0 and bb.y1 <= frame.y1
+            own = [b for b in blocks if not (b[0] <= px <= b[2] and b[1] <= py <= b[3])]
+            cost = overlap(box, taken) + overlap(box, own) + (0.0 if inside else 1e9)
+            if cost == 0.0:
+                if best is not None:
+                    best[0].remove()
+                best = (ann, box, 0.0)
+                break
+            if best is None or cost < best[2]:
+                if best is not None:
+                    best[0].remove()
+                best = (ann, box, cost)
+            else:
+                ann.remove()
+        ann, box, cost = best
+        if cost > 0.0 and not required:
+            ann.remove()
+            continue
+        if cost > 0.0:
+            ax.annotate("", (xd, yd), xytext=ann.xyann, textcoords="offset points",
+                        arrowprops={"arrowstyle": "-", "linewidth": 0.5, "color": "0.4"}).set_in_layout(False)
+        taken.append(box)
+        out.append(ann)
+    return out
+
+
 def axis_name(axis: str) -> str:
     """The printed name of a grid axis, with its unit."""
     return AXIS_NAMES.get(axis, axis)
@@ -242,7 +316,6 @@ def tradeoff(summary: pd.DataFrame, title: str = "", styles: dict | None = None)
             ax.errorbar([x], [y], yerr=[[y - 100 * r.id_rate_lo], [100 * r.id_rate_hi - y]], marker=s["marker"],
                         color=s["color"], markeredgecolor="black", markeredgewidth=0.5, markersize=8, capsize=3,
                         linestyle="none", label=r.label)
-            ax.annotate(r.label, (x, y), xytext=(6, 4), textcoords="offset points", fontsize=7)
         ax.set_xscale("log")
         ax.set_xlabel(name)
         _pad_log(ax)
@@ -251,6 +324,11 @@ def tradeoff(summary: pd.DataFrame, title: str = "", styles: dict | None = None)
     axes[1].set_title("rate vs memory (up-left is better)", fontsize=9)
     if title:
         fig.suptitle("\n".join(textwrap.wrap(title, 90)))
+    for ax, col in ((axes[0], "time_median_us"), (axes[1], "db_mb")):
+        drawn = summary[summary[col] > 0]
+        xy = np.column_stack([drawn[col].to_numpy(dtype=float), 100 * drawn["id_rate"].to_numpy(dtype=float)])
+        place_labels(ax, xy[:, 0], xy[:, 1], list(drawn["label"]), obstacles_xy=xy, obstacle_pt=9.0,
+                     required=True, fontsize=7)
     return fig
 
 
@@ -404,14 +482,15 @@ def _status_of(hip: np.ndarray, truth: np.ndarray) -> np.ndarray:
 @_styled
 def show_figure(stars: pd.DataFrame, ids: pd.DataFrame, explanations: dict | None = None,
                 width_px: int = 1024, height_px: int = 1024, titles: dict | None = None,
-                label_stars: bool = True) -> Figure:
+                label_stars: bool = True, suptitle: str = "") -> Figure:
     """The simulated image, one panel per label: stars sized by magnitude, each with its true and
     identified HIP, correct / wrong / missed / false marked by shape, and the label's explanation
     (``starid.Explanation``) drawn over it with its caption.
 
     ``stars``: ``star, x_px, y_px, mag, truth_hip`` (``Observation.to_frame()``); ``ids``:
     ``label, star, hip``; ``explanations``: ``label -> Explanation or None``; ``titles``: ``label ->
-    extra title text``.
+    extra title text``; ``suptitle``: the figure's heading, wrapped to its width (set here, before the
+    labels are placed, so that the layout they were placed in is the one drawn).
     """
     explanations = explanations or {}
     labels = list(dict.fromkeys(ids["label"]))
@@ -427,6 +506,8 @@ def show_figure(stars: pd.DataFrame, ids: pd.DataFrame, explanations: dict | Non
     truth = stars["truth_hip"].to_numpy(dtype=np.int64)
     # magnitude -> dot area (pt^2): brighter is bigger (mag 6 -> 9, mag 3 -> 72, mag 0 -> 260)
     size = np.clip(9.0 * (10 ** (0.4 * (6.0 - mag))) ** 0.75, 5, 260)
+    placements = []
+    ex_none = np.zeros((0, 2))
     for ax, label in zip(axes, labels):
         got = ids[ids["label"] == label].set_index("star")["hip"].reindex(stars["star"]).fillna(-1)
         hip = got.to_numpy(dtype=np.int64)
@@ -436,17 +517,27 @@ def show_figure(stars: pd.DataFrame, ids: pd.DataFrame, explanations: dict | Non
         ex = explanations.get(label)
         if ex is not None:
             _draw_explanation(ax, ex)
+        jobs = [] if ex is None or not len(ex.points) else [
+            (ex.points[:, 0], ex.points[:, 1], list(ex.labels), True,
+             {"fontsize": 7, "color": "#7A2E5B", "fontweight": "bold", "zorder": 7})]
         for kind, m in STAR_MARKS.items():
             sel = status == kind
             if sel.any():
                 ax.scatter(x[sel], y[sel], s=m["size"] ** 2, marker=m["marker"], zorder=4, linewidths=1.4,
                            facecolors=m["color"] if m["fill"] else "none", edgecolors=m["color"], alpha=0.9)
         if label_stars:
-            for i in range(len(x)):
-                text = {"correct": f"{truth[i]}", "wrong": f"{hip[i]} / {truth[i]}" if truth[i] >= 0
-                        else f"{hip[i]} / false", "missed": f"({truth[i]})", "false": "false"}[status[i]]
-                ax.annotate(text, (x[i], y[i]), xytext=(7, -7), textcoords="offset points", fontsize=6,
-                            color="black" if status[i] != "missed" else "0.4", zorder=6)
+            texts = [{"correct": f"{truth[i]}", "wrong": f"{hip[i]} / {truth[i]}" if truth[i] >= 0
+                      else f"{hip[i]} / false", "missed": f"({truth[i]})", "false": "false"}[status[i]]
+                     for i in range(len(x))]
+            # wrong ids first: a label that fits nowhere is left out, and those are the ones a reader needs
+            order = np.argsort([{"wrong": 0, "correct": 1, "missed": 2, "false": 3}[k] for k in status], kind="stable")
+            named = ex.points[[bool(t) for t in ex.labels]] if ex is not None and len(ex.points) else ex_none
+            if len(named):   # a star the explanation labels is not labelled twice
+                near = np.hypot(x[:, None] - named[None, :, 0], y[:, None] - named[None, :, 1]).min(axis=1)
+                order = order[(near[order] > 2.0) | (status[order] == "wrong")]
+            jobs.append((x[order], y[order], [texts[i] for i in order], False,
+                         {"fontsize": 6, "color": "black", "zorder": 6}))
+        placements.append((ax, jobs))
         counts = {k: int((status == k).sum()) for k in STAR_MARKS}
         head = f"{label}" + (f" — {titles[label]}" if titles and label in titles else "")
         ax.set_title(f"{head}\n{counts['correct']} correct, {counts['wrong']} wrong, {counts['missed']} missed, "
@@ -470,7 +561,16 @@ def show_figure(stars: pd.DataFrame, ids: pd.DataFrame, explanations: dict | Non
                               label=m["text"]))
     handles += [Line2D([], [], color="#7F7F7F", linewidth=0.8, linestyle="--", label="explain: considered"),
                 Line2D([], [], color="#CC79A7", linewidth=2.2, label="explain: decisive / matched")]
-    legend_ax.legend(handles=handles, loc="center", ncol=4, fontsize=7)
+    legend_ax.legend(handles=handles, loc="center", ncol=4 if cols > 1 else 2, fontsize=7)
+    if suptitle:   # about 13 characters per inch at 10 pt, so one panel keeps it whole
+        fig.suptitle("\n".join(textwrap.wrap(suptitle, max(40, int(13 * fig.get_figwidth())))), fontsize=10)
+    # labels last, once the layout is settled: the explanation's (its caption refers to them) placed
+    # first and always, then the HIP numbers where they fit beside their star without covering another
+    stars_xy = np.column_stack([x, y])
+    for ax, jobs in placements:
+        taken = []
+        for jx, jy, texts, required, kw in jobs:
+            place_labels(ax, jx, jy, texts, obstacles_xy=stars_xy, obstacle_pt=14.0, required=required, taken=taken, **kw)
     return fig
 
 
@@ -485,12 +585,9 @@ def _draw_explanation(ax, ex) -> None:
             closed = np.vstack([poly, poly[:1]])
             ax.fill(closed[:, 0], closed[:, 1], facecolor="#CC79A7", alpha=0.12, edgecolor="none", zorder=1)
             ax.plot(closed[:, 0], closed[:, 1], color="#CC79A7", linewidth=2.2, zorder=5)
-    if len(ex.points):
+    if len(ex.points):   # their labels are placed by show_figure, with the stars' (place_labels)
         ax.scatter(ex.points[:, 0], ex.points[:, 1], marker="+", s=90, color="#CC79A7", linewidths=1.6, zorder=6)
-        for (px, py), text in zip(ex.points, ex.labels):
-            ax.annotate(text, (px, py), xytext=(6, 6), textcoords="offset points", fontsize=7, color="#7A2E5B",
-                        fontweight="bold", zorder=7)
 
 
 __all__ = ["STYLE", "axis_name", "label_styles", "mcnemar_matrix", "rate_by_stars", "rate_curve", "regression",
-           "show_figure", "star_histogram", "time_distributions", "tradeoff"]
+           "place_labels", "show_figure", "star_histogram", "time_distributions", "tradeoff"]

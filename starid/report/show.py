@@ -102,13 +102,14 @@ def show(algorithms, trial: int, seed: int = 0, world: dict | None = None, camer
         explanations[variant.label] = ex
         titles[variant.label] = (f"{status}, {elapsed_ms:.2f} ms" if not error else f"error: {error[:60]}")
     ids = pd.concat(id_rows, ignore_index=True)
-    fig = plots.show_figure(stars, ids, explanations, camera.width_px, camera.height_px, titles, label_stars)
     world_text = ", ".join(f"{k} = {v:g}" for k, v in config.as_dict().items()
                            if k in ("sigma_px", "sigma_mag", "false_stars", "lost_stars"))
     world_text += ("; real sky (every star to V 8)" if config.sky_mag_limit is None
                    else f"; sky V <= {config.sky_mag_limit:g}")
-    fig.suptitle(f"trial {trial}, seed {seed}: {len(obs)} detections ({int((obs.truth_hip >= 0).sum())} true); "
-                 f"{world_text}", fontsize=10)
+    heading = (f"trial {trial}, seed {seed}: {len(obs)} detections ({int((obs.truth_hip >= 0).sum())} true); "
+               f"{world_text}")
+    fig = plots.show_figure(stars, ids, explanations, camera.width_px, camera.height_px, titles, label_stars,
+                            suptitle=heading)
     return Shown(fig, stars, ids, pd.DataFrame(results), explanations)
 
 
