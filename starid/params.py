@@ -52,3 +52,18 @@ def check_choice(name: str, value, choices) -> None:
     """One of ``choices``."""
     if value not in choices:
         raise ConfigError(f"{name} must be one of {tuple(choices)}, got {value!r}")
+
+
+def param(default, *, help: str = "", unit: str = ""):
+    """An algorithm parameter: a dataclass field with its default and, for ``starid info`` and the
+    docs, its meaning (``help``, one sentence) and unit (``unit``, e.g. ``"px"``, ``"deg"``; ``""``
+    for a count or flag). Without them ``info`` falls back to the conventions of docs/plugins.md
+    (the unit from the name's suffix, the meaning from the class docstring's sentence naming the
+    parameter in double back-quotes)::
+
+        n_bright: int = param(8, help="stars of the image that vote, brightest first")
+        d_max_deg: float = param(6.0, help="largest pair separation stored", unit="deg")
+    """
+    import dataclasses
+
+    return dataclasses.field(default=default, metadata={"help": help, "unit": unit})

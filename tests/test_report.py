@@ -107,7 +107,7 @@ def test_regression_report_matches_trials_and_tests_them(folder, tmp_path):
     assert set(diff["where"]) >= {"sigma_px=0", "sigma_px=2", "sky=paper", "sky=real", "all points"}
     html = written["html"].read_text()
     assert _external_references(html) == [] and "data:image/png;base64," in html
-    assert "The two definitions differ" in written["md"].read_text()
+    assert "same world" in written["md"].read_text()  # only the algorithms differ
 
 
 def test_regression_refuses_two_different_experiments(folder, tmp_path, capsys):

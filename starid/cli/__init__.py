@@ -18,6 +18,7 @@ import warnings
 from ..errors import StarIDError, StarIDWarning
 from ..provenance import versions
 from . import check, experiments, identify, images, plugins, report
+from . import scaffold
 from .options import Formatter
 
 
@@ -39,6 +40,7 @@ def build_parser() -> argparse.ArgumentParser:
     images.add_parsers(sub, Formatter)
     check.add_parsers(sub, Formatter)
     report.add_parsers(sub, Formatter)
+    scaffold.add_parsers(sub, Formatter)
     return parser
 
 

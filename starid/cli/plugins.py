@@ -65,9 +65,11 @@ def parameter_table(cls) -> list[dict]:
         follows = cls.follows.get(f.name)
         default = f.default if f.default is not dataclasses.MISSING else "(required)"
         value = derived.get(f.name) if default is None and not follows else None
-        rows.append({"name": f.name, "type": type_text, "default": default, "unit": unit_of(f.name),
+        # declared metadata (starid.params.param(help=, unit=)) first, else the naming conventions
+        rows.append({"name": f.name, "type": type_text, "default": default,
+                     "unit": f.metadata["unit"] if "unit" in f.metadata else unit_of(f.name),
                      "follows": f"simulator {follows}" if follows else "", "derived": value,
-                     "meaning": meaning_of(cls, f.name)})
+                     "meaning": f.metadata.get("help") or meaning_of(cls, f.name)})
     return rows
 
 

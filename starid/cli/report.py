@@ -14,7 +14,8 @@ EXAMPLES = {
   starid sweep ptp pvector --param sigma_px=0:2:0.5 --out results/noise && starid report results/noise
   starid report results/noise --format html
   starid report results/ptp-v1 results/ptp-v2          # regression: new vs old, same images
-  starid report results/ptp-v1 results/ptp-v2 --out results/regression""",
+  starid report results/ptp-v1 results/ptp-v2 --out results/regression
+  starid report results/ptp-v1 results/ptp-v2 --fail-on worse,misid,slower:1.2   # CI gate: exit 1""",
     "show": """examples:
   starid show ptp pvector planar_triangle triangle_voting --trial 3 --out trial3.png
   starid show ptp 'ptp[n_slaves=3]' --trial 12 --seed 7 --pos-noise-px 1 --mag-noise 0.5 --out t12.png
@@ -38,13 +39,27 @@ def cmd_report(args) -> int:
         print(f"wrote {', '.join(str(written[f]) for f in formats)} and {len(written['figures'])} figures in "
               f"{args.dir / 'figures'}")
         return 0
-    written, diff = build_regression(args.dir, args.new, args.out, formats, svg=not args.no_svg)
-    shown = diff.assign(old=100 * diff["old_rate"], new=100 * diff["new_rate"], diff_pp=100 * diff["diff"])
+    from ..report.regression import gate, parse_fail_on
+
+    fail_on = parse_fail_on(args.fail_on)
+    if args.fail_on_regression and ("worse", None) not in fail_on:
+        fail_on.append(("worse", None))
+    written, diff = build_regression(args.dir, args.new, args.out, formats, svg=not args.no_svg,
+                                     allow_different_worlds=args.allow_different_worlds)
+    shown = diff.assign(old=100 * diff["old_rate"], new=100 * diff["new_rate"], diff_pp=100 * diff["diff"],
+                        misid_pp=100 * diff["misid_diff"], failed_pp=100 * diff["failed_diff"])
     print(shown[["study", "where", "label", "trials", "old", "new", "diff_pp", "only_old_correct",
-                 "only_new_correct", "p_value"]].to_string(index=False, float_format=lambda v: f"{v:.4g}"))
+                 "only_new_correct", "p_value", "misid_pp", "failed_pp", "time_ratio"]]
+          .to_string(index=False, float_format=lambda v: f"{v:.4g}"))
+    for k, a, b in written["differences"]:
+        print(f"world differs: {k}: {a} (old) vs {b} (new)")
+    for r in written["one_sided"].itertuples():
+        print(f"only in {r.side}: {r.study}/{r.label} @ {r.where} ({r.trials} trials), not compared")
     print(f"wrote {', '.join(str(written[f]) for f in formats)}")
-    worse = diff[(diff["p_value"] < 0.05) & (diff["diff"] < 0) & (diff["where"] != "all points")]
-    return 1 if args.fail_on_regression and len(worse) else 0
+    reasons = gate(diff, fail_on)
+    for line in reasons:
+        print(f"FAIL {line}")
+    return 1 if reasons else 0
 
 
 def cmd_show(args) -> int:
@@ -75,15 +90,24 @@ def add_parsers(sub, formatter) -> None:
                                    "no external URL, no JavaScript) and DIR/figures/*.png + .svg: conditions, "
                                    "provenance, tables, rate curves with 95 % Wilson bands and the paper's points, "
                                    "time and memory trade-offs, star counts, McNemar tests. With two folders of the "
-                                   "same experiment (OLD NEW): the rate differences per label and point with "
-                                   "McNemar's exact test on the same images (regression.md / .html).")
+                                   "same experiment (OLD NEW): per label and point, the paired changes in id rate, "
+                                   "misidentification and failures (Newcombe interval, McNemar's exact test), median "
+                                   "and p95 time ratios (bootstrap interval), database size and build time "
+                                   "(regression.md / .html); folders of different worlds are refused, naming the "
+                                   "settings that differ.")
     p.add_argument("dir", type=Path, metavar="DIR", help="results folder (OLD when NEW is given)")
     p.add_argument("new", type=Path, nargs="?", metavar="NEW", help="a second results folder: regression report")
     p.add_argument("--format", default="md,html", metavar="md,html", help="which documents to write")
     p.add_argument("--out", type=Path, metavar="DIR", help="where the regression report goes (default: NEW)")
     p.add_argument("--no-svg", action="store_true", help="write PNG figures only")
-    p.add_argument("--fail-on-regression", action="store_true",
-                   help="regression report: exit 1 when any label/point is significantly worse (for CI)")
+    p.add_argument("--fail-on", action="append", metavar="worse,misid,slower:R",
+                   help="regression report: exit 1 when a label/point got significantly worse in id rate ('worse'), "
+                        "significantly more misidentifications ('misid'), or a median time ratio whose 95 %% "
+                        "interval lies above R ('slower:1.2'); comma-separated or repeated (for CI)")
+    p.add_argument("--fail-on-regression", action="store_true", help="the same as --fail-on worse")
+    p.add_argument("--allow-different-worlds", action="store_true",
+                   help="regression report: compare two folders whose simulated worlds differ (refused otherwise; "
+                        "the differing settings are listed in the report)")
     p.set_defaults(func=cmd_report)
 
     p = sub.add_parser("show", help="one simulated image, one panel per algorithm, its reasoning drawn over it",

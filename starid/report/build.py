@@ -4,8 +4,8 @@ A report is a list of blocks (headings, paragraphs, Markdown snippets with table
 rendered twice: as Markdown (figures linked as ``figures/<name>.png``) and as one HTML file
 (figures embedded as base64 PNG, tables as HTML tables, a small inline stylesheet; no external
 URL and no JavaScript). :func:`build_report` makes the report of one folder;
-:func:`build_regression` compares two folders of the same experiment trial by trial
-(McNemar's exact test per label and point).
+:func:`build_regression` (:mod:`starid.report.regression`) compares two folders of the same
+experiment trial by trial.
 """
 
 from __future__ import annotations
@@ -17,19 +17,16 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
-from scipy.stats import binomtest
 
 from .. import experiments as builtin
-from .. import plots
 from ..errors import ConfigError
 from ..experiment import Experiment, read_manifest
 from ..io import atomic_write_text
 from ..provenance import versions
 from ..stats import mcnemar_all, summarize
 from . import figures as figs
-from .tables import Table, markdown, mcnemar_markdown, p_value, pct, rate_ci
+from .tables import Table, markdown, mcnemar_markdown, pct, rate_ci
 
 FORMATS = ("md", "html")
 SIM_FIELDS = ("sigma_px", "sigma_mag", "mag_limit", "false_stars", "lost_stars", "min_stars", "merge_radius_px",
@@ -365,116 +362,9 @@ def render_html(blocks: list[Block], title: str, folder: Path) -> str:
 
 
 # ---------------------------------------------------------------------------------------------- regression
+# the regression report lives in regression.py (every metric, world check, --fail-on gates)
 
-def _where_text(row: pd.Series, grid: list[str]) -> str:
-    return ", ".join(f"{c[5:]}={_fmt(row[c])}" for c in grid if not _missing(row[c])) or "-"
-
-
-def compare(old: pd.DataFrame, new: pd.DataFrame) -> pd.DataFrame:
-    """Per study, point and label: both rates, their difference (new − old) with a 95 % interval for
-    paired proportions (exact, conditional on the discordant images), and McNemar's exact test on the trials both ran (matched by
-    study, grid values, label and trial index). A row ``where = all points`` per study and label pools
-    the points."""
-    grid = sorted({c for c in old.columns if c.startswith("grid_")} & {c for c in new.columns if c.startswith("grid_")})
-    key = ["study", *grid, "label", "trial"]
-    a = old[key + ["status"]].assign(ok=old["status"] == "correct")
-    b = new[key + ["status"]].assign(ok=new["status"] == "correct")
-    for df in (a, b):
-        for c in grid:
-            df[c] = df[c].map(_fmt)
-    m = a.merge(b, on=key, suffixes=("_old", "_new"))
-    if m.empty:
-        raise ConfigError("the two folders share no (study, point, label, trial): nothing to compare")
-    m["where"] = m[grid].apply(lambda r: ", ".join(f"{c[5:]}={v}" for c, v in r.items() if v != "none"),
-                               axis=1) if grid else "-"
-    rows = []
-    for (study, label), g in m.groupby(["study", "label"], sort=False):
-        parts = list(g.groupby("where", sort=False))
-        if len(parts) > 1:
-            parts.append(("all points", g))
-        for where, h in parts:
-            rows.append({"study": study, "where": where, "label": label, **_paired(h["ok_old"].to_numpy(),
-                                                                                   h["ok_new"].to_numpy())})
-    return pd.DataFrame(rows)
-
-
-def _paired(old_ok: np.ndarray, new_ok: np.ndarray) -> dict:
-    n = old_ok.size
-    only_old = int((old_ok & ~new_ok).sum())
-    only_new = int((new_ok & ~old_ok).sum())
-    diff = (only_new - only_old) / n
-    m = only_new + only_old
-    if m:
-        # conditional on the m discordant images, only_new ~ Binomial(m, q) and diff = m / n (2q - 1): the
-        # exact (Clopper-Pearson) interval of q gives an interval of diff consistent with the exact test
-        test = binomtest(only_new, m, 0.5)
-        ci = test.proportion_ci(0.95, method="exact")
-        p, lo, hi = test.pvalue, m / n * (2 * ci.low - 1), m / n * (2 * ci.high - 1)
-    else:
-        p, lo, hi = 1.0, 0.0, 0.0
-    return {"trials": n, "old_rate": float(old_ok.mean()), "new_rate": float(new_ok.mean()), "diff": diff,
-            "diff_lo": float(lo), "diff_hi": float(hi), "only_old_correct": only_old,
-            "only_new_correct": only_new, "p_value": float(p)}
-
-
-def build_regression(old: str | Path, new: str | Path, out: str | Path | None = None, formats=FORMATS,
-                     svg: bool = True) -> tuple[dict, pd.DataFrame]:
-    """``regression.md`` / ``regression.html`` / ``figures/regression.*`` in ``out`` (default: ``new``)."""
-    old, new = Path(old), Path(new)
-    out = Path(out) if out is not None else new
-    mo, fo = load(old)
-    mn, fn = load(new)
-    no, nn = mo.get("experiment", {}).get("name"), mn.get("experiment", {}).get("name")
-    if no != nn:
-        raise ConfigError(f"{old} holds experiment {no!r} and {new} holds {nn!r}: a regression report compares two "
-                          f"folders of the same experiment")
-    diff = compare(fo, fn)
-    fig = figs.ReportFigure("regression", "Rate differences, new − old",
-                            "Identification rate of the new folder minus the old one per label and point, with a 95 % "
-                            "interval for paired proportions (exact, given the discordant images); filled markers: McNemar's exact test "
-                            "p < 0.05 (the same images in both folders, matched by trial index).",
-                            plots.regression(diff, f"{nn}: new − old on the same images"))
-    figs.save([fig], out / "figures", svg=svg)
-    sig = diff[(diff["p_value"] < 0.05) & (diff["where"] != "all points")]
-    worse = sig[sig["diff"] < 0]
-    better = sig[sig["diff"] > 0]
-    verdict = (f"{len(worse)} label/point(s) significantly worse, {len(better)} significantly better (McNemar p < "
-               f"0.05) out of {int((diff['where'] != 'all points').sum())}; with many points a few p < 0.05 arise "
-               f"by chance (about 1 in 20).")
-    shown = pd.DataFrame({
-        "study": diff["study"], "point": diff["where"], "label": diff["label"], "trials": diff["trials"],
-        "old": diff["old_rate"].map(pct), "new": diff["new_rate"].map(pct),
-        "new − old [95% CI]": [f"{100 * d:+.2f} pp [{100 * lo:+.2f}, {100 * hi:+.2f}]"
-                               for d, lo, hi in zip(diff["diff"], diff["diff_lo"], diff["diff_hi"])],
-        "only old correct": diff["only_old_correct"], "only new correct": diff["only_new_correct"],
-        "McNemar p": diff["p_value"].map(p_value),
-        "": ["**worse**" if p < 0.05 and d < 0 else "**better**" if p < 0.05 and d > 0 else ""
-             for p, d in zip(diff["p_value"], diff["diff"])]})
-
-    def side(m, f, name):
-        plug = f.drop_duplicates("label")
-        pv = ", ".join(f"{lab} {d} {v}" for lab, d, v in zip(plug["label"], plug.get("plugin_dist", ""),
-                                                           plug.get("plugin_version", "")))
-        ver = ", ".join(f"{c[:-8]} {f[c].iloc[0]}" for c in f.columns if c.endswith("_version") and
-                        c != "plugin_version")
-        return [(f"{name} folder", f"`{m.get('_path')}`"), (f"{name} versions", ver), (f"{name} plugins", pv),
-                (f"{name} run", f"{m.get('started')} / {m.get('finished')} on {m.get('machine', {}).get('hostname')}"),
-                (f"{name} digest", f"`{m.get('digest')}`")]
-
-    mo["_path"], mn["_path"] = str(old), str(new)
-    pairs = side(mo, fo, "old") + side(mn, fn, "new")
-    note = "" if mo.get("digest") == mn.get("digest") else (
-        " The two definitions differ (digests differ): only the trials both folders ran are compared.")
-    title = f"Regression report: {nn}, {new.name} vs {old.name}"
-    blocks = [Block("h1", title),
-              Block("p", f"Every label and point of the new folder compared with the old one on the same images "
-                         f"(trials matched by index: common random numbers make trial k the same image in both). "
-                         f"{verdict}{note}"),
-              Block("h2", "Differences"), Block("md", markdown(shown)),
-              Block("h2", "Figure"), Block("fig", fig.caption, fig),
-              Block("h2", "Provenance"), Block("md", _kv_table(pairs))]
-    return _write_documents(blocks, title, out, "regression", formats), diff
-
+from .regression import build_regression, compare
 
 __all__ = ["build_regression", "build_report", "compare", "load", "markdown_to_html", "render_html",
            "render_markdown"]
