@@ -17,7 +17,7 @@ import warnings
 
 from ..errors import StarIDError, StarIDWarning
 from ..provenance import versions
-from . import check, experiments, identify, images, plugins, report
+from . import cameras, check, experiments, identify, images, plugins, report
 from .options import Formatter
 
 
@@ -39,6 +39,7 @@ def build_parser() -> argparse.ArgumentParser:
     images.add_parsers(sub, Formatter)
     check.add_parsers(sub, Formatter)
     report.add_parsers(sub, Formatter)
+    cameras.add_parsers(sub, Formatter)
     return parser
 
 
