@@ -63,6 +63,7 @@ def prepare(algorithm: Algorithm, catalog: Catalog, camera, warmup: Observation 
     """Derive the sensor-dependent parameters, build the database once and warm the JIT up on
     ``warmup`` (never scored). The prepared algorithm is the derived one (:meth:`Algorithm.derived`)."""
     label = label or algorithm.name
+    camera = camera.pinhole_frame    # a distorted camera: plugins work in its undistorted frame
     t0 = time.perf_counter()
     try:
         algorithm = algorithm.derived(catalog, camera)

@@ -23,7 +23,8 @@ class Observation:
     ----------
     x_px, y_px : float64 (n,) centroids, pixel (0, 0) = top-left corner, x right, y down.
     mag : float64 (n,) measured (noisy) magnitudes.
-    camera : the camera that took the image.
+    camera : the camera that took the image as the tracker knows it (its assumed calibration,
+        distortion included); the centroids are raw sensor pixels.
     truth_hip : int64 (n,) true catalog id of each detection (-1 = false star), or ``None``
         when unknown. Algorithms must not read it; only the harness does.
     """
@@ -78,7 +79,15 @@ class Observation:
                            None if self.truth_hip is None else self.truth_hip[order])
 
     def for_plugin(self) -> "Observation":
-        """What an algorithm is handed: read-only arrays and no truth."""
+        """What an algorithm is handed: read-only arrays and no truth, in a pinhole frame.
+
+        With a distorted camera the centroids are first undistorted with its calibration into
+        :attr:`Camera.pinhole_frame` (what flight software does), so every plugin works on a
+        pinhole camera; without distortion the arrays and camera are these, unchanged."""
+        if self.camera.distorted:
+            x, y = self.camera.undistort(self.x_px, self.y_px)
+            x, y, m = (_read_only(a) for a in (x, y, self.mag))
+            return Observation(x, y, m, self.camera.pinhole_frame)
         x, y, m = (_read_only(a) for a in (self.x_px, self.y_px, self.mag))
         return Observation(x, y, m, self.camera)
 
@@ -111,8 +120,9 @@ class TrialSet:
     x_px, y_px, mag, truth_hip : per-star arrays (see :class:`Observation`).
     attitude : float64 (t, 3, 3) true attitudes (ICRS -> camera).
     n_redraws : int64 (t,) attitudes rejected by the ``min_stars`` filter before this trial.
-    camera : the camera.
+    camera : the camera the algorithms assume (its calibration; the observations carry it).
     warmup : an image outside the set (never scored) on which the harness warms the JIT up.
+    true_camera : the camera that imaged the sky (``None`` = the same as ``camera``).
 
     The arrays are made read-only: a plugin handed a view cannot change the images the next
     algorithm is scored on. What made the trials (seed, settings) is the caller's to record.
@@ -128,6 +138,7 @@ class TrialSet:
     n_redraws: np.ndarray
     camera: Camera
     warmup: Observation | None = None
+    true_camera: Camera | None = None
 
     def __post_init__(self):
         for name in ("trial", "offsets", "x_px", "y_px", "mag", "truth_hip", "attitude", "n_redraws"):
@@ -170,4 +181,4 @@ class TrialSet:
         offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
         return TrialSet(self.trial[positions], offsets, self.x_px[rows], self.y_px[rows], self.mag[rows],
                         self.truth_hip[rows], self.attitude[positions], self.n_redraws[positions],
-                        self.camera, self.warmup)
+                        self.camera, self.warmup, self.true_camera)

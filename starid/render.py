@@ -171,9 +171,7 @@ class Renderer:
         self._tree = cKDTree(self._unit_icrs)
         cam = simulator.camera
         self._margin_px = STAMP_SIGMAS * self.config.psf_sigma_px + 2.0
-        dx = max(cam.cx_px, cam.width_px - cam.cx_px) + self._margin_px
-        dy = max(cam.cy_px, cam.height_px - cam.cy_px) + self._margin_px
-        half = math.atan(math.hypot(dx, dy) / cam.f_px)
+        half = cam.reach_rad(self._margin_px)     # the true camera, its lens included
         if half >= math.pi / 2:
             raise ConfigError("the camera's field of view is too wide to render (>= 180 deg)")
         self._chord = 2.0 * math.sin(half / 2.0)
@@ -345,7 +343,7 @@ def observation_from_image(simulator: Simulator, trial: int, config: RenderConfi
     camera = renderer.camera
     radius = match_radius(x, y, camera, match_radius_px, cfg.psf_sigma_px)
     truth, row = match_truth(x, y, rendered.x_px, rendered.y_px, rendered.hip, radius, rendered.v_mag, flux)
-    obs = Observation(x, y, mag, camera, truth)
+    obs = Observation(x, y, mag, simulator.assumed, truth)    # what the tracker believes the camera is
     stats = match_stats(rendered, x, y, row, camera, simulator.config.mag_limit)
     return ImageTrial(obs, flux, rendered, stats)
 
@@ -377,7 +375,8 @@ def image_trials(simulator: Simulator, n_trials: int, start: int = 0, config: Re
                       x_px=cat("x_px", np.float64), y_px=cat("y_px", np.float64), mag=cat("mag", np.float64),
                       truth_hip=cat("truth_hip", np.int64),
                       attitude=np.array([it.rendered.attitude for it in items]).reshape(n_trials, 3, 3),
-                      n_redraws=np.array([it.rendered.n_redraws for it in items], dtype=np.int64), camera=simulator.camera, warmup=warm)
+                      n_redraws=np.array([it.rendered.n_redraws for it in items], dtype=np.int64), camera=simulator.assumed, warmup=warm,
+                      true_camera=None if simulator.assumed is simulator.camera else simulator.camera)
     stats = pd.DataFrame([{"trial": it.rendered.trial, **it.stats} for it in items])
     return trials, stats
 

@@ -45,7 +45,6 @@ from .camera import Camera
 from .catalog import Catalog
 from .errors import ConfigError
 from .params import check_choice, check_number, check_whole
-from .kernels import project_cam
 from .observation import Observation, TrialSet
 
 MAX_REDRAWS = 10_000
@@ -71,6 +70,12 @@ class SimConfig:
     #: rendered to pixels and its stars extracted (:mod:`starid.render`, :mod:`starid.extract`);
     #: the render's own noise then replaces ``sigma_px`` and ``sigma_mag``.
     pipeline: str = "centroids"
+    #: The camera the algorithm assumes versus the one that imaged the sky (docs/cameras.md): its
+    #: focal length off by this many percent, its principal point off by this many px (along the
+    #: +x+y diagonal), and its distortion ``"true"`` (calibrated) or ``"none"`` (a pinhole assumed).
+    focal_error_pct: float = 0.0
+    principal_point_error_px: float = 0.0
+    assumed_distortion: str = "true"
 
     def __post_init__(self):
         for name in ("sigma_px", "sigma_mag", "merge_radius_px"):
@@ -79,6 +84,9 @@ class SimConfig:
         if self.sky_mag_limit is not None:
             check_number("sky_mag_limit", self.sky_mag_limit)
         check_choice("pipeline", self.pipeline, PIPELINES)
+        check_number("focal_error_pct", self.focal_error_pct, lo=-50, hi=50)
+        check_number("principal_point_error_px", self.principal_point_error_px)
+        check_choice("assumed_distortion", self.assumed_distortion, ASSUMED_DISTORTION)
         for name in ("false_stars", "lost_stars", "min_stars"):
             check_whole(name, getattr(self, name), 0)
 
@@ -87,6 +95,21 @@ class SimConfig:
 
 
 PIPELINES = ("centroids", "image")
+ASSUMED_DISTORTION = ("true", "none")
+
+
+def assumed_camera(camera: Camera, config: "SimConfig") -> Camera:
+    """The calibration an algorithm is given for ``camera`` under ``config``'s camera errors
+    (``camera`` itself when there are none)."""
+    changes = {}
+    if config.focal_error_pct != 0.0:
+        changes["focal_mm"] = camera.focal_mm * (1.0 + config.focal_error_pct / 100.0)
+    if config.principal_point_error_px != 0.0:
+        d = config.principal_point_error_px / math.sqrt(2.0)
+        changes["cx_px"], changes["cy_px"] = camera.cx_px + d, camera.cy_px + d
+    if config.assumed_distortion == "none" and camera.distorted:
+        changes["distortion"] = (0.0, 0.0, 0.0, 0.0, 0.0)
+    return camera.replace(**changes) if changes else camera
 
 #: Named skies: the settings that decide which stars are imaged (see the module docstring).
 #: ``fig10`` is calibrated on Zhou & Ye's Fig. 10 (mean 14.18 stars in the field, noise-free):
@@ -141,6 +164,8 @@ class Simulator:
             raise ConfigError(f"seed must be a whole number >= 0, got {seed!r}")
         self.seed = int(seed)
         cfg = self.config
+        #: the camera the algorithms are given (the true one unless the config says otherwise)
+        self.assumed = assumed_camera(self.camera, cfg)
         # Candidates: every star that magnitude noise could bring to the detection limit, and every
         # star near enough to the sensor for centroid noise to push it in. Both bounds are fixed
         # (not scaled by the noise up to 0.5 Mv and 8 px) so that the candidates -- and with them
@@ -153,10 +178,7 @@ class Simulator:
         self._unit_icrs = catalog.unit_icrs[bright]
         self._tree = cKDTree(self._unit_icrs)
         self._margin_px = cfg.merge_radius_px + max(CRN_MARGIN_PX, 6.0 * cfg.sigma_px + 1.0)
-        cam = self.camera
-        dx = max(cam.cx_px, cam.width_px - cam.cx_px) + self._margin_px
-        dy = max(cam.cy_px, cam.height_px - cam.cy_px) + self._margin_px
-        half_diag_rad = math.atan(math.hypot(dx, dy) / cam.f_px)
+        half_diag_rad = self.camera.reach_rad(self._margin_px)
         if half_diag_rad >= math.pi / 2:
             raise ConfigError("the camera's field of view is too wide for the simulator (>= 180 deg)")
         self._query_chord = 2.0 * math.sin(half_diag_rad / 2.0)
@@ -174,7 +196,7 @@ class Simulator:
         v_cam = self._unit_icrs[idx] @ attitude.T
         front = v_cam[:, 2] > 1e-9
         idx, v_cam = idx[front], v_cam[front]
-        x_px, y_px = project_cam(np.ascontiguousarray(v_cam), cam.f_px, cam.cx_px, cam.cy_px)
+        x_px, y_px = cam.project(v_cam)    # through the true camera (its lens included)
         m = self._margin_px
         near = (x_px >= -m) & (x_px < cam.width_px + m) & (y_px >= -m) & (y_px < cam.height_px + m)
         idx, x_px, y_px = idx[near], x_px[near], y_px[near]
@@ -243,7 +265,7 @@ class Simulator:
     def observation(self, trial: int) -> Observation:
         """Trial ``trial`` as an :class:`Observation` (with truth)."""
         _, x_px, y_px, mag, hip, _ = self.draw(trial)
-        return Observation(x_px, y_px, mag, self.camera, hip)
+        return Observation(x_px, y_px, mag, self.assumed, hip)
 
     def generate(self, n_trials: int, start: int = 0) -> TrialSet:
         """Trials ``start .. start + n_trials - 1`` as a :class:`TrialSet`.
@@ -265,4 +287,5 @@ class Simulator:
             truth_hip=cat(4, np.int64),
             attitude=np.array([p[0] for p in parts]).reshape(n_trials, 3, 3),
             n_redraws=np.array([p[5] for p in parts], dtype=np.int64),
-            camera=self.camera, warmup=self.observation(WARMUP_TRIAL))
+            camera=self.assumed, warmup=self.observation(WARMUP_TRIAL),
+            true_camera=None if self.assumed is self.camera else self.camera)

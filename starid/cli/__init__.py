@@ -17,8 +17,7 @@ import warnings
 
 from ..errors import StarIDError, StarIDWarning
 from ..provenance import versions
-from . import check, experiments, identify, images, plugins, report
-from . import scaffold
+from . import cameras, check, experiments, identify, images, plugins, report, scaffold
 from .options import Formatter
 
 
@@ -41,6 +40,7 @@ def build_parser() -> argparse.ArgumentParser:
     check.add_parsers(sub, Formatter)
     report.add_parsers(sub, Formatter)
     scaffold.add_parsers(sub, Formatter)
+    cameras.add_parsers(sub, Formatter)
     return parser
 
 

@@ -210,7 +210,14 @@ def annotate(path: Path, image: np.ndarray, x_px, y_px, hip, title: str) -> None
 # -------------------------------------------------------------------------------------- identify
 
 def _image_camera(args, width_px: int, height_px: int) -> Camera:
-    """The camera of one image: its own size, the field of view across its width (or --focal-mm)."""
+    """The camera of one image: its own size, the field of view across its width (or --focal-mm);
+    with ``--camera`` that calibration (its size must be the image's), the options overriding it."""
+    if getattr(args, "camera", None) is not None:
+        cam = make_camera(camera_spec(args))
+        if (cam.width_px, cam.height_px) != (width_px, height_px):
+            raise ConfigError(f"--camera {args.camera} is {cam.width_px}x{cam.height_px} px but the image is "
+                              f"{width_px}x{height_px} px")
+        return cam
     pixel_um = args.pixel_um if getattr(args, "pixel_um", None) is not None else 12.0
     check_number("--pixel-um", pixel_um, lo=0, lo_open=True)
     if args.fov_deg is not None and args.focal_mm is not None:
@@ -331,6 +338,11 @@ def _size_type(text: str) -> tuple[int, int]:
 def render_camera(args) -> Camera:
     """The camera options of ``render``: Table 4 by default; ``--size WxH`` with the field of view
     across the width (``--fov-deg``) or the focal length."""
+    if args.size is not None and getattr(args, "camera", None) is not None:
+        if args.resolution is not None:
+            raise ConfigError("give either --size or --resolution, not both")
+        args.resolution = args.size
+        args.size = None
     spec = camera_spec(args)
     if args.size is None:
         return make_camera(spec)

@@ -110,10 +110,27 @@ def world_settings(args) -> dict:
     return settings
 
 
+def resolution_type(text: str) -> tuple[int, int]:
+    """``--resolution``: ``N`` (a square N x N sensor, as before) or ``WxH``."""
+    parts = text.lower().replace(" ", "").split("x")
+    try:
+        values = [int(v) for v in parts]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be N or WIDTHxHEIGHT in px (e.g. 1024 or 1024x768), got {text!r}") from None
+    if len(values) == 1:
+        return values[0], values[0]
+    if len(values) == 2:
+        return values[0], values[1]
+    raise argparse.ArgumentTypeError(f"must be N or WIDTHxHEIGHT in px (e.g. 1024 or 1024x768), got {text!r}")
+
+
 def add_camera(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("camera (default: Zhou & Ye Table 4, 1024 px, 12 um, 70.2262 mm: 10 x 10 deg)")
-    g.add_argument("--fov-deg", type=float, help="square field of view across the image width")
-    g.add_argument("--resolution", type=int, help="image width = height in px")
+    g.add_argument("--camera", metavar="NAME|FILE", help="a camera preset ('starid cameras' lists them) or a "
+                   "camera TOML file; the options below override its fields")
+    g.add_argument("--fov-deg", type=float, help="field of view across the image width")
+    g.add_argument("--resolution", type=resolution_type, metavar="N|WxH",
+                   help="image size in px: N (square) or WIDTHxHEIGHT, e.g. 1024x768")
     g.add_argument("--focal-mm", type=float, help="focal length in mm")
     g.add_argument("--pixel-um", type=float, help="pixel pitch in um")
 
@@ -124,25 +141,35 @@ def camera_spec(args) -> dict:
              if getattr(args, k, None) is not None}
     if "fov_deg" in given and "focal_mm" in given:
         raise ConfigError("give either --fov-deg or --focal-mm, not both")
-    if "fov_deg" in given:
-        spec = {"fov_deg": given["fov_deg"], "resolution_px": given.get("resolution", 1024),
+    preset = getattr(args, "camera", None)
+    resolution = given.get("resolution")
+    if resolution is not None and not isinstance(resolution, tuple):
+        resolution = (resolution, resolution)
+    if "fov_deg" in given and preset is None and (resolution is None or resolution[0] == resolution[1]):
+        spec = {"fov_deg": given["fov_deg"], "resolution_px": resolution[0] if resolution else 1024,
                 "pixel_um": given.get("pixel_um", 12.0)}
     else:
-        spec = {}
-        if "resolution" in given:
-            spec["width_px"] = spec["height_px"] = given["resolution"]
+        spec = {} if preset is None else {"preset": preset}
+        if "fov_deg" in given:
+            spec["fov_deg"] = given["fov_deg"]
+        if resolution is not None:
+            spec["width_px"], spec["height_px"] = resolution
         if "focal_mm" in given:
             spec["focal_mm"] = given["focal_mm"]
         if "pixel_um" in given:
             spec["pixel_um"] = given["pixel_um"]
+    if preset is not None or "fov_deg" in spec:
+        make_camera(spec)       # checked now: a bad file or field fails before any work
     return spec
 
 
 def make_camera(spec: dict) -> Camera:
+    from ..cameras import camera_from_spec
+
     spec = dict(spec)
-    if "fov_deg" in spec:
+    if "fov_deg" in spec and "preset" not in spec and "width_px" not in spec:
         return Camera.from_fov(spec["fov_deg"], spec["resolution_px"], spec["pixel_um"])
-    return Camera(**spec)
+    return camera_from_spec(spec)
 
 
 def progress(args) -> bool:

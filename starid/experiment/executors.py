@@ -95,10 +95,10 @@ def execute_task(task: Task, beat=None) -> pd.DataFrame:
     try:
         algorithm = chunk.variant.make().resolved(sim.config)
         info = algorithm_info(chunk.variant.name)
-        key = (chunk.variant.name, repr(sorted(algorithm.params().items())), task.catalog_path, task.camera)
+        key = (chunk.variant.name, repr(sorted(algorithm.params().items())), task.catalog_path, trials.camera)
         prepared = _CACHE["prepared"].get(key)
         if prepared is None:
-            prepared = prepare(algorithm, catalog, task.camera, trials.warmup, chunk.variant.label)
+            prepared = prepare(algorithm, catalog, trials.camera, trials.warmup, chunk.variant.label)
             _CACHE["prepared"][key] = prepared
         elif prepared.label != chunk.variant.label:
             prepared = type(prepared)(prepared.algorithm, chunk.variant.label, prepared.database, prepared.build_s,

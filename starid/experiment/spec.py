@@ -9,7 +9,8 @@ random numbers, :mod:`starid.simulate`). The same experiment can be written as T
     name = "noise-sweep"
     trials = 1000
     seed = 0
-    [camera]                   # starid.Camera fields, or fov_deg (+ resolution_px)
+    [camera]                   # starid.Camera fields, or fov_deg (+ resolution_px), or preset = "NAME"|"FILE"
+                               # (+ fields overriding it); camera = "NAME" at the top level is the same
     fov_deg = 10
     [sim]                      # starid.SimConfig fields, or sky = "paper" / "real"
     sigma_mag = 0.5
@@ -249,6 +250,11 @@ class Experiment:
 
     def make_camera(self) -> Camera:
         spec = dict(self.camera)
+        if "preset" in spec or ("fov_deg" in spec and {"width_px", "height_px"} & set(spec)) \
+                or {"distortion", "name", "source", "exposure_s"} & set(spec):
+            from ..cameras import camera_from_spec     # a preset or camera file, its fields overridden
+
+            return camera_from_spec(spec)
         if "fov_deg" in spec:
             fov = spec.pop("fov_deg")
             res = spec.pop("resolution_px", 1024)
@@ -304,7 +310,8 @@ class Experiment:
         if unknown:
             raise ConfigError(f"unknown experiment key(s) {sorted(unknown)}")
         return cls(name=d.get("name", ""), studies=tuple(out), trials=d.get("trials", 1000), seed=d.get("seed", 0),
-                   camera=d.get("camera", {}), sim=d.get("sim", {}), description=d.get("description", ""))
+                   camera=({"preset": d["camera"]} if isinstance(d.get("camera"), str) else d.get("camera", {})),
+                   sim=d.get("sim", {}), description=d.get("description", ""))
 
     @classmethod
     def from_toml(cls, path: str | Path) -> "Experiment":
