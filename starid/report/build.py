@@ -27,6 +27,7 @@ from ..provenance import versions
 from ..stats import mcnemar_all, summarize
 from . import figures as figs
 from .tables import Table, markdown, mcnemar_markdown, pct, rate_ci
+from .tables import setting as _fmt
 
 FORMATS = ("md", "html")
 SIM_FIELDS = ("sigma_px", "sigma_mag", "mag_limit", "false_stars", "lost_stars", "min_stars", "merge_radius_px",
@@ -71,14 +72,6 @@ class Block:
 
 def _kv_table(pairs: list[tuple[str, str]]) -> str:
     return markdown(pd.DataFrame(pairs, columns=["", "value"]))
-
-
-def _fmt(v) -> str:
-    if v is None or (isinstance(v, float) and math.isnan(v)):
-        return "none"
-    if isinstance(v, float):
-        return f"{v:g}"
-    return str(v)
 
 
 def conditions(manifest: dict, frame: pd.DataFrame) -> list[Block]:

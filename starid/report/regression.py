@@ -47,6 +47,7 @@ from ..errors import ConfigError
 from ..scoring import CORRECT, FAILED, MISIDENTIFIED
 from . import figures as figs
 from .tables import markdown, p_value, pct
+from .tables import setting as _fmt
 
 ALPHA = 0.05
 BOOTSTRAP = 1000
@@ -123,14 +124,6 @@ def time_ratio(old_us: np.ndarray, new_us: np.ndarray, q: float, seed: int = 0) 
 
 
 # ---------------------------------------------------------------------------------------------- matching
-
-def _fmt(v) -> str:
-    if v is None or (isinstance(v, float) and math.isnan(v)):
-        return "none"
-    if isinstance(v, float):
-        return f"{v:g}"
-    return str(v)
-
 
 def _grid(frame: pd.DataFrame) -> list[str]:
     return [c for c in frame.columns if c.startswith("grid_")]

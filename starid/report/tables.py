@@ -26,6 +26,15 @@ class Table:
         return f"### {self.title}\n\n{self.markdown}{notes}"
 
 
+def setting(v) -> str:
+    """A setting's value as a report prints it: ``none`` for missing, floats with ``g``."""
+    if v is None or (isinstance(v, float) and math.isnan(v)):
+        return "none"
+    if isinstance(v, float):
+        return f"{v:g}"
+    return str(v)
+
+
 def pct(x, digits: int = 2) -> str:
     """``0.9679 -> '96.79%'``; blank for a missing value."""
     if x is None or (isinstance(x, float) and math.isnan(x)) or x is pd.NA:
