@@ -36,7 +36,7 @@ from .scoring import ERROR, SuccessRule, attitude_error_arcsec, attitude_from_id
 #: parameters as ``param_<key>`` columns, the seed and the versions).
 TRIAL_COLUMNS = ["algorithm", "label", "trial", "n_stars", "n_true_stars", "status", "error", "n_identified",
                  "n_correct", "n_wrong", "time_us", "attitude_err_arcsec", "n_redraws", "db_mb", "build_s",
-                 "compile_s"]
+                 "compile_s", "boresight_ra_deg", "boresight_dec_deg"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -104,7 +104,15 @@ def timed_identify(prepared: Prepared, obs: Observation, catalog_hip: np.ndarray
 def _image_fields(trials: TrialSet, i: int, obs: Observation) -> dict:
     """The columns every row of image ``i`` has, whatever the algorithm did."""
     return {"trial": int(trials.trial[i]), "n_stars": len(obs), "n_true_stars": int((obs.truth_hip >= 0).sum()),
-            "n_redraws": int(trials.n_redraws[i])}
+            "n_redraws": int(trials.n_redraws[i]), **_boresight(trials.attitude[i])}
+
+
+def _boresight(attitude: np.ndarray) -> dict:
+    """``boresight_ra_deg`` / ``boresight_dec_deg``: where the camera's z axis (the attitude's
+    third row, ICRS) points."""
+    z = attitude[2]
+    return {"boresight_ra_deg": float(np.degrees(np.arctan2(z[1], z[0])) % 360.0),
+            "boresight_dec_deg": float(np.degrees(np.arcsin(min(1.0, max(-1.0, z[2])))))}
 
 
 def constant_columns(values: dict, index: pd.Index) -> pd.DataFrame:

@@ -41,6 +41,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 from scipy.special import ndtr
 
+from . import sky
 from .camera import Camera
 from .errors import ConfigError
 from .observation import Observation, TrialSet
@@ -164,10 +165,11 @@ class Renderer:
         self.config = config or RenderConfig()
         cat = simulator.catalog
         sky_limit = simulator.config.sky_mag_limit
-        keep = np.ones(len(cat), dtype=bool) if sky_limit is None else cat.v_mag <= sky_limit
-        self._unit_icrs = cat.unit_icrs[keep]
-        self._v_mag = cat.v_mag[keep]
-        self._hip = cat.hip[keep]
+        unit, v_mag, hip, body = sky.world_stars(cat.unit_icrs, cat.v_mag, cat.hip, simulator.config)
+        keep = np.ones(len(hip), dtype=bool) if sky_limit is None else (v_mag <= sky_limit) | body
+        self._unit_icrs = unit[keep]
+        self._v_mag = v_mag[keep]
+        self._hip = hip[keep]
         self._tree = cKDTree(self._unit_icrs)
         cam = simulator.camera
         self._margin_px = STAMP_SIGMAS * self.config.psf_sigma_px + 2.0
@@ -180,27 +182,39 @@ class Renderer:
     def camera(self) -> Camera:
         return self.simulator.camera
 
-    def stars(self, attitude: np.ndarray):
-        """The stars whose PSF reaches the sensor: ``(x_px, y_px, v_mag, hip)``, catalog order."""
+    def stars(self, attitude: np.ndarray, draws: dict | None = None, with_v_cam: bool = False):
+        """The stars whose PSF reaches the sensor: ``(x_px, y_px, v_mag, hip)``, catalog order
+        (aberrated with the trial's ``draws`` when the simulator's ``velocity_kms`` > 0;
+        ``with_v_cam`` adds their camera-frame vectors)."""
         cam = self.camera
         idx = np.sort(np.asarray(self._tree.query_ball_point(attitude[2], self._chord), dtype=np.int64))
-        v_cam = self._unit_icrs[idx] @ attitude.T
+        unit = self._unit_icrs[idx]
+        if draws is not None and self.simulator.config.velocity_kms > 0:
+            unit = sky.aberrate(unit, self.simulator.config.velocity_kms, draws["apex"])
+        v_cam = unit @ attitude.T
         front = v_cam[:, 2] > 1e-9
         idx, v_cam = idx[front], v_cam[front]
         x, y = cam.project(v_cam)
         m = self._margin_px
         near = (x >= -m) & (x < cam.width_px + m) & (y >= -m) & (y < cam.height_px + m)
         idx = idx[near]
+        if with_v_cam:
+            return x[near], y[near], self._v_mag[idx], self._hip[idx].astype(np.int64), v_cam[near]
         return x[near], y[near], self._v_mag[idx], self._hip[idx].astype(np.int64)
 
     def render(self, trial: int) -> RenderedTrial:
         """Trial ``trial`` (the simulator's attitude for ``(seed, trial)``) as an image."""
         draw = self.simulator.draw(trial)
         attitude = draw[0]
-        x, y, v_mag, hip = self.stars(attitude)
+        scfg = self.simulator.config
+        draws = sky.trial_draws(scfg, self.simulator.seed, trial)
+        x, y, v_mag, hip, v_cam = self.stars(attitude, draws, with_v_cam=True)
         rng = np.random.default_rng([self.simulator.seed, int(trial), RENDER_STREAM])
-        image = render_image(x, y, self.config.signal_e(v_mag), self.camera.width_px, self.camera.height_px,
-                             self.config, rng)
+        xs, ys, signal = x, y, self.config.signal_e(v_mag)
+        if sky.smear_on(scfg):   # the PSF summed along each star's streak; truth at the streak's centre
+            xs, ys, signal, x, y = sky.streak_stars(x, y, signal, v_cam, self.camera, scfg, draws["smear_axis"],
+                                                    self.config.psf_sigma_px, self.config.exposure_s)
+        image = render_image(xs, ys, signal, self.camera.width_px, self.camera.height_px, self.config, rng)
         return RenderedTrial(image, attitude, x, y, v_mag, hip, int(trial), int(draw[5]))
 
 

@@ -40,6 +40,7 @@ import numpy as np
 from numba import njit
 from scipy.spatial import cKDTree
 
+from . import sky
 from .attitude import random_attitude
 from .camera import Camera
 from .catalog import Catalog
@@ -76,8 +77,27 @@ class SimConfig:
     focal_error_pct: float = 0.0
     principal_point_error_px: float = 0.0
     assumed_distortion: str = "true"
+    #: World effects (:mod:`starid.sky`), all off by default: angular rate (deg/s) about
+    #: ``rate_axis`` ("X,Y,Z" camera frame; None = drawn per trial) during ``exposure_s`` (None =
+    #: the camera's), ``epoch`` (ISO UTC or a year), ``planets`` / ``moon`` in the sky,
+    #: boresights ``near_ecliptic``, observer ``velocity_kms`` (stellar aberration).
+    rate_deg_s: float = 0.0
+    exposure_s: float | None = None
+    rate_axis: str | None = None
+    epoch: str | float | None = None
+    planets: bool = False
+    moon: bool = False
+    near_ecliptic: bool = False
+    velocity_kms: float = 0.0
 
     def __post_init__(self):
+        for name in ("planets", "moon", "near_ecliptic"):   # 0/1 from a numeric grid axis
+            value = getattr(self, name)
+            if value in (0, 1) and not isinstance(value, bool):
+                object.__setattr__(self, name, bool(value))
+            elif not isinstance(value, bool):
+                raise ConfigError(f"{name} must be true or false, got {value!r}")
+        sky.check_config(self)
         for name in ("sigma_px", "sigma_mag", "merge_radius_px"):
             check_number(name, getattr(self, name), lo=0)
         check_number("mag_limit", self.mag_limit)
@@ -173,9 +193,11 @@ class Simulator:
         bright = catalog.v_mag <= cfg.mag_limit + max(3.0, 6.0 * cfg.sigma_mag) + 1.5
         self._hip = catalog.hip[bright]
         self._v_mag = catalog.v_mag[bright]
+        self._unit_icrs = catalog.unit_icrs[bright]
+        self._unit_icrs, self._v_mag, self._hip, body = sky.world_stars(self._unit_icrs, self._v_mag, self._hip, cfg)
         self._in_sky = np.ones(self._hip.size, dtype=bool) if cfg.sky_mag_limit is None \
             else self._v_mag <= cfg.sky_mag_limit
-        self._unit_icrs = catalog.unit_icrs[bright]
+        self._in_sky = self._in_sky | body if body.any() else self._in_sky
         self._tree = cKDTree(self._unit_icrs)
         self._margin_px = cfg.merge_radius_px + max(CRN_MARGIN_PX, 6.0 * cfg.sigma_px + 1.0)
         half_diag_rad = self.camera.reach_rad(self._margin_px)
@@ -189,26 +211,41 @@ class Simulator:
                 **{f"camera_{k}": v for k, v in self.camera.as_dict().items()},
                 "catalog": self.catalog.name, "catalog_stars": len(self.catalog)}
 
-    def _draw_once(self, att_rng: np.random.Generator, rng: np.random.Generator):
+    def _draw_once(self, att_rng: np.random.Generator, rng: np.random.Generator, draws: dict | None = None):
         cfg, cam = self.config, self.camera
         attitude = random_attitude(att_rng)
+        if cfg.near_ecliptic:
+            attitude = sky.near_ecliptic_attitude(attitude, att_rng)
         idx = np.sort(np.asarray(self._tree.query_ball_point(attitude[2], self._query_chord), dtype=np.int64))
-        v_cam = self._unit_icrs[idx] @ attitude.T
+        unit = self._unit_icrs[idx]
+        if cfg.velocity_kms > 0:
+            unit = sky.aberrate(unit, cfg.velocity_kms, draws["apex"])
+        v_cam = unit @ attitude.T
         front = v_cam[:, 2] > 1e-9
         idx, v_cam = idx[front], v_cam[front]
         x_px, y_px = cam.project(v_cam)    # through the true camera (its lens included)
         m = self._margin_px
         near = (x_px >= -m) & (x_px < cam.width_px + m) & (y_px >= -m) & (y_px < cam.height_px + m)
         idx, x_px, y_px = idx[near], x_px[near], y_px[near]
+        smear = sky.smear_on(cfg)
+        if smear:   # each star at its streak's centre; streak vectors for the noise
+            cdx, cdy, ldx, ldy = sky.smear_centroids(v_cam[near], cam, cfg, draws["smear_axis"])
+            x_px, y_px = x_px + cdx, y_px + cdy
         # each candidate star's own noise draws (common random numbers), then the sky's cut
         z = rng.normal(0.0, 1.0, (3, idx.size))
-        sky = self._in_sky[idx]
-        idx, x_px, y_px, z = idx[sky], x_px[sky], y_px[sky], z[:, sky]
+        in_sky = self._in_sky[idx]
+        idx, x_px, y_px, z = idx[in_sky], x_px[in_sky], y_px[in_sky], z[:, in_sky]
+        if smear:
+            ldx, ldy = ldx[in_sky], ldy[in_sky]
         v_mag = self._v_mag[idx]
         hip = self._hip[idx]
         if cfg.merge_radius_px > 0 and idx.size > 1:
             x_px, y_px, v_mag, hip, rep = self._merge(x_px, y_px, v_mag, hip)
             z = z[:, rep]
+            if smear:
+                ldx, ldy = ldx[rep], ldy[rep]
+        if smear:   # centroid noise stretched along the streak (starid.kernels.smear.smear_noise)
+            z = np.stack([z[0], *sky.smear_noise_draws(z[1], z[2], ldx, ldy)])
         mag = v_mag + z[0] * cfg.sigma_mag
         x_px = x_px + z[1] * cfg.sigma_px
         y_px = y_px + z[2] * cfg.sigma_px
@@ -254,8 +291,9 @@ class Simulator:
         """One trial: ``(attitude, x_px, y_px, mag, truth_hip, n_redraws)``, detections shuffled."""
         att_rng = np.random.default_rng([self.seed, int(trial), 0])
         rng = np.random.default_rng([self.seed, int(trial), 1])
+        draws = sky.trial_draws(self.config, self.seed, trial)
         for redraws in range(MAX_REDRAWS):
-            attitude, x_px, y_px, mag, hip = self._draw_once(att_rng, rng)
+            attitude, x_px, y_px, mag, hip = self._draw_once(att_rng, rng, draws)
             if int(np.count_nonzero(hip >= 0)) >= self.config.min_stars:
                 order = rng.permutation(hip.size)
                 return attitude, x_px[order], y_px[order], mag[order], hip[order].astype(np.int64), redraws

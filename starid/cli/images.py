@@ -406,7 +406,7 @@ def add_parsers(sub, formatter) -> None:
     p.add_argument("--truth", type=Path, metavar="FILE.csv", help="also write the true stars on the sensor")
     p.add_argument("--bits", type=int, choices=(8, 16), default=16,
                    help="8 stretches the image to 8 bits (TIFF, PNG); FITS is always 16")
-    add_world(p)
+    add_world(p, exposure=False)   # its --exposure-s (sensor group) is also the smear's
     add_camera(p)
     p.add_argument_group("camera").add_argument("--size", type=_size_type, metavar="WxH",
                                                 help="image size in px (e.g. 1024x768); --fov-deg is across the width")

@@ -73,8 +73,10 @@ def add_out(p: argparse.ArgumentParser, what: str, required: bool = False) -> No
                    help=f"results folder: {what}; running the same command on it again resumes an interrupted run")
 
 
-def add_world(p: argparse.ArgumentParser, pos_default: float = 0.0, mag_default: float = 0.0) -> None:
-    """The simulated world: noise, false and lost stars, sky, catalog."""
+def add_world(p: argparse.ArgumentParser, pos_default: float = 0.0, mag_default: float = 0.0,
+              exposure: bool = True) -> None:
+    """The simulated world: noise, false and lost stars, sky, catalog, and the sky effects
+    (:mod:`starid.sky`; ``exposure=False`` where the command has its own ``--exposure-s``)."""
     g = p.add_argument_group("simulated world")
     g.add_argument("--pos-noise-px", type=float, default=pos_default, help="centroid noise sigma in px")
     g.add_argument("--mag-noise", type=float, default=mag_default, help="magnitude noise sigma in mag")
@@ -94,6 +96,35 @@ def add_world(p: argparse.ArgumentParser, pos_default: float = 0.0, mag_default:
                    help="'centroids': Gaussian noise on ideal centroids; 'image': render each image to pixels and "
                         "extract its stars (the render's noise replaces --pos-noise-px and --mag-noise; summaries "
                         "add detection rate, false detections and rms centroid error)")
+    add_sky(p, exposure)
+
+
+def add_sky(p: argparse.ArgumentParser, exposure: bool = True) -> None:
+    """The sky and spacecraft effects (all off by default; starid.sky)."""
+    g = p.add_argument_group("sky and spacecraft (all off by default)")
+    g.add_argument("--rate-deg-s", type=float, default=0.0, help="angular rate in deg/s during the exposure "
+                   "(motion smear), about an axis drawn per trial unless --rate-axis")
+    g.add_argument("--rate-axis", metavar="X,Y,Z", default=None, help="rotation axis in the camera frame")
+    if exposure:
+        g.add_argument("--exposure-s", type=float, default=None, help="exposure in s (default: the camera's, "
+                       "else 0.1)")
+    g.add_argument("--epoch", default=None, help="observation time, ISO UTC (e.g. 2030-01-01T00:00:00) or a year")
+    g.add_argument("--planets", action="store_true", help="put Mercury..Neptune in the sky at --epoch")
+    g.add_argument("--moon", action="store_true", help="put the Moon in the sky at --epoch")
+    g.add_argument("--near-ecliptic", action="store_true", help="draw boresights within 5 deg of the ecliptic")
+    g.add_argument("--velocity-kms", type=float, default=0.0, help="observer speed in km/s (stellar aberration; "
+                   "the catalog is not corrected)")
+
+
+def sky_settings(args) -> dict:
+    """The sky effects the options give (only those that are not off, so existing settings stay equal)."""
+    out = {}
+    for key, off in (("rate_deg_s", 0.0), ("rate_axis", None), ("exposure_s", None), ("epoch", None),
+                     ("planets", False), ("moon", False), ("near_ecliptic", False), ("velocity_kms", 0.0)):
+        value = getattr(args, key, off)
+        if value != off:
+            out[key] = value
+    return out
 
 
 def world_settings(args) -> dict:
@@ -102,7 +133,7 @@ def world_settings(args) -> dict:
         raise ConfigError("give either --sky or --sky-mag-limit, not both")
     settings = {"sigma_px": args.pos_noise_px, "sigma_mag": args.mag_noise, "mag_limit": args.mag_limit,
                 "false_stars": args.false_stars, "lost_stars": args.lost_stars, "min_stars": args.min_stars,
-                "merge_radius_px": args.merge_radius_px, "pipeline": args.pipeline}
+                "merge_radius_px": args.merge_radius_px, "pipeline": args.pipeline, **sky_settings(args)}
     if args.sky is not None:
         settings["sky"] = args.sky
     elif args.sky_mag_limit is not None:
