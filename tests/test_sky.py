@@ -1,0 +1,105 @@
+"""Planets, aberration, the ecliptic band, boresight columns and the sky settings as grid axes."""
+
+import math
+
+import numpy as np
+import pytest
+
+from starid import sky
+from starid.camera import Camera
+from starid.catalog import load_hipparcos
+from starid.errors import ConfigError
+from starid.experiment.spec import Grid, sim_settings
+from starid.scoring import score_trial
+from starid.simulate import SimConfig, Simulator
+
+EPOCH = "2030-01-01T00:00:00"
+
+
+@pytest.fixture(scope="module")
+def catalog():
+    return load_hipparcos()
+
+
+@pytest.mark.filterwarnings("ignore::Warning")
+def test_jupiter_lands_within_an_arcmin_of_astropys_place():
+    from astropy.coordinates import get_body, solar_system_ephemeris
+    from astropy.time import Time
+
+    u, v_mag, hip, body = sky.world_stars(np.zeros((0, 3)), np.zeros(0), np.zeros(0, dtype=np.int64),
+                                          SimConfig(planets=True, epoch=EPOCH))
+    assert body.all() and np.all(hip == -1) and len(hip) == 7
+    with solar_system_ephemeris.set("builtin"):
+        c = get_body("jupiter", Time(EPOCH, scale="utc"))
+    ref = np.array([math.cos(c.dec.rad) * math.cos(c.ra.rad), math.cos(c.dec.rad) * math.sin(c.ra.rad),
+                    math.sin(c.dec.rad)])
+    jup = u[sky.PLANETS.index("jupiter")]
+    assert math.degrees(math.acos(min(1.0, jup @ ref))) * 60 < 1.0
+    # magnitudes in their known ranges (Jupiter -2.9..-1.6, Venus -4.9..-3.8, Neptune 7.7..8.0)
+    m = dict(zip(sky.PLANETS, v_mag))
+    assert -2.95 < m["jupiter"] < -1.6 and -4.9 < m["venus"] < -3.8 and 7.6 < m["neptune"] < 8.0
+
+
+def test_planets_are_imaged_without_a_hip_and_naming_one_is_wrong(catalog):
+    cfg = SimConfig(planets=True, epoch=EPOCH, near_ecliptic=True)
+    sim = Simulator(catalog, Camera(), cfg, seed=0)
+    plain = Simulator(catalog, Camera(), SimConfig(near_ecliptic=True), seed=0)
+    extra = sum(int((sim.draw(t)[4] == -1).sum()) - int((plain.draw(t)[4] == -1).sum()) for t in range(150))
+    assert extra > 5
+    assert score_trial(np.array([1234, 5]), np.array([-1, 5]))["n_wrong"] == 1
+    with pytest.raises(ConfigError):
+        SimConfig(planets=True)            # needs an epoch
+
+
+def test_near_ecliptic_boresights_lie_in_the_band(catalog):
+    sim = Simulator(catalog, Camera(), SimConfig(near_ecliptic=True), seed=5)
+    pole = sky.ecliptic_to_icrs(0.0, math.pi / 2)[0]
+    lat = [math.degrees(math.asin(sim.draw(t)[0][2] @ pole)) for t in range(100)]
+    assert max(abs(x) for x in lat) <= sky.NEAR_ECLIPTIC_DEG + 1e-9
+    free = Simulator(catalog, Camera(), SimConfig(), seed=5)
+    assert max(abs(math.degrees(math.asin(free.draw(t)[0][2] @ pole))) for t in range(100)) > 20
+
+
+def test_aberration_at_30_kms_moves_a_star_at_90_deg_by_20_6_arcsec():
+    apex = np.array([0.0, 0.0, 1.0])
+    u = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    out = sky.aberrate(u, 30.0, apex)
+    shift = np.degrees(np.arccos(np.clip(np.sum(out * u, axis=1), -1, 1))) * 3600
+    assert shift[0] == pytest.approx(20.64, abs=0.01) and shift[1] < 1e-6
+    assert out[0, 2] > 0                       # towards the apex
+
+
+def test_aberration_shifts_simulated_stars(catalog):
+    a = Simulator(catalog, Camera(), SimConfig(), seed=1).draw(2)
+    b = Simulator(catalog, Camera(), SimConfig(velocity_kms=30.0), seed=1).draw(2)
+    ia, ib = np.argsort(a[4]), np.argsort(b[4])
+    d = np.hypot(a[1][ia] - b[1][ib], a[2][ia] - b[2][ib])
+    px = 20.64 / 3600 * math.pi / 180 * Camera().f_px          # at most v/c in px
+    assert 0.01 < d.max() <= px * 1.01
+
+
+def test_sky_settings_are_grid_axes_with_common_random_numbers(catalog):
+    grid = Grid({"rate_deg_s": [0.0, 1.0], "velocity_kms": [0.0, 30.0], "planets": [0.0, 1.0]})
+    atts = []
+    for point in grid.points():
+        settings = sim_settings({"epoch": 2030.0}, point)
+        cfg = SimConfig(**settings)
+        assert isinstance(cfg.planets, bool)
+        atts.append(Simulator(catalog, Camera(), cfg, seed=9).draw(11)[0])
+    assert all(np.array_equal(atts[0], a) for a in atts)
+
+
+def test_boresight_columns(catalog):
+    from starid.harness import _boresight
+
+    att = Simulator(catalog, Camera(), SimConfig(), seed=0).draw(0)[0]
+    b = _boresight(att)
+    ra, dec = math.radians(b["boresight_ra_deg"]), math.radians(b["boresight_dec_deg"])
+    assert np.allclose([math.cos(dec) * math.cos(ra), math.cos(dec) * math.sin(ra), math.sin(dec)], att[2])
+
+
+def test_epoch_forms():
+    assert sky.parse_epoch(2000.0).isoformat().startswith("2000-01-01T12:00")
+    assert sky.parse_epoch("2030-06-01T00:00:00Z").year == 2030
+    with pytest.raises(ConfigError):
+        SimConfig(epoch="yesterday")
