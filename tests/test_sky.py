@@ -103,3 +103,22 @@ def test_epoch_forms():
     assert sky.parse_epoch("2030-06-01T00:00:00Z").year == 2030
     with pytest.raises(ConfigError):
         SimConfig(epoch="yesterday")
+
+
+def test_skymap_cells_are_equal_area_and_the_worst_cell_is_found():
+    import pandas as pd
+
+    from starid.report import skymap
+
+    rng = np.random.default_rng(0)
+    n = 40_000
+    ra, dec = rng.uniform(0, 360, n), np.degrees(np.arcsin(rng.uniform(-1, 1, n)))
+    counts = np.bincount(skymap.cell_of(ra, dec), minlength=skymap.N_DEC * skymap.N_RA)
+    assert counts.min() > 0.8 * counts.mean() and counts.max() < 1.2 * counts.mean()
+    bad = skymap.cell_of(ra, dec) == skymap.cell_of(50.0, 0.0)[()]
+    frame = pd.DataFrame({"label": "x", "trial": np.arange(n), "boresight_ra_deg": ra, "boresight_dec_deg": dec,
+                          "status": np.where(bad, "no_result", "correct")})
+    figures, tables = skymap.skymap_parts(frame, "test")
+    assert len(figures) == 1 and tables[0].frame.iloc[0]["ra_deg"] == "40-60"
+    assert tables[0].frame.iloc[0]["id_rate"] == "0.000"
+    assert skymap.skymap_parts(frame.head(100)) == ([], [])

@@ -26,6 +26,7 @@ from ..io import atomic_write_text
 from ..provenance import versions
 from ..stats import mcnemar_all, summarize
 from . import figures as figs
+from . import skymap
 from .tables import Table, markdown, mcnemar_markdown, pct, rate_ci
 from .tables import setting as _fmt
 
@@ -221,6 +222,8 @@ def build_report(folder: str | Path, formats=FORMATS, svg: bool = True) -> dict:
     fig10 = getattr(mod, "PAPER_FIG10", None) if mod is not None else None
     tables, which = tables_for(manifest, frame)
     figures = figs.report_figures(frame, paper, fig10)
+    sky_figures, sky_tables = skymap.skymap_parts(figs.main_condition(frame))   # >= 2,000 trials (sky issue)
+    figures, tables = figures + sky_figures, tables + sky_tables
     figs.save(figures, folder / "figures", svg=svg)
     exp = manifest.get("experiment", {})
     title = (mod.TITLE if mod is not None else f"Experiment {exp.get('name', folder.name)}") + " — starid report"
