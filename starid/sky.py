@@ -24,13 +24,13 @@ None)``), else :data:`DEFAULT_EXPOSURE_S`.
 from __future__ import annotations
 
 import math
-from datetime import datetime, timezone
+from datetime import UTC, datetime, timedelta
 from functools import lru_cache
 
 import numpy as np
 
 from .errors import ConfigError
-from .kernels.smear import smear_noise, streak_px, streak_samples_px
+from .kernels.smear import rotate_all, smear_noise, streak_px, streak_samples_px
 
 #: Exposure (s) when neither the settings nor the camera give one (RenderConfig's default).
 DEFAULT_EXPOSURE_S = 0.1
@@ -80,14 +80,13 @@ def parse_epoch(epoch) -> datetime | None:
         if not 1000 <= epoch <= 3000:
             raise ConfigError(f"epoch as a year must lie in 1000..3000, got {epoch!r}")
         # Julian epoch: J2000.0 = 2000-01-01T12:00 TT, 365.25 days a year (UTC ~ TT here, < 70 s)
-        from datetime import timedelta
-        return datetime(2000, 1, 1, 12, tzinfo=timezone.utc) + timedelta(days=(epoch - 2000.0) * 365.25)
+        return datetime(2000, 1, 1, 12, tzinfo=UTC) + timedelta(days=(epoch - 2000.0) * 365.25)
     try:
         text = str(epoch).strip().replace("Z", "+00:00")
         when = datetime.fromisoformat(text)
     except ValueError:
         raise ConfigError(f"epoch must be ISO UTC (e.g. 2030-01-01T00:00:00) or a year, got {epoch!r}") from None
-    return when.replace(tzinfo=timezone.utc) if when.tzinfo is None else when.astimezone(timezone.utc)
+    return when.replace(tzinfo=UTC) if when.tzinfo is None else when.astimezone(UTC)
 
 
 def check_config(config) -> None:
@@ -114,7 +113,8 @@ def rate_axis(config) -> np.ndarray | None:
     except ValueError:
         v = np.zeros(0)
     if v.size != 3 or not np.all(np.isfinite(v)) or np.linalg.norm(v) == 0:
-        raise ConfigError(f"rate_axis must be three numbers 'X,Y,Z' (camera frame), not all 0, got {config.rate_axis!r}")
+        raise ConfigError(f"rate_axis must be three numbers 'X,Y,Z' (camera frame), not all 0, "
+                          f"got {config.rate_axis!r}")
     return v / np.linalg.norm(v)
 
 
@@ -141,10 +141,39 @@ def sweep_rad(config, camera, default_s: float = DEFAULT_EXPOSURE_S) -> float:
     return math.radians(config.rate_deg_s) * exposure_s(config, camera, default_s)
 
 
+def streak_offsets_px(v_cam, axis, sweep: float, camera):
+    """``(centre_dx, centre_dy, length_dx, length_dy)`` (px) of each star's streak on ``camera``'s
+    sensor (:func:`starid.kernels.smear.streak_px`; through the lens when it distorts: the
+    directions at start, middle and end of the exposure projected with ``camera.project``)."""
+    v_cam = np.ascontiguousarray(v_cam, dtype=np.float64).reshape(-1, 3)
+    axis = np.ascontiguousarray(axis, dtype=np.float64)
+    if not getattr(camera, "distorted", False):
+        return streak_px(v_cam, axis, sweep, camera.f_px, camera.cx_px, camera.cy_px)
+    x0, y0 = camera.project(v_cam)
+    xa, ya = camera.project(rotate_all(v_cam, axis, 0.5 * sweep))     # t = -T/2
+    xb, yb = camera.project(rotate_all(v_cam, axis, -0.5 * sweep))    # t = +T/2
+    return (xa + xb - 2.0 * x0) / 6.0, (ya + yb - 2.0 * y0) / 6.0, xb - xa, yb - ya
+
+
+def streak_sample_offsets_px(v_cam, axis, sweep: float, n_samples: int, camera):
+    """Offsets ``(n, n_samples)`` of each star at the midpoint-rule times of the exposure
+    (:func:`starid.kernels.smear.streak_samples_px`; through the lens when it distorts)."""
+    v_cam = np.ascontiguousarray(v_cam, dtype=np.float64).reshape(-1, 3)
+    axis = np.ascontiguousarray(axis, dtype=np.float64)
+    if not getattr(camera, "distorted", False):
+        return streak_samples_px(v_cam, axis, sweep, n_samples, camera.f_px, camera.cx_px, camera.cy_px)
+    x0, y0 = camera.project(v_cam)
+    dx, dy = np.empty((len(v_cam), n_samples)), np.empty((len(v_cam), n_samples))
+    for k in range(n_samples):   # one vectorised projection per sub-exposure
+        xk, yk = camera.project(rotate_all(v_cam, axis, -sweep * ((k + 0.5) / n_samples - 0.5)))
+        dx[:, k], dy[:, k] = xk - x0, yk - y0
+    return dx, dy
+
+
 def smear_centroids(v_cam, camera, config, axis):
-    """Centroid mode: ``(centre_dx, centre_dy, length_dx, length_dy)`` of each star's streak (px)."""
-    return streak_px(np.ascontiguousarray(v_cam, dtype=np.float64), np.ascontiguousarray(axis, dtype=np.float64),
-                     sweep_rad(config, camera), camera.f_px, camera.cx_px, camera.cy_px)
+    """Centroid mode: ``(centre_dx, centre_dy, length_dx, length_dy)`` of each star's streak (px)
+    on the true ``camera``."""
+    return streak_offsets_px(v_cam, axis, sweep_rad(config, camera), camera)
 
 
 def smear_noise_draws(z_x, z_y, length_dx, length_dy):
@@ -153,7 +182,8 @@ def smear_noise_draws(z_x, z_y, length_dx, length_dy):
                        np.ascontiguousarray(length_dy), SMEAR_PSF_SIGMA_PX)
 
 
-def streak_stars(x_px, y_px, signal_e, v_cam, camera, config, axis, psf_sigma_px, default_exposure_s=DEFAULT_EXPOSURE_S):
+def streak_stars(x_px, y_px, signal_e, v_cam, camera, config, axis, psf_sigma_px,
+                 default_exposure_s=DEFAULT_EXPOSURE_S):
     """Image mode: each star split into sub-exposures along its streak.
 
     Returns ``(x_sub, y_sub, signal_sub, x_centre, y_centre)``: ``K`` points per star at the
@@ -165,10 +195,10 @@ def streak_stars(x_px, y_px, signal_e, v_cam, camera, config, axis, psf_sigma_px
     v_cam = np.ascontiguousarray(v_cam, dtype=np.float64)
     axis = np.ascontiguousarray(axis, dtype=np.float64)
     sweep = sweep_rad(config, camera, default_exposure_s)
-    _, _, ldx, ldy = streak_px(v_cam, axis, sweep, camera.f_px, camera.cx_px, camera.cy_px)
+    _, _, ldx, ldy = streak_offsets_px(v_cam, axis, sweep, camera)
     longest = float(np.max(np.hypot(ldx, ldy))) if ldx.size else 0.0
     k = max(1, int(math.ceil(longest / (STREAK_STEP_SIGMAS * psf_sigma_px))) + 1)
-    dx, dy = streak_samples_px(v_cam, axis, sweep, k, camera.f_px, camera.cx_px, camera.cy_px)
+    dx, dy = streak_sample_offsets_px(v_cam, axis, sweep, k, camera)
     xs = (np.asarray(x_px)[:, None] + dx).ravel()
     ys = (np.asarray(y_px)[:, None] + dy).ravel()
     sig = np.repeat(np.asarray(signal_e, dtype=np.float64) / k, k)

@@ -108,3 +108,18 @@ def test_image_smear_drops_faint_stars_and_keeps_truth_at_centre(catalog):
     assert np.array_equal(rt.hip, rt0.hip)
     shift = np.hypot(rt.x_px - rt0.x_px, rt.y_px - rt0.y_px)
     assert np.all(shift < 0.5) and np.max(shift) > 0
+
+
+def test_streak_through_a_distorted_lens_is_the_time_average_of_projected_positions():
+    cam = Camera(distortion=(0.5, 0.0, 0.0, 0.0, 0.0))
+    rng = np.random.default_rng(5)
+    v = rng.normal(size=(10, 3)) * [0.06, 0.06, 0.0] + [0, 0, 1]
+    v /= np.linalg.norm(v, axis=1)[:, None]
+    axis = np.array([0.6, 0.0, 0.8])
+    sweep = math.radians(1.0)
+    cdx, cdy, ldx, ldy = sky.streak_offsets_px(v, axis, sweep, cam)
+    dx, dy = sky.streak_sample_offsets_px(v, axis, sweep, 2001, cam)
+    assert np.allclose(cdx, dx.mean(axis=1), atol=1e-3) and np.allclose(cdy, dy.mean(axis=1), atol=1e-3)
+    # the pinhole streak differs where the lens distorts (the test fails if the lens is ignored)
+    pin = streak_px(v, axis, sweep, cam.f_px, cam.cx_px, cam.cy_px)
+    assert np.max(np.abs(np.hypot(ldx, ldy) - np.hypot(pin[2], pin[3]))) > 0.5

@@ -9,7 +9,9 @@ position at mid-exposure plus a constant pixel velocity ``delta`` from a fixed "
 rotation; the PSF integrated along the streak, ``motionBlurredPixelBrightness``).
 
 The kernels return pixel **offsets relative to the mid-exposure position** (pinhole projection),
-so the caller adds them to its own projected positions.
+so the caller adds them to its own projected positions; through a distorted lens the caller
+rotates the directions with :func:`rotate_all` and projects them with the true camera
+(:func:`starid.sky.streak_offsets_px`).
 """
 
 from __future__ import annotations
@@ -32,6 +34,17 @@ def _rotate(v, axis, angle_rad):
     out[0] = vx * c + (ky * vz - kz * vy) * s + kx * dot * (1.0 - c)
     out[1] = vy * c + (kz * vx - kx * vz) * s + ky * dot * (1.0 - c)
     out[2] = vz * c + (kx * vy - ky * vx) * s + kz * dot * (1.0 - c)
+    return out
+
+
+@njit(cache=True)
+def rotate_all(v_cam, axis, angle_rad):
+    """Every row of ``v_cam`` (n, 3) rotated by ``angle_rad`` about the unit ``axis`` (Rodrigues):
+    the directions at one instant of the exposure, for projection through a distorted camera."""
+    n = v_cam.shape[0]
+    out = np.empty((n, 3))
+    for i in range(n):
+        out[i] = _rotate(v_cam[i], axis, angle_rad)
     return out
 
 
