@@ -222,7 +222,9 @@ def build_report(folder: str | Path, formats=FORMATS, svg: bool = True) -> dict:
     fig10 = getattr(mod, "PAPER_FIG10", None) if mod is not None else None
     tables, which = tables_for(manifest, frame)
     figures = figs.report_figures(frame, paper, fig10)
-    sky_figures, sky_tables = skymap.skymap_parts(figs.main_condition(frame))   # >= 2,000 trials (sky issue)
+    sky_study = getattr(mod, "SKYMAP_STUDY", None) if mod is not None else None   # an experiment's own choice
+    sky_rows = frame[frame["study"] == sky_study] if sky_study in set(frame["study"]) else figs.main_condition(frame)
+    sky_figures, sky_tables = skymap.skymap_parts(sky_rows)   # >= 2,000 trials (sky issue)
     figures, tables = figures + sky_figures, tables + sky_tables
     figs.save(figures, folder / "figures", svg=svg)
     exp = manifest.get("experiment", {})
