@@ -320,5 +320,33 @@ def world_stars(unit_icrs, v_mag, hip, config):
             np.concatenate([body, np.ones(len(m), dtype=bool)]))
 
 
-__all__ = ["aberrate", "boresight_radec_deg", "exposure_s", "near_ecliptic_attitude", "parse_epoch",
+# --- the trial nearest a boresight ------------------------------------------------------------
+
+def parse_radec(text: str) -> tuple[float, float]:
+    """``"RA,DEC"`` in degrees (RA any value, taken mod 360; DEC in [-90, 90])."""
+    try:
+        ra, dec = (float(t) for t in str(text).split(","))
+    except ValueError:
+        raise ConfigError(f"--boresight takes RA,DEC in degrees (e.g. 83.6,-5.4), got {text!r}") from None
+    if not (math.isfinite(ra) and -90.0 <= dec <= 90.0):
+        raise ConfigError(f"--boresight: DEC must lie in [-90, 90] deg and RA be finite, got {text!r}")
+    return ra % 360.0, dec
+
+
+def nearest_trial(simulator, ra_deg: float, dec_deg: float, n_search: int = 2000) -> tuple[int, float]:
+    """The trial among ``0 .. n_search - 1`` whose boresight (the simulator's attitude, redraws
+    included) lies nearest ``(ra_deg, dec_deg)``, and its distance in deg. Trials are drawn in
+    full (about 1 ms each); 2,000 trials leave a random direction within about 3 deg."""
+    if n_search < 1:
+        raise ConfigError(f"the number of trials searched must be >= 1, got {n_search}")
+    ra, dec = math.radians(ra_deg), math.radians(dec_deg)
+    target = np.array([math.cos(dec) * math.cos(ra), math.cos(dec) * math.sin(ra), math.sin(dec)])
+    z = np.array([simulator.draw(t)[0][2] for t in range(int(n_search))])
+    cos_sep = np.clip(z @ target, -1.0, 1.0)
+    best = int(np.argmax(cos_sep))
+    return best, float(np.degrees(np.arccos(cos_sep[best])))
+
+
+__all__ = ["aberrate", "boresight_radec_deg", "exposure_s", "near_ecliptic_attitude", "nearest_trial", "parse_epoch",
+           "parse_radec",
            "planet_places", "planet_v_mag", "smear_centroids", "streak_stars", "trial_draws", "world_stars"]

@@ -36,7 +36,7 @@ def test_jupiter_lands_within_an_arcmin_of_astropys_place():
     jup = u[sky.PLANETS.index("jupiter")]
     assert math.degrees(math.acos(min(1.0, jup @ ref))) * 60 < 1.0
     # magnitudes in their known ranges (Jupiter -2.9..-1.6, Venus -4.9..-3.8, Neptune 7.7..8.0)
-    m = dict(zip(sky.PLANETS, v_mag))
+    m = dict(zip(sky.PLANETS, v_mag, strict=True))
     assert -2.95 < m["jupiter"] < -1.6 and -4.9 < m["venus"] < -3.8 and 7.6 < m["neptune"] < 8.0
 
 
@@ -122,3 +122,14 @@ def test_skymap_cells_are_equal_area_and_the_worst_cell_is_found():
     assert len(figures) == 1 and tables[0].frame.iloc[0]["ra_deg"] == "40-60"
     assert tables[0].frame.iloc[0]["id_rate"] == "0.000"
     assert skymap.skymap_parts(frame.head(100)) == ([], [])
+
+
+def test_nearest_trial_finds_the_trial_of_a_given_boresight(catalog):
+    sim = Simulator(catalog, Camera(), SimConfig(), seed=1)
+    ra, dec = sky.boresight_radec_deg(sim.draw(37)[0])
+    trial, sep = sky.nearest_trial(sim, ra, dec, 60)
+    assert trial == 37 and sep < 1e-6
+    assert sky.parse_radec("-10,20") == (350.0, 20.0)
+    for bad in ("1,2,3", "10,95", "x,1"):
+        with pytest.raises(ConfigError):
+            sky.parse_radec(bad)

@@ -72,6 +72,19 @@ def cmd_show(args) -> int:
     if out.exists() and out.is_dir():
         raise ConfigError(f"--out {out} is a folder; give a file name such as {out / 'trial.png'}")
     catalog = load_csv(args.catalog) if args.catalog else load_hipparcos()
+    if (args.trial is None) == (args.boresight is None):
+        raise ConfigError("give either --trial K or --boresight RA,DEC")
+    if args.boresight is not None:   # the trial whose boresight is nearest (sky issue)
+        from .. import sky
+        from ..experiment.spec import sim_settings
+        from ..simulate import SimConfig, Simulator
+
+        ra, dec = sky.parse_radec(args.boresight)
+        sim = Simulator(catalog, make_camera(camera_spec(args)), SimConfig(**sim_settings(world_settings(args), {})),
+                        args.seed)
+        args.trial, sep = sky.nearest_trial(sim, ra, dec, args.search_trials)
+        print(f"trial {args.trial}: boresight {sep:.2f} deg from RA {ra:g}, DEC {dec:g} "
+              f"(nearest of {args.search_trials} trials)")
     shown = show(args.algorithms, args.trial, args.seed, world_settings(args), make_camera(camera_spec(args)),
                  catalog, label_stars=not args.no_labels)
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -118,7 +131,11 @@ def add_parsers(sub, formatter) -> None:
                                    "explain(), the algorithm's own reasoning (the triangles it formed, the one that "
                                    "matched) with its caption.")
     p.add_argument("algorithms", nargs="+", metavar="ALGO", help="registered names or variants NAME[KEY=VALUE,...]")
-    p.add_argument("--trial", type=seed_type, required=True, metavar="K", help="trial index")
+    p.add_argument("--trial", type=seed_type, default=None, metavar="K", help="trial index")
+    p.add_argument("--boresight", metavar="RA,DEC", default=None,
+                   help="instead of --trial: the trial whose boresight is nearest RA,DEC (deg)")
+    p.add_argument("--search-trials", type=seed_type, default=2000, metavar="N",
+                   help="--boresight searches trials 0..N-1")
     p.add_argument("--seed", type=seed_type, default=0, help="simulator seed")
     p.add_argument("--out", type=Path, required=True, metavar="FILE.png", help="picture to write (.png, .svg, .pdf)")
     p.add_argument("--dpi", type=int, default=150, help="resolution of a PNG")
