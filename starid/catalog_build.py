@@ -20,6 +20,10 @@ Choices, all documented here so the numbers can be checked:
   66 of them with Hp <= 8.5). For those we take B-V = 0, i.e. ``V = Hp - 0.00509``; the error
   is at most a few tenths of a magnitude for very red stars.
 * **Cut.** every star with V <= 8.0 is kept (41,225 stars).
+* **Proper motions.** hip2's ``pmRA`` (mu_alpha*) and ``pmDE`` in mas/yr of the same stars go to
+  the companion file ``hipparcos_v8_pm.npz`` (``hip, pmra_masyr, pmde_masyr``), so that a
+  simulated ``epoch`` can propagate the J2000 positions (:func:`starid.sky.star_units`); the
+  positions file is unchanged by it, byte for byte in its arrays.
 """
 
 from __future__ import annotations
@@ -35,6 +39,8 @@ J1991_TO_J2000_YR = 8.75
 MAS_TO_RAD = np.pi / (180.0 * 3600.0 * 1000.0)
 V_LIMIT_MAG = 8.0
 OUTPUT = Path(__file__).parent / "data" / "hipparcos_v8.npz"
+#: The companion file of proper motions (the same stars; :func:`starid.sky.star_units`).
+PM_OUTPUT = Path(__file__).parent / "data" / "hipparcos_v8_pm.npz"
 
 # hip2.dat column numbers (0-based, whitespace separated), from the I/311 ReadMe.
 COL_HIP, COL_RA_RAD, COL_DEC_RAD, COL_PMRA, COL_PMDE, COL_HP, COL_BV, COL_E_BV = 0, 4, 5, 7, 8, 19, 23, 24
@@ -68,7 +74,11 @@ def build(hip2_path: Path, v_limit_mag: float = V_LIMIT_MAG) -> dict[str, np.nda
     keep = v_mag <= v_limit_mag
     ra_deg, dec_deg = propagate_to_j2000(ra_rad[keep], dec_rad[keep], pmra[keep], pmde[keep])
     return {"hip": hip[keep].astype(np.int32), "ra_deg": ra_deg, "dec_deg": dec_deg,
-            "v_mag": v_mag[keep]}
+            "v_mag": v_mag[keep], "pmra_masyr": pmra[keep], "pmde_masyr": pmde[keep]}
+
+
+POSITION_KEYS = ("hip", "ra_deg", "dec_deg", "v_mag")
+PM_KEYS = ("hip", "pmra_masyr", "pmde_masyr")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -85,9 +95,10 @@ def main(argv: list[str] | None = None) -> int:
     arrays = build(args.hip2)
     import io as _io
 
-    buf = _io.BytesIO()
-    np.savez_compressed(buf, **arrays)
-    atomic_write_bytes(args.out, buf.getvalue())
+    for path, keys in ((args.out, POSITION_KEYS), (args.out.with_name(args.out.stem + "_pm.npz"), PM_KEYS)):
+        buf = _io.BytesIO()
+        np.savez_compressed(buf, **{k: arrays[k] for k in keys})
+        atomic_write_bytes(path, buf.getvalue())
     print(f"wrote {args.out}: {arrays['hip'].size} stars with V <= {V_LIMIT_MAG}, "
           f"{int((arrays['v_mag'] <= 6.0).sum())} with V <= 6.0")
     return 0

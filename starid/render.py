@@ -165,7 +165,8 @@ class Renderer:
         self.config = config or RenderConfig()
         cat = simulator.catalog
         sky_limit = simulator.config.sky_mag_limit
-        unit, v_mag, hip, body = sky.world_stars(cat.unit_icrs, cat.v_mag, cat.hip, simulator.config)
+        unit, v_mag, hip, body = sky.world_stars(sky.star_units(cat, simulator.config), cat.v_mag, cat.hip,
+                                                 simulator.config)
         keep = np.ones(len(hip), dtype=bool) if sky_limit is None else (v_mag <= sky_limit) | body
         self._unit_icrs = unit[keep]
         self._v_mag = v_mag[keep]

@@ -193,7 +193,7 @@ class Simulator:
         bright = catalog.v_mag <= cfg.mag_limit + max(3.0, 6.0 * cfg.sigma_mag) + 1.5
         self._hip = catalog.hip[bright]
         self._v_mag = catalog.v_mag[bright]
-        self._unit_icrs = catalog.unit_icrs[bright]
+        self._unit_icrs = sky.star_units(catalog, cfg)[bright]   # J2000, or at the epoch (proper motion)
         self._unit_icrs, self._v_mag, self._hip, body = sky.world_stars(self._unit_icrs, self._v_mag, self._hip, cfg)
         self._in_sky = np.ones(self._hip.size, dtype=bool) if cfg.sky_mag_limit is None \
             else self._v_mag <= cfg.sky_mag_limit

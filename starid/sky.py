@@ -13,6 +13,9 @@
   from :func:`planet_v_mag`; they carry no HIP (truth id -1, like a false star).
 * **Near the ecliptic** (``near_ecliptic``): boresights drawn uniformly in the band
   ``|ecliptic latitude| <= NEAR_ECLIPTIC_DEG`` (the roll and the draw stream unchanged).
+* **Proper motion** (``epoch``): the stars imaged at their places at the epoch, propagated from
+  J2000.0 with the embedded Hipparcos proper motions (:func:`star_units`); the algorithms'
+  catalog stays at J2000.0.
 * **Stellar aberration** (``velocity_kms``): every star displaced by the observer's velocity
   (special-relativistic formula, :func:`aberrate`), direction uniform per trial from stream 3;
   the algorithms' catalog is not corrected.
@@ -347,6 +350,53 @@ def nearest_trial(simulator, ra_deg: float, dec_deg: float, n_search: int = 2000
     return best, float(np.degrees(np.arccos(cos_sep[best])))
 
 
+# --- proper motion -----------------------------------------------------------------------------
+
+#: The embedded catalog's companion file of proper motions (starid.catalog_build).
+PM_FILE = "hipparcos_v8_pm.npz"
+MAS_TO_RAD = math.pi / (180.0 * 3600.0 * 1000.0)
+
+
+@lru_cache(maxsize=1)
+def _embedded_proper_motions():
+    from importlib import resources
+
+    with resources.files("starid.data").joinpath(PM_FILE).open("rb") as fh, np.load(fh, allow_pickle=False) as d:
+        return d["hip"].astype(np.int64), d["pmra_masyr"].astype(np.float64), d["pmde_masyr"].astype(np.float64)
+
+
+def proper_motions(catalog) -> tuple[np.ndarray, np.ndarray]:
+    """``(pmra_masyr, pmde_masyr)`` of each star of ``catalog`` (``pmra`` = mu_alpha*, i.e. times
+    cos(dec)), from the embedded Hipparcos file by HIP; 0 for ids it does not hold."""
+    hip, pmra, pmde = _embedded_proper_motions()
+    pos = np.clip(np.searchsorted(hip, catalog.hip), 0, hip.size - 1)
+    found = hip[pos] == catalog.hip
+    return np.where(found, pmra[pos], 0.0), np.where(found, pmde[pos], 0.0)
+
+
+def years_since_j2000(epoch) -> float:
+    """Julian years from J2000.0 (2000-01-01T12:00) to ``epoch``."""
+    when = parse_epoch(epoch)
+    return (when - datetime(2000, 1, 1, 12, tzinfo=UTC)).total_seconds() / (86400.0 * 365.25)
+
+
+def star_units(catalog, config) -> np.ndarray:
+    """The catalog's ICRS unit vectors at ``config.epoch``: ``catalog.unit_icrs`` itself when the
+    epoch is unset; else each star moved from J2000.0 along the tangent plane by its proper
+    motion, ``r(t) = normalise(r0 + dt (pmra e_ra + pmde e_dec))`` (the formula that built the
+    catalog from J1991.25, :func:`starid.catalog_build.propagate_to_j2000`; parallax and radial
+    velocity ignored). The algorithms keep the J2000 catalog."""
+    if getattr(config, "epoch", None) is None:
+        return catalog.unit_icrs
+    dt = years_since_j2000(config.epoch)
+    pmra, pmde = proper_motions(catalog)
+    ra, dec = np.radians(catalog.ra_deg), np.radians(catalog.dec_deg)
+    e_ra = np.stack([-np.sin(ra), np.cos(ra), np.zeros_like(ra)], axis=-1)
+    e_dec = np.stack([-np.sin(dec) * np.cos(ra), -np.sin(dec) * np.sin(ra), np.cos(dec)], axis=-1)
+    r = catalog.unit_icrs + dt * MAS_TO_RAD * (pmra[:, None] * e_ra + pmde[:, None] * e_dec)
+    return np.ascontiguousarray(r / np.linalg.norm(r, axis=1, keepdims=True))
+
+
 __all__ = ["aberrate", "boresight_radec_deg", "exposure_s", "near_ecliptic_attitude", "nearest_trial", "parse_epoch",
-           "parse_radec",
+           "parse_radec", "proper_motions", "star_units",
            "planet_places", "planet_v_mag", "smear_centroids", "streak_stars", "trial_draws", "world_stars"]

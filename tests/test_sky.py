@@ -133,3 +133,21 @@ def test_nearest_trial_finds_the_trial_of_a_given_boresight(catalog):
     for bad in ("1,2,3", "10,95", "x,1"):
         with pytest.raises(ConfigError):
             sky.parse_radec(bad)
+
+
+def test_proper_motion_moves_groombridge_1830_by_its_motion_at_2030(catalog):
+    cfg = SimConfig(epoch="2030-01-01T12:00:00")
+    assert sky.star_units(catalog, SimConfig()) is catalog.unit_icrs          # epoch unset: J2000 itself
+    moved = sky.star_units(catalog, cfg)
+    pmra, pmde = sky.proper_motions(catalog)
+    i = int(np.argmax(np.hypot(pmra, pmde)))
+    assert catalog.hip[i] == 57939                                           # the fastest star with V <= 8
+    sep_arcsec = math.degrees(math.acos(min(1.0, moved[i] @ catalog.unit_icrs[i]))) * 3600
+    dt = sky.years_since_j2000(cfg.epoch)
+    assert dt == pytest.approx(30.0, abs=0.01)
+    assert sep_arcsec == pytest.approx(np.hypot(pmra[i], pmde[i]) * dt / 1000, rel=1e-3)   # 211.8 arcsec
+    assert 211 < sep_arcsec < 213
+    # the simulator images the moved stars (same attitude, same stars, shifted centroids)
+    a = Simulator(catalog, Camera(), SimConfig(), seed=0).draw(3)
+    b = Simulator(catalog, Camera(), cfg, seed=0).draw(3)
+    assert np.array_equal(a[0], b[0]) and not np.allclose(a[1], b[1], atol=1e-9)
