@@ -215,11 +215,11 @@ class Camera:
         return (x_px >= 0) & (x_px < self.width_px) & (y_px >= 0) & (y_px < self.height_px)
 
     def as_dict(self) -> dict:
-        """Every field as a flat scalar (the ``camera_*`` columns of result rows): the distortion
-        as ``k1 .. k3``; ``exposure_s`` only when given."""
+        """Every field as a flat scalar (the ``camera_*`` columns of result rows and the manifest's
+        ``camera``): the distortion as ``k1 .. k3``; ``exposure_s`` only when given."""
         d = {"width_px": self.width_px, "height_px": self.height_px, "pixel_um": self.pixel_um,
              "focal_mm": self.focal_mm, "cx_px": self.cx_px, "cy_px": self.cy_px,
-             **dict(zip(DISTORTION_NAMES, self.distortion)), "name": self.name}
+             **dict(zip(DISTORTION_NAMES, self.distortion)), "name": self.name, "source": self.source}
         if self.exposure_s is not None:
             d["exposure_s"] = self.exposure_s
         return d

@@ -76,6 +76,7 @@ class Store:
         data = {"experiment": self.experiment.to_dict(), "digest": self.experiment.digest(),
                 "machine": machine(), "command": command_line(), "started": started, "finished": finished,
                 "chunks": keys, **(extra or {})}
+        data["camera"] = self.experiment.make_camera().as_dict()    # the resolved camera, every field (#23)
         atomic_write_text(self.root / MANIFEST, json.dumps(data, indent=2, default=str) + "\n")
 
     def write_results(self, frame: pd.DataFrame) -> Path:
