@@ -201,14 +201,30 @@ def test_coincident_detections_without_min_sep(catalog, camera):
         assert not np.any((hip >= 0) & (hip != o.truth_hip[twice]))
 
 
+def _best_of(fn, repeats=5):
+    best = math.inf
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - t0)
+    return best
+
+
 @pytest.mark.parametrize("fov_deg", [170.0, 40.0])
-def test_wide_field_finishes_quickly(algo, db, catalog, fov_deg):
+def test_wide_field_finishes_quickly(algo, db, catalog, camera, fov_deg):
+    """A wide field costs at most a bounded multiple of a normal field's image (a ratio measured in
+    this run, never an absolute limit). Measured 2026-12-03: 170 deg 225x, 40 deg 6,254x the Table 4
+    image's time (~0.3 s); the bound, 20,000x, is the former 2 s limit at ~0.1 ms per normal image
+    and catches the minutes-long searches this test was written against."""
     cam = Camera.from_fov(fov_deg)      # the database does not depend on the camera
-    obs = Simulator(catalog, cam, SimConfig(sigma_px=1.0, sigma_mag=0.5), seed=1).observation(1)
+    cfg = SimConfig(sigma_px=1.0, sigma_mag=0.5)
+    obs = Simulator(catalog, cam, cfg, seed=1).observation(1)
+    normal = Simulator(catalog, camera, cfg, seed=1).observation(1)
     algo.identify(db, obs)                     # compile
-    t0 = time.perf_counter()
+    algo.identify(db, normal)
+    ratio = _best_of(lambda: algo.identify(db, obs)) / _best_of(lambda: algo.identify(db, normal))
+    assert ratio < 20_000.0, f"{fov_deg} deg field costs {ratio:.0f}x a normal field's image"
     hip = algo.identify(db, obs).hip
-    assert time.perf_counter() - t0 < 2.0
     assert not np.any((hip >= 0) & (hip != obs.truth_hip))   # 40 deg: was 6 wrong ids before confirm_fraction
 
 
