@@ -250,13 +250,14 @@ def test_a_broken_numba_cache_is_named_not_scored(tmp_path):
     run = ("import sys; sys.path.insert(0, %r)\nfrom starid.jitcache import describe\nimport cachedmod\n"
            "try:\n    print('value', cachedmod.twice(21))\nexcept Exception as exc:\n    print('failed:', describe(exc))\n"
            % str(tmp_path))
-    first = subprocess.run([sys.executable, "-c", run], capture_output=True, text=True, timeout=300)
+    env = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}    # cache beside the module
+    first = subprocess.run([sys.executable, "-c", run], capture_output=True, text=True, timeout=300, env=env)
     assert "value 42" in first.stdout, first.stderr
     cache = tmp_path / "__pycache__"
     files = list(cache.glob("*.nbi")) + list(cache.glob("*.nbc"))
     assert files
     for f in files:
         f.write_bytes(b"\x80garbage" * 3)
-    second = subprocess.run([sys.executable, "-c", run], capture_output=True, text=True, timeout=300)
+    second = subprocess.run([sys.executable, "-c", run], capture_output=True, text=True, timeout=300, env=env)
     out = second.stdout
     assert "numba cache file is unreadable" in out and str(cache) in out, out + second.stderr
