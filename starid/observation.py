@@ -53,7 +53,7 @@ class Observation:
             bad = np.flatnonzero(~np.isfinite(arr))
             if bad.size:
                 raise ObservationError(f"observation {name} has a non-finite value at star {bad[0]}")
-            object.__setattr__(self, name, arr)
+            object.__setattr__(self, name, _read_only(arr))  # one numba signature: kernels see read-only arrays
         off = np.flatnonzero(~self.camera.in_image(arrays["x_px"], arrays["y_px"]))
         if off.size:
             i = off[0]

@@ -37,6 +37,7 @@ from ..provenance import versions
 from ..registry import algorithm_info
 from ..scoring import CRASHED, ERROR, TIMEOUT, SuccessRule
 from ..simulate import SimConfig, Simulator
+from .warmup import schedule
 
 DEFAULT_TIME_LIMIT_S = 10.0
 BUILD_TIME_LIMIT_S = 900.0
@@ -197,7 +198,7 @@ class LocalExecutor:
 
     def run(self, tasks: list[Task], on_result) -> None:
         ctx = mp.get_context("fork" if "fork" in mp.get_all_start_methods() else "spawn")
-        pending = deque(tasks)
+        pending = deque(schedule(tasks))   # each plugin's first chunk first: one compile per plugin
         workers = [_Worker(ctx) for _ in range(min(self.jobs, len(tasks)))]
         try:
             while pending or any(w.task is not None for w in workers):
