@@ -224,6 +224,10 @@ class Camera:
             d["exposure_s"] = self.exposure_s
         return d
 
+    def columns(self) -> dict:
+        """:meth:`as_dict` with each key prefixed ``camera_``: the camera's columns in result rows."""
+        return {f"camera_{k}": v for k, v in self.as_dict().items()}
+
     def spec(self) -> dict:
         """The fields as a camera file's ``[camera]`` table (``Camera(**spec)`` rebuilds it)."""
         d = {"width_px": self.width_px, "height_px": self.height_px, "pixel_um": self.pixel_um,

@@ -190,8 +190,8 @@ class Renderer:
         cam = self.camera
         idx = np.sort(np.asarray(self._tree.query_ball_point(attitude[2], self._chord), dtype=np.int64))
         unit = self._unit_icrs[idx]
-        if draws is not None and self.simulator.config.velocity_kms > 0:
-            unit = sky.aberrate(unit, self.simulator.config.velocity_kms, draws["apex"])
+        if draws is not None:
+            unit = sky.apparent(unit, self.simulator.config, draws)
         v_cam = unit @ attitude.T
         front = v_cam[:, 2] > 1e-9
         idx, v_cam = idx[front], v_cam[front]

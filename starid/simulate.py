@@ -197,7 +197,7 @@ class Simulator:
         self._unit_icrs, self._v_mag, self._hip, body = sky.world_stars(self._unit_icrs, self._v_mag, self._hip, cfg)
         self._in_sky = np.ones(self._hip.size, dtype=bool) if cfg.sky_mag_limit is None \
             else self._v_mag <= cfg.sky_mag_limit
-        self._in_sky = self._in_sky | body if body.any() else self._in_sky
+        self._in_sky = self._in_sky | body               # planets and the Moon are always in the sky
         self._tree = cKDTree(self._unit_icrs)
         self._margin_px = cfg.merge_radius_px + max(CRN_MARGIN_PX, 6.0 * cfg.sigma_px + 1.0)
         half_diag_rad = self.camera.reach_rad(self._margin_px)
@@ -208,7 +208,7 @@ class Simulator:
     def params(self) -> dict:
         """Everything that determines the trials, flat, for result rows."""
         return {"seed": self.seed, **{f"sim_{k}": v for k, v in self.config.as_dict().items()},
-                **{f"camera_{k}": v for k, v in self.camera.as_dict().items()},
+                **self.camera.columns(),
                 "catalog": self.catalog.name, "catalog_stars": len(self.catalog)}
 
     def _draw_once(self, att_rng: np.random.Generator, rng: np.random.Generator, draws: dict | None = None):
@@ -217,10 +217,7 @@ class Simulator:
         if cfg.near_ecliptic:
             attitude = sky.near_ecliptic_attitude(attitude, att_rng)
         idx = np.sort(np.asarray(self._tree.query_ball_point(attitude[2], self._query_chord), dtype=np.int64))
-        unit = self._unit_icrs[idx]
-        if cfg.velocity_kms > 0:
-            unit = sky.aberrate(unit, cfg.velocity_kms, draws["apex"])
-        v_cam = unit @ attitude.T
+        v_cam = sky.apparent(self._unit_icrs[idx], cfg, draws) @ attitude.T
         front = v_cam[:, 2] > 1e-9
         idx, v_cam = idx[front], v_cam[front]
         x_px, y_px = cam.project(v_cam)    # through the true camera (its lens included)

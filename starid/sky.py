@@ -210,6 +210,14 @@ def streak_stars(x_px, y_px, signal_e, v_cam, camera, config, axis, psf_sigma_px
 
 # --- aberration --------------------------------------------------------------------------------
 
+def apparent(unit, config, draws) -> np.ndarray:
+    """``unit`` (n, 3) as the observer sees it: aberrated by :func:`aberrate` towards the trial's
+    ``draws["apex"]`` when ``config.velocity_kms`` > 0, else ``unit`` itself."""
+    if config.velocity_kms > 0:
+        return aberrate(unit, config.velocity_kms, draws["apex"])
+    return unit
+
+
 def aberrate(unit, velocity_kms: float, apex) -> np.ndarray:
     """Apparent directions of ``unit`` (n, 3) for an observer moving at ``velocity_kms`` towards ``apex``.
 

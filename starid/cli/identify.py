@@ -83,8 +83,8 @@ def cmd_identify(args) -> int:
         id_frames.append(id_frame)
     trials_df = pd.concat(trial_frames, ignore_index=True)
     trials_df = trials_df[IDENTIFY_TRIAL_COLUMNS + [c for c in trials_df.columns if c not in IDENTIFY_TRIAL_COLUMNS]]
-    for key, value in camera.as_dict().items():      # the camera the centroids were identified with
-        trials_df[f"camera_{key}"] = value
+    for column, value in camera.columns().items():      # the camera the centroids were identified with
+        trials_df[column] = value
     frames = {"identifications.csv": pd.concat(id_frames, ignore_index=True)[ID_COLUMNS], "trials.csv": trials_df}
     if has_truth:
         frames["summary.csv"] = summarize(trials_df)

@@ -178,7 +178,7 @@ def assemble(placements: list[Placement], experiment: Experiment, read) -> pd.Da
         lead = {"study": pl.study, "point": pl.point, **{f"grid_{k}": v for k, v in pl.grid_values.items()}}
         tail = {"seed": experiment.seed,
                 **{f"sim_{k}": v for k, v in SimConfig(**pl.chunk.settings).as_dict().items()},
-                **{f"camera_{k}": v for k, v in camera.as_dict().items()}}
+                **camera.columns()}
         frames.append(pd.concat([constant_columns(lead, df.index), df, constant_columns(tail, df.index)], axis=1))
     out = pd.concat(frames, ignore_index=True)
     return _uniform_types(out)
