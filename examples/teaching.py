@@ -23,7 +23,6 @@ import os
 import time
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
 
 import starid
@@ -98,7 +97,7 @@ fig = plots.time_distributions(rows[rows["world"] == "1 px, paper sky"], "identi
 fig.savefig(OUT / "time.png", dpi=120)
 ratio = summary.pivot(index="world", columns="label", values="time_median_us")
 print((ratio.div(ratio["ptp"], axis=0)).round(1).to_string())   # median time as a multiple of PTP's
-fig
+fig  # noqa: B018 (the cell's picture, shown by the notebook)
 
 # %% [markdown]
 # ## Where each fails
@@ -109,7 +108,7 @@ fig
 # %%
 fig = plots.rate_curve(rows, "world", title="identification rate by world (same attitudes)")
 fig.savefig(OUT / "rates.png", dpi=120)
-fig
+fig  # noqa: B018 (the cell's picture, shown by the notebook)
 
 # %% [markdown]
 # ## Look at one failure
@@ -133,7 +132,7 @@ shown = show(NAMES, trial=k, seed=SEED, world={f: getattr(config, f) for f in ("
              camera=camera, catalog=catalog, databases={n: prepared[n].database for n in NAMES})
 shown.figure.savefig(OUT / "failure.png", dpi=110)
 print(shown.results[["label", "status", "n_correct", "n_wrong", "time_ms"]].to_string(index=False))
-shown.figure
+shown.figure  # noqa: B018 (the cell's picture, shown by the notebook)
 
 # %% [markdown]
 # ## What to take away

@@ -81,7 +81,7 @@ class Camera:
         dist = self.distortion
         if isinstance(dist, (str, bytes)) or not hasattr(dist, "__len__") or len(dist) != 5:
             raise ConfigError(f"camera distortion must be 5 numbers (k1, k2, p1, p2, k3), got {dist!r}")
-        for key, value in zip(DISTORTION_NAMES, dist):
+        for key, value in zip(DISTORTION_NAMES, dist, strict=True):
             check_number(f"camera distortion {key}", value)
         object.__setattr__(self, "distortion", tuple(float(v) for v in dist))
         for key in ("name", "source"):
@@ -91,7 +91,7 @@ class Camera:
             check_number("camera exposure_s", self.exposure_s, lo=0, lo_open=True)
 
     @classmethod
-    def from_fov(cls, fov_deg: float, resolution_px: int = 1024, pixel_um: float = 12.0) -> "Camera":
+    def from_fov(cls, fov_deg: float, resolution_px: int = 1024, pixel_um: float = 12.0) -> Camera:
         """A square camera whose full field of view across the image width is ``fov_deg``."""
         check_number("fov_deg", fov_deg, lo=0, hi=180, lo_open=True, hi_open=True)
         check_whole("resolution_px", resolution_px, 1, 1_000_000)
@@ -144,7 +144,7 @@ class Camera:
         return xs, ys
 
     @functools.cached_property
-    def pinhole_frame(self) -> "Camera":
+    def pinhole_frame(self) -> Camera:
         """The distortion-free camera a plugin works in: same focal length and pixel, the sensor's
         undistorted outline's bounding box (1 px margin) as its sensor, the principal point moved
         with it. ``self`` when there is no distortion."""
@@ -167,7 +167,7 @@ class Camera:
         return undistort_px(x_px, y_px, self.f_px, self.cx_px, self.cy_px, np.asarray(self.distortion),
                             frame.cx_px, frame.cy_px)
 
-    def replace(self, **changes) -> "Camera":
+    def replace(self, **changes) -> Camera:
         """A copy with some fields changed (checked)."""
         return dataclasses.replace(self, **changes)
 
@@ -219,7 +219,7 @@ class Camera:
         ``camera``): the distortion as ``k1 .. k3``; ``exposure_s`` only when given."""
         d = {"width_px": self.width_px, "height_px": self.height_px, "pixel_um": self.pixel_um,
              "focal_mm": self.focal_mm, "cx_px": self.cx_px, "cy_px": self.cy_px,
-             **dict(zip(DISTORTION_NAMES, self.distortion)), "name": self.name, "source": self.source}
+             **dict(zip(DISTORTION_NAMES, self.distortion, strict=True)), "name": self.name, "source": self.source}
         if self.exposure_s is not None:
             d["exposure_s"] = self.exposure_s
         return d

@@ -52,7 +52,7 @@ class Catalog:
     name: str = "custom"
 
     @classmethod
-    def from_arrays(cls, hip, ra_deg, dec_deg, v_mag, name: str = "custom") -> "Catalog":
+    def from_arrays(cls, hip, ra_deg, dec_deg, v_mag, name: str = "custom") -> Catalog:
         """Validate and build a catalog; rows are sorted by id."""
         hip_in = np.asarray(hip).ravel()
         try:
@@ -91,7 +91,7 @@ class Catalog:
         return cls(hip=ids, ra_deg=ra, dec_deg=dec, v_mag=mag, unit_icrs=radec_to_unit(ra, dec), name=name)
 
     @classmethod
-    def embedded(cls, max_v_mag: float = 8.0) -> "Catalog":
+    def embedded(cls, max_v_mag: float = 8.0) -> Catalog:
         """The embedded Hipparcos catalog (see :func:`load_hipparcos`)."""
         return load_hipparcos(max_v_mag)
 
@@ -104,7 +104,7 @@ class Catalog:
     def __len__(self) -> int:
         return int(self.hip.size)
 
-    def subset(self, mask_or_index: np.ndarray, name: str | None = None) -> "Catalog":
+    def subset(self, mask_or_index: np.ndarray, name: str | None = None) -> Catalog:
         """The stars selected by a boolean mask or an index array (kept in id order)."""
         sel = np.asarray(mask_or_index)
         if sel.dtype == bool:
@@ -114,7 +114,7 @@ class Catalog:
                        v_mag=self.v_mag[sel], unit_icrs=self.unit_icrs[sel],
                        name=name or self.name)
 
-    def brighter_than(self, limit_mag: float) -> "Catalog":
+    def brighter_than(self, limit_mag: float) -> Catalog:
         """Stars with ``v_mag <= limit_mag``."""
         return self.subset(self.v_mag <= limit_mag, name=f"{self.name}[V<={limit_mag:g}]")
 

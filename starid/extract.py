@@ -160,7 +160,8 @@ def _extract_scipy(data, threshold_sigma, min_area_px, psf_sigma_px, windowed, a
     iy = np.rint(y).astype(np.int64)[:, None, None] + oy
     inside = ((ix + 0.0 - x[:, None, None]) ** 2 + (iy + 0.0 - y[:, None, None]) ** 2 <= aperture_px ** 2)
     inside &= (ix >= 0) & (ix < sub.shape[1]) & (iy >= 0) & (iy < sub.shape[0])
-    flux = np.where(inside, sub[np.clip(iy, 0, sub.shape[0] - 1), np.clip(ix, 0, sub.shape[1] - 1)], 0.0).sum(axis=(1, 2))
+    inside_px = sub[np.clip(iy, 0, sub.shape[0] - 1), np.clip(ix, 0, sub.shape[1] - 1)]
+    flux = np.where(inside, inside_px, 0.0).sum(axis=(1, 2))
     return x + 0.5, y + 0.5, flux, sub
 
 

@@ -157,5 +157,5 @@ def read_numeric_csv(path: str | Path, required: list, optional: tuple[str, ...]
         except UnicodeDecodeError:
             raise error(f"{path}, after line {lineno}: not UTF-8 text") from None
     out = {name: np.asarray(col, dtype=np.int64 if is_int[k] else np.float64)
-           for k, (name, col) in enumerate(zip(names, columns))}
+           for k, (name, col) in enumerate(zip(names, columns, strict=True))}
     return out, np.asarray(lines, dtype=np.int64)

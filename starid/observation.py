@@ -73,12 +73,12 @@ class Observation:
         """Camera-frame unit vectors ``(n, 3)`` of the detections."""
         return self.camera.backproject(self.x_px, self.y_px)
 
-    def permuted(self, order: np.ndarray) -> "Observation":
+    def permuted(self, order: np.ndarray) -> Observation:
         """The same detections in another order."""
         return Observation(self.x_px[order], self.y_px[order], self.mag[order], self.camera,
                            None if self.truth_hip is None else self.truth_hip[order])
 
-    def for_plugin(self) -> "Observation":
+    def for_plugin(self) -> Observation:
         """What an algorithm is handed: read-only arrays and no truth, in a pinhole frame.
 
         With a distorted camera the centroids are first undistorted with its calibration into
@@ -172,7 +172,7 @@ class TrialSet:
                              "star": np.arange(self.x_px.size) - np.repeat(self.offsets[:-1], counts),
                              "x_px": self.x_px, "y_px": self.y_px, "mag": self.mag, "truth_hip": self.truth_hip})
 
-    def select(self, positions: np.ndarray) -> "TrialSet":
+    def select(self, positions: np.ndarray) -> TrialSet:
         """A subset of the images, by position."""
         positions = np.asarray(positions, dtype=np.int64)
         counts = np.diff(self.offsets)[positions]

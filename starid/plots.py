@@ -132,7 +132,7 @@ def place_labels(ax, x, y, texts, obstacles_xy=None, obstacle_pt: float = 6.0, r
                    for o in others)
 
     out = []
-    for (px, py), xd, yd, text in zip(points, x, y, texts):
+    for (px, py), xd, yd, text in zip(points, x, y, texts, strict=True):
         best = None
         for dx, dy in LABEL_OFFSETS_PT:
             ann = ax.annotate(text, (xd, yd), xytext=(dx, dy), textcoords="offset points",
@@ -175,7 +175,7 @@ def axis_name(axis: str) -> str:
 def _rates(frame: pd.DataFrame, by: list[str]) -> pd.DataFrame:
     ok = frame.assign(_ok=frame["status"] == "correct").groupby(by, sort=False)["_ok"].agg(["sum", "count"])
     ok = ok.reset_index()
-    ci = [wilson_interval(int(k), int(n)) for k, n in zip(ok["sum"], ok["count"])]
+    ci = [wilson_interval(int(k), int(n)) for k, n in zip(ok["sum"], ok["count"], strict=True)]
     ok["rate"] = ok["sum"] / ok["count"]
     ok["lo"] = [c[0] for c in ci]
     ok["hi"] = [c[1] for c in ci]
@@ -277,7 +277,7 @@ def time_distributions(frame: pd.DataFrame, title: str = "", styles: dict | None
                                                                          "markerfacecolor": "0.4",
                                                                          "markeredgecolor": "none"},
                         medianprops={"color": "black", "linewidth": 1.6})
-        for patch, i in zip(bp["boxes"], keep):
+        for patch, i in zip(bp["boxes"], keep, strict=True):
             patch.set_facecolor(st[labels[i]]["color"])
             patch.set_alpha(0.35)
             patch.set_hatch(["", "//", "..", "xx", "\\\\", "oo", "++", "--"][i % 8])
@@ -399,7 +399,8 @@ def rate_by_stars(frame: pd.DataFrame, bins=((6, 8), (9, 10), (11, 13), (14, 17)
     for k, label in enumerate(labels):
         g = r[r["label"] == label].sort_values("_bin")
         s = st[label]
-        ax.errorbar(g["_bin"] + (k - (len(labels) - 1) / 2) * 0.06, 100 * g["rate"], yerr=[100 * (g["rate"] - g["lo"]), 100 * (g["hi"] - g["rate"])],
+        yerr = [100 * (g["rate"] - g["lo"]), 100 * (g["hi"] - g["rate"])]
+        ax.errorbar(g["_bin"] + (k - (len(labels) - 1) / 2) * 0.06, 100 * g["rate"], yerr=yerr,
                     color=s["color"], marker=s["marker"], linestyle=s["linestyle"], capsize=2, label=label,
                     markeredgecolor="black", markeredgewidth=0.5)
     ax.set_xticks(range(len(bins)), names)
@@ -460,7 +461,7 @@ def regression(diff: pd.DataFrame, title: str = "") -> Figure:
     fig = _figure(6.4, 0.9 + 0.32 * len(d))
     ax = fig.add_subplot()
     y = np.arange(len(d))[::-1]
-    for yi, r in zip(y, d.itertuples()):
+    for yi, r in zip(y, d.itertuples(), strict=True):
         sig = r.p_value < 0.05
         ax.plot([100 * r.diff_lo, 100 * r.diff_hi], [yi, yi], color="0.3", linewidth=1.2)
         ax.plot([100 * r.diff], [yi], marker="o", markersize=6, color="black",
@@ -508,7 +509,7 @@ def show_figure(stars: pd.DataFrame, ids: pd.DataFrame, explanations: dict | Non
     size = np.clip(9.0 * (10 ** (0.4 * (6.0 - mag))) ** 0.75, 5, 260)
     placements = []
     ex_none = np.zeros((0, 2))
-    for ax, label in zip(axes, labels):
+    for ax, label in zip(axes, labels, strict=True):
         got = ids[ids["label"] == label].set_index("star")["hip"].reindex(stars["star"]).fillna(-1)
         hip = got.to_numpy(dtype=np.int64)
         status = _status_of(hip, truth)
@@ -554,8 +555,9 @@ def show_figure(stars: pd.DataFrame, ids: pd.DataFrame, explanations: dict | Non
                       loc="left" if caption else "center")
     for ax in axes[len(labels):]:
         ax.set_visible(False)
-    handles = [Line2D([], [], linestyle="none", marker="o", markersize=5, color="black", label="star (size ~ brightness)")]
-    for kind, m in STAR_MARKS.items():
+    handles = [Line2D([], [], linestyle="none", marker="o", markersize=5, color="black",
+                      label="star (size ~ brightness)")]
+    for m in STAR_MARKS.values():
         handles.append(Line2D([], [], linestyle="none", marker=m["marker"], markersize=8, markeredgewidth=1.4,
                               markerfacecolor=m["color"] if m["fill"] else "none", markeredgecolor=m["color"],
                               label=m["text"]))
@@ -570,7 +572,8 @@ def show_figure(stars: pd.DataFrame, ids: pd.DataFrame, explanations: dict | Non
     for ax, jobs in placements:
         taken = []
         for jx, jy, texts, required, kw in jobs:
-            place_labels(ax, jx, jy, texts, obstacles_xy=stars_xy, obstacle_pt=14.0, required=required, taken=taken, **kw)
+            place_labels(ax, jx, jy, texts, obstacles_xy=stars_xy, obstacle_pt=14.0, required=required, taken=taken,
+                         **kw)
     return fig
 
 

@@ -46,7 +46,7 @@ def machine() -> dict:
 
 def now() -> str:
     """The current time, ISO 8601 in UTC."""
-    return _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
+    return _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
 
 
 def command_line() -> str:

@@ -77,7 +77,7 @@ def summarize(df: pd.DataFrame, by=("label",)) -> pd.DataFrame:
         ran = g[~g["status"].isin([ERROR, TIMEOUT, CRASHED])]
         t = ran["time_us"].to_numpy() if len(ran) else np.array([np.nan])
         att = g["attitude_err_arcsec"]
-        row = dict(zip(by, key))
+        row = dict(zip(by, key, strict=True))
         row.update({
             "algorithm": g["algorithm"].iloc[0], "trials": n, "id_rate": n_ok / n,
             "id_rate_lo": lo, "id_rate_hi": hi,
@@ -114,6 +114,6 @@ def split_by_stars(df: pd.DataFrame, threshold: int = 8, by=("label",)) -> pd.Da
                            (f"> {threshold}", g[g["n_true_stars"] > threshold])):
             n, k = len(part), int((part["status"] == CORRECT).sum())
             lo, hi = wilson_interval(k, n)
-            rows.append({**dict(zip(by, key)), "stars": name, "trials": n,
+            rows.append({**dict(zip(by, key, strict=True)), "stars": name, "trials": n,
                          "id_rate": k / n if n else float("nan"), "id_rate_lo": lo, "id_rate_hi": hi})
     return pd.DataFrame(rows)

@@ -11,7 +11,7 @@ SUMMARY = ["algorithm", "trials", "id_rate", "id_rate_lo", "id_rate_hi", "misid_
 
 def test_list(capsys):
     assert main(["list"]) == 0
-    line = next(l for l in capsys.readouterr().out.splitlines() if l.startswith("ptp "))
+    line = next(ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("ptp "))
     assert line.split()[1] == "ok" and "PTP" in line
 
 

@@ -71,12 +71,13 @@ def test_rows_record_the_derived_value_not_none():
 def test_the_engine_records_the_derived_value():
     register(FieldSized)
     try:
-        exp = Experiment("derived", (Study("s", ("field_sized", "field_sized[radius_deg=2.0]"), Grid({"sigma_px": [0.0]})),),
+        exp = Experiment("derived", (Study("s", ("field_sized", "field_sized[radius_deg=2.0]"),
+                                           Grid({"sigma_px": [0.0]})),),
                          trials=3, seed=1, camera={"fov_deg": 20.0, "resolution_px": 1024})
         frame = run_experiment(exp, None, jobs=1, progress=False)
     finally:
         unregister("field_sized")
-    values = dict(zip(frame["label"], frame["param_radius_deg"]))
+    values = dict(zip(frame["label"], frame["param_radius_deg"], strict=True))
     assert values == {"field_sized": pytest.approx(10.0), "field_sized[radius_deg=2.0]": 2.0}
 
 

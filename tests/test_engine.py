@@ -10,8 +10,7 @@ import pandas as pd
 import pytest
 
 from starid.errors import ConfigError
-from starid.experiment import Experiment, Grid, Study, Variant, read_manifest, run_experiment
-from starid.experiment import runner
+from starid.experiment import Experiment, Grid, Study, Variant, read_manifest, run_experiment, runner
 
 MEASURED = ["time_us", "build_s", "compile_s"]
 

@@ -6,12 +6,11 @@ import pandas as pd
 import pytest
 
 import starid
-
 from starid import SimConfig, Simulator
 from starid.harness import run
+from starid.plugin import Algorithm, Database, Identification
 from starid.scoring import SuccessRule, score_trial
 from starid.stats import SUMMARY_COLUMNS, summarize, wilson_interval
-from starid.plugin import Algorithm, Database, Identification
 
 
 @dataclass(frozen=True, eq=False)

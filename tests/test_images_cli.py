@@ -12,12 +12,11 @@ pytest.importorskip("astropy")
 pytest.importorskip("PIL")
 
 from starid import Camera, ObservationError, SimConfig, Simulator  # noqa: E402
+from starid.attitude import random_attitude, rotation_angle_rad  # noqa: E402
 from starid.cli import main  # noqa: E402
 from starid.cli.images import ATTITUDE_COLUMNS, attitude_from_ra_dec_roll, ra_dec_roll_deg  # noqa: E402
 from starid.imagefile import read_image, to_8bit, write_image  # noqa: E402
 from starid.scoring import RAD_TO_ARCSEC  # noqa: E402
-
-from starid.attitude import random_attitude, rotation_angle_rad  # noqa: E402
 
 
 @pytest.fixture(scope="module")

@@ -5,8 +5,17 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from starid.kernels import (angular_distance_rad, chord, kvector_build, kvector_range, pairwise_chords,
-                            rad_to_chord, triangle_sides, triple_product, verify_pairwise)
+from starid.kernels import (
+    angular_distance_rad,
+    chord,
+    kvector_build,
+    kvector_range,
+    pairwise_chords,
+    rad_to_chord,
+    triangle_sides,
+    triple_product,
+    verify_pairwise,
+)
 
 values = st.lists(st.floats(-1e3, 1e3, allow_nan=False), min_size=0, max_size=60)
 
@@ -171,7 +180,7 @@ def test_explained_counts_the_detections_of_stars_to_the_check_limit(catalog, ca
     eps = 3 * math.sqrt(2) / camera.f_px
     c_fov = field_chord(frame) + eps
     sim = Simulator(catalog, camera, SimConfig(sigma_px=1.0, sigma_mag=0.5), seed=41)    # real sky
-    v_mag = dict(zip(catalog.hip.tolist(), catalog.v_mag.tolist()))
+    v_mag = dict(zip(catalog.hip.tolist(), catalog.v_mag.tolist(), strict=True))
     agree = 0
     for t in range(20):
         attitude, x, y, _, truth, _ = sim.draw(t)
@@ -180,7 +189,7 @@ def test_explained_counts_the_detections_of_stars_to_the_check_limit(catalog, ca
         count, n_seen, n_predicted = explained(attitude, unit, guide.unit, extra, frame, c_fov, eps, rows_g, rows_x)
         expect = sum(1 for h in truth if h >= 0 and v_mag[int(h)] <= 7.0)
         agree += count == expect
-        assert all(guide.hip[r] == h for r, h in zip(rows_g, truth) if r >= 0)      # guide rows are right
+        assert all(guide.hip[r] == h for r, h in zip(rows_g, truth, strict=True) if r >= 0)      # guide rows are right
         assert n_seen == (rows_g >= 0).sum() and n_predicted >= n_seen
         _, again, _, _ = refine_explained(unit, guide.unit, extra, frame, c_fov, eps, rows_g, rows_x)
         assert again >= count - 1
@@ -212,8 +221,9 @@ def test_no_two_kernel_bundles_share_a_name_and_fields():
     import inspect
     import pkgutil
 
-    import starid.kernels
     import starid_algorithms
+
+    import starid.kernels
 
     prefix = "starid.kernels."
     modules = [importlib.import_module(m.name) for m in pkgutil.walk_packages(starid.kernels.__path__, prefix)]

@@ -33,7 +33,8 @@ def test_labels_of_close_points_do_not_overlap():
     renderer = fig.canvas.get_renderer()
     assert _overlaps(_boxes(placed, renderer)) == []
     assert len(placed) >= 4                           # the isolated ones and some of the cluster
-    naive = [ax.annotate(t, (a, b), xytext=(7, -7), textcoords="offset points", fontsize=7) for t, a, b in zip(texts, x, y)]
+    naive = [ax.annotate(t, (a, b), xytext=(7, -7), textcoords="offset points", fontsize=7)
+             for t, a, b in zip(texts, x, y, strict=True)]
     fig.canvas.draw()
     assert _overlaps(_boxes(naive, renderer))        # the old fixed offset did collide here
 

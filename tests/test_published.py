@@ -4,12 +4,12 @@ from dataclasses import dataclass
 from typing import ClassVar
 
 import pytest
+from starid_algorithms.ptp import PTP
 
 from starid.errors import ConfigError
 from starid.experiment import Experiment, Study, Variant, run_experiment
 from starid.registry import register, unregister
 from starid.testing import ConformanceError, check_algorithm
-from starid_algorithms.ptp import PTP
 
 
 @dataclass(frozen=True)

@@ -52,4 +52,5 @@ def test_readme_and_docs_cover_every_builtin_algorithm():
         assert f"`{info.name}`" in README
         doc = ROOT / "docs" / "algorithms" / f"{info.name}.md"
         assert doc.is_file() and len(doc.read_text()) > 1000, f"{doc} missing or a stub"
-        assert f"docs/algorithms/{info.name}.md" in (info.cls.__doc__ or ""), f"{info.name}'s docstring must point to its doc"
+        assert f"docs/algorithms/{info.name}.md" in (info.cls.__doc__ or ""), \
+            f"{info.name}'s docstring must point to its doc"

@@ -7,8 +7,16 @@ import numpy as np
 import pytest
 
 from starid import Camera, ConfigError, SimConfig, Simulator
-from starid.render import (RenderConfig, Renderer, image_trials, match_radius, match_truth, observation_from_image, render_image,
-                           summarize_stats)
+from starid.render import (
+    RenderConfig,
+    Renderer,
+    image_trials,
+    match_radius,
+    match_truth,
+    observation_from_image,
+    render_image,
+    summarize_stats,
+)
 
 
 @pytest.fixture(scope="module")

@@ -22,7 +22,8 @@ def test_mcnemar_exact():
 
 def test_table6_files_two_skies(tmp_path, capsys):
     # --jobs 1 against --jobs 2 is tests/test_engine.py::test_jobs_do_not_change_results (the same engine)
-    assert main(["table6", "--trials", "24", "--seed", "5", "--jobs", "2", "--quiet", "--out", str(tmp_path / "j1")]) == 0
+    assert main(["table6", "--trials", "24", "--seed", "5", "--jobs", "2", "--quiet",
+                 "--out", str(tmp_path / "j1")]) == 0
     out = capsys.readouterr().out
     assert "| ptp |" in out and "McNemar" in out
     assert out.index("paper's sky") < out.index("real sky")

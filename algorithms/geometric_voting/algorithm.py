@@ -9,6 +9,16 @@ from functools import lru_cache
 from typing import ClassVar
 
 import numpy as np
+from starid_algorithms.pyramid.algorithm import (
+    PairDatabase,
+    build_pair_database,
+    check_pair_params,
+    d_min_for,
+    hip_of,
+    pair_limit_rad,
+    window_eps,
+)
+from starid_algorithms.pyramid.kernels import PairTol
 
 from starid.camera import REFERENCE_CAMERA, Camera
 from starid.catalog import Catalog
@@ -17,13 +27,8 @@ from starid.kernels import Frame, camera_frame, rad_to_chord
 from starid.observation import Observation
 from starid.params import check_flag, check_number, check_whole
 from starid.plugin import Algorithm, Explanation, Identification
-from starid_algorithms.pyramid.algorithm import (PairDatabase, build_pair_database,
-                                                 check_pair_params, d_min_for, hip_of,
-                                                 pair_limit_rad, window_eps)
-from starid_algorithms.pyramid.kernels import PairTol
 
 from .kernels import VoteRule, identify_kernel, voting_kernel
-
 
 #: the guide limit chosen on :data:`starid.camera.REFERENCE_CAMERA` (Table 4: 10 x 10 deg, 1024 x 1024 px)
 REF_MAG_LIMIT = 6.0
@@ -161,8 +166,9 @@ class GeometricVoting(Algorithm):
       pair rises from 0.30 (10 deg) to 0.68 and a median of 100 catalog stars tie or beat the
       true star's votes;
     * ``d_min_deg``: 0.05 deg scaled by the pixel angle, i.e. 5.1 px on every camera, at most 1 deg
-      (pyramid's :func:`~starid_algorithms.pyramid.algorithm.d_min_for`); it must exceed eps (4.2 px at 1 px) or a voter with a
-      neighbour within eps cannot be confirmed by the reprojection (0.05 deg is 2.6 px at 20 deg);
+      (pyramid's :func:`~starid_algorithms.pyramid.algorithm.d_min_for`); it must exceed eps (4.2 px at
+      1 px) or a voter with a neighbour within eps cannot be confirmed by the reprojection (0.05 deg is
+      2.6 px at 20 deg);
       in the image (not the catalog) the isolation radius is max(``d_min_deg``, eps), as in pyramid;
     * ``saturate_votes``: True when ``mag_limit`` is fainter than :func:`derived_mag_limit` allows at
       the actual window (eps with ``sigma_px``): chance votes then exceed the reference level and
@@ -282,9 +288,10 @@ class GeometricVoting(Algorithm):
         check_number("min_fraction", self.min_fraction, lo=0, hi=1)
 
     def tolerances(self, camera: Camera, database: PairDatabase) -> PairTol:
-        return _bundles(self, camera, database.c_max, database.d_min_deg, _saturates(database), _vote_window(database))[0]
+        return _bundles(self, camera, database.c_max, database.d_min_deg, _saturates(database),
+                        _vote_window(database))[0]
 
-    def derived(self, catalog: Catalog, camera: Camera) -> "GeometricVoting":
+    def derived(self, catalog: Catalog, camera: Camera) -> GeometricVoting:
         """``mag_limit``, ``d_min_deg``, ``saturate_votes`` and ``vote_window_px`` left None set for
         ``camera`` (:func:`derived_mag_limit` at the 1 px floor,
         :func:`~starid_algorithms.pyramid.algorithm.d_min_for`, :func:`derived_saturate`,

@@ -15,8 +15,15 @@ from starid.observation import Observation
 from starid.params import check_flag, check_number, check_whole
 from starid.plugin import Database, Explanation
 
-from ..lpt_improved.planar import (PlanarAlgorithm, acceptance, effective_double_px, explain_pattern, neighbour_lists,
-                                   prepare_image, select_guides)
+from ..lpt_improved.planar import (
+    PlanarAlgorithm,
+    acceptance,
+    effective_double_px,
+    explain_pattern,
+    neighbour_lists,
+    prepare_image,
+    select_guides,
+)
 from .kernels import GridSpec, GridTable, build_patterns, by_cell, by_pattern, identify_kernel
 
 
@@ -178,7 +185,8 @@ class Grid(PlanarAlgorithm):
                 t = -half + i * step
                 segments.append([to_px(t, -half), to_px(t, half)])
                 segments.append([to_px(-half, t), to_px(half, t)])
-        caption = (f"Grid: reference star, orientation star (bold) and neighbours; every {max(1, self.grid_size // 10)}th "
+        every = max(1, self.grid_size // 10)
+        caption = (f"Grid: reference star, orientation star (bold) and neighbours; every {every}th "
                    f"line of the {self.grid_size} x {self.grid_size} oriented grid. Best pattern scored "
                    f"{trace[3] / 1000:g}; {int((rows >= 0).sum())} stars confirmed by reprojection." if ok else
                    "Grid: no match was confirmed; the first reference star's oriented grid is shown.")

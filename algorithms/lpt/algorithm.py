@@ -15,9 +15,18 @@ from starid.observation import Observation
 from starid.params import check_whole
 from starid.plugin import Database, Explanation
 
-from ..lpt_improved.planar import (PlanarAlgorithm, acceptance, effective_double_px, explain_pattern, image_neighbours,
-                                   neighbour_lists, plane_polar, prepare_image, select_guides)
-from .kernels import StringSearch, Strings, build_strings, identify_kernel, lpt_string, sparse_strings
+from ..lpt_improved.planar import (
+    PlanarAlgorithm,
+    acceptance,
+    effective_double_px,
+    explain_pattern,
+    image_neighbours,
+    neighbour_lists,
+    plane_polar,
+    prepare_image,
+    select_guides,
+)
+from .kernels import Strings, StringSearch, build_strings, identify_kernel, lpt_string, sparse_strings
 
 
 @dataclass(frozen=True, eq=False)

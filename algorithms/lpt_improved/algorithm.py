@@ -16,8 +16,17 @@ from starid.params import check_flag, check_number, check_whole
 from starid.plugin import Database, Explanation
 
 from .kernels import FeatureTable, Search, build_features, feature_vector, identify_kernel
-from .planar import (PlanarAlgorithm, acceptance, effective_double_px, explain_pattern, image_neighbours,
-                     neighbour_lists, plane_polar, prepare_image, select_guides)
+from .planar import (
+    PlanarAlgorithm,
+    acceptance,
+    effective_double_px,
+    explain_pattern,
+    image_neighbours,
+    neighbour_lists,
+    plane_polar,
+    prepare_image,
+    select_guides,
+)
 
 
 @dataclass(frozen=True, eq=False)
@@ -66,7 +75,8 @@ def _row_dtype(n: int):
 
 @dataclass(frozen=True)
 class ImprovedLPT(PlanarAlgorithm):
-    """Improved log-polar (Luo et al., Chin. Phys. B 2015): alignment star, log plane distance per angle sector, no shift.
+    """Improved log-polar (Luo et al., Chin. Phys. B 2015): alignment star, log plane distance per angle
+    sector, no shift.
 
     Luo L.-Y., Xu L.-P., Zhang H., Sun J.-R., "Improved autonomous star identification
     algorithm", Chinese Physics B 24(6), 064202 (2015). Equation numbers below follow the order
@@ -94,9 +104,9 @@ class ImprovedLPT(PlanarAlgorithm):
        smallest wins. Paper, with epsilon1 = 1; the paper's epsilon2 = 1 is
        ``count_tol_above=None`` (= ``count_tol``). starid's default epsilon2 = 3 (reconstruction):
        guide stars lost to magnitude noise or the image edge leave the image with fewer
-       non-zero entries than its database row far more often than with more. starid evaluates the same sum over the image's non-zero entries
-       only (an exact identity, see :func:`kernels.sad_search`), on a table stored entry by entry
-       so that the window's rows are read contiguously.
+       non-zero entries than its database row far more often than with more. starid evaluates the same
+       sum over the image's non-zero entries only (an exact identity, see :func:`kernels.sad_search`),
+       on a table stored entry by entry so that the window's rows are read contiguously.
     6. Reference stars near the image centre first (paper), at most ``max_refs``.
 
     starid's additions (reconstructions; the paper stops at step 5 and, with a single

@@ -36,8 +36,15 @@ from scipy.spatial import cKDTree
 from starid.camera import Camera
 from starid.catalog import Catalog
 from starid.errors import ConfigError
-from starid.kernels import (backproject_px, camera_frame, chord_rows, reproject_assign, sort_rows, verify_pairwise,
-                            wahba_rows)
+from starid.kernels import (
+    backproject_px,
+    camera_frame,
+    chord_rows,
+    reproject_assign,
+    sort_rows,
+    verify_pairwise,
+    wahba_rows,
+)
 from starid.observation import Observation
 from starid.params import check_number, check_whole
 from starid.plugin import Algorithm, Explanation, Identification
@@ -489,7 +496,7 @@ class PlanarAlgorithm(Algorithm):
         check_whole("min_matches", self.min_matches, 3)
         check_number("confirm_fraction", self.confirm_fraction, lo=0, hi=1)
 
-    def derived(self, catalog: Catalog, camera: Camera) -> "PlanarAlgorithm":
+    def derived(self, catalog: Catalog, camera: Camera) -> PlanarAlgorithm:
         """``mag_limit`` None (not resolved from a simulator) -> the default sensor's detection limit,
         :data:`DEFAULT_MAG_LIMIT`; ``radius_deg`` None -> :func:`default_radius_deg` for ``camera`` and
         the guide stars' number."""

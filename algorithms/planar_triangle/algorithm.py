@@ -13,13 +13,24 @@ from scipy.spatial import cKDTree
 from starid.camera import REFERENCE_CAMERA, Camera
 from starid.catalog import Catalog
 from starid.errors import ConfigError
-from starid.params import check_flag, check_number, check_whole
 from starid.kernels import DeepSky, KVector, camera_frame, deep_sky, kvector_make, rad_to_chord
 from starid.observation import Observation
+from starid.params import check_flag, check_number, check_whole
 from starid.plugin import Algorithm, Database, Explanation, Identification
 
-from .kernels import (MOMENT_BLOCK, Finish, Rules, Tables, Tolerance, deep_v_mag, finish, identify_rows,
-                      identify_subsets, moment_blocks, scan_triangles)
+from .kernels import (
+    MOMENT_BLOCK,
+    Finish,
+    Rules,
+    Tables,
+    Tolerance,
+    deep_v_mag,
+    finish,
+    identify_rows,
+    identify_subsets,
+    moment_blocks,
+    scan_triangles,
+)
 
 MAX_GUIDE_STARS = 65536  # star indices are stored as uint16
 DEG2_TO_CHORD2 = (math.pi / 180.0) ** 2
@@ -103,8 +114,8 @@ class PlanarTriangleDatabase(Database):
 
     def tables(self) -> Tables:
         """The arrays the kernels read, as one bundle."""
-        return Tables(self.tri_stars, self.tri_area, self.tri_moment, self.tri_moment_perm, self.guide_unit, self.nbr_ptr,
-                      self.nbr_idx, self.rules)
+        return Tables(self.tri_stars, self.tri_area, self.tri_moment, self.tri_moment_perm, self.guide_unit,
+                      self.nbr_ptr, self.nbr_idx, self.rules)
 
 
 def _neighbour_csr(unit: np.ndarray, chord_max: float, symmetric: bool) -> tuple[np.ndarray, np.ndarray]:
@@ -329,7 +340,7 @@ class PlanarTriangle(Algorithm):
         for field in ("abort_if_finalists_grow", "consistent_chain", "extend", "assign_all"):
             check_flag(field, getattr(self, field))
 
-    def derived(self, catalog: Catalog, camera: Camera) -> "PlanarTriangle":
+    def derived(self, catalog: Catalog, camera: Camera) -> PlanarTriangle:
         """``mag_limit``, ``fov_db_deg`` and ``min_area_deg2`` left None set for ``camera``
         (:func:`derived_mag_limit`, :func:`derived_fov_db_deg`, ``MIN_AREA_FOV2 * fov_db_deg ** 2``);
         6.2, 10 and 0.1 on the Table 4 camera."""

@@ -14,9 +14,9 @@ from scipy.spatial import cKDTree
 from starid.camera import Camera
 from starid.catalog import Catalog
 from starid.errors import ConfigError
-from starid.params import check_flag, check_number, check_whole
 from starid.kernels import DeepSky, KVector, camera_frame, check_stars, deep_sky, kvector_make, rad_to_chord
 from starid.observation import Observation
+from starid.params import check_flag, check_number, check_whole
 from starid.plugin import Algorithm, Database, Explanation, Identification
 
 from .kernels import Tables, Tolerances, View, build_triangles, identify_kernel, nearest_slaves, select_stars
@@ -104,7 +104,7 @@ def _chord(deg: float) -> float:
 
 
 @lru_cache(maxsize=64)
-def _tolerances(algorithm: "PTP", d_min_deg: float, sigma_floor_px: float) -> Tolerances:
+def _tolerances(algorithm: PTP, d_min_deg: float, sigma_floor_px: float) -> Tolerances:
     return algorithm._tol(d_min_deg, sigma_floor_px)
 
 
@@ -122,8 +122,8 @@ class PTP(Algorithm):
 
     Database (section 2.1): every guide star (V <= ``mag_limit``) is a master; its
     ``n_slaves`` nearest stars with ``d_min_deg <= angle <= d_max_deg`` (8.728 <= D_ms <= 872.8 in
-    the paper's units: chord x 10000; starid's default d_max is 6 deg, see below) are slaves s1..s4, nearest first; the 6 triangles
-    (m, s_i, s_j), i < j, have sides a = |r1-r2|, b = |r2-r3|, c = |r1-r3| (eq. 1) with
+    the paper's units: chord x 10000; starid's default d_max is 6 deg, see below) are slaves s1..s4,
+    nearest first; the 6 triangles (m, s_i, s_j), i < j, have sides a = |r1-r2|, b = |r2-r3|, c = |r1-r3| (eq. 1) with
     r1 = m, r2 = s_i, r3 = s_j. PCA over all triangles gives the projection axis u_max; each
     triangle is stored by its projection p_r = u_max^T (Delta - mean) (eq. 3), sorted, with a
     k-vector (eqs. 15-16).
@@ -160,7 +160,8 @@ class PTP(Algorithm):
       float32 tables' rounding (and today's 1 px results are unchanged);
     * camera-dependent, ``None`` = derived from the camera (:meth:`derived` by :func:`camera_rules`; the
       values used are also stored in the database as ``d_min_deg`` and ``sigma_floor_px``): with
-      r = ``camera.pixel_ratio`` = f_paper / f_px the camera's pixel in Table 4 pixels (exactly 1 on the Table 4 camera),
+      r = ``camera.pixel_ratio`` = f_paper / f_px the camera's pixel in Table 4 pixels (exactly 1 on the
+      Table 4 camera),
       ``d_min_deg`` = 0.05 max(1, r) (the paper's 0.05 deg is 5.1 px on its camera: two stars closer than
       about the pixel-based tolerance are swapped) and ``sigma_floor_px`` = min(1, 1/r) (1 px on the
       paper's camera, 35.2 arcsec: the rounding it covers is an angle). Both are the paper's on the
@@ -279,7 +280,7 @@ class PTP(Algorithm):
         for name in ("exclude_doubles", "swap_slaves", "majority", "verify", "nearest_check"):
             check_flag(name, getattr(self, name))
 
-    def derived(self, catalog: Catalog, camera: Camera) -> "PTP":
+    def derived(self, catalog: Catalog, camera: Camera) -> PTP:
         """``d_min_deg`` and ``sigma_floor_px`` left None set by :func:`camera_rules` for ``camera`` and
         ``sigma_px`` (the harness has already set it from the simulator; None = noise-free)."""
         d_min_deg, floor_px = camera_rules(camera, self.sigma_px)

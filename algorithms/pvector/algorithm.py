@@ -12,9 +12,9 @@ from scipy.spatial import cKDTree
 from starid.camera import REFERENCE_CAMERA, Camera
 from starid.catalog import Catalog
 from starid.errors import ConfigError
-from starid.params import check_choice, check_flag, check_number, check_whole
 from starid.kernels import DeepSky, KVector, camera_frame, check_stars, deep_sky, kvector_make, rad_to_chord
 from starid.observation import Observation
+from starid.params import check_choice, check_flag, check_number, check_whole
 from starid.plugin import Algorithm, Database, Explanation, Identification
 
 from . import kernels as K
@@ -65,8 +65,8 @@ class PVectorDatabase(Database):
 
     def tables(self) -> K.Tables:
         """The arrays identify reads, as one kernel argument."""
-        return K.Tables(self.p_axis, self.kv, self.tri_sides, float(self.side_step_rad), self.tri_rows, self.unit_icrs, self.hip,
-                        self.deep, self.extra_unit)
+        return K.Tables(self.p_axis, self.kv, self.tri_sides, float(self.side_step_rad), self.tri_rows,
+                        self.unit_icrs, self.hip, self.deep, self.extra_unit)
 
 
 @dataclass(frozen=True)

@@ -261,7 +261,7 @@ class Pyramid(Algorithm):
                        max_stars=int(self.max_stars), max_triads=int(self.max_triads),
                        confirm_fraction=float(self.confirm_fraction), min_extra=int(self.min_extra))
 
-    def derived(self, catalog: Catalog, camera: Camera) -> "Pyramid":
+    def derived(self, catalog: Catalog, camera: Camera) -> Pyramid:
         """``d_min_deg`` left None set to :func:`d_min_for` ``camera``, ``max_triangles`` left None to
         :func:`max_triangles_for` the camera and this window."""
         fill = {}
@@ -295,7 +295,7 @@ class Pyramid(Algorithm):
         hip = hip_of(database, rows)
         xy = np.stack([observation.x_px, observation.y_px], axis=1)
         found = np.flatnonzero(hip >= 0)
-        role = {int(s): name for s, name in zip(pyramid, ("i", "j", "k", "r (4th)")) if s >= 0}
+        role = {int(s): name for s, name in zip(pyramid, ("i", "j", "k", "r (4th)"), strict=True) if s >= 0}
         points = xy[found]
         labels = tuple(f"{role[s]}: HIP {hip[s]}" if s in role else f"HIP {hip[s]}" for s in found.tolist())
         corners = [int(s) for s in pyramid if s >= 0]

@@ -141,5 +141,5 @@ def describe(camera: Camera) -> dict:
             "fov_deg": f"{camera.fov_x_deg:.2f} x {camera.fov_y_deg:.2f}",
             "arcsec_per_px": round(math.degrees(camera.pixel_rad) * 3600.0, 2),
             "distortion": "none" if not camera.distorted else ", ".join(
-                f"{k}={v:g}" for k, v in zip(("k1", "k2", "p1", "p2", "k3"), camera.distortion) if v),
+                f"{k}={v:g}" for k, v in zip(("k1", "k2", "p1", "p2", "k3"), camera.distortion, strict=True) if v),
             "source": camera.source}

@@ -119,7 +119,8 @@ def table1(frame: pd.DataFrame) -> Table:
     s["paper_db_mb"] = [PAPER_TABLE1.get(a, (np.nan, np.nan))[1] for a in s["algorithm"]]
     shown = pd.DataFrame({
         "algorithm": s["label"],
-        "id rate": [rate_ci(r, lo, hi) for r, lo, hi in zip(s["id_rate"], s["id_rate_lo"], s["id_rate_hi"])],
+        "id rate": [rate_ci(r, lo, hi)
+                    for r, lo, hi in zip(s["id_rate"], s["id_rate_lo"], s["id_rate_hi"], strict=True)],
         "mean time": s["time_mean_us"].map(lambda v: f"{v / 1e3:.3f} ms"),
         "median time": s["time_median_us"].map(lambda v: f"{v / 1e3:.3f} ms"),
         "paper time": s["paper_time_ms"].map(lambda v: "" if np.isnan(v) else f"{v:g} ms"),
@@ -151,8 +152,9 @@ def density(frame: pd.DataFrame) -> Table:
     part = frame[frame["study"] == "density"]
     s = summarize(part, by=("grid_sigma_px", "grid_false_stars", "label"))
     names = {(sigma, fs): name for name, sigma, fs in DENSE_POINTS}
-    s.insert(0, "condition", [names[(float(a), int(b))] for a, b in zip(s["grid_sigma_px"], s["grid_false_stars"])])
-    s["paper_id_rate"] = [DENSE_PAPER[c].get(a, np.nan) for c, a in zip(s["condition"], s["algorithm"])]
+    s.insert(0, "condition", [names[(float(a), int(b))]
+                              for a, b in zip(s["grid_sigma_px"], s["grid_false_stars"], strict=True)])
+    s["paper_id_rate"] = [DENSE_PAPER[c].get(a, np.nan) for c, a in zip(s["condition"], s["algorithm"], strict=True)]
     s["cell"] = rate_cells(s)
     wide = s.pivot(index="label", columns="condition", values="cell")
     wide = wide.reindex(index=list(dict.fromkeys(s["label"])), columns=[p[0] for p in DENSE_POINTS])

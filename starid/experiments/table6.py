@@ -66,7 +66,8 @@ def pairwise(frame: pd.DataFrame, sky: str) -> pd.DataFrame:
 def _shown(s: pd.DataFrame, with_paper: bool) -> pd.DataFrame:
     out = pd.DataFrame({
         "algorithm": s["label"],
-        "id rate [95% CI]": [rate_ci(r, lo, hi) for r, lo, hi in zip(s["id_rate"], s["id_rate_lo"], s["id_rate_hi"])],
+        "id rate [95% CI]": [rate_ci(r, lo, hi)
+                             for r, lo, hi in zip(s["id_rate"], s["id_rate_lo"], s["id_rate_hi"], strict=True)],
     })
     if with_paper:
         out["paper"] = s["paper_id_rate"].map(pct)

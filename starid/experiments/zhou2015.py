@@ -94,8 +94,10 @@ def table5(frame: pd.DataFrame) -> Table:
                      "misid_rate": r.misid_rate, "time_mean_us": r.time_mean_us, "paper_time_ms": ms})
     df = pd.DataFrame(rows)
     shown = pd.DataFrame({
-        "algorithm": df["label"], "slave stars": df["slaves"], "DB (MB)": df["db_mb"].map(lambda v: f"{v:.3f}"), "paper DB (MB)": df["paper_db_mb"],
-        "id rate [95% CI]": [rate_ci(a, b, c) for a, b, c in zip(df["id_rate"], df["id_rate_lo"], df["id_rate_hi"])],
+        "algorithm": df["label"], "slave stars": df["slaves"], "DB (MB)": df["db_mb"].map(lambda v: f"{v:.3f}"),
+        "paper DB (MB)": df["paper_db_mb"],
+        "id rate [95% CI]": [rate_ci(a, b, c)
+                             for a, b, c in zip(df["id_rate"], df["id_rate_lo"], df["id_rate_hi"], strict=True)],
         "paper": df["paper_id_rate"].map(pct), "misid": df["misid_rate"].map(pct),
         "mean time": df["time_mean_us"].map(lambda v: f"{v / 1e3:.3f} ms"),
         "paper time": df["paper_time_ms"].map(lambda v: f"{v:g} ms")})
@@ -137,13 +139,13 @@ def fig11(frame: pd.DataFrame) -> Table:
             rows.append({"label": label, "stars": f"{lo}-{hi}" if hi < 1000 else f">= {lo}", "trials": n,
                          "id_rate": k / n if n else np.nan, "id_rate_lo": a, "id_rate_hi": b})
     df = pd.DataFrame(rows)
-    wide = df.assign(cell=[f"{pct(r)} ({n})" for r, n in zip(df["id_rate"], df["trials"])]).pivot(
+    wide = df.assign(cell=[f"{pct(r)} ({n})" for r, n in zip(df["id_rate"], df["trials"], strict=True)]).pivot(
         index="label", columns="stars", values="cell").reindex(index=list(dict.fromkeys(df["label"])),
                                                                columns=list(dict.fromkeys(df["stars"])))
     split = split_by_stars(t6)
     note = ("Split at 8 stars (the share of such images differs between skies, so a difference in sky shows as "
             "what it is):\n\n" + markdown(split.assign(id_rate=[rate_ci(a, b, c) for a, b, c in zip(
-                split["id_rate"], split["id_rate_lo"], split["id_rate_hi"])]).drop(columns=["id_rate_lo",
+                split["id_rate"], split["id_rate_lo"], split["id_rate_hi"], strict=True)]).drop(columns=["id_rate_lo",
                                                                                               "id_rate_hi"])))
     return Table("fig11", "Fig. 11: id rate by stars in the field (Table 6 images, paper's sky; images in brackets)",
                  df, markdown(wide.reset_index()), (note,))

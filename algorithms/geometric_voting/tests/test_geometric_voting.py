@@ -9,12 +9,12 @@ import dataclasses
 
 import numpy as np
 import pytest
-
-from starid import Camera, ConfigError, SimConfig, Simulator
 from starid_algorithms.geometric_voting import GeometricVoting
 from starid_algorithms.geometric_voting.kernels import cast_votes, pick_candidates, vote
 from starid_algorithms.pyramid.kernels import pair_windows, select_stars
 from starid_algorithms.pyramid.testing import noisy_results, wide_field_seconds
+
+from starid import Camera, ConfigError, SimConfig, Simulator
 
 
 @pytest.fixture(scope="module")

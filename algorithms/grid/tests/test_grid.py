@@ -7,10 +7,10 @@ invariance) runs for every plugin in tests/test_conformance.py and is not repeat
 
 import numpy as np
 import pytest
-
-from starid import Camera, ConfigError, SimConfig, Simulator
 from starid_algorithms.grid import Grid
 from starid_algorithms.grid.kernels import GridSpec, by_cell, by_pattern, grid_cells, image_weights
+
+from starid import Camera, ConfigError, SimConfig, Simulator
 
 
 @pytest.fixture(scope="module")

@@ -6,11 +6,20 @@ invariance) runs for every plugin in tests/test_conformance.py and is not repeat
 
 import numpy as np
 import pytest
+from starid_algorithms.lpt import LPT
+from starid_algorithms.lpt.kernels import (
+    ImageString,
+    StringSearch,
+    dense_string,
+    index_image,
+    least_needed,
+    match_bound,
+    rank_key,
+    shift_scores,
+    sparse_strings,
+)
 
 from starid import Camera, ConfigError, SimConfig, Simulator
-from starid_algorithms.lpt import LPT
-from starid_algorithms.lpt.kernels import (ImageString, StringSearch, dense_string, index_image, least_needed,
-                                           match_bound, rank_key, shift_scores, sparse_strings)
 
 
 @pytest.fixture(scope="module")
@@ -56,7 +65,7 @@ def test_shift_scores_equal_brute_force_circular_match(m, sector_tol):
     chars = sparse_strings(rows)
     words = (m + 63) // 64
     sets, planes = np.zeros((m + 1, words), dtype=np.int64), np.zeros((9, words), dtype=np.int64)
-    for i, img in enumerate(images):
+    for img in images:
         sec = np.flatnonzero(img)
         nz = sec.size
         level_start, mask = np.zeros(18, dtype=np.int64), np.zeros(17, dtype=np.int64)

@@ -9,11 +9,11 @@ import math
 
 import numpy as np
 import pytest
-
-from starid import Camera, ConfigError, SimConfig, Simulator
 from starid_algorithms.lpt_improved import ImprovedLPT
 from starid_algorithms.lpt_improved.kernels import FeatureTable, feature_vector, sad_search
 from starid_algorithms.lpt_improved.planar import plane_polar, select_guides
+
+from starid import Camera, ConfigError, SimConfig, Simulator
 
 
 @pytest.fixture(scope="module")
@@ -53,7 +53,8 @@ def _numpy_feature(unit, s, nbrs, f_px, m):
     a = np.argmin(r)
     rel = np.mod(phi - phi[a], 2 * np.pi)
     vec = np.zeros(m, dtype=np.int64)
-    for b, v in zip(np.minimum((rel / (2 * np.pi / m)).astype(int), m - 1), np.ceil(np.log(r)).astype(int)):
+    sector = np.minimum((rel / (2 * np.pi / m)).astype(int), m - 1)
+    for b, v in zip(sector, np.ceil(np.log(r)).astype(int), strict=True):
         vec[b] = max(vec[b], v)
     return vec
 

@@ -7,17 +7,24 @@ import math
 
 import numpy as np
 import pytest
-
-from starid import ConfigError, Observation, SimConfig, Simulator
-from starid import summarize
-from starid.kernels import kvector_query
-from starid.registry import get_algorithm
-from starid_algorithms.planar_triangle.testing import (assert_explain_draws_triangles,
-                                                      assert_sigma_follows_with_1px_floor)
 from starid_algorithms.planar_triangle import PlanarTriangle
 from starid_algorithms.planar_triangle.kernels import (
-    MOMENT_BLOCK, _moment_filter, _signatures, identify_rows, identify_subsets, triangle_features,
-    triangle_variances)
+    MOMENT_BLOCK,
+    _moment_filter,
+    _signatures,
+    identify_rows,
+    identify_subsets,
+    triangle_features,
+    triangle_variances,
+)
+from starid_algorithms.planar_triangle.testing import (
+    assert_explain_draws_triangles,
+    assert_sigma_follows_with_1px_floor,
+)
+
+from starid import ConfigError, Observation, SimConfig, Simulator, summarize
+from starid.kernels import kvector_query
+from starid.registry import get_algorithm
 
 
 @pytest.fixture(scope="module")
@@ -227,7 +234,9 @@ def test_parameter_validation(kwargs):
 
 def test_defaults_are_documented():
     alg = PlanarTriangle()
-    assert alg.mag_limit is None and alg.fov_db_deg is None and alg.min_area_deg2 is None and alg.small_subset_size == 4 and alg.wide_stars is None and alg.sigma_px is None and alg.restarts == 0 and alg.max_stars == 8
+    assert alg.mag_limit is None and alg.fov_db_deg is None and alg.min_area_deg2 is None
+    assert alg.small_subset_size == 4 and alg.wide_stars is None and alg.sigma_px is None
+    assert alg.restarts == 0 and alg.max_stars == 8
     for name in alg.params():
         assert name in PlanarTriangle.__doc__ or name in ("mag_limit", "sigma_px", "beta",
                                                            "min_support")

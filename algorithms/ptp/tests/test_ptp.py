@@ -11,14 +11,13 @@ import time
 
 import numpy as np
 import pytest
-
-from starid import Camera, ConfigError, Observation, SimConfig, Simulator
-from starid.kernels import assign_all, backproject_px, camera_frame, deep_sky, wahba_rows
-from starid.plugin import Explanation, check_identification
-from starid import run, summarize
 from starid_algorithms.ptp import PTP
 from starid_algorithms.ptp.algorithm import CHORD_SCALE, camera_rules
 from starid_algorithms.ptp.kernels import nearest_slaves, projection_sigma, select_stars
+
+from starid import Camera, ConfigError, Observation, SimConfig, Simulator, run, summarize
+from starid.kernels import assign_all, backproject_px, camera_frame, deep_sky, wahba_rows
+from starid.plugin import Explanation, check_identification
 
 
 @pytest.fixture(scope="module")
@@ -103,7 +102,8 @@ def test_paper_literal_variant_runs(catalog, camera, db):
     assert hip.shape == (len(obs),)
 
 
-@pytest.mark.parametrize("kwargs", [{"sigma_px": -1}, {"sigma_px": "1"}, {"n_slaves": 1}, {"d_min_deg": 7.0}, {"min_shared": 4},
+@pytest.mark.parametrize("kwargs", [{"sigma_px": -1}, {"sigma_px": "1"}, {"n_slaves": 1}, {"d_min_deg": 7.0},
+                                    {"min_shared": 4},
                                     {"hypotheses": -1}, {"check_min_stars": 3}, {"check_fraction": 1.5},
                                     {"check_mag_limit": float("nan")},
                                     {"beta": -1}, {"verify_min_fraction": 2}, {"confirm_fraction": 1.5},

@@ -13,13 +13,12 @@ import time
 
 import numpy as np
 import pytest
+from starid_algorithms.pvector import PVector, PVectorDatabase
 
-from starid import Camera, Catalog, ConfigError, Observation, SimConfig, Simulator
-from starid import run, summarize
+from starid import Camera, Catalog, ConfigError, Observation, SimConfig, Simulator, run, summarize
 from starid.kernels import assign_all, camera_frame, deep_sky
 from starid.plugin import Explanation, check_identification
 from starid.registry import get_algorithm
-from starid_algorithms.pvector import PVector, PVectorDatabase
 
 
 @pytest.fixture(scope="module")
@@ -106,7 +105,7 @@ def test_database_invariants(algo, db, catalog):
 
 
 def test_neighbours_are_among_the_k_brightest(algo, db, catalog):
-    mag = dict(zip(catalog.hip.tolist(), catalog.v_mag.tolist()))
+    mag = dict(zip(catalog.hip.tolist(), catalog.v_mag.tolist(), strict=True))
     u = db.unit_icrs.astype(np.float64)
     v_mag = np.array([mag[int(h)] for h in db.hip])
     r_min, r_max = math.radians(algo.min_sep_deg), math.radians(algo.pattern_radius_deg)
@@ -213,16 +212,25 @@ def _best_of(fn, repeats=5):
 @pytest.mark.parametrize("fov_deg", [170.0, 40.0])
 def test_wide_field_finishes_quickly(algo, db, catalog, camera, fov_deg):
     """A wide field costs at most a bounded multiple of a normal field's image (a ratio measured in
-    this run, never an absolute limit). Measured 2026-12-03: 170 deg 225x, 40 deg 6,254x the Table 4
-    image's time (~0.3 s); the bound, 20,000x, is the former 2 s limit at ~0.1 ms per normal image
-    and catches the minutes-long searches this test was written against."""
+    this run, never an absolute limit), against the mean of 100 Table 4 images timed as one batch.
+    Measured 2026-12-03 at load 8 on 2 cores: 170 deg 65x, 40 deg 2,595x (~0.3 s); the bound, 20,000x,
+    is the former 2 s limit at ~0.1 ms per normal image and catches the minutes-long searches this
+    test was written against."""
     cam = Camera.from_fov(fov_deg)      # the database does not depend on the camera
     cfg = SimConfig(sigma_px=1.0, sigma_mag=0.5)
     obs = Simulator(catalog, cam, cfg, seed=1).observation(1)
-    normal = Simulator(catalog, camera, cfg, seed=1).observation(1)
+    sim = Simulator(catalog, camera, cfg, seed=1)
+    normals = [sim.observation(t) for t in range(100)]
     algo.identify(db, obs)                     # compile
-    algo.identify(db, normal)
-    ratio = _best_of(lambda: algo.identify(db, obs)) / _best_of(lambda: algo.identify(db, normal))
+    algo.identify(db, normals[0])
+
+    def all_normal():
+        for o in normals:
+            algo.identify(db, o)
+
+    # the normal images timed as one batch of 100 (~10 ms), not one ~0.1 ms call: on a loaded machine a
+    # single short call fits between preemptions while the long one does not, which inflated the ratio 6x
+    ratio = _best_of(lambda: algo.identify(db, obs)) / (_best_of(all_normal) / len(normals))
     assert ratio < 20_000.0, f"{fov_deg} deg field costs {ratio:.0f}x a normal field's image"
     hip = algo.identify(db, obs).hip
     assert not np.any((hip >= 0) & (hip != obs.truth_hip))   # 40 deg: was 6 wrong ids before confirm_fraction

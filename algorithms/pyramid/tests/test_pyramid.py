@@ -8,12 +8,12 @@ import math
 
 import numpy as np
 import pytest
-
-from starid import Camera, ConfigError, Observation, SimConfig, Simulator
 from starid_algorithms.pyramid import Pyramid
 from starid_algorithms.pyramid.algorithm import d_min_for, max_triangles_for
 from starid_algorithms.pyramid.kernels import neighbours_within, select_stars, triad_triangles
 from starid_algorithms.pyramid.testing import noisy_results, wide_field_seconds
+
+from starid import Camera, ConfigError, Observation, SimConfig, Simulator
 
 
 @pytest.fixture(scope="module")
@@ -109,7 +109,7 @@ def test_triad_triangles_match_numpy_oracle(algo, db, catalog, camera):
 
 def test_noisy_trials_no_misidentification_and_attitude(algo, db, catalog, camera):
     correct = 0
-    for obs, result, attitude in noisy_results(algo, db, catalog, camera, 15):
+    for _obs, result, attitude in noisy_results(algo, db, catalog, camera, 15):
         if np.sum(result.hip >= 0) >= 3:
             correct += 1
             err = result.attitude @ attitude.T        # ~identity (roll is the loosest: arcminutes)

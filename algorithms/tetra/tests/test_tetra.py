@@ -6,13 +6,21 @@ from functools import lru_cache
 import numpy as np
 import pytest
 from scipy.stats import binom
+from starid_algorithms.tetra import Tetra
+from starid_algorithms.tetra.kernels import (
+    EMPTY,
+    PAIRS,
+    binom_sf,
+    canonical_order,
+    pattern_keys,
+    ratio_bin,
+    table_insert,
+    table_lookup,
+)
 
 import starid
 from starid.errors import ConfigError
 from starid.plugin import Explanation
-from starid_algorithms.tetra import Tetra
-from starid_algorithms.tetra.kernels import (EMPTY, PAIRS, binom_sf, canonical_order, pattern_keys, ratio_bin,
-                                             table_insert, table_lookup)
 
 
 @lru_cache(maxsize=2)
@@ -40,7 +48,7 @@ def test_hash_table_matches_dict_oracle(size, load):
     table_pattern = np.zeros((size, 4), dtype=np.uint16)
     table_insert(table_word, table_pattern, keys, edges, patterns)
     oracle = {}
-    for k, p in zip(keys.tolist(), patterns.tolist()):
+    for k, p in zip(keys.tolist(), patterns.tolist(), strict=True):
         oracle.setdefault(k, []).append(tuple(p))
     assert (table_word != EMPTY).sum() == n
     for k, values in oracle.items():
@@ -51,7 +59,7 @@ def test_hash_table_matches_dict_oracle(size, load):
     # each slot keeps its pattern's edge beside the key
     stored = {(int(w >> 16), int(w & 0xFFFF), tuple(int(v) for v in table_pattern[s]))
               for s, w in enumerate(table_word) if w != EMPTY}
-    assert stored == set(zip(keys.tolist(), edges.tolist(), map(tuple, patterns.tolist())))
+    assert stored == set(zip(keys.tolist(), edges.tolist(), map(tuple, patterns.tolist()), strict=True))
 
 
 def test_database_table_holds_every_pattern_under_its_key(catalog, camera):
