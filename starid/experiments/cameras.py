@@ -31,6 +31,7 @@ import numpy as np
 import pandas as pd
 
 from ..experiment import Experiment, Grid, Study
+from ..plots import AXIS_NAMES
 from ..report.tables import Table, markdown, pct, rate_ci
 from ..stats import summarize
 from . import registered_beyond, sweep_table
@@ -50,6 +51,11 @@ ROUNDTRIP_K1 = 0.5
 #: The presets of the ``presets`` study (every shipped one).
 PRESETS = ("table4", "luo2015", "tetra3_test", "altair_hb", "rigel_l", "hil_16mm", "cubesat_wide",
            "cubesat_wide_distorted")
+
+
+# the printed names of this experiment's axes in the report's figures (starid.plots.axis_name)
+AXIS_NAMES.setdefault("corner_shift_px", "lens corner shift (px)")
+AXIS_NAMES.setdefault("focal_error_pct", "focal-length error (%)")
 
 
 def variants() -> tuple[str, ...]:
