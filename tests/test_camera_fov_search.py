@@ -29,9 +29,9 @@ def test_rescaling_the_focal_length_keeps_everything_else():
 def test_search_on_a_distorted_camera_refines_the_true_focal_length(catalog):
     """A k1 = 0.5 lens given 2 % off: the search lands on the distorted camera and the refined focal
     length is the true one (the fit on undistorted positions)."""
-    trials = Simulator(catalog, LENS, SimConfig(), seed=5).generate(3)
+    trials = Simulator(catalog, LENS, SimConfig(), seed=5).generate(2)
     guess = _with_f(LENS, LENS.f_px * 1.02)
-    prepared = harness.prepare(get_algorithm("pyramid")(), catalog, guess, None)
+    prepared = harness.prepare(get_algorithm("pvector")(), catalog, guess, None)
     for i in range(len(trials)):
         o = trials.observation(i)
         obs = type(o)(o.x_px, o.y_px, o.mag, guess)
@@ -63,10 +63,10 @@ def obs_csv(tmp_path_factory):
 
 def test_fov_range_on_centroid_files_finds_a_wrong_field_of_view(obs_csv, tmp_path):
     """10 deg centroids given as 10.4 deg: no search, nothing; --fov-range 9.8:10.6, every image."""
-    assert main(["identify", "pyramid", str(obs_csv), "--fov-deg", "10.4", "--out", str(tmp_path / "a"),
+    assert main(["identify", "pvector", str(obs_csv), "--fov-deg", "10.4", "--out", str(tmp_path / "a"),
                  "--quiet"]) == 0
     assert (pd.read_csv(tmp_path / "a" / "trials.csv")["status"] != "correct").all()
-    assert main(["identify", "pyramid", str(obs_csv), "--fov-deg", "10.4", "--fov-range", "9.8:10.6",
+    assert main(["identify", "pvector", str(obs_csv), "--fov-deg", "10.4", "--fov-range", "9.8:10.6",
                  "--out", str(tmp_path / "b"), "--quiet"]) == 0
     rows = pd.read_csv(tmp_path / "b" / "trials.csv")
     assert (rows["status"] == "correct").all() and np.isfinite(rows["time_us"]).all()
