@@ -107,8 +107,8 @@ def test_unreadable_and_unsupported_files_are_refused(tmp_path, capsys):
         read_image(tmp_path / "missing.fits")
     good = tmp_path / "g.tiff"
     write_image(good, np.zeros((20, 20), dtype=np.uint16))
-    assert main(["identify", "ptp", str(good), "--out", str(out)]) == 2          # no field of view
-    assert "--fov-deg" in capsys.readouterr().err
+    assert main(["identify", "ptp", str(good), "--fov-range", "12:9", "--out", str(out)]) == 2   # a bad range
+    assert "--fov-range" in capsys.readouterr().err and not out.exists()
 
 
 def test_readers_round_trip_and_colour(tmp_path):

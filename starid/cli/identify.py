@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 
 import numpy as np
@@ -16,8 +17,17 @@ from ..scoring import ERROR, SuccessRule, score_trial
 from ..simulate import SimConfig, Simulator
 from ..stats import summarize
 from .experiments import format_summary, variants
-from .options import (add_camera, add_world, camera_spec, check_out, make_camera, progress, seed_type, trials_type,
-                      world_settings)
+from .options import (
+    add_camera,
+    add_world,
+    camera_spec,
+    check_out,
+    make_camera,
+    progress,
+    seed_type,
+    trials_type,
+    world_settings,
+)
 
 OBS_REQUIRED = ("trial", "x_px", "y_px", "mag")
 ID_COLUMNS = ["trial", "star", "hip", "x_px", "y_px", "mag", "truth_hip", "algorithm", "label"]
@@ -48,7 +58,10 @@ def read_observations(path: Path, camera) -> tuple[list[int], list[Observation],
 
 
 def cmd_identify(args) -> int:
+    from .images import band_preparer, parse_fov_range, solve_image
+
     check_out(args.out)
+    fov_range = parse_fov_range(args.fov_range) if getattr(args, "fov_range", None) is not None else None
     camera = make_camera(camera_spec(args))
     trials, observations, has_truth = read_observations(args.obs, camera)
     algorithm_variants = variants(args.algorithms, args.set)
@@ -58,14 +71,21 @@ def cmd_identify(args) -> int:
     for variant in algorithm_variants:
         algorithm = variant.make()
         prepared = prepare(algorithm, catalog, camera, observations[0], variant.label)
-        iterator = zip(trials, observations)
+        bands = band_preparer(variant, catalog, camera, observations[0]) if fov_range is not None else None
+        iterator = zip(trials, observations, strict=True)
         if progress(args):
             from tqdm.auto import tqdm
 
             iterator = tqdm(iterator, total=len(trials), desc=variant.label, unit="img", leave=False)
         rows, ids = [], []
         for t, obs in iterator:
-            hip, elapsed_ns, error = timed_identify(prepared, obs, catalog.hip)
+            if fov_range is None:
+                hip, elapsed_ns, error = timed_identify(prepared, obs, catalog.hip)
+            else:          # the field-of-view search: the time is the whole search's
+                t0 = time.perf_counter_ns()
+                hip, _, _, _, error = solve_image(prepared, obs, catalog, fov_range_deg=fov_range,
+                                                  prepared_for=bands)
+                elapsed_ns = time.perf_counter_ns() - t0
             row = {"trial": t, "n_stars": len(obs),
                    "n_true_stars": int((obs.truth_hip >= 0).sum()) if has_truth else -1, "error": error,
                    **score_trial(hip, obs.truth_hip, rule), "time_us": elapsed_ns / 1e3, "n_redraws": 0,

@@ -87,7 +87,10 @@ def _solve(hip, obs: Observation, catalog):
 
 
 def _refine_f_px(hip, x_px, y_px, camera: Camera, catalog, iterations: int = 4) -> float:
-    """The focal length (px) that best fits the identified stars (alternating with Wahba)."""
+    """The focal length (px) that best fits the identified stars (alternating with Wahba).
+
+    With lens distortion the fit is on the undistorted positions (each iteration undistorts with
+    the current focal length: the distortion acts on normalized coordinates)."""
     ok = np.flatnonzero(hip != -1)
     f = camera.f_px
     r = catalog.unit_icrs[catalog.index_of(hip[ok])]
@@ -97,6 +100,9 @@ def _refine_f_px(hip, x_px, y_px, camera: Camera, catalog, iterations: int = 4) 
     for _ in range(iterations):
         cam = _with_f(camera, f)
         attitude = solve_wahba(cam.backproject(x_px[ok], y_px[ok]), r)
+        if cam.distorted:
+            ux, uy = cam.undistort(x_px[ok], y_px[ok])
+            dx, dy = ux - cam.pinhole_frame.cx_px, uy - cam.pinhole_frame.cy_px
         c = r @ attitude.T
         u, v = c[:, 0] / c[:, 2], c[:, 1] / c[:, 2]
         f = float((dx * u + dy * v).sum() / (u * u + v * v).sum())
@@ -104,8 +110,9 @@ def _refine_f_px(hip, x_px, y_px, camera: Camera, catalog, iterations: int = 4) 
 
 
 def _with_f(camera: Camera, f_px: float) -> Camera:
-    return Camera(camera.width_px, camera.height_px, camera.pixel_um, f_px * camera.pixel_um / 1000.0,
-                  camera.cx_px, camera.cy_px)
+    """``camera`` with focal length ``f_px``: sensor, pixel, principal point, distortion, name and
+    source kept (the distortion is on normalized coordinates, so it scales with the focal length)."""
+    return camera.replace(focal_mm=f_px * camera.pixel_um / 1000.0)
 
 
 def _fov_scales(search_pct: float) -> list[float]:
@@ -116,36 +123,114 @@ def _fov_scales(search_pct: float) -> list[float]:
     return scales
 
 
-def solve_image(prepared, obs: Observation, catalog, search_pct: float):
+def f_px_of_fov(width_px: int, fov_deg: float) -> float:
+    """The focal length (px) giving ``fov_deg`` across ``width_px`` (pinhole, principal point centred)."""
+    return (width_px / 2.0) / math.tan(math.radians(fov_deg) / 2.0)
+
+
+def parse_fov_range(text: str) -> tuple[float, float]:
+    """``--fov-range MIN:MAX`` (degrees across the image width): ``(min, max)``, checked."""
+    parts = str(text).split(":")
+    try:
+        lo, hi = (float(v) for v in parts)
+    except ValueError:
+        raise ConfigError(f"--fov-range must be MIN:MAX in degrees (e.g. 8:12), got {text!r}") from None
+    if not (math.isfinite(lo) and math.isfinite(hi)) or lo <= 0 or hi >= 180:
+        raise ConfigError(f"--fov-range {text}: both ends must be above 0 and below 180 deg")
+    if lo >= hi:
+        raise ConfigError(f"--fov-range {text}: MIN must be below MAX")
+    return lo, hi
+
+
+def range_scales(camera: Camera, fov_range_deg: tuple[float, float]) -> list[float]:
+    """Focal-length scales (of ``camera.f_px``) covering ``fov_range_deg`` across the width, steps of
+    :data:`FOV_STEP` (relative): from the camera's own focal length when it is in the range (else
+    the range's geometric middle), alternately outwards."""
+    f_lo = f_px_of_fov(camera.width_px, fov_range_deg[1]) / camera.f_px
+    f_hi = f_px_of_fov(camera.width_px, fov_range_deg[0]) / camera.f_px
+    start = 1.0 if f_lo <= 1.0 <= f_hi else math.sqrt(f_lo * f_hi)
+    scales, i = [start], 1
+    step = 1.0 + FOV_STEP
+    while True:
+        up, down = start * step ** i, start / step ** i
+        if up > f_hi and down < f_lo:
+            break
+        scales += [s for s in (up, down) if f_lo <= s <= f_hi]
+        i += 1
+    return scales
+
+
+#: A database serves focal lengths within this factor either way of the one it was built for
+#: (the +-5 % default search uses one); a wider ``--fov-range`` builds one per such band.
+BAND = 1.12
+
+
+def band_of(scale: float) -> int:
+    """The database band of a focal-length scale (0 holds every scale within +-5.8 %)."""
+    return int(round(math.log(scale) / math.log(BAND)))
+
+
+def solve_image(prepared, obs: Observation, catalog, search_pct: float = 5.0,
+                fov_range_deg: tuple[float, float] | None = None, prepared_for=None):
     """Identify ``obs`` at its camera and, failing that, over focal-length scales within
-    ``search_pct`` per cent; refine the focal length and identify again.
+    ``search_pct`` per cent (or covering ``fov_range_deg``, degrees across the width); refine the
+    focal length and identify again.
+
+    With ``fov_range_deg`` the search stops at the first scale where at least
+    :data:`MIN_IDENTIFIED` stars fit within 3 px rms, and ``prepared_for(band)`` gives the prepared
+    algorithm of each database band (:func:`band_of`; ``prepared`` serves band 0). The searched
+    cameras keep everything of ``obs.camera`` but the focal length (distortion included).
 
     Returns ``(hip, camera, attitude, residual_arcsec, error)``.
     """
     best = None
-    for s in _fov_scales(search_pct):
+    scales = _fov_scales(search_pct) if fov_range_deg is None else range_scales(obs.camera, fov_range_deg)
+    for s in scales:
         cam = _with_f(obs.camera, obs.camera.f_px * s)
         o = Observation(obs.x_px, obs.y_px, obs.mag, cam)
-        hip, _, error = timed_identify(prepared, o, catalog.hip)
+        band = band_of(s) if fov_range_deg is not None else 0
+        p = prepared if band == 0 or prepared_for is None else prepared_for(band)
+        hip, _, error = timed_identify(p, o, catalog.hip)
         if error:
             return hip, obs.camera, None, float("nan"), error
         n = int((hip != -1).sum())
         if n >= MIN_IDENTIFIED:
             _, resid = _solve(hip, o, catalog)
             if best is None or (n, -resid) > (best[0], -best[1]):
-                best = (n, resid, hip, cam)
-            if s == 1.0 and resid < 3.0 * cam.pixel_rad * RAD_TO_ARCSEC:
-                break                                  # the given field of view fits: no search
+                best = (n, resid, hip, cam, p)
+            fits = resid < 3.0 * cam.pixel_rad * RAD_TO_ARCSEC
+            if fits and (s == 1.0 or fov_range_deg is not None):
+                break                                  # the field of view fits: no (further) search
     if best is None:
         return np.full(len(obs), -1, dtype=np.int64), obs.camera, None, float("nan"), ""
-    _, _, hip, cam = best
-    cam = _with_f(cam, _refine_f_px(hip, obs.x_px, obs.y_px, cam, catalog))
-    o = Observation(obs.x_px, obs.y_px, obs.mag, cam)
-    hip2, _, error = timed_identify(prepared, o, catalog.hip)
-    if not error and int((hip2 != -1).sum()) >= int((hip != -1).sum()):
-        hip = hip2
+    _, _, hip, cam, p = best
+    # a range search stops at the first scale that fits, up to ~1 % off, often with fewer stars:
+    # refine and identify again while that identifies more (the +-5 % search: once, as before)
+    for _ in range(1 if fov_range_deg is None else 3):
+        cam = _with_f(cam, _refine_f_px(hip, obs.x_px, obs.y_px, cam, catalog))
+        o = Observation(obs.x_px, obs.y_px, obs.mag, cam)
+        hip2, _, error = timed_identify(p, o, catalog.hip)
+        more = not error and int((hip2 != -1).sum()) > int((hip != -1).sum())
+        if not error and int((hip2 != -1).sum()) >= int((hip != -1).sum()):
+            hip = hip2
+        if not more:
+            break
     attitude, resid = _solve(hip, o, catalog)
     return hip, cam, attitude, resid, ""
+
+
+def band_preparer(variant, catalog, camera: Camera, warmup=None):
+    """``prepared_for(band)`` of :func:`solve_image`: the algorithm prepared for ``camera`` with its
+    focal length scaled by ``BAND ** band`` (built on first use, then kept)."""
+    cache = {}
+
+    def prepared_for(band: int):
+        if band not in cache:
+            cam = _with_f(camera, camera.f_px * BAND ** band)
+            cache[band] = prepare(variant.make(), catalog, cam, warmup, variant.label)
+        return cache[band]
+
+    return prepared_for
 
 
 # ----------------------------------------------------------------------------------- magnitudes
@@ -189,7 +274,7 @@ def annotate(path: Path, image: np.ndarray, x_px, y_px, hip, title: str) -> None
     ax = fig.add_axes([0, 0, 1, h * scale / (h * scale + 0.4)])
     ax.imshow(shown, cmap="gray", vmin=low, vmax=top, origin="upper", extent=(0, w, h, 0), interpolation="nearest")
     radius = max(w, h) / 80.0
-    for x, y, h_id in zip(x_px, y_px, hip):
+    for x, y, h_id in zip(x_px, y_px, hip, strict=True):
         ident = h_id != -1
         ax.add_patch(Circle((x, y), radius * (1.3 if ident else 1.0), fill=False, lw=1.2 if ident else 0.6,
                             ec="#ffcc00" if ident else "#4aa3ff"))
@@ -228,10 +313,32 @@ def _image_camera(args, width_px: int, height_px: int) -> Camera:
     elif args.focal_mm is not None:
         check_number("--focal-mm", args.focal_mm, lo=0, lo_open=True)
         f_px = args.focal_mm * 1000.0 / pixel_um
-    else:
-        raise ConfigError("identifying image files needs the field of view: --fov-deg F (across the image width) "
-                          "or --focal-mm and --pixel-um")
+    else:            # no field of view given: the middle of the search range (--fov-range, default the presets')
+        lo, hi = search_range(args)
+        f_px = math.sqrt(f_px_of_fov(width_px, lo) * f_px_of_fov(width_px, hi))
     return Camera(width_px, height_px, pixel_um, f_px * pixel_um / 1000.0)
+
+
+def preset_fov_range() -> tuple[float, float]:
+    """The default ``--fov-range`` without a field of view: 0.9 x the narrowest preset's field
+    across the width to 1.1 x the widest's (9-55 deg with the shipped presets)."""
+    from ..cameras import camera_from_spec, preset_names
+
+    fovs = [camera_from_spec({"preset": n}).fov_x_deg for n in preset_names()]
+    return round(0.9 * min(fovs), 3), round(1.1 * max(fovs), 3)
+
+
+def search_range(args) -> tuple[float, float] | None:
+    """The ``--fov-range`` to search (degrees), ``None`` for the +-``--fov-search-pct`` search around
+    the given field of view; without any field of view, focal length or camera, the presets' range."""
+    text = getattr(args, "fov_range", None)
+    if text is not None:
+        if getattr(args, "fov_search_pct", None) is not None:
+            raise ConfigError("give either --fov-range or --fov-search-pct, not both")
+        return parse_fov_range(text)
+    if all(getattr(args, k, None) is None for k in ("fov_deg", "focal_mm", "camera")):
+        return preset_fov_range()
+    return None
 
 
 def _split_items(items: list[str]) -> tuple[list[str], list[Path]]:
@@ -256,7 +363,9 @@ def identify_images(args) -> int:
     check_out(out)
     if getattr(args, "resolution", None) is not None:
         raise ConfigError("--resolution does not apply to image files: each image's own size is used")
-    search_pct = getattr(args, "fov_search_pct", 5.0)
+    fov_range = search_range(args)
+    search_pct = getattr(args, "fov_search_pct", None)
+    search_pct = 5.0 if search_pct is None else search_pct
     check_number("--fov-search-pct", search_pct, lo=0, hi=30)
     psf = getattr(args, "psf_sigma_px", 2.0)
     threshold = getattr(args, "threshold_sigma", 3.0)
@@ -270,14 +379,18 @@ def identify_images(args) -> int:
         x, y, mag, flux = extract(data, psf_sigma_px=psf, threshold_sigma=threshold)
         images.append((path, data, camera, x, y, flux))
     catalog = load_csv(args.catalog) if args.catalog else load_hipparcos()
-    prepared = [prepare(v.make(), catalog, images[0][2], None, v.label) for v in variants(algorithms, args.set)]
+    chosen = variants(algorithms, args.set)
+    prepared = [prepare(v.make(), catalog, images[0][2], None, v.label) for v in chosen]
+    bands = [band_preparer(v, catalog, images[0][2]) for v in chosen]
+    if fov_range is not None:
+        print(f"searching fields of view {fov_range[0]:g}-{fov_range[1]:g} deg across the width")
     att_rows, id_frames, best_ids = [], [], {}
-    for path, data, camera, x, y, flux in images:
+    for path, _data, camera, x, y, flux in images:
         zp = zero_point if zero_point is not None else auto_zero_point(flux, camera, catalog)
         mag = zp - 2.5 * np.log10(flux) if flux.size else np.zeros(0)
         obs = Observation(x, y, mag, camera)
-        for p in prepared:
-            hip, cam, attitude, resid, error = solve_image(p, obs, catalog, search_pct)
+        for p, band in zip(prepared, bands, strict=True):
+            hip, cam, attitude, resid, error = solve_image(p, obs, catalog, search_pct, fov_range, band)
             n_id = int((hip != -1).sum())
             row = {"image": str(path), "algorithm": p.label, "status": ERROR if error else NOT_SOLVED,
                    "ra_deg": math.nan, "dec_deg": math.nan, "roll_deg": math.nan, "residual_arcsec": math.nan,
@@ -300,7 +413,7 @@ def identify_images(args) -> int:
               "identifications.csv": pd.concat(id_frames, ignore_index=True)[IMAGE_ID_COLUMNS]}
     write_frames(out, frames)
     stems = [p.stem for p in paths]
-    for (path, data, camera, x, y, flux), stem in zip(images, stems):
+    for (path, data, _camera, x, y, _flux), stem in zip(images, stems, strict=True):
         n_id, hip, label = best_ids[path]
         name = stem if stems.count(stem) == 1 else f"{stem}{path.suffix.replace('.', '_')}"
         statuses = ", ".join(f"{r['algorithm']}: {r['status']}" for r in att_rows if r["image"] == str(path))
@@ -313,9 +426,14 @@ def identify_images(args) -> int:
 def add_identify_options(p: argparse.ArgumentParser) -> None:
     """Options of ``starid identify`` that apply to image files only."""
     g = p.add_argument_group("image files (FITS, TIFF, PNG, JPEG; needs starid[images])")
-    g.add_argument("--fov-search-pct", type=float, default=5.0,
+    g.add_argument("--fov-search-pct", type=float, default=None,
                    help="when the given field of view does not fit, search focal lengths up to this many per cent "
-                        "off (then refined from the stars)")
+                        "off (then refined from the stars; default 5)")
+    p.add_argument_group("field-of-view search (image files and centroid files)").add_argument(
+        "--fov-range", metavar="MIN:MAX",
+        help="search fields of view from MIN to MAX deg across the image width (0.5 %% steps, one database per "
+             "12 %% band; docs/cameras.md gives the cost). Images: default +-5 %% around --fov-deg/--focal-mm/"
+             "--camera, or 0.9x-1.1x the presets' (9-55 deg) without them; centroid files: no search by default")
     g.add_argument("--psf-sigma-px", type=float, default=2.0, help="star image sigma in px (detection filter)")
     g.add_argument("--threshold-sigma", type=float, default=3.0, help="detection threshold in background rms")
     g.add_argument("--zero-point-mag", type=float, default=None,
