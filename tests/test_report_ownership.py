@@ -21,7 +21,7 @@ from starid.experiment.store import (
     stale_derived,
 )
 
-RUN = ["run", "--trials", "6", "--jobs", "1", "--quiet"]
+RUN = ["run", "--trials", "6", "--jobs", "1", "--quiet", "--pos-noise-px", "1", "--false-stars", "2", "--seed", "4"]
 
 
 @pytest.fixture(scope="module")
@@ -51,7 +51,7 @@ def test_another_command_is_refused_naming_what_the_folder_holds(ptp_folder, tmp
     assert {p.name: p.read_bytes() for p in out.glob("*.csv")} == before
     assert (out / "manifest.json").read_text() == manifest
     # another world (noise) is another definition too, named key by key
-    assert main(["run", "ptp", *RUN[1:], "--pos-noise-px", "1", "--out", str(out)]) == 2
+    assert main(["run", "ptp", *RUN[1:], "--pos-noise-px", "0.5", "--out", str(out)]) == 2
     assert "sim.sigma_px" in capsys.readouterr().err
     # and another command (a sweep) into it
     assert main(["sweep", "ptp", "--param", "sigma_px=0,1", *RUN[1:], "--out", str(out)]) == 2
@@ -81,7 +81,7 @@ def test_overwrite_clears_the_folder_reports_included(ptp_folder, tmp_path):
     assert rec["report.md"]["digest"] == digest and rec["results.parquet"]["digest"] == digest
     assert rec["trials.csv"]["digest"] == digest and rec["figures/time.png"]["digest"] == digest
     (out / "notes.txt").write_text("mine")
-    assert main(["run", "ptp", *RUN[1:], "--seed", "1", "--out", str(out), "--overwrite"]) == 0
+    assert main(["run", "ptp", *RUN[1:], "--seed", "1", "--out", str(out), "--overwrite"]) == 0   # last --seed wins
     assert not (out / "report.md").exists() and not (out / "figures").exists() and not (out / "notes.txt").exists()
     m = read_manifest(out)
     assert m["digest"] != digest and m["reused_chunks"] == 0 and m["experiment"]["seed"] == 1
@@ -103,7 +103,7 @@ def test_extend_keeps_chunks_and_retires_the_old_reports(ptp_folder, tmp_path, c
     out = _copy(ptp_folder, tmp_path / "r")
     _fake_report(out)
     chunks = sorted(p.name for p in (out / "chunks").iterdir())
-    exp = Experiment("run", (Study("run", ("ptp", "pvector")),), trials=6)
+    exp = Experiment("run", (Study("run", ("ptp", "pvector")),), trials=6, seed=4)
     with pytest.raises(ConfigError, match="--extend"):
         claim_folder(out, exp)
     assert claim_folder(out, exp, extend=True) == "extend"
@@ -130,3 +130,52 @@ def test_a_stale_results_file_is_refused_by_the_report(ptp_folder, tmp_path, cap
     assert main(["report", str(out), "--format", "md"]) == 2
     err = capsys.readouterr().err
     assert "0123456789abcdef" in err and read_manifest(out)["digest"] in err
+
+
+# ---------------------------------------------------------------------------------------------- show DIR --trial K
+
+def test_show_redraws_the_image_the_folder_scored(ptp_folder, tmp_path, capsys, monkeypatch):
+    """The redrawn observation is the trial the folder scored: its world (1 px noise, 2 false stars),
+    camera and seed come from the manifest; star count and centroids equal a re-simulation with those
+    settings, and differ from the noise-free default world ``starid show ptp --trial K`` draws."""
+    import numpy as np
+    import pandas as pd
+
+    from starid import Catalog, SimConfig, Simulator
+    from starid.report.show import show_folder
+
+    k = 3
+    shown, rows = show_folder(ptp_folder, k, ["ptp"])
+    row = rows.iloc[0]
+    exp = Experiment.from_dict(read_manifest(ptp_folder)["experiment"])
+    sim = Simulator(Catalog.embedded(), exp.make_camera(), SimConfig(sigma_px=1.0, false_stars=2), seed=4)
+    again = sim.generate(1, k).observation(0)
+    assert len(shown.stars) == len(again) == row["n_stars"]
+    assert int((shown.stars["truth_hip"] >= 0).sum()) == row["n_true_stars"]
+    np.testing.assert_array_equal(shown.stars["x_px"], again.x_px)
+    np.testing.assert_array_equal(shown.stars["y_px"], again.y_px)
+    # the same algorithm on the same image: the same outcome as the folder recorded
+    res = shown.results.iloc[0]
+    assert res["folder_status"] == row["status"] == res["status"] and res["n_correct"] == row["n_correct"]
+    noise_free = Simulator(Catalog.embedded(), exp.make_camera(), SimConfig(), seed=4).generate(1, k).observation(0)
+    assert len(noise_free) != len(again) or not np.array_equal(noise_free.x_px, again.x_px)
+    assert isinstance(rows, pd.DataFrame)
+    # the command line (the redraw above reused, not recomputed): the PNG, and the folder's status in the printed
+    # table; bad K / label / study exit 2
+    import starid.report.show as show_module
+
+    calls = []
+    monkeypatch.setattr(show_module, "show_folder", lambda *a, **kw: calls.append(a) or (shown, rows))
+    png = tmp_path / "t3.png"
+    capsys.readouterr()
+    assert main(["show", str(ptp_folder), "--trial", str(k), "--label", "ptp", "--out", str(png)]) == 0
+    out = capsys.readouterr().out
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and f"{len(again)} detections" in out
+    assert row["status"] in out and calls[0][:3] == (ptp_folder, k, ["ptp"])
+    monkeypatch.undo()
+    assert main(["show", str(ptp_folder), "--trial", "6", "--out", str(png)]) == 2
+    assert "holds trials 0..5" in capsys.readouterr().err
+    assert main(["show", str(ptp_folder), "--trial", "1", "--label", "pvector", "--out", str(png)]) == 2
+    assert "--label 'pvector'" in capsys.readouterr().err
+    assert main(["show", str(ptp_folder), "--trial", "1", "--study", "nope", "--out", str(png)]) == 2
+    assert main(["show", "ptp", "--trial", "1", "--label", "ptp", "--out", str(png)]) == 2
