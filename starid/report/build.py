@@ -144,7 +144,7 @@ def provenance(manifest: dict, frame: pd.DataFrame) -> list[Block]:
 
 
 def _missing(v) -> bool:
-    return v is None or (isinstance(v, float) and math.isnan(v))
+    return v is None or v is pd.NA or (isinstance(v, float) and math.isnan(v))
 
 
 def generic_tables(frame: pd.DataFrame) -> list[Table]:
