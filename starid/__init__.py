@@ -11,6 +11,9 @@ For a notebook::
 Sweeps, resumable results and parallel runs: :mod:`starid.experiment`.
 """
 
+from . import jitcache as _jitcache  # noqa: F401  first: a regular install caches numba kernels in the user's cache folder
+
+# isort: split
 from .camera import Camera
 from .catalog import Catalog, load_csv, load_hipparcos
 from .errors import CatalogError, ConfigError, ObservationError, PluginError, StarIDError, StarIDWarning

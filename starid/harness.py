@@ -207,7 +207,9 @@ def run(algorithms, trials: TrialSet, catalog: Catalog, simulator=None, rule: Su
         rows = [trial_row(prepared, trials, i, catalog, rule, keep_ids) for i in iterator]
         df = rows_to_frame(prepared, rows)
         frames.append(pd.concat([df, constant_columns(param_columns(prepared.algorithm.params()), df.index)], axis=1))
-    out = pd.concat(frames, ignore_index=True)
+    from .params import integer_columns, keep_integers
+
+    out = keep_integers(pd.concat(frames, ignore_index=True), integer_columns(frames))   # 8, not 8.0 (#27)
     tail = {**(simulator.params() if simulator is not None else {}), **versions()}
     return pd.concat([out, constant_columns(tail, out.index)], axis=1)
 

@@ -67,3 +67,24 @@ def param(default, *, help: str = "", unit: str = ""):
     import dataclasses
 
     return dataclasses.field(default=default, metadata={"help": help, "unit": unit})
+
+
+def integer_columns(frames, prefix: str = "param_") -> set[str]:
+    """The ``prefix`` columns that hold integers in every frame that has them (a bool is no integer)."""
+    seen: dict[str, bool] = {}
+    for df in frames:
+        for col in df.columns:
+            if col.startswith(prefix):
+                kind = df[col].dtype.kind
+                seen[col] = seen.get(col, True) and kind in "iu"
+    return {col for col, ok in seen.items() if ok}
+
+
+def keep_integers(frame, columns):
+    """``frame`` with ``columns`` as nullable integers (``Int64``): concatenating the rows of algorithms
+    that lack a parameter fills it with NaN and turns its integers into floats (``param_n_bright = 8.0``);
+    here they stay ``8`` in the frame, the CSV and the Parquet files, blank where the algorithm has none."""
+    for col in columns:
+        if col in frame.columns and frame[col].dtype.kind == "f":
+            frame[col] = frame[col].astype("Int64")
+    return frame

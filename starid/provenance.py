@@ -14,13 +14,15 @@ def _version(dist: str) -> str:
     try:
         return version(dist)
     except PackageNotFoundError:
+        if dist == "starid-bench":      # a checkout installed before the rename (distribution "starid")
+            return _version("starid")
         return "not installed"
 
 
 @lru_cache(maxsize=1)
 def versions() -> dict:
     """Versions of starid and the packages that can change a result (for every result row)."""
-    return {"starid_version": _version("starid"), "numpy_version": _version("numpy"),
+    return {"starid_version": _version("starid-bench"), "numpy_version": _version("numpy"),
             "numba_version": _version("numba"), "python_version": platform.python_version()}
 
 

@@ -34,7 +34,7 @@ def test_frame_shape_and_common_random_numbers(reference):
     assert len(reference) == 2 * 2 * 40
     assert {"study", "point", "grid_sigma_px", "label", "trial", "status", "sim_sigma_px", "param_n_slaves",
             "seed", "starid_version", "plugin_dist"} <= set(reference.columns)
-    assert set(reference["plugin_dist"]) == {"starid"}
+    assert set(reference["plugin_dist"]) == {"starid-bench"}
     # trial k has the same attitude at every point: the true star count barely moves with 1 px noise
     a = reference[(reference["label"] == "ptp") & (reference["grid_sigma_px"] == 0.0)]["n_true_stars"].to_numpy()
     b = reference[(reference["label"] == "ptp") & (reference["grid_sigma_px"] == 1.0)]["n_true_stars"].to_numpy()

@@ -46,7 +46,7 @@ def test_plugin_guide_example_runs():
 
 
 def test_readme_and_docs_cover_every_builtin_algorithm():
-    builtins = [i for i in starid.available_algorithms() if i.dist == "starid"]
+    builtins = [i for i in starid.available_algorithms() if i.dist == "starid-bench"]
     assert len(builtins) >= 4
     for info in builtins:
         assert f"`{info.name}`" in README

@@ -11,7 +11,8 @@ import pytest
 from starid import plots
 from starid.cli import main
 from starid.errors import ConfigError
-from starid.experiment import Experiment, Grid, Study, Variant, run_experiment
+from starid.experiment import Experiment, Grid, Study, Variant, read_manifest, run_experiment
+from starid.experiment.store import read_derived
 from starid.experiments import table6
 from starid.report.build import build_regression, build_report, compare, markdown_to_html
 
@@ -61,6 +62,13 @@ def test_report_of_a_small_folder(folder):
                  "McNemar", "started / finished"):
         assert word in md
     assert md.count("| ptp[n_slaves=3] |") >= 4
+    # the documents and figures record the definition they were made from (#27), visibly and in derived.json
+    digest = read_manifest(folder)["digest"]
+    assert f"definition digest `{digest}`" in md
+    made = read_derived(folder)
+    for name in ("report.md", "report.html", *(f"figures/{stem}.png" for stem in names),
+                 *(f"figures/{stem}.svg" for stem in names)):
+        assert made[name]["digest"] == digest, name
 
 
 def test_builtin_experiment_gets_its_own_tables(tmp_path):

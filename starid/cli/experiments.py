@@ -12,6 +12,7 @@ from .. import experiments as builtin
 from ..errors import ConfigError
 from ..experiment import Experiment, Grid, Study, Variant, run_experiment
 from ..experiment.spec import coerce
+from ..experiment.store import claim_folder, record_derived
 from ..io import atomic_write_text, write_frame
 from ..provenance import versions
 from ..registry import get_algorithm
@@ -72,6 +73,9 @@ def _finish(frame: pd.DataFrame) -> int:
 
 
 def _engine(args, experiment: Experiment, out: Path | None):
+    if out is not None:     # one folder, one definition: another one is refused unless --overwrite / --extend
+        claim_folder(out, experiment, overwrite=getattr(args, "overwrite", False),
+                     extend=getattr(args, "extend", False))
     t0 = time.perf_counter()
     frame = run_experiment(experiment, out, jobs=args.jobs, executor=args.executor, scheduler=args.scheduler,
                            catalog_path=getattr(args, "catalog", None) or "", time_limit_s=args.time_limit,
@@ -95,8 +99,8 @@ def cmd_run(args) -> int:
           f"< {s['min_stars']} stars)")
     print(format_summary(summary))
     if args.out:
-        write_frame(frame, args.out / "trials.csv")
-        write_frame(summary, args.out / "summary.csv")
+        record_derived(args.out, write_frame(frame, args.out / "trials.csv")
+                       + write_frame(summary, args.out / "summary.csv"))
         print(f"wrote {args.out / 'trials.csv'} and {args.out / 'summary.csv'}")
     return _finish(frame)
 
@@ -143,7 +147,7 @@ def cmd_sweep(args) -> int:
     summary = summarize(frame, by=by)
     print(f"sweep over {', '.join(axes)}: {len(frame)} rows in {wall_s:.1f} s")
     print(summary[list(by[:-1]) + SHOWN].to_string(index=False, float_format=lambda v: f"{v:.4g}"))
-    write_frame(summary, args.out / "summary.csv")
+    record_derived(args.out, write_frame(summary, args.out / "summary.csv"))
     print(f"wrote {args.out}")
     return _finish(frame)
 
@@ -160,7 +164,7 @@ def cmd_experiment_run(args) -> int:
     frame, wall_s = _engine(args, exp, args.out)
     by = ("study",) + tuple(c for c in frame.columns if c.startswith("grid_")) + ("label",)
     summary = summarize(frame, by=by)
-    write_frame(summary, args.out / "summary.csv")
+    record_derived(args.out, write_frame(summary, args.out / "summary.csv"))
     print(summary[list(by[:-1]) + SHOWN].to_string(index=False, float_format=lambda v: f"{v:.4g}"))
     print(f"{exp.name}: {len(frame)} rows in {wall_s:.1f} s; wrote {args.out}")
     return _finish(frame)
@@ -185,6 +189,7 @@ def reproduce(args, name: str) -> tuple[str, pd.DataFrame, object]:
 
         text = write_tables(tables, args.out, header)
         atomic_write_text(args.out / f"{name}.md", text)
+        record_derived(args.out, [args.out / f"{name}.md"] + sorted((args.out / "tables").glob("*")))
     else:
         text = header + "\n\n" + "\n".join(t.text() for t in tables)
     return text, frame, tables
@@ -203,9 +208,10 @@ def cmd_table6(args) -> int:
     print(text, end="")
     if args.out:
         summary = pd.concat([t.frame for t in tables], ignore_index=True)
-        write_frame(summary, args.out / "table6.csv")
+        written = write_frame(summary, args.out / "table6.csv")
         atomic_write_text(args.out / "table6.md", text)
-        write_frame(frame, args.out / "trials.csv")
+        written += write_frame(frame, args.out / "trials.csv")
+        record_derived(args.out, written + [args.out / "table6.md"])
         print(f"wrote {args.out / 'table6.md'}, {args.out / 'table6.csv'} and {args.out / 'trials.csv'}")
     return _finish(frame)
 

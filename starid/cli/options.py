@@ -71,6 +71,12 @@ def add_engine(p: argparse.ArgumentParser, trials: int | None, seed: int = 0) ->
 def add_out(p: argparse.ArgumentParser, what: str, required: bool = False) -> None:
     p.add_argument("--out", type=Path, required=required, metavar="DIR",
                    help=f"results folder: {what}; running the same command on it again resumes an interrupted run")
+    p.add_argument("--overwrite", action="store_true",
+                   help="--out holds another definition's results: delete everything in it (reports included) "
+                        "and start afresh (refused otherwise, naming what the folder holds)")
+    p.add_argument("--extend", action="store_true",
+                   help="--out holds a changed definition of the same experiment: reuse its chunks (only new "
+                        "points and variants are computed); its reports and tables made before are removed")
 
 
 def add_world(p: argparse.ArgumentParser, pos_default: float = 0.0, mag_default: float = 0.0,

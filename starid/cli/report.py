@@ -19,7 +19,8 @@ EXAMPLES = {
     "show": """examples:
   starid show ptp pvector planar_triangle triangle_voting --trial 3 --out trial3.png
   starid show ptp 'ptp[n_slaves=3]' --trial 12 --seed 7 --pos-noise-px 1 --mag-noise 0.5 --out t12.png
-  starid show ptp triangle_voting --trial 0 --false-stars 3 --sky paper --out false3.svg""",
+  starid show ptp triangle_voting --trial 0 --false-stars 3 --sky paper --out false3.svg
+  starid show results/noise --trial 12 --label ptp --point 2 --out t12.png   # the image that folder scored""",
 }
 
 
@@ -63,6 +64,7 @@ def cmd_report(args) -> int:
 
 
 def cmd_show(args) -> int:
+    from .. import available
     from ..catalog import load_csv, load_hipparcos
     from ..report.show import show
 
@@ -72,6 +74,12 @@ def cmd_show(args) -> int:
     if out.exists() and out.is_dir():
         raise ConfigError(f"--out {out} is a folder; give a file name such as {out / 'trial.png'}")
     catalog = load_csv(args.catalog) if args.catalog else load_hipparcos()
+    folder = Path(args.algorithms[0])
+    if (folder / "manifest.json").is_file() or (folder.is_dir() and folder.name not in available()):
+        # starid show DIR --trial K [--label L ...]
+        return _show_folder(args, folder, catalog)
+    if args.label or args.study or args.point is not None:
+        raise ConfigError("--label, --study and --point go with a results folder: starid show DIR --trial K")
     if (args.trial is None) == (args.boresight is None):
         raise ConfigError("give either --trial K or --boresight RA,DEC")
     if args.boresight is not None:   # the trial whose boresight is nearest (sky issue)
@@ -92,6 +100,27 @@ def cmd_show(args) -> int:
     print(shown.results[["label", "status", "n_identified", "n_correct", "n_wrong", "time_ms", "explain"]]
           .to_string(index=False, float_format=lambda v: f"{v:.3g}"))
     print(f"wrote {out}")
+    return 0
+
+
+def _show_folder(args, folder: Path, catalog) -> int:
+    """``starid show DIR --trial K [--label L ...]``: the image the folder scored, redrawn."""
+    from ..report.show import show_folder
+
+    if len(args.algorithms) > 1:
+        raise ConfigError(f"starid show DIR takes one results folder; choose labels with --label "
+                          f"(got {' '.join(args.algorithms)})")
+    if args.trial is None or args.boresight is not None:
+        raise ConfigError("starid show DIR needs --trial K (the folder's trial index)")
+    shown, rows = show_folder(folder, args.trial, args.label, args.study, args.point, catalog,
+                              label_stars=not args.no_labels)
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    shown.figure.savefig(args.out, dpi=args.dpi, facecolor="white")
+    print(f"{folder}: trial {args.trial} redrawn from its manifest (world, camera, seed): "
+          f"{len(shown.stars)} detections")
+    print(shown.results[["label", "folder_status", "status", "n_identified", "n_correct", "n_wrong", "time_ms"]]
+          .rename(columns={"status": "redrawn_status"}).to_string(index=False, float_format=lambda v: f"{v:.3g}"))
+    print(f"wrote {args.out}")
     return 0
 
 
@@ -130,8 +159,15 @@ def add_parsers(sub, formatter) -> None:
                                    "correct, wrong, missed and false stars marked by shape; and, for plugins with "
                                    "explain(), the algorithm's own reasoning (the triangles it formed, the one that "
                                    "matched) with its caption.")
-    p.add_argument("algorithms", nargs="+", metavar="ALGO", help="registered names or variants NAME[KEY=VALUE,...]")
+    p.add_argument("algorithms", nargs="+", metavar="ALGO|DIR",
+                   help="registered names or variants NAME[KEY=VALUE,...]; or one results folder (its world, "
+                        "camera and seed from the manifest: the very image it scored)")
     p.add_argument("--trial", type=seed_type, default=None, metavar="K", help="trial index")
+    p.add_argument("--label", action="append", metavar="L",
+                   help="with DIR: draw only these labels (repeatable; default every label of the study)")
+    p.add_argument("--study", metavar="S", help="with DIR: the study (default: the first)")
+    p.add_argument("--point", type=seed_type, default=None, metavar="N",
+                   help="with DIR: the grid point index of the study (default 0)")
     p.add_argument("--boresight", metavar="RA,DEC", default=None,
                    help="instead of --trial: the trial whose boresight is nearest RA,DEC (deg)")
     p.add_argument("--search-trials", type=seed_type, default=2000, metavar="N",

@@ -21,6 +21,7 @@ import pandas as pd
 
 from ..catalog import load_csv, load_hipparcos
 from ..harness import constant_columns
+from ..params import integer_columns, keep_integers
 from ..provenance import now, versions
 from ..registry import algorithm_info
 from ..scoring import SuccessRule
@@ -180,7 +181,7 @@ def assemble(placements: list[Placement], experiment: Experiment, read) -> pd.Da
                 **{f"sim_{k}": v for k, v in SimConfig(**pl.chunk.settings).as_dict().items()},
                 **camera.columns()}
         frames.append(pd.concat([constant_columns(lead, df.index), df, constant_columns(tail, df.index)], axis=1))
-    out = pd.concat(frames, ignore_index=True)
+    out = keep_integers(pd.concat(frames, ignore_index=True), integer_columns(frames))   # 8, not 8.0 (#27)
     return _uniform_types(out)
 
 

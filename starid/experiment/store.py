@@ -10,6 +10,14 @@ A chunk's file name is the hash of everything that determines its rows (settings
 plugin version, trial range, seed, starid version), so resuming is a file-existence test and
 rows of two definitions can never mix: a changed experiment simply asks for other keys. A folder
 holding anything else, or another experiment's results, is refused.
+
+Ownership (the command line, :func:`claim_folder`): a folder belongs to one definition (its
+manifest's digest). Running another definition into it is refused, naming what it holds, unless
+``overwrite`` (the folder is cleared, reports included) or ``extend`` (same experiment name: its
+chunks are reused). Derived files (``results.parquet``, reports, figures, tables) are recorded in
+``derived.json`` with the digest they were made from (:func:`record_derived`); when the folder's
+definition changes they are deleted (:func:`retire_stale`), and a stale ``results.parquet`` is
+refused by :func:`check_current`: never shown as current.
 """
 
 from __future__ import annotations
@@ -25,6 +33,7 @@ from ..io import atomic_write_bytes, atomic_write_text
 from ..provenance import command_line, machine
 
 MANIFEST = "manifest.json"
+DERIVED = "derived.json"
 
 
 class Store:
@@ -35,6 +44,7 @@ class Store:
         self.experiment = experiment
         self.chunks = self.root / "chunks"
         self._check()
+        retire_stale(self.root, experiment.digest())     # derived files of another definition go
 
     def _check(self) -> None:
         root = self.root
@@ -84,6 +94,7 @@ class Store:
         frame.to_parquet(buf, index=False)
         path = self.root / "results.parquet"
         atomic_write_bytes(path, buf.getvalue())
+        record_derived(self.root, [path], self.experiment.digest())
         return path
 
 
@@ -98,3 +109,170 @@ def read_manifest(root: str | Path) -> dict:
         raise ConfigError(f"{path} is unreadable: {exc}") from None
 
 
+
+
+# ---------------------------------------------------------------------------------------------- ownership
+
+def describe_holdings(manifest: dict) -> str:
+    """What a results folder holds, in one phrase (experiment, digest, studies, labels, trials, command)."""
+    exp = manifest.get("experiment", {})
+    studies = "; ".join(f"{s.get('name')}: " + ", ".join(v.get("label") or v.get("name", "?")
+                                                         for v in s.get("variants", []))
+                        for s in exp.get("studies", []))
+    when = "unfinished" if not manifest.get("finished") else f"finished {manifest['finished']}"
+    return (f"experiment {exp.get('name')!r} (definition {manifest.get('digest', '?')}; {studies or 'no studies'}; "
+            f"{exp.get('trials', '?')} trials, seed {exp.get('seed', '?')}; made by `{manifest.get('command', '?')}`, "
+            f"{when})")
+
+
+def definition_differences(old: dict, new: dict) -> list[str]:
+    """The top-level keys of two experiment definitions (``Experiment.to_dict``) that differ, and for
+    ``sim``/``camera`` the settings inside them."""
+    out = []
+    for key in sorted(set(old) | set(new)):
+        if key == "description" or old.get(key) == new.get(key):
+            continue
+        a, b = old.get(key), new.get(key)
+        if isinstance(a, dict) and isinstance(b, dict) and key in ("sim", "camera"):
+            out += [f"{key}.{k}: {a.get(k)!r} -> {b.get(k)!r}" for k in sorted(set(a) | set(b)) if a.get(k) != b.get(k)]
+        elif key == "studies":
+            out.append("studies: " + _studies_text(a) + " -> " + _studies_text(b))
+        else:
+            out.append(f"{key}: {a!r} -> {b!r}")
+    return out
+
+
+def _studies_text(studies) -> str:
+    return "[" + "; ".join(f"{s.get('name')}: " + ",".join(v.get("label", "?") for v in s.get("variants", []))
+                           + (f" grid {s['grid']['axes']}" if s.get("grid", {}).get("axes") else "")
+                           for s in studies or []) + "]"
+
+
+def _manifest_or_none(root: Path) -> dict | None:
+    path = root / MANIFEST
+    if not path.is_file():
+        return None
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None
+    return data if isinstance(data, dict) and "experiment" in data else None
+
+
+def claim_folder(root: str | Path | None, experiment, overwrite: bool = False, extend: bool = False) -> str:
+    """Make ``root`` the folder of ``experiment`` before any work; what happened (``new``, ``resume``,
+    ``overwrite``, ``extend``).
+
+    A folder holding another definition is refused (:class:`ConfigError`, CLI exit 2) naming what it
+    holds and what differs, unless ``overwrite`` (everything in it is deleted, reports included) or
+    ``extend`` (the same experiment name: its chunks are reused; derived files are retired by
+    :class:`Store`). A non-empty folder that is not a results folder is never cleared.
+    """
+    if root is None:
+        return "new"
+    root = Path(root)
+    if not root.is_dir() or not any(root.iterdir()):
+        return "new"
+    manifest = _manifest_or_none(root)
+    if manifest is None:
+        return "new"          # Store refuses it: not a starid results folder (nothing is deleted)
+    digest = experiment.digest()
+    if manifest.get("digest") == digest:
+        if overwrite:
+            clear_folder(root)
+            return "overwrite"
+        return "resume"
+    if overwrite:
+        clear_folder(root)
+        return "overwrite"
+    old_name = manifest.get("experiment", {}).get("name")
+    if extend and old_name == experiment.name:
+        return "extend"
+    diff = definition_differences(manifest.get("experiment", {}), experiment.to_dict())
+    hint = ("--extend (same experiment: reuse its chunks; its reports are removed), " if old_name == experiment.name
+            else "")
+    raise ConfigError(f"--out {root} holds {describe_holdings(manifest)}; this command defines experiment "
+                      f"{experiment.name!r} (definition {digest}), which differs in "
+                      f"{'; '.join(diff) or 'its definition'}. Give --overwrite to clear the folder (reports "
+                      f"included), {hint}or choose another folder")
+
+
+def clear_folder(root: str | Path) -> list[str]:
+    """Delete everything in a starid results folder (it must hold a manifest); the names deleted."""
+    import shutil
+
+    root = Path(root)
+    if _manifest_or_none(root) is None:
+        raise ConfigError(f"--overwrite: {root} is not a starid results folder (no readable {MANIFEST}); "
+                          f"nothing deleted")
+    gone = []
+    for child in sorted(root.iterdir()):
+        if child.is_dir() and not child.is_symlink():
+            shutil.rmtree(child)
+        else:
+            child.unlink()
+        gone.append(child.name)
+    return gone
+
+
+def read_derived(root: str | Path) -> dict:
+    """``derived.json``: relative path -> ``{"digest": ..., "made": ...}`` (empty when absent)."""
+    try:
+        data = json.loads((Path(root) / DERIVED).read_text())
+    except (OSError, ValueError):
+        return {}
+    return data if isinstance(data, dict) else {}
+
+
+def record_derived(root: str | Path, paths, digest: str | None = None, **extra) -> None:
+    """Record that ``paths`` (inside ``root``) were made from definition ``digest`` (default: the
+    folder's manifest's)."""
+    from ..provenance import now
+
+    root = Path(root)
+    if digest is None:
+        digest = (_manifest_or_none(root) or {}).get("digest")
+    data = read_derived(root)
+    stamp = now()
+    base = root.resolve()
+    for p in paths:
+        p = Path(p).resolve() if Path(p).is_absolute() or Path(p).resolve().is_relative_to(base) else base / p
+        rel = p.resolve().relative_to(base).as_posix()
+        data[rel] = {"digest": digest, "made": stamp, **extra}
+    atomic_write_text(root / DERIVED, json.dumps(data, indent=1, sort_keys=True) + "\n")
+
+
+def stale_derived(root: str | Path, digest: str | None = None) -> list[str]:
+    """Recorded derived files (still present) made from another definition than ``digest`` (default:
+    the manifest's)."""
+    root = Path(root)
+    if digest is None:
+        digest = (_manifest_or_none(root) or {}).get("digest")
+    return [rel for rel, rec in read_derived(root).items()
+            if (root / rel).exists() and rec.get("digest") != digest]
+
+
+def retire_stale(root: str | Path, digest: str) -> list[str]:
+    """Delete the derived files of ``root`` made from another definition than ``digest`` (they would
+    describe data that is no longer the folder's); the names deleted."""
+    root = Path(root)
+    data = read_derived(root)
+    gone = [rel for rel, rec in data.items() if rec.get("digest") != digest]
+    if not gone:
+        return []
+    for rel in gone:
+        (root / rel).unlink(missing_ok=True)
+        data.pop(rel)
+    atomic_write_text(root / DERIVED, json.dumps(data, indent=1, sort_keys=True) + "\n")
+    return gone
+
+
+def check_current(root: str | Path, rel: str = "results.parquet") -> None:
+    """Refuse a derived file made from another definition than the folder's manifest (an interrupted
+    run of a changed definition): :class:`ConfigError` naming both digests."""
+    root = Path(root)
+    rec = read_derived(root).get(rel)
+    digest = (_manifest_or_none(root) or {}).get("digest")
+    if rec is not None and rec.get("digest") != digest:
+        raise ConfigError(f"{root / rel} was made from definition {rec.get('digest')}, but {root} now holds "
+                          f"definition {digest} (an unfinished run?): run the same command again to finish it")

@@ -22,6 +22,7 @@ import pandas as pd
 from .. import experiments as builtin
 from ..errors import ConfigError
 from ..experiment import Experiment, read_manifest
+from ..experiment.store import check_current, record_derived
 from ..io import atomic_write_text
 from ..provenance import versions
 from ..stats import mcnemar_all, summarize
@@ -43,6 +44,7 @@ def load(folder: str | Path) -> tuple[dict, pd.DataFrame]:
     if not folder.is_dir():
         raise ConfigError(f"{folder} is not a folder")
     manifest = read_manifest(folder)
+    check_current(folder)     # results.parquet of another definition (an interrupted changed run) is refused
     path = folder / "results.parquet"
     if not path.is_file():
         raise ConfigError(f"{folder} has no results.parquet (an unfinished run? run the same command again to "
@@ -142,7 +144,7 @@ def provenance(manifest: dict, frame: pd.DataFrame) -> list[Block]:
 
 
 def _missing(v) -> bool:
-    return v is None or (isinstance(v, float) and math.isnan(v))
+    return v is None or v is pd.NA or (isinstance(v, float) and math.isnan(v))
 
 
 def generic_tables(frame: pd.DataFrame) -> list[Table]:
@@ -243,6 +245,8 @@ def build_report(folder: str | Path, formats=FORMATS, svg: bool = True) -> dict:
     blocks += provenance(manifest, frame)
     written = _write_documents(blocks, title, folder, "report", formats)
     written["figures"] = [folder / "figures" / f"{f.name}.png" for f in figures]
+    svgs = [p.with_suffix(".svg") for p in written["figures"] if svg]
+    record_derived(folder, [written[f] for f in formats] + written["figures"] + svgs, manifest.get("digest"))
     written["tables"] = [t.name for t in tables]
     return written
 
@@ -254,7 +258,8 @@ def _overview(manifest: dict, frame: pd.DataFrame, which: str) -> str:
             f"{frame.groupby('study').ngroups} stud{'y' if frame['study'].nunique() == 1 else 'ies'}, "
             f"{frame.drop_duplicates(['study', 'point']).shape[0]} points, {len(labels)} algorithm labels "
             f"({', '.join(labels)}), {exp.get('trials', frame['trial'].nunique())} images per point (seed "
-            f"{exp.get('seed', '?')}). Below: the conditions, {which}, the figures and the provenance.")
+            f"{exp.get('seed', '?')}), definition digest `{manifest.get('digest', '?')}`. Below: the conditions, "
+            f"{which}, the figures and the provenance.")
 
 
 # ---------------------------------------------------------------------------------------------- rendering

@@ -460,6 +460,12 @@ def build_regression(old: str | Path, new: str | Path, out: str | Path | None = 
                Block("h2", "Figure"), Block("fig", fig.caption, fig),
                Block("h2", "Provenance"), Block("md", _kv_table(pairs))]
     written = _write_documents(blocks, title, out, "regression", formats)
+    if (out / "manifest.json").is_file():    # inside a results folder: made from NEW's definition (and OLD's)
+        from ..experiment.store import record_derived
+
+        record_derived(out, [written[f] for f in formats] + sorted((out / "figures").glob("regression.*")),
+                       mn.get("digest") if out.resolve() == new.resolve() else None, old_digest=mo.get("digest"),
+                       new_digest=mn.get("digest"))
     written["differences"] = differences
     written["one_sided"] = lone
     return written, diff

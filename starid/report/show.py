@@ -51,13 +51,25 @@ def explain(algorithm, database, observation) -> tuple[Explanation | None, str]:
     return ex, ""
 
 
+def draw_trial(sim: Simulator, trial: int):
+    """Trial ``trial`` exactly as the engine scores it: the simulator's projection, or for the
+    ``image`` pipeline the render -> extract detections (:func:`starid.render.image_trials`)."""
+    if sim.config.pipeline == "image":
+        from ..render import image_trials
+
+        return image_trials(sim, 1, int(trial))[0].observation(0)
+    return sim.generate(1, int(trial)).observation(0)
+
+
 def show(algorithms, trial: int, seed: int = 0, world: dict | None = None, camera: Camera | None = None,
-         catalog: Catalog | None = None, label_stars: bool = True, databases: dict | None = None) -> Shown:
+         catalog: Catalog | None = None, label_stars: bool = True, databases: dict | None = None,
+         recorded: dict | None = None, heading: str = "") -> Shown:
     """Trial ``trial`` of ``seed`` in the world ``world`` (SimConfig fields, or ``sky``), one panel per
     algorithm (names or variants such as ``"ptp[n_slaves=3]"``).
 
     ``databases`` (label -> database built for the same catalog and camera) skips the builds, e.g.
-    when a notebook draws several images.
+    when a notebook draws several images. ``recorded`` (label -> the row a results folder holds for
+    this trial) puts the folder's status beside the redrawn one in each caption (:func:`show_folder`).
     """
     if not algorithms:
         raise ConfigError("show needs at least one algorithm")
@@ -71,7 +83,7 @@ def show(algorithms, trial: int, seed: int = 0, world: dict | None = None, camer
     camera = camera or Camera()
     config = SimConfig(**sim_settings(dict(world or {}), {}))
     sim = Simulator(catalog, camera, config, seed)
-    obs = sim.observation(int(trial))
+    obs = draw_trial(sim, int(trial))
     view = obs.for_plugin()
     stars = obs.to_frame()
     id_rows, results, explanations, titles = [], [], {}, {}
@@ -101,16 +113,67 @@ def show(algorithms, trial: int, seed: int = 0, world: dict | None = None, camer
         id_rows.append(pd.DataFrame({"label": variant.label, "star": range(len(obs)), "hip": hip}))
         explanations[variant.label] = ex
         titles[variant.label] = (f"{status}, {elapsed_ms:.2f} ms" if not error else f"error: {error[:60]}")
+        if recorded and variant.label in recorded:
+            row = recorded[variant.label]
+            titles[variant.label] = (f"folder: {row['status']} ({int(row['n_correct'])} correct, "
+                                     f"{int(row['n_wrong'])} wrong); redrawn: {titles[variant.label]}")
+            results[-1]["folder_status"] = row["status"]
     ids = pd.concat(id_rows, ignore_index=True)
     world_text = ", ".join(f"{k} = {v:g}" for k, v in config.as_dict().items()
                            if k in ("sigma_px", "sigma_mag", "false_stars", "lost_stars"))
     world_text += ("; real sky (every star to V 8)" if config.sky_mag_limit is None
                    else f"; sky V <= {config.sky_mag_limit:g}")
-    heading = (f"trial {trial}, seed {seed}: {len(obs)} detections ({int((obs.truth_hip >= 0).sum())} true); "
+    heading = (heading + f"trial {trial}, seed {seed}: {len(obs)} detections ({int((obs.truth_hip >= 0).sum())} true); "
                f"{world_text}")
     fig = plots.show_figure(stars, ids, explanations, camera.width_px, camera.height_px, titles, label_stars,
                             suptitle=heading)
     return Shown(fig, stars, ids, pd.DataFrame(results), explanations)
 
 
-__all__ = ["Shown", "explain", "show"]
+def show_folder(folder, trial: int, labels=None, study: str | None = None, point: int | None = None,
+                catalog: Catalog | None = None, label_stars: bool = True) -> tuple[Shown, pd.DataFrame]:
+    """Redraw trial ``trial`` of a results folder: the very image it scored (the manifest's camera,
+    seed and the point's world settings; the same draw), one panel per label (default: every label
+    at that point) with the folder's status beside the redrawn one. Returns the figure and the
+    folder's rows for that trial.
+
+    With several studies or points, ``study`` / ``point`` choose one (default: the first).
+    :class:`ConfigError` for a trial, label, study or point the folder does not hold.
+    """
+    from pathlib import Path
+
+    from ..experiment import Experiment
+    from ..experiment.spec import sim_settings as expand
+    from .build import load
+
+    folder = Path(folder)
+    manifest, frame = load(folder)
+    exp = Experiment.from_dict(manifest["experiment"])
+    if int(trial) != trial or not 0 <= trial < exp.trials:
+        raise ConfigError(f"--trial {trial}: {folder} holds trials 0..{exp.trials - 1}")
+    names = [s.name for s in exp.studies]
+    if study is not None and study not in names:
+        raise ConfigError(f"--study {study!r}: {folder} holds {', '.join(map(repr, names))}")
+    chosen = next(s for s in exp.studies if s.name == (study or names[0]))
+    points = chosen.grid.points()
+    p = 0 if point is None else int(point)
+    if not 0 <= p < len(points):
+        raise ConfigError(f"--point {point}: study {chosen.name!r} has points 0..{len(points) - 1}")
+    variants = {v.label: v for v in chosen.variants}
+    labels = list(labels or variants)
+    unknown = [x for x in labels if x not in variants]
+    if unknown:
+        raise ConfigError(f"--label {unknown[0]!r}: study {chosen.name!r} of {folder} has labels "
+                          f"{', '.join(variants)}")
+    rows = frame[(frame["study"] == chosen.name) & (frame["point"] == p) & (frame["trial"] == trial)
+                 & frame["label"].isin(labels)]
+    recorded = {r["label"]: r for r in rows.to_dict("records")}
+    world = expand(exp.sim, points[p])
+    where = ", ".join(f"{k} = {v}" for k, v in points[p].items())
+    heading = (f"{folder.name}: study {chosen.name}" + (f", point {p} ({where})" if where else "") + "; ")
+    shown = show([variants[x] for x in labels], int(trial), exp.seed, world, exp.make_camera(), catalog,
+                 label_stars=label_stars, recorded=recorded, heading=heading)
+    return shown, rows.reset_index(drop=True)
+
+
+__all__ = ["Shown", "draw_trial", "explain", "show", "show_folder"]

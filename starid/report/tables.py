@@ -28,7 +28,7 @@ class Table:
 
 def setting(v) -> str:
     """A setting's value as a report prints it: ``none`` for missing, floats with ``g``."""
-    if v is None or (isinstance(v, float) and math.isnan(v)):
+    if v is None or v is pd.NA or (isinstance(v, float) and math.isnan(v)):
         return "none"
     if isinstance(v, float):
         return f"{v:g}"
