@@ -33,8 +33,8 @@ class PVectorDatabase(Database):
 
     p_axis : float64 (3,) the P vector (first principal axis of the side vectors, sum > 0).
     kv : :class:`starid.kernels.KVector`: ``kv.values`` float32 (m,) the keys P = p . d of every
-        triangle, ascending; ``kv.k`` int32 (m,) the k-vector; ``kv.m``, ``kv.q`` its line
-        (Mortari & Neta 2000).
+        triangle, ascending, stored only for ``search='linear'`` (empty otherwise: see :attr:`key`);
+        ``kv.k`` uint16/int32 (m,) the k-vector; ``kv.m``, ``kv.q`` its line (Mortari & Neta 2000).
     tri_sides : uint16 (m, 3) the side vector d in the order the key uses, in units of ``side_step_rad``
         (2R / 65535: about 3 urad at R = 5 deg, 0.02 px on the Table 4 camera, far below the tolerance).
     side_step_rad : float, the unit of ``tri_sides``.
@@ -60,13 +60,35 @@ class PVectorDatabase(Database):
 
     @property
     def key(self) -> np.ndarray:
-        """The sorted keys P (``kv.values``)."""
-        return self.kv.values
+        """The sorted keys P: ``kv.values`` when stored (``search='linear'``), else recomputed from the
+        stored sides (the k-vector search does not read them)."""
+        if self.kv.values.size == self.tri_sides.shape[0]:
+            return self.kv.values
+        return ((self.tri_sides * self.side_step_rad) @ self.p_axis).astype(np.float32)
 
     def tables(self) -> K.Tables:
         """The arrays identify reads, as one kernel argument."""
         return K.Tables(self.p_axis, self.kv, self.tri_sides, float(self.side_step_rad), self.tri_rows,
                         self.unit_icrs, self.hip, self.deep, self.extra_unit)
+
+
+def _unique_triangles(rows: np.ndarray) -> np.ndarray:
+    """Each star triple once. With sorted sides a triangle's key and sides do not depend on which of
+    its stars is the main one, and identify tries all six vertex correspondences, so the copy stored
+    under a second main star (its neighbours' neighbours overlap) only repeats a candidate that
+    identify skips as "the same correspondence" (47,957 -> 38,884 triangles at K = 5, R = 5 deg).
+    The first row of each triple in row order is kept."""
+    _, first = np.unique(np.sort(rows, axis=1), axis=0, return_index=True)
+    return rows[np.sort(first)]
+
+
+def _key_index(sorted_key: np.ndarray, keep_keys: bool) -> KVector:
+    """The k-vector over the sorted keys; the keys themselves (4 bytes a triangle) are kept only for
+    the linear search, which scans them: the k-vector search takes its untrimmed slice
+    (:func:`starid.kernels.kvector_slice`) and checks every candidate's three sides anyway."""
+    kv = kvector_make(sorted_key, values_dtype=np.float32,
+                      index_dtype=np.uint16 if sorted_key.size <= np.iinfo(np.uint16).max else np.int32)
+    return kv if keep_keys else kv._replace(values=np.zeros(0, dtype=np.float32))
 
 
 @dataclass(frozen=True)
@@ -137,8 +159,8 @@ class PVector(Algorithm):
 
     Extensions (each a parameter, measured in docs/algorithms/pvector.md): ``triangles_per_star``
     K = 5 (the triangles of every pair of the 5 brightest neighbours, so two of them in the image
-    suffice; chosen on the real-sky rate, seed 7; the database, 1.09 MB with compact uint16 sides and
-    k-vector, is 2x the paper's 0.537 MB; K = 3, 0.48 MB, is the closest to the paper's size),
+    suffice; chosen on the real-sky rate, seed 7; the database, 0.77 MB with compact uint16 sides and
+    k-vector, each star triple once and no stored keys, is 1.4x the paper's 0.537 MB),
     ``image_neighbours`` (the image side's K, a superset of the database's), ``hypotheses`` (64; 0 = off:
     when no triangle is confirmed by ``k_min`` guide-star distance matches, the correspondences that
     passed the side and handedness checks are tried again, each confirmed when its attitude explains the
@@ -159,7 +181,7 @@ class PVector(Algorithm):
     #: closest to the paper: one triangle per guide star (its two brightest neighbours within 4 deg), no
     #: whole-image pass, the sorted table searched without a k-vector (``pvector:paper``)
     published: ClassVar[dict] = {"triangles_per_star": 2, "pattern_radius_deg": 4.0, "image_neighbours": 2,
-                                 "hypotheses": 0, "search": "linear"}
+                                 "hypotheses": 0, "search": "linear", "unique_triangles": False}
     follows: ClassVar[dict] = {"sigma_px": "sigma_px"}
 
     mag_limit: float = 6.0
@@ -232,6 +254,11 @@ class PVector(Algorithm):
     correspondence reaches by chance with probability <= ``chance_tail`` (Poisson, mean n_obs n_guide
     eps_d^2 / pi: :func:`kernels.chance_k_min`); 0 = ``k_min`` alone. 2 on the Table 4 camera at 1 px
     (unchanged), 4 on a 20 deg, 1024 px camera at 2 px."""
+    unique_triangles: bool = True
+    """Storage (starid's): with sorted sides each star triple is stored once, not once per main star
+    that forms it (the paper's one triangle per guide star: ``False``); identify tries every vertex
+    correspondence, so the copies only repeat candidates (47,957 -> 38,884 triangles, 1.09 -> 0.77 MB
+    with the unstored keys of the k-vector search)."""
 
     def __post_init__(self):
         check_number("mag_limit", self.mag_limit)
@@ -256,6 +283,7 @@ class PVector(Algorithm):
         check_choice("search", self.search, SEARCHES)
         check_number("mag_margin", self.mag_margin)
         check_flag("assign_all", self.assign_all)
+        check_flag("unique_triangles", self.unique_triangles)
         check_number("deep_mag_limit", self.deep_mag_limit)
         check_whole("hypotheses", self.hypotheses, 0, 10_000)
         check_whole("image_neighbours", self.image_neighbours, 2, 20)
@@ -327,6 +355,8 @@ class PVector(Algorithm):
         v_mag = guide.v_mag[by_z]
         hip = guide.hip[by_z]
         rows = self._triangles(unit, v_mag, hip)
+        if self.unique_triangles and self.side_order == "sorted":
+            rows = _unique_triangles(rows)
         if rows.shape[0] < 2:
             raise ConfigError("fewer than two guide stars have two neighbours within pattern_radius_deg")
         s, n1, n2 = unit[rows[:, 0]], unit[rows[:, 1]], unit[rows[:, 2]]
@@ -348,8 +378,7 @@ class PVector(Algorithm):
         row_dtype = np.int16 if unit.shape[0] <= np.iinfo(np.int16).max else np.int32
         return PVectorDatabase(
             p_axis=np.ascontiguousarray(p_axis, dtype=np.float64),
-            kv=kvector_make(key[order], values_dtype=np.float32,
-                            index_dtype=np.uint16 if key.size <= np.iinfo(np.uint16).max else np.int32),
+            kv=_key_index(key[order], keep_keys=self.search == "linear"),
             tri_sides=np.ascontiguousarray(np.rint(sides[order] / step), dtype=np.uint16),
             side_step_rad=step,
             tri_rows=np.ascontiguousarray(rows[order], dtype=row_dtype),

@@ -16,7 +16,7 @@ import numpy as np
 from numba import njit
 
 from starid.kernels import (DeepSky, KVector, assign_all, backproject_px, chord_rows, chord_to_rad, explained,
-                            field_chord, keep_unique, kvector_query, refine_explained, reproject_assign, triple_product,
+                            field_chord, keep_unique, kvector_slice, refine_explained, reproject_assign, triple_product,
                             verify_pairwise, wahba_rows, z_band_rows)
 
 # The six vertex correspondences (observed vertex j -> database vertex PERMS[p, j]).
@@ -26,7 +26,8 @@ PERMS = np.array([[0, 1, 2], [1, 2, 0], [2, 0, 1], [0, 2, 1], [2, 1, 0], [1, 0, 
 class Tables(NamedTuple):
     """What identify reads from :class:`~starid_algorithms.pvector.PVectorDatabase`, as one argument.
 
-    p_axis : (3,) the P vector; kv : :class:`starid.kernels.KVector` over the keys P (float32);
+    p_axis : (3,) the P vector; kv : :class:`starid.kernels.KVector` over the keys P (its ``values``,
+    float32, are stored only for ``search='linear'``; the k-vector search slices without them);
     tri_sides : uint16 (m, 3) side vectors in units of ``side_step`` rad; tri_rows : (m, 3) guide rows of (S, N1, N2);
     unit : float32 (n, 3) guide unit vectors (ICRS, z-sorted); hip : int64 (n,) their ids.
     deep : :class:`starid.kernels.DeepSky`, the deeper catalog for ``assign_all`` (may be empty).
@@ -380,10 +381,14 @@ def identify_rows(x_px, y_px, mag, frame, db, tol):
                 c12 = chord_rows(v, n1, v, n2)
                 d_obs = triangle_feature(chord_to_rad(c01), chord_to_rad(c02), chord_to_rad(c12), sorted_sides)
                 p_obs = p_axis[0] * d_obs[0] + p_axis[1] * d_obs[1] + p_axis[2] * d_obs[2]
-                if tol.linear_search:
+                if tol.linear_search and db.kv.values.shape[0] == tri_sides.shape[0]:
                     start, stop = linear_range(db.kv.values, p_obs - eps_key, p_obs + eps_key)
+                elif tol.linear_search:    # a database built for the k-vector search: scan every triangle
+                    start, stop = 0, tri_sides.shape[0]
                 else:
-                    start, stop = kvector_query(db.kv, p_obs - eps_key, p_obs + eps_key)
+                    # the untrimmed slice: every candidate's three sides are checked below anyway
+                    start, stop = kvector_slice(db.kv.k, db.kv.m, db.kv.q, tri_sides.shape[0], p_obs - eps_key,
+                                                p_obs + eps_key)
                 if stop <= start:
                     continue
                 n_side = 0

@@ -20,14 +20,15 @@ from .assign import (DeepSky, Frame, assign_all, camera_frame, check_stars, deep
 from .attitude import wahba_rows
 from .geometry import (angular_distance_rad, backproject_px, chord, chord_rows, chord_to_rad, pairwise_chords,
                        project_cam, rad_to_chord, triangle_sides, triple_product)
-from .kvector import KVector, kvector_build, kvector_make, kvector_query, kvector_range
+from .kvector import KVector, kvector_build, kvector_make, kvector_query, kvector_range, kvector_slice
 from .order import before, order_by, sort_rows
 from .verify import keep_unique, reproject_assign, verify_pairwise, z_band_rows, z_bound
 
 __all__ = [
     "angular_distance_rad", "assign_all", "backproject_px", "before", "camera_frame", "check_stars", "chord",
     "chord_rows", "chord_to_rad", "deep_sky", "DeepSky", "explained", "field_chord", "Frame", "keep_unique",
-    "KVector", "kvector_build", "kvector_make", "kvector_query", "kvector_range", "order_by", "pairwise_chords",
+    "KVector", "kvector_build", "kvector_make", "kvector_query", "kvector_range", "kvector_slice", "order_by",
+    "pairwise_chords",
     "project_cam", "rad_to_chord", "refine_explained", "reproject_assign", "sort_rows", "triangle_sides",
     "triple_product", "verify_pairwise", "wahba_rows", "z_band_rows", "z_bound",
 ]

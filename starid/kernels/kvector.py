@@ -96,6 +96,37 @@ def kvector_make(sorted_values: np.ndarray, values_dtype=np.float64, index_dtype
 
 
 @njit(cache=True)
+def kvector_slice(k, m, q, n, lo, hi):
+    """Index range ``[start, stop)`` of the ``n`` sorted keys that holds every key in ``[lo, hi]``,
+    from the k-vector alone: the O(1) slice of :func:`kvector_range` before its ends are trimmed
+    (Zhou & Ye 2015, eqs. 17-19), so the keys themselves need not be stored.
+
+    The line puts a margin of one full bin ``m`` on each side (``z(jb) <= lo - m``, ``z(jt) >= hi + m``),
+    so the slice holds at most a few keys outside ``[lo, hi]`` on each end; a caller that checks each
+    candidate anyway (P-vector's three sides) gets the same matches as with the trimmed range.
+    """
+    if n == 0 or hi < lo:
+        return 0, 0
+    jb = int(math.floor((lo - q) / m)) - 1
+    jt = int(math.ceil((hi - q) / m)) + 1
+    if jb < 1:
+        start = 0
+    elif jb > n:
+        start = n
+    else:
+        start = k[jb - 1]
+    if jt < 1:
+        stop = 0
+    elif jt > n:
+        stop = n
+    else:
+        stop = k[jt - 1]
+    if stop < start:
+        stop = start
+    return start, stop
+
+
+@njit(cache=True)
 def kvector_query(kv, lo, hi):
     """Index range ``[start, stop)`` of ``kv.values`` lying in ``[lo, hi]`` (see :func:`kvector_range`)."""
     return kvector_range(kv[0], kv[1], kv[2], kv[3], lo, hi)
