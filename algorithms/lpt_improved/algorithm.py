@@ -75,8 +75,9 @@ def _row_dtype(n: int):
 
 @dataclass(frozen=True)
 class ImprovedLPT(PlanarAlgorithm):
-    """Improved log-polar (Luo et al., Chin. Phys. B 2015): alignment star, log plane distance per angle
-    sector, no shift.
+    """Improved log-polar (Luo et al., Chin. Phys. B 2015): alignment star, log distance per sector.
+
+    The feature is the log plane distance per angle sector, with no circular shift.
 
     Luo L.-Y., Xu L.-P., Zhang H., Sun J.-R., "Improved autonomous star identification
     algorithm", Chinese Physics B 24(6), 064202 (2015). Equation numbers below follow the order
