@@ -509,7 +509,7 @@ def show_figure(stars: pd.DataFrame, ids: pd.DataFrame, explanations: dict | Non
     size = np.clip(9.0 * (10 ** (0.4 * (6.0 - mag))) ** 0.75, 5, 260)
     placements = []
     ex_none = np.zeros((0, 2))
-    for ax, label in zip(axes, labels, strict=True):
+    for ax, label in zip(axes[:len(labels)], labels, strict=True):    # the grid may have spare panels
         got = ids[ids["label"] == label].set_index("star")["hip"].reindex(stars["star"]).fillna(-1)
         hip = got.to_numpy(dtype=np.int64)
         status = _status_of(hip, truth)
