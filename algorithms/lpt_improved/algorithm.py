@@ -143,7 +143,7 @@ class ImprovedLPT(PlanarAlgorithm):
     count_tol: int = param(
         1, help="rows searched have at least L_s - count_tol non-zero entries (eq. 10, epsilon1; paper)")
     count_tol_above: int | None = param(
-        3, help="rows have at most L_s + this entries; None = count_tol (epsilon2, paper 1; 3 starid's)")
+        3, help="rows searched have at most L_s + this entries (epsilon2); None = count_tol (paper: 1; starid's: 3)")
     image_alignments: int = param(
         2, help="nearest image neighbours tried as the alignment star (1 = paper; starid's extension)")
     db_alignments: int = param(

@@ -276,7 +276,7 @@ class PlanarTriangle(Algorithm):
 
     mag_limit: float | None = param(
         None, unit="mag",
-        help="guide stars have V <= this; None = derived so a field holds as many as V 6.2 on Table 4")
+        help="guide stars have V <= this; None = as many per field as V <= 6.2 on Table 4 (paper: 6.0)")
     sigma_px: float | None = param(None, unit="px",
                                    help="centroid noise the windows assume; None follows the simulator (floor 1 px)")
     fov_db_deg: float | None = param(

@@ -222,7 +222,7 @@ class PTP(Algorithm):
                                  "nearest_check": False}
     follows: ClassVar[dict] = {"sigma_px": "sigma_px"}
 
-    mag_limit: float = param(6.0, help="guide stars (masters) have V <= this (section 2.1)", unit="mag")
+    mag_limit: float = param(6.0, help="guide stars (masters) have V <= this (paper, section 2.1)", unit="mag")
     sigma_px: float | None = param(
         None, help="centroid noise the windows assume; None follows the simulator (floor sigma_floor_px)", unit="px")
     sigma_floor_px: float | None = param(

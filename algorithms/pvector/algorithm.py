@@ -208,10 +208,10 @@ class PVector(Algorithm):
     images; a bound of 16 / 32 / 64 / 128 / 256 identified 25 / 77 / 94 / 93 / 93 %, median 17 / 27 / 15 / 73 /
     62 ms): beyond 64 the extra triangles are almost all chance matches, each checked against the whole image."""
     confirm_fraction: float = param(
-        0.5, help="fraction of the guide stars the attitude puts in the image that must be found; 0 = off")
+        0.5, help="fraction of the predicted guide stars that must be seen in the image; 0 = off (starid's extension)")
     """The attitude must find at least this fraction of the guide stars it puts in the image (0: off)."""
     triangles_per_star: int = param(
-        5, help="K: triangles of every pair of a guide star's K brightest neighbours (paper-like: 2)")
+        5, help="K: triangles of every pair of a guide star's K brightest neighbours (2 = paper; starid's extension)")
     """K: each guide star stores the triangles of its K brightest neighbours, K(K-1)/2 of them
     (2 = one triangle per star; reconstruction, see docs/algorithms/pvector.md)."""
     search: str = param("kvector",

@@ -252,7 +252,7 @@ class Pyramid(Algorithm):
     min_extra: int = param(
         1, help="other guide stars the pyramid's attitude predicts that must be seen; 0 = off (starid's extension)")
     accept_triangle: bool = param(
-        False, help="with exactly three usable stars report a unique triangle without a fourth (paper's n = 3)")
+        False, help="with exactly three usable stars, report a unique triangle without a fourth (paper, n = 3)")
 
     def __post_init__(self):
         check_pair_params(self)

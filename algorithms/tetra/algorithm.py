@@ -132,7 +132,7 @@ class Tetra(Algorithm):
 
     mag_limit: float = param(
         6.5, unit="mag",
-        help="guide stars have V <= this, half a magnitude below the detection limit (starid's reconstruction)")
+        help="guide stars have V <= this, half a magnitude deeper than the detection limit (starid's reconstruction)")
     sigma_px: float | None = param(None, unit="px",
                                    help="centroid noise the tolerances assume; None follows the simulator (floor 1 px)")
     double_star_deg: float = param(
@@ -160,7 +160,7 @@ class Tetra(Algorithm):
     min_extra: int = param(
         1, help="guide stars beyond the pattern's four the attitude must see to verify it (starid's reconstruction)")
     max_mismatch: float = param(
-        1e-4, help="largest chance of seeing that many stars by accident (tetra3-style) (starid's reconstruction)")
+        1e-4, help="largest tetra3-style chance of seeing that many stars by accident (starid's reconstruction)")
     report_beta: float = param(
         3.0, help="stars assigned again within this many sigma for the report; 0 = keep (starid's reconstruction)")
     sigma_mag: float | None = param(
