@@ -25,7 +25,7 @@ from starid.catalog import Catalog
 from starid.errors import ConfigError
 from starid.kernels import Frame, camera_frame, rad_to_chord
 from starid.observation import Observation
-from starid.params import check_flag, check_number, check_whole
+from starid.params import check_flag, check_number, check_whole, param
 from starid.plugin import Algorithm, Explanation, Identification
 
 from .kernels import VoteRule, identify_kernel, voting_kernel
@@ -249,25 +249,41 @@ class GeometricVoting(Algorithm):
                                  "round_voters": 0, "report_all": False}
     follows: ClassVar[dict] = {"sigma_px": "sigma_px"}
 
-    mag_limit: float | None = None
-    sigma_px: float | None = None
-    beta: float = 3.0
-    d_min_deg: float | None = None
-    max_pair_deg: float = 20.0
-    max_stars: int = 15
-    max_window: int = 10000
-    min_support: int = 2
-    min_fraction: float = 0.5
-    confirm_fraction: float = 0.5
-    min_extra: int = 1
-    once_per_pair: bool = True
-    n_candidates: int = 16
-    expected_votes: bool = True
-    round_voters: int = 5
-    round_step: int = 1
-    report_all: bool = True
-    saturate_votes: bool | None = None
-    vote_window_px: float | None = None
+    mag_limit: float | None = param(
+        None, unit="mag",
+        help="guide stars have V <= this; None = derived from the camera (6.0 on Table 4, never fainter)")
+    sigma_px: float | None = param(None, unit="px",
+                                   help="centroid noise the windows assume; None follows the simulator (floor 1 px)")
+    beta: float = param(3.0, help="window eps = beta sqrt(2) sigma (starid's reconstruction)")
+    d_min_deg: float | None = param(
+        None, help="stars closer than this to another are unused (doubles); None = 5.1 px, at most 1 deg", unit="deg")
+    max_pair_deg: float = param(20.0, unit="deg",
+                                help="largest separation of a stored pair (also capped at the field's diagonal)")
+    max_stars: int = param(15, help="brightest detections that vote (starid's reconstruction)")
+    max_window: int = param(
+        10000, help="an image pair whose window holds more catalog pairs than this does not vote (a time bound)")
+    min_support: int = param(2, help="other assignments a verified one must agree with (starid's reconstruction)")
+    min_fraction: float = param(
+        0.5, help="fraction of the other assignments a verified one must agree with (starid's reconstruction)")
+    confirm_fraction: float = param(
+        0.5, help="fraction of the guide stars the attitude predicts that must be seen; 0 = off (starid's extension)")
+    min_extra: int = param(1, help="stars beyond 3 the attitude must see in all; 0 = off (starid's extension)")
+    once_per_pair: bool = param(
+        True, help="at most one vote per catalog star per image pair; off = LOST's (starid's reconstruction)")
+    n_candidates: int = param(
+        16, help="best catalog stars each image star keeps for the shortlist vote; 1 = paper (starid's reconstruction)")
+    expected_votes: bool = param(
+        True, help="rank catalog stars by votes minus the chance votes of their degree (starid's reconstruction)")
+    round_voters: int = param(
+        5, help="brightest stars voting in the first round; 0 = the paper's single round (starid's extension)")
+    round_step: int = param(1, help="stars joining the vote per further round (starid's extension)")
+    report_all: bool = param(
+        True, help="report every star the confirming reprojection finds; off = voters only (starid's extension)")
+    saturate_votes: bool | None = param(
+        None, help="count chance votes as 1 - exp(-degree p) per pair; None = derived from the camera")
+    vote_window_px: float | None = param(
+        None, unit="px",
+        help="half-width of the voting windows; None = derived: eps, narrowed on cameras with more chance votes")
 
     def __post_init__(self):
         check_pair_params(self)

@@ -12,7 +12,7 @@ from starid.camera import Camera
 from starid.catalog import Catalog
 from starid.kernels import camera_frame
 from starid.observation import Observation
-from starid.params import check_flag, check_number, check_whole
+from starid.params import check_flag, check_number, check_whole, param
 from starid.plugin import Database, Explanation
 
 from ..lpt_improved.planar import (
@@ -105,14 +105,21 @@ class Grid(PlanarAlgorithm):
     #: orientation (``grid:paper``)
     published: ClassVar[dict] = {"max_refs": 1, "n_candidates": 1, "image_orientations": 1}
 
-    buffer_px: float = 30.0
-    grid_size: int = 40
-    soft_edge: float = 0.4
-    soft_diag: float = 0.2
-    image_orientations: int = 2
-    db_orientations: int = 1
-    normalise: bool = False
-    min_score: float = 3.0
+    buffer_px: float = param(
+        30.0, help="nearest neighbour at least this far is the orientation star (starid's reconstruction)", unit="px")
+    grid_size: int = param(
+        40, help="cells per side of the pattern grid over the square of half side R (starid's reconstruction)")
+    soft_edge: float = param(
+        0.4, help="credit for a database cell edge-adjacent to an image cell (modified grid; 0 = Padgett)")
+    soft_diag: float = param(0.2,
+                             help="credit for a database cell diagonal to an image cell (modified grid; 0 = Padgett)")
+    image_orientations: int = param(
+        2, help="nearest image neighbours beyond the buffer tried as orientation star (1 = Padgett)")
+    db_orientations: int = param(
+        1, help="nearest catalog neighbours beyond the buffer stored as orientation stars (modified grid)")
+    normalise: bool = param(False,
+                            help="divide the score by sqrt(n_image n_pattern) (modified grid, starid's reconstruction)")
+    min_score: float = param(3.0, help="score a database pattern needs to seed an attitude")
 
     def __post_init__(self):
         super().__post_init__()

@@ -12,7 +12,7 @@ from starid.camera import Camera
 from starid.catalog import Catalog
 from starid.kernels import camera_frame
 from starid.observation import Observation
-from starid.params import check_whole
+from starid.params import check_whole, param
 from starid.plugin import Database, Explanation
 
 from ..lpt_improved.planar import (
@@ -113,11 +113,12 @@ class LPT(PlanarAlgorithm):
     #: the paper's procedure: one reference star (nearest the centre), its best match only (``lpt:paper``)
     published: ClassVar[dict] = {"max_refs": 1, "n_candidates": 1}
 
-    n_sectors: int = 100
-    n_levels: int = 16
-    level_tol: int = 1
-    sector_tol: int = 1
-    min_score: int = 2
+    n_sectors: int = param(100, help="angle sectors of the LPT string, one character each (starid's reconstruction)")
+    n_levels: int = param(16, help="ln r rows between ln r_min and ln R a character can take (starid's reconstruction)")
+    level_tol: int = param(1, help="rows by which a matched database character may differ (starid's reconstruction)")
+    sector_tol: int = param(1,
+                            help="sectors by which a matched database character may be off (starid's reconstruction)")
+    min_score: int = param(2, help="matched characters a guide star needs to be a candidate (starid's reconstruction)")
 
     def __post_init__(self):
         super().__post_init__()

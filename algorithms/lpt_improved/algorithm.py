@@ -12,7 +12,7 @@ from starid.camera import Camera
 from starid.catalog import Catalog
 from starid.kernels import camera_frame
 from starid.observation import Observation
-from starid.params import check_flag, check_number, check_whole
+from starid.params import check_flag, check_number, check_whole, param
 from starid.plugin import Database, Explanation
 
 from .kernels import FeatureTable, Search, build_features, feature_vector, identify_kernel
@@ -138,13 +138,19 @@ class ImprovedLPT(PlanarAlgorithm):
     published: ClassVar[dict] = {"max_refs": 1, "n_candidates": 1, "image_alignments": 1, "count_tol_above": 1,
                                  "pair_filter": False}
 
-    n_sectors: int = 100
-    log_scale: float = 1.0
-    count_tol: int = 1
-    count_tol_above: int | None = 3
-    image_alignments: int = 2
-    db_alignments: int = 1
-    pair_filter: bool = True
+    n_sectors: int = param(100, help="angle intervals m of the feature vector (eq. 8; paper: 100)")
+    log_scale: float = param(
+        1.0, help="entry = ceil(log_scale ln r) of the farthest neighbour in an interval (eq. 8; paper: 1)")
+    count_tol: int = param(
+        1, help="rows searched have at least L_s - count_tol non-zero entries (eq. 10, epsilon1; paper)")
+    count_tol_above: int | None = param(
+        3, help="rows searched have at most L_s + this entries (epsilon2); None = count_tol (paper: 1; starid's: 3)")
+    image_alignments: int = param(
+        2, help="nearest image neighbours tried as the alignment star (1 = paper; starid's extension)")
+    db_alignments: int = param(
+        1, help="nearest catalog neighbours stored as alignment stars (1 = paper; starid's extension)")
+    pair_filter: bool = param(
+        True, help="rank only rows whose reference-alignment separation fits the image pair (starid's extension)")
 
     def __post_init__(self):
         super().__post_init__()

@@ -46,7 +46,7 @@ from starid.kernels import (
     wahba_rows,
 )
 from starid.observation import Observation
-from starid.params import check_number, check_whole
+from starid.params import check_number, check_whole, param
 from starid.plugin import Algorithm, Explanation, Identification
 from starid.simulate import SimConfig
 
@@ -472,15 +472,21 @@ class PlanarAlgorithm(Algorithm):
 
     follows: ClassVar[dict] = {"sigma_px": "sigma_px", "mag_limit": "mag_limit"}
 
-    mag_limit: float | None = None
-    radius_deg: float | None = None
-    double_px: float = 20.0
-    max_refs: int = 10
-    n_candidates: int = 3
-    sigma_px: float | None = None
-    beta: float = 3.0
-    min_matches: int = 4
-    confirm_fraction: float = 0.5
+    mag_limit: float | None = param(
+        None, help="guide stars have V <= this; None follows the simulator's detection limit (6.0 outside)", unit="mag")
+    radius_deg: float | None = param(
+        None, unit="deg",
+        help="neighbourhood radius R of a pattern; None = derived from the camera and the guide count")
+    double_px: float = param(
+        20.0, help="stars closer than this (at most R/10) are unresolvable doubles, unused on both sides", unit="px")
+    max_refs: int = param(10, help="reference stars of the image tried before giving up")
+    n_candidates: int = param(3, help="best database matches per reference pattern, each tried as a seed attitude")
+    sigma_px: float | None = param(None, unit="px",
+                                   help="centroid noise the windows assume; None follows the simulator (floor 1 px)")
+    beta: float = param(3.0, help="half-width of the match windows in units of sigma")
+    min_matches: int = param(4, help="guide stars that must be observed where the attitude puts them to accept it")
+    confirm_fraction: float = param(
+        0.5, help="fraction of the guide stars the attitude puts in the image that must be observed")
 
     def __post_init__(self):
         if self.mag_limit is not None:

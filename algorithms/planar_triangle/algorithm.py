@@ -15,7 +15,7 @@ from starid.catalog import Catalog
 from starid.errors import ConfigError
 from starid.kernels import DeepSky, KVector, camera_frame, deep_sky, kvector_make, rad_to_chord
 from starid.observation import Observation
-from starid.params import check_flag, check_number, check_whole
+from starid.params import check_flag, check_number, check_whole, param
 from starid.plugin import Algorithm, Database, Explanation, Identification
 
 from .kernels import (
@@ -274,32 +274,53 @@ class PlanarTriangle(Algorithm):
     published: ClassVar[dict] = {"mag_limit": 6.0, "max_stars": None, "subset_size": None, "small_subset_size": None,
                                  "assign_all": False, "max_missed_fraction": 1.0}
 
-    mag_limit: float | None = None
-    sigma_px: float | None = None
-    fov_db_deg: float | None = None
-    min_area_deg2: float | None = None
-    beta: float = 3.0
-    climit: int = 100_000
-    pivot_limit: int | None = None
-    abort_if_finalists_grow: bool = True
-    consistent_chain: bool = True
-    restarts: int = 0
-    extend: bool = True
-    min_support: int = 2
-    min_verified: int = 4
-    max_stars: int | None = 8
-    mag_margin: float = 1.0
-    assign_all: bool = True
-    subset_size: int | None = 5
-    max_subsets: int = 56
-    wide_stars: int | None = None
-    max_wide_subsets: int = 196
-    small_subset_size: int | None = 4
-    max_small_subsets: int = 70
-    small_confirm: int = 1
-    small_confirm_fraction: float = 0.5
-    coverage_mag_margin: float = 0.75
-    max_missed_fraction: float = 1.0 / 3.0
+    mag_limit: float | None = param(
+        None, unit="mag",
+        help="guide stars have V <= this; None = as many per field as V <= 6.2 on Table 4 (paper: 6.0)")
+    sigma_px: float | None = param(None, unit="px",
+                                   help="centroid noise the windows assume; None follows the simulator (floor 1 px)")
+    fov_db_deg: float | None = param(
+        None, unit="deg",
+        help="largest enclosing-circle diameter of a stored triangle; None = the short-side field of view")
+    min_area_deg2: float | None = param(
+        None, help="least area of a stored triangle, against collinear ones; None = 0.001 fov_db_deg^2", unit="deg^2")
+    beta: float = param(3.0, help="half-width of the area and moment windows in units of sigma (paper: 3)")
+    climit: int = param(100_000, help="image triangles with more area hits than this are dropped (paper: 10,000)")
+    pivot_limit: int | None = param(None, help="most pivots of a chain; None = no limit (paper: 2 or no limit)")
+    abort_if_finalists_grow: bool = param(True, help="abandon the search when the finalists grow (paper)")
+    consistent_chain: bool = param(
+        True, help="finalist chains must share stars exactly as the image chain (starid's reconstruction)")
+    restarts: int = param(0, help="further start triangles tried after a failure, next-largest first (paper: 0)")
+    extend: bool = param(
+        True, help="identify further stars by distances to the chain stars, then verify (starid's extension)")
+    min_support: int = param(
+        2, help="others every reported star must agree with pairwise after extend (starid's extension)")
+    min_verified: int = param(4, help="least stars that must remain after the pairwise check (starid's extension)")
+    max_stars: int | None = param(
+        8, help="brightest image stars triangles are built from; None = all (starid's extension)")
+    mag_margin: float = param(1.0, unit="mag",
+                              help="image stars fainter than mag_limit + this build no triangle (starid's extension)")
+    assign_all: bool = param(
+        True, help="assign every other image star the catalog star the attitude projects on it (starid's extension)")
+    subset_size: int | None = param(
+        5, help="pivoting runs on subsets of this many chosen stars; None = all at once (starid's extension)")
+    max_subsets: int = param(56,
+                             help="most subsets of subset_size tried, brightest combination first (starid's extension)")
+    wide_stars: int | None = param(
+        None, help="middle stage: subsets reaching into this many brightest stars; None = off (starid's extension)")
+    max_wide_subsets: int = param(196, help="most subsets tried in the wide_stars stage (starid's extension)")
+    small_subset_size: int | None = param(
+        4, help="last stage: subsets of this many stars, confirmed by the image; None = off (starid's extension)")
+    max_small_subsets: int = param(70, help="most subsets tried in the small_subset_size stage (starid's extension)")
+    small_confirm: int = param(
+        1, help="other image stars a small-subset result must identify by reprojection (starid's extension)")
+    small_confirm_fraction: float = param(
+        0.5, help="fraction of the other image stars a small-subset result must identify (starid's extension)")
+    coverage_mag_margin: float = param(
+        0.75, unit="mag",
+        help="coverage check: catalog stars this much brighter than the limit must be seen (starid's extension)")
+    max_missed_fraction: float = param(
+        1.0 / 3.0, help="coverage check: largest fraction of those bright stars missed; 1 = off (starid's extension)")
 
     @property
     def sigma_window_px(self) -> float:

@@ -16,7 +16,7 @@ from starid.catalog import Catalog
 from starid.errors import ConfigError
 from starid.kernels import DeepSky, KVector, camera_frame, check_stars, deep_sky, kvector_make, rad_to_chord
 from starid.observation import Observation
-from starid.params import check_flag, check_number, check_whole
+from starid.params import check_flag, check_number, check_whole, param
 from starid.plugin import Algorithm, Database, Explanation, Identification
 
 from .kernels import Tables, Tolerances, View, build_triangles, identify_kernel, nearest_slaves, select_stars
@@ -222,32 +222,54 @@ class PTP(Algorithm):
                                  "nearest_check": False}
     follows: ClassVar[dict] = {"sigma_px": "sigma_px"}
 
-    mag_limit: float = 6.0
-    sigma_px: float | None = None
-    sigma_floor_px: float | None = None
-    n_slaves: int = 4
-    d_min_deg: float | None = None
-    d_max_deg: float = 6.0
-    beta: float = 3.0
-    side_beta: float = 3.0
-    exclude_doubles: bool = True
-    swap_slaves: bool = True
-    min_shared: int = 1
-    majority: bool = True
-    verify: bool = True
-    verify_min_fraction: float = 0.5
-    confirm_fraction: float = 0.5
-    max_stars: int = 100
-    max_candidates: int = 64
-    image_slaves: int = 6
-    mag_margin: float = 0.5
-    assign_all: bool = False
-    deep_mag_limit: float = 7.5
-    hypotheses: int = 32
-    check_mag_limit: float = 7.0
-    check_min_stars: int = 5
-    check_fraction: float = 0.5
-    nearest_check: bool = True
+    mag_limit: float = param(6.0, help="guide stars (masters) have V <= this (paper, section 2.1)", unit="mag")
+    sigma_px: float | None = param(
+        None, help="centroid noise the windows assume; None follows the simulator (floor sigma_floor_px)", unit="px")
+    sigma_floor_px: float | None = param(
+        None, help="least noise the windows assume; None = derived from the camera, min(1, 1/pixel_ratio)", unit="px")
+    n_slaves: int = param(4, help="nearest neighbours of a master that form its triangles in the database (paper: 4)")
+    d_min_deg: float | None = param(
+        None, unit="deg",
+        help="least master-slave distance, against doubles (paper: 0.05); None = derived from the camera")
+    d_max_deg: float = param(6.0, unit="deg",
+                             help="largest master-slave distance (paper: 5; 6 in starid for sparse fields)")
+    beta: float = param(3.0, help="half-width of the projection search window in units of sigma_p (paper: 3)")
+    side_beta: float = param(
+        3.0, help="three-side check bound in units of each side's propagated sigma (starid's reconstruction)")
+    exclude_doubles: bool = param(True,
+                                  help="drop guide stars and detections closer than d_min (starid's reconstruction)")
+    swap_slaves: bool = param(
+        True,
+        help="also try the swapped slave order when their distances are within tolerance (starid's reconstruction)")
+    min_shared: int = param(
+        1, help="star pairings a triangle must share with another observed triangle to be validated (paper)")
+    majority: bool = param(
+        True, help="a conflicting star takes the pairing of more triangles; False drops it (starid's reconstruction)")
+    verify: bool = param(True,
+                         help="check the pairings' mutual angular distances after validation (starid's extension)")
+    verify_min_fraction: float = param(
+        0.5, help="fraction of a pairing's distances to the others that must agree in the pairwise check")
+    confirm_fraction: float = param(
+        0.5, help="fraction of the guide stars the attitude predicts that must be seen; 0 = off (starid's extension)")
+    max_stars: int = param(100, help="brightest detections that take part (a time bound)")
+    max_candidates: int = param(64,
+                                help="an image triangle with more database matches than this is skipped (time bound)")
+    image_slaves: int = param(
+        6, help="nearest neighbours of an image master that form its triangles (paper: 4; starid's extension: 6)")
+    mag_margin: float = param(0.5, unit="mag",
+                              help="detections fainter than mag_limit + this make no pattern (flight precaution)")
+    assign_all: bool = param(
+        False, help="assign every detection to the deep catalog star its attitude predicts (standard final step)")
+    deep_mag_limit: float = param(7.5, unit="mag",
+                                  help="faintest catalog star assign_all can assign, stored in the database")
+    hypotheses: int = param(
+        32, help="single-triangle hypotheses tried when validation leaves < 3 stars; 0 = paper (starid's extension)")
+    check_mag_limit: float = param(7.0, unit="mag",
+                                   help="catalog stars to this V are predicted in a hypothesis's whole-image check")
+    check_min_stars: int = param(5, help="least detections a hypothesis's attitude must explain")
+    check_fraction: float = param(0.5, help="fraction of the detections a hypothesis's attitude must explain")
+    nearest_check: bool = param(
+        True, help="drop a pairing when another detection lies nearer its predicted star (starid's extension)")
 
     def __post_init__(self):
         check_number("mag_limit", self.mag_limit)

@@ -14,7 +14,7 @@ from starid.catalog import Catalog
 from starid.errors import ConfigError
 from starid.kernels import DeepSky, KVector, camera_frame, check_stars, deep_sky, kvector_make, rad_to_chord
 from starid.observation import Observation
-from starid.params import check_choice, check_flag, check_number, check_whole
+from starid.params import check_choice, check_flag, check_number, check_whole, param
 from starid.plugin import Algorithm, Database, Explanation, Identification
 
 from . import kernels as K
@@ -184,72 +184,94 @@ class PVector(Algorithm):
                                  "hypotheses": 0, "search": "linear", "unique_triangles": False}
     follows: ClassVar[dict] = {"sigma_px": "sigma_px"}
 
-    mag_limit: float = 6.0
+    mag_limit: float = param(6.0, unit="mag",
+                             help="guide-star limit, applied to the catalog and to the measured magnitudes")
     """Guide-star limit (V); applied to the catalog and to the measured magnitudes."""
-    sigma_px: float | None = None
+    sigma_px: float | None = param(
+        None, help="centroid noise every tolerance assumes; None follows the simulator (floor 1 px)", unit="px")
     """Assumed centroid noise (px) from which every tolerance is derived (Table 6: 1 px). ``None``
     (default) follows the simulator; floored at ``SIGMA_FLOOR_PX`` = 1 px, so a noise-free world
     still gets a window."""
-    pattern_radius_deg: float = 5.0
+    pattern_radius_deg: float = param(5.0, unit="deg",
+                                      help="R: neighbours lie within R of the main star (starid's reconstruction)")
     """R: neighbours lie within R of the main star (reconstructed; see the class docstring)."""
-    min_sep_deg: float = 0.2
+    min_sep_deg: float = param(0.2, help="r_min: closer neighbours are ignored (starid's reconstruction)", unit="deg")
     """r_min: closer neighbours are ignored (close pairs;: 0.2-0.5 deg, reconstructed)."""
-    beta: float = 3.0
+    beta: float = param(3.0, help="tolerance factor: eps_d = beta sqrt(2) sigma_px / f_px (starid's reconstruction)")
     """Tolerance factor (3 sigma)."""
-    k_min: int = 2
+    k_min: int = param(2, help="other stars a correspondence must identify to be confirmed (starid's reconstruction)")
     """Other stars a correspondence must identify to be confirmed (reconstructed); raised per image when
     a wrong correspondence would reach it by chance (``chance_tail``)."""
-    side_order: str = "sorted"
+    side_order: str = param(
+        "sorted", help="'sorted' (sides ascending, default) or 'role' (S-N1, S-N2, N1-N2) (starid's reconstruction)")
     """'sorted' (d ascending, reconstructed default) or 'role' (S-N1, S-N2, N1-N2)."""
-    neighbour_rule: str = "brightest"
+    neighbour_rule: str = param(
+        "brightest", help="'brightest' (paper, per the PTP Introduction) or 'nearest' neighbours form the triangle")
     """'brightest' (the paper's, per the PTP Introduction) or 'nearest' (alternative)."""
-    main_order: str = "centre"
+    main_order: str = param(
+        "centre",
+        help="main stars tried 'centre' (farthest from the edge) or 'brightness' first (starid's reconstruction)")
     """'centre' (edge distance) or 'brightness' (reconstructed alternatives)."""
-    disc_inside_only: bool = False
+    disc_inside_only: bool = param(False,
+                                   help="use only main stars whose R-disc lies inside the image (strict reading)")
     """Only use main stars whose R-disc lies inside the image (strict reading)."""
-    max_stars: int = 100
+    max_stars: int = param(100, help="brightest detections that take part (a time bound)")
     """Only the brightest ``max_stars`` detections take part (a time bound for crowded or wide images)."""
-    max_candidates: int = 16
+    max_candidates: int = param(
+        16, help="a triangle matching more database triangles than this is skipped (scaled with eps_d^3)")
     """A triangle matching more database triangles than this is skipped (uninformative; never binds on
     the Table 4 camera: 1,000 real-sky trials identical with 64; a 40 deg field 30x faster). The cap used is
     ``max_candidates * (eps_d / eps_ref)^3`` when eps_d is wider than eps_ref, the tolerance of the reference
     camera (``starid.camera.REFERENCE_CAMERA``) at 1 px: the window's volume in side space grows as eps_d^3,
     and so does the number of triangles it holds by chance (1,050 on a 20 deg, 1024 px camera at 2 px),
     at most ``max_candidates_wide``."""
-    max_candidates_wide: int = 64
+    max_candidates_wide: int = param(64, help="upper bound of the eps_d-scaled max_candidates (a time bound)")
     """The scaled cap never exceeds this. It is a time bound, tuned on seed 7 (Luo's camera at 2 px, 100
     images; a bound of 16 / 32 / 64 / 128 / 256 identified 25 / 77 / 94 / 93 / 93 %, median 17 / 27 / 15 / 73 /
     62 ms): beyond 64 the extra triangles are almost all chance matches, each checked against the whole image."""
-    confirm_fraction: float = 0.5
+    confirm_fraction: float = param(
+        0.5, help="fraction of the predicted guide stars that must be seen in the image; 0 = off (starid's extension)")
     """The attitude must find at least this fraction of the guide stars it puts in the image (0: off)."""
-    triangles_per_star: int = 5
+    triangles_per_star: int = param(
+        5, help="K: triangles of every pair of a guide star's K brightest neighbours (2 = paper; starid's extension)")
     """K: each guide star stores the triangles of its K brightest neighbours, K(K-1)/2 of them
     (2 = one triangle per star; reconstruction, see docs/algorithms/pvector.md)."""
-    search: str = "kvector"
+    search: str = param("kvector",
+                        help="'kvector' (the same index as PTP) or 'linear' (a scan of the sorted keys, paper-like)")
     """'kvector' (fair default, the same index as PTP) or 'linear' (a scan of the sorted keys)."""
-    mag_margin: float = 0.5
+    mag_margin: float = param(0.5, unit="mag",
+                              help="detections fainter than mag_limit + this make no pattern (flight precaution)")
     """Image stars measured fainter than ``mag_limit + mag_margin`` make no pattern (flight precaution)."""
-    assign_all: bool = False
+    assign_all: bool = param(
+        False, help="assign every detection to the deep catalog star its attitude predicts (standard final step)")
     """Final step: once the attitude is known, assign every detection to the deep catalog star
     (V <= ``deep_mag_limit``) predicted within the tolerance."""
-    deep_mag_limit: float = 7.5
+    deep_mag_limit: float = param(7.5, unit="mag",
+                                  help="faintest catalog star assign_all can assign, stored only with assign_all")
     """Depth of the catalog kept for ``assign_all`` (stored only when ``assign_all``)."""
-    image_neighbours: int = 5
+    image_neighbours: int = param(
+        5, help="brightest neighbours of an image main star that form its triangles (starid's extension)")
     """Extension: the image side forms the triangles of each main star's this many brightest neighbours, a
     superset of the database's ``triangles_per_star`` (a V > 6 star that noise brought in, or a missing
     guide star, among the brightest does not break every triangle); ``image_neighbours <=
     triangles_per_star`` is the database's own rule."""
-    hypotheses: int = 64
+    hypotheses: int = param(
+        64,
+        help="correspondences retried by the whole-image check when none is confirmed; 0 = off (starid's extension)")
     """Extension (0 = off): when no triangle is confirmed, up to this many of the correspondences that passed
     the side and handedness checks are tried again, each confirmed by its attitude explaining the whole image
     (guide stars and the stars to ``check_mag_limit``) instead of by ``k_min`` guide-star distance matches."""
-    check_mag_limit: float = 7.0
+    check_mag_limit: float = param(7.0, unit="mag",
+                                   help="catalog stars to this V are predicted in the whole-image check")
     """Depth of the whole-image check's star list (unit vectors only; stored only when ``hypotheses`` > 0)."""
-    check_min_stars: int = 5
+    check_min_stars: int = param(
+        5, help="least detections (triangle included) the attitude must explain in the whole-image check")
     """Detections (triangle included) the attitude must explain, at least."""
-    check_fraction: float = 0.5
+    check_fraction: float = param(0.5,
+                                  help="fraction of the detections the attitude must explain in the whole-image check")
     """... and at least this fraction of the detections."""
-    chance_tail: float = 0.05
+    chance_tail: float = param(
+        0.05, help="k_min is raised until a wrong match reaches it with at most this probability; 0 = off")
     """The confirmation count actually required is max(``k_min``, k), k the smallest count a wrong
     correspondence reaches by chance with probability <= ``chance_tail`` (Poisson, mean n_obs n_guide
     eps_d^2 / pi: :func:`kernels.chance_k_min`); 0 = ``k_min`` alone. 2 on the Table 4 camera at 1 px

@@ -19,7 +19,7 @@ from starid.catalog import Catalog
 from starid.errors import ConfigError
 from starid.kernels import KVector, camera_frame, kvector_make, rad_to_chord
 from starid.observation import Observation
-from starid.params import check_flag, check_number, check_whole
+from starid.params import check_flag, check_number, check_whole, param
 from starid.plugin import Algorithm, Database, Explanation, Identification
 
 from .kernels import TRIANGLE_CAP, PairTol, pyramid_kernel
@@ -229,19 +229,30 @@ class Pyramid(Algorithm):
     name: ClassVar[str] = "pyramid"
     follows: ClassVar[dict] = {"sigma_px": "sigma_px"}
 
-    mag_limit: float = 6.0
-    sigma_px: float | None = None
-    beta: float = 3.0
-    d_min_deg: float | None = None
-    max_pair_deg: float = 20.0
-    max_stars: int = 40
-    max_triads: int = 1000
-    max_window: int = 10000
-    max_triangles: int | None = None
-    unique_triangle: bool = False
-    confirm_fraction: float = 0.5
-    min_extra: int = 1
-    accept_triangle: bool = False
+    mag_limit: float = param(6.0, help="guide stars have V <= this", unit="mag")
+    sigma_px: float | None = param(None, unit="px",
+                                   help="centroid noise the windows assume; None follows the simulator (floor 1 px)")
+    beta: float = param(3.0, help="window eps = beta sqrt(2) sigma (starid's reconstruction)")
+    d_min_deg: float | None = param(
+        None, unit="deg",
+        help="stars closer than this to another are unused (doubles); None = 5.11 px (starid's reconstruction)")
+    max_pair_deg: float = param(20.0, unit="deg",
+                                help="largest separation of a stored pair (also capped at the field's diagonal)")
+    max_stars: int = param(40, help="brightest detections the triads are formed from (starid's reconstruction)")
+    max_triads: int = param(1000, help="iteration cutoff: most triads tried (paper)")
+    max_window: int = param(
+        10000, help="an image pair whose window holds more catalog pairs than this is not used (a time bound)")
+    max_triangles: int | None = param(
+        None, help="a triad matching more catalog triangles is skipped; None = derived, 64 scaled with eps^3")
+    unique_triangle: bool = param(
+        False, help="a triad must match exactly one catalog triangle; False tries each (LOST's reading)")
+    confirm_fraction: float = param(
+        0.5,
+        help="fraction of the other guide stars its attitude predicts that must be seen; 0 = off (starid's extension)")
+    min_extra: int = param(
+        1, help="other guide stars the pyramid's attitude predicts that must be seen; 0 = off (starid's extension)")
+    accept_triangle: bool = param(
+        False, help="with exactly three usable stars, report a unique triangle without a fourth (paper, n = 3)")
 
     def __post_init__(self):
         check_pair_params(self)

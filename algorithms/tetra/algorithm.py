@@ -15,7 +15,7 @@ from starid.catalog import Catalog
 from starid.errors import ConfigError
 from starid.kernels import backproject_px, project_cam, rad_to_chord, wahba_rows
 from starid.observation import Observation
-from starid.params import check_number, check_whole
+from starid.params import check_number, check_whole, param
 from starid.plugin import Algorithm, Database, Explanation, Identification
 
 from .kernels import EMPTY, PAIRS, Settings, Tables, field_patterns, identify_kernel, pattern_keys, table_insert
@@ -130,24 +130,44 @@ class Tetra(Algorithm):
     name: ClassVar[str] = "tetra"
     follows: ClassVar[dict] = {"sigma_px": "sigma_px", "sigma_mag": "sigma_mag"}
 
-    mag_limit: float = 6.5
-    sigma_px: float | None = None
-    double_star_deg: float = 0.05
-    companion_margin_mag: float = 1.0
-    field_stars: int = 10
-    field_radius: float = 0.8
-    lattice_step: float = 0.5
-    min_span: float = 0.1
-    bins: int = 50
-    load_factor: float = 0.75
-    image_stars: int = 10
-    beta: float = 3.0
-    max_keys: int = 256
-    min_extra: int = 1
-    max_mismatch: float = 1e-4
-    report_beta: float = 3.0
-    sigma_mag: float | None = None
-    mag_beta: float = 3.0
+    mag_limit: float = param(
+        6.5, unit="mag",
+        help="guide stars have V <= this, half a magnitude deeper than the detection limit (starid's reconstruction)")
+    sigma_px: float | None = param(None, unit="px",
+                                   help="centroid noise the tolerances assume; None follows the simulator (floor 1 px)")
+    double_star_deg: float = param(
+        0.05, unit="deg",
+        help="a guide star with a bright catalog star within this is in no pattern (starid's reconstruction)")
+    companion_margin_mag: float = param(
+        1.0, unit="mag",
+        help="companions brighter than mag_limit + this make a guide star a double (starid's reconstruction)")
+    field_stars: int = param(
+        10, help="brightest pattern stars of each lattice field whose 4-subsets are stored (starid's reconstruction)")
+    field_radius: float = param(
+        0.8, help="lattice field radius in units of the camera's half-diagonal (starid's reconstruction)")
+    lattice_step: float = param(
+        0.5, help="Fibonacci lattice spacing in units of the camera's half-width (starid's reconstruction)")
+    min_span: float = param(
+        0.1, help="least largest edge of a stored pattern in units of the image width (starid's reconstruction)")
+    bins: int = param(
+        50, help="quantisation bins of each of the five edge ratios in the hash key (starid's reconstruction)")
+    load_factor: float = param(0.75, help="stored patterns per hash-table slot (starid's reconstruction)")
+    image_stars: int = param(
+        10, help="brightest detections (by measured magnitude) the image patterns use (starid's reconstruction)")
+    beta: float = param(3.0, help="ratio and edge tolerance in units of the propagated sigma (starid's reconstruction)")
+    max_keys: int = param(
+        256, help="an image pattern whose tolerance touches more hash keys is skipped (starid's reconstruction)")
+    min_extra: int = param(
+        1, help="guide stars beyond the pattern's four the attitude must see to verify it (starid's reconstruction)")
+    max_mismatch: float = param(
+        1e-4, help="largest tetra3-style chance of seeing that many stars by accident (starid's reconstruction)")
+    report_beta: float = param(
+        3.0, help="stars assigned again within this many sigma for the report; 0 = keep (starid's reconstruction)")
+    sigma_mag: float | None = param(
+        None, help="magnitude noise the report check assumes; None follows the simulator (floor 0.5)", unit="mag")
+    mag_beta: float = param(
+        3.0,
+        help="report a star only within mag_beta sigma_mag of the catalog magnitude; 0 = off (starid's reconstruction)")
 
     def __post_init__(self):
         check_number("mag_limit", self.mag_limit)

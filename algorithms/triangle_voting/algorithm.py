@@ -12,7 +12,7 @@ from scipy.spatial import cKDTree
 from starid.camera import Camera
 from starid.catalog import Catalog
 from starid.errors import ConfigError
-from starid.params import check_flag, check_number, check_whole
+from starid.params import check_flag, check_number, check_whole, param
 from starid.kernels import DeepSky, backproject_px, camera_frame, deep_sky, rad_to_chord
 from starid.observation import Observation
 from starid.plugin import Algorithm, Database, Explanation, Identification
@@ -146,27 +146,46 @@ class TriangleVoting(Algorithm):
     follows: ClassVar[dict] = {"sigma_px": "sigma_px"}
     name: ClassVar[str] = "triangle_voting"
 
-    mag_limit: float = 6.5
-    sigma_px: float | None = None
-    pattern_radius_deg: float = 5.0
-    d_min_deg: float = 0.3
-    n_neighbours: int = 5
-    lambda_extra: int = 2
-    k_sigma: float = 3.0
-    double_star_deg: float = 0.05
-    grid_cell_tol: float = 1.0
-    side_check: bool = True
-    vote_neighbours: bool = True
-    v_min: int = 2
-    min_support: int = 2
-    n_candidates: int = 3
-    min_stars: int = 4
-    max_hypotheses: int = 32
-    coverage_mag_margin: float = 0.75
-    max_missed_fraction: float = 1.0 / 3.0
-    max_stars: int | None = None
-    mag_margin: float = 1.0
-    assign_all: bool = True
+    mag_limit: float = param(6.5, help="guide stars have V <= this (starid's reconstruction)", unit="mag")
+    sigma_px: float | None = param(None, unit="px",
+                                   help="centroid noise the windows assume; None follows the simulator (floor 1 px)")
+    pattern_radius_deg: float = param(
+        5.0, help="PR: neighbours lie within this of the main star (paper's parameter, starid's value)", unit="deg")
+    d_min_deg: float = param(
+        0.3, help="D_min: least main-neighbour distance and least base (paper's parameter, starid's value)", unit="deg")
+    n_neighbours: int = param(
+        5, help="lambda: brightest neighbours a star's triangles use (paper's parameter, starid's value)")
+    lambda_extra: int = param(
+        2, help="extra brightest neighbours on the image side, against noise and edges (starid's reconstruction)")
+    k_sigma: float = param(3.0, help="tolerances in units of the propagated centroid sigma (starid's reconstruction)")
+    double_star_deg: float = param(
+        0.05, help="guide stars closer than this to a brighter one are dropped (starid's reconstruction)", unit="deg")
+    grid_cell_tol: float = param(1.0, help="database grid cell side in units of eps_base (starid's reconstruction)")
+    side_check: bool = param(
+        True,
+        help="a record votes only if its main-to-neighbour sides match too; False = paper (starid's reconstruction)")
+    vote_neighbours: bool = param(
+        True, help="a side-matched record also votes for its two neighbour stars (starid's extension)")
+    v_min: int = param(2, help="least votes a candidate needs (starid's reconstruction)")
+    min_support: int = param(
+        2, help="partners a proposed star must agree with in the pairwise check (starid's reconstruction)")
+    n_candidates: int = param(3,
+                              help="most-voted catalog stars kept as each star's candidates (starid's reconstruction)")
+    min_stars: int = param(4, help="least stars an identification must report (starid's reconstruction)")
+    max_hypotheses: int = param(
+        32,
+        help="best-voted side-matched triangles extended when verification yields nothing (starid's reconstruction)")
+    coverage_mag_margin: float = param(
+        0.75, unit="mag",
+        help="coverage check: catalog stars this much brighter than the limit must be seen (starid's reconstruction)")
+    max_missed_fraction: float = param(
+        1.0 / 3.0,
+        help="coverage check: largest fraction of those bright stars missed; 1 = off (starid's reconstruction)")
+    max_stars: int | None = param(None, help="brightest image stars that vote; None = all (starid's reconstruction)")
+    mag_margin: float = param(1.0, unit="mag",
+                              help="image stars fainter than mag_limit + this do not vote (starid's reconstruction)")
+    assign_all: bool = param(
+        True, help="assign every other image star the catalog star the attitude projects on it (starid's extension)")
 
     @property
     def sigma_window_px(self) -> float:
