@@ -276,7 +276,8 @@ class PVector(Algorithm):
     correspondence reaches by chance with probability <= ``chance_tail`` (Poisson, mean n_obs n_guide
     eps_d^2 / pi: :func:`kernels.chance_k_min`); 0 = ``k_min`` alone. 2 on the Table 4 camera at 1 px
     (unchanged), 4 on a 20 deg, 1024 px camera at 2 px."""
-    unique_triangles: bool = True
+    unique_triangles: bool = param(
+        True, help="store each star triple once, not once per main star (starid's storage choice)")
     """Storage (starid's): with sorted sides each star triple is stored once, not once per main star
     that forms it (the paper's one triangle per guide star: ``False``); identify tries every vertex
     correspondence, so the copies only repeat candidates (47,957 -> 38,884 triangles, 1.09 -> 0.77 MB
