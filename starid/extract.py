@@ -17,7 +17,7 @@ One function, :func:`extract`, does the whole chain a star tracker runs before i
    of 1 ADU in total; 0 gives instrumental magnitudes).
 
 With the ``sep`` package installed (SExtractor's core as a library, ``pip install
-'starid[images]'``) every step is SExtractor's; without it a plain scipy.ndimage version of
+'starid-bench[images]'``) every step is SExtractor's; without it a plain scipy.ndimage version of
 the same steps runs (``method="scipy"`` forces it). docs/images.md compares the two on
 rendered images.
 
@@ -254,7 +254,7 @@ def extract(image, *, threshold_sigma: float = 3.0, min_area_px: int = 5, psf_si
     if method == "auto":
         method = "sep" if sep_available() else "scipy"
     if method == "sep" and not sep_available():
-        raise ConfigError("method='sep' needs the sep package: pip install 'starid[images]'")
+        raise ConfigError("method='sep' needs the sep package: pip install 'starid-bench[images]'")
     run = _extract_sep if method == "sep" else _extract_scipy
     if reject_hot_pixels:
         data = _clean_hot_pixels(data, float(psf_sigma_px))

@@ -1,6 +1,6 @@
 """Star images as files: read FITS, TIFF (8/16-bit), PNG and JPEG; write TIFF, FITS and PNG.
 
-Readers (``pip install 'starid[images]'``): FITS through astropy (the first HDU holding a 2-D
+Readers (``pip install 'starid-bench[images]'``): FITS through astropy (the first HDU holding a 2-D
 image, or a 3-plane colour cube), TIFF through tifffile, PNG and JPEG through Pillow. Every
 image comes back as a float64 ``(height, width)`` array of pixel values, rows = y (top row
 first, as the file stores it): colour images become their luminance ``0.2126 R + 0.7152 G +
@@ -44,7 +44,7 @@ def _need(module: str, package: str):
     try:
         return importlib.import_module(module)
     except ImportError:
-        raise ObservationError(f"reading and writing image files needs {package}: pip install 'starid[images]'") \
+        raise ObservationError(f"reading and writing image files needs {package}: pip install 'starid-bench[images]'") \
             from None
 
 

@@ -425,7 +425,7 @@ def identify_images(args) -> int:
 
 def add_identify_options(p: argparse.ArgumentParser) -> None:
     """Options of ``starid identify`` that apply to image files only."""
-    g = p.add_argument_group("image files (FITS, TIFF, PNG, JPEG; needs starid[images])")
+    g = p.add_argument_group("image files (FITS, TIFF, PNG, JPEG; needs starid-bench[images])")
     g.add_argument("--fov-search-pct", type=float, default=None,
                    help="when the given field of view does not fit, search focal lengths up to this many per cent "
                         "off (then refined from the stars; default 5)")

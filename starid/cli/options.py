@@ -61,7 +61,7 @@ def add_engine(p: argparse.ArgumentParser, trials: int | None, seed: int = 0) ->
                    help="worker processes (default: all cores); every result but the times is identical for any "
                         "number")
     p.add_argument("--executor", choices=("local", "dask"), default="local",
-                   help="where chunks run: supervised local processes, or a Dask cluster (starid[dask])")
+                   help="where chunks run: supervised local processes, or a Dask cluster (starid-bench[dask])")
     p.add_argument("--scheduler", metavar="ADDRESS", help="Dask scheduler address (default: a LocalCluster)")
     p.add_argument("--time-limit", type=float, default=DEFAULT_TIME_LIMIT_S, metavar="S",
                    help="per-image identify time limit in seconds; slower images are recorded as 'timeout'")
@@ -153,7 +153,8 @@ def resolution_type(text: str) -> tuple[int, int]:
     try:
         values = [int(v) for v in parts]
     except ValueError:
-        raise argparse.ArgumentTypeError(f"must be N or WIDTHxHEIGHT in px (e.g. 1024 or 1024x768), got {text!r}") from None
+        raise argparse.ArgumentTypeError(
+            f"must be N or WIDTHxHEIGHT in px (e.g. 1024 or 1024x768), got {text!r}") from None
     if len(values) == 1:
         return values[0], values[0]
     if len(values) == 2:
