@@ -22,7 +22,7 @@ from starid_algorithms.pyramid.algorithm import (PairDatabase, build_pair_databa
                                                  pair_limit_rad, window_eps)
 from starid_algorithms.pyramid.kernels import PairTol
 
-from .kernels import VoteRule, identify_kernel, voting_kernel
+from .kernels import VoteRule, identify_kernel, tally_like, voting_kernel
 
 
 #: the guide limit chosen on :data:`starid.camera.REFERENCE_CAMERA` (Table 4: 10 x 10 deg, 1024 x 1024 px)
@@ -321,14 +321,14 @@ class GeometricVoting(Algorithm):
         tol, sensor, rule, vtol = _bundles(self, observation.camera, database.c_max, database.d_min_deg,
                                              _saturates(database), _vote_window(database))
         return voting_kernel(observation.x_px, observation.y_px, observation.mag, database.kv, database.pairs,
-                             database.degree, database.guide_unit, tol, sensor, rule, vtol)
+                             database.degree, database.guide_unit, tol, sensor, rule, vtol, tally_like(rule))
 
     def identify(self, database: PairDatabase, observation: Observation) -> Identification:
         tol, sensor, rule, vtol = _bundles(self, observation.camera, database.c_max, database.d_min_deg,
                                              _saturates(database), _vote_window(database))
         hip, attitude, found = identify_kernel(observation.x_px, observation.y_px, observation.mag, database.kv,
                                                database.pairs, database.degree, database.guide_unit,
-                                               database.guide_hip, tol, sensor, rule, vtol)
+                                               database.guide_hip, tol, sensor, rule, vtol, tally_like(rule))
         return Identification(hip, attitude if found else None)
 
     def explain(self, database: PairDatabase, observation: Observation) -> Explanation:

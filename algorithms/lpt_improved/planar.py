@@ -328,7 +328,7 @@ def confirm(unit, rows, attitude, guides_unit, sensor, acc, solved_from):
     if not stale:   # when stale, the last pass used this A with acc.eps already
         n_seen, n_pred = reproject_assign(A, unit, guides_unit, acc.c_fov + eps, eps, rows, sensor.f_px,
                                           sensor.cx_px, sensor.cy_px, sensor.width_px, sensor.height_px)
-    keep = verify_pairwise(unit, rows, guides_unit, acc.eps, 2, 0.5)
+    keep = verify_pairwise(unit, rows, guides_unit, acc.eps, np.int64(2), 0.5)
     n_keep = 0
     for i in range(n):
         if not keep[i]:
