@@ -26,8 +26,9 @@ from starid.registry import available_algorithms
 
 #: kernel (module.function) -> why it keeps more than one signature.
 EXCEPTIONS = {
-    "starid.kernels.geometry.chord_rows": "float32 catalogue and float64 image vectors (float() casts: equal "
-                                          "values); a 4-line helper, casting catalogues would double their memory",
+    "starid.kernels.geometry.chord_rows": "float32 catalogue and float64 image vectors, int16/uint16 row ids "
+                                          "(float() casts: equal values); a 4-line helper, casting catalogues "
+                                          "would double their memory",
     "starid.kernels.geometry.triple_product": "float32 catalogue and float64 image vectors; a 1-line helper",
     "starid.kernels.geometry.backproject_px": "read-only observation arrays and writable sorted copies; 10 lines",
     "starid.kernels.attitude.wahba_rows": "float32 and float64 catalogue vectors of different plugins",

@@ -332,7 +332,7 @@ def vote_rounds(v_cam, sel, kv, pairs, degree, guide_unit, tol, cam, rule, tally
     listed = np.empty((m, n_guide), dtype=pairs.dtype)
     n_listed = np.zeros(m, dtype=np.int64)
     step = rule.round_voters if rule.round_voters >= 3 else m
-    done = 0
+    done = np.int64(0)   # not a literal: one signature of cast_votes
     last_level = 0
     while True:
         upto = min(m, done + (step if done == 0 else rule.round_step))

@@ -231,7 +231,7 @@ def prepare_image(x_px, y_px, sensor, double_px):
         if usable[i]:
             m += 1
     order = np.empty(m, dtype=np.int64)
-    m = 0
+    m = np.int64(0)   # not a literal: one signature of sort_rows
     for i in range(n):
         if usable[i]:
             order[m] = i
@@ -248,7 +248,7 @@ def image_neighbours(unit, usable, x_px, y_px, s, cos_radius, out):
     """
     n = unit.shape[0]
     key = np.empty(n)
-    k = 0
+    k = np.int64(0)   # not a literal: one signature of sort_rows
     for j in range(n):
         if j == s or not usable[j]:
             continue
