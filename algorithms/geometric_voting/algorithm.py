@@ -28,7 +28,7 @@ from starid.observation import Observation
 from starid.params import check_flag, check_number, check_whole, param
 from starid.plugin import Algorithm, Explanation, Identification
 
-from .kernels import VoteRule, identify_kernel, voting_kernel
+from .kernels import VoteRule, identify_kernel, tally_like, voting_kernel
 
 #: the guide limit chosen on :data:`starid.camera.REFERENCE_CAMERA` (Table 4: 10 x 10 deg, 1024 x 1024 px)
 REF_MAG_LIMIT = 6.0
@@ -344,14 +344,14 @@ class GeometricVoting(Algorithm):
         tol, sensor, rule, vtol = _bundles(self, observation.camera, database.c_max, database.d_min_deg,
                                              _saturates(database), _vote_window(database))
         return voting_kernel(observation.x_px, observation.y_px, observation.mag, database.kv, database.pairs,
-                             database.degree, database.guide_unit, tol, sensor, rule, vtol)
+                             database.degree, database.guide_unit, tol, sensor, rule, vtol, tally_like(rule))
 
     def identify(self, database: PairDatabase, observation: Observation) -> Identification:
         tol, sensor, rule, vtol = _bundles(self, observation.camera, database.c_max, database.d_min_deg,
                                              _saturates(database), _vote_window(database))
         hip, attitude, found = identify_kernel(observation.x_px, observation.y_px, observation.mag, database.kv,
                                                database.pairs, database.degree, database.guide_unit,
-                                               database.guide_hip, tol, sensor, rule, vtol)
+                                               database.guide_hip, tol, sensor, rule, vtol, tally_like(rule))
         return Identification(hip, attitude if found else None)
 
     def explain(self, database: PairDatabase, observation: Observation) -> Explanation:

@@ -212,11 +212,11 @@ def vote(v_cam, sel, start, stop, pairs, degree, tol, once_per_pair, expected, n
     n_listed = np.zeros(m, dtype=np.int64)
     if once_per_pair:
         tally8 = np.zeros((m, n_guide), dtype=np.uint8)
-        cast_votes(start, stop, pairs, 0, m, True, stamp, tally8, level, listed, n_listed)
+        cast_votes(start, stop, pairs, np.int64(0), m, True, stamp, tally8, level, listed, n_listed)
         return rank_votes(v_cam, sel, m, start, stop, tally8, degree, tol, expected, saturate, n_keep, level, listed,
                           n_listed)
     tally32 = np.zeros((m, n_guide), dtype=np.int32)
-    cast_votes(start, stop, pairs, 0, m, False, stamp, tally32, level, listed, n_listed)
+    cast_votes(start, stop, pairs, np.int64(0), m, False, stamp, tally32, level, listed, n_listed)
     return rank_votes(v_cam, sel, m, start, stop, tally32, degree, tol, expected, False, n_keep, level, listed,
                       n_listed)
 
@@ -332,7 +332,7 @@ def vote_rounds(v_cam, sel, kv, pairs, degree, guide_unit, tol, cam, rule, tally
     listed = np.empty((m, n_guide), dtype=pairs.dtype)
     n_listed = np.zeros(m, dtype=np.int64)
     step = rule.round_voters if rule.round_voters >= 3 else m
-    done = 0
+    done = np.int64(0)   # not a literal: one signature of cast_votes
     last_level = 0
     while True:
         upto = min(m, done + (step if done == 0 else rule.round_step))
@@ -355,8 +355,17 @@ def vote_rounds(v_cam, sel, kv, pairs, degree, guide_unit, tol, cam, rule, tally
         done = upto
 
 
+_TALLY_ONCE = np.empty((0, 0), dtype=np.uint8)
+_TALLY_MANY = np.empty((0, 0), dtype=np.int32)
+
+
+def tally_like(rule):
+    """An empty array of the vote counters' dtype for ``rule`` (see :func:`voting_kernel`)."""
+    return _TALLY_ONCE if rule.once_per_pair else _TALLY_MANY
+
+
 @njit(cache=True)
-def voting_kernel(x_px, y_px, mag, kv, pairs, degree, guide_unit, tol, cam, rule, vtol):
+def voting_kernel(x_px, y_px, mag, kv, pairs, degree, guide_unit, tol, cam, rule, vtol, tally_like):
     """Geometric voting on one image. Returns ``(rows, votes, attitude)``.
 
     ``rows[s]``: guide row of detection ``s`` (-1 = unidentified); ``votes[s]``: the votes its
@@ -384,6 +393,10 @@ def voting_kernel(x_px, y_px, mag, kv, pairs, degree, guide_unit, tol, cam, rule
     ``vtol`` is ``tol`` with the voting window: its ``eps`` (at most ``tol.eps``) sets the pair
     windows that vote and the chance votes of the ranking; the shortlist agreement, verification and
     reprojection use ``tol.eps`` (``GeometricVoting``'s derived ``vote_window_px``).
+
+    ``tally_like`` (:func:`tally_like`: an empty uint8 array when ``rule.once_per_pair``, whose
+    votes stay below 255, else int32) gives the vote counters' dtype, so the kernels below are
+    compiled for the one dtype the rule uses instead of both.
     """
     n = x_px.shape[0]
     if n < 3:
@@ -392,18 +405,15 @@ def voting_kernel(x_px, y_px, mag, kv, pairs, degree, guide_unit, tol, cam, rule
     sel = select_stars(x_px, y_px, mag, v_cam, tol.d_min, tol.max_stars)
     if sel.shape[0] < 3:
         return np.full(n, -1, dtype=np.int64), np.full(n, -1, dtype=np.int64), np.zeros((3, 3))
-    m = sel.shape[0]
-    if rule.once_per_pair:
-        tally8 = np.zeros((m, degree.shape[0]), dtype=np.uint8)
-        return vote_rounds(v_cam, sel, kv, pairs, degree, guide_unit, tol, cam, rule, tally8, vtol)
-    tally32 = np.zeros((m, degree.shape[0]), dtype=np.int32)
-    return vote_rounds(v_cam, sel, kv, pairs, degree, guide_unit, tol, cam, rule, tally32, vtol)
+    tally = np.zeros((sel.shape[0], degree.shape[0]), dtype=tally_like.dtype)
+    return vote_rounds(v_cam, sel, kv, pairs, degree, guide_unit, tol, cam, rule, tally, vtol)
 
 
 @njit(cache=True)
-def identify_kernel(x_px, y_px, mag, kv, pairs, degree, guide_unit, guide_hip, tol, cam, rule, vtol):
+def identify_kernel(x_px, y_px, mag, kv, pairs, degree, guide_unit, guide_hip, tol, cam, rule, vtol, tally_like):
     """:func:`voting_kernel` with catalog ids: ``(hip, attitude, found)``, hip -1 = unidentified."""
-    rows, _, attitude = voting_kernel(x_px, y_px, mag, kv, pairs, degree, guide_unit, tol, cam, rule, vtol)
+    rows, _, attitude = voting_kernel(x_px, y_px, mag, kv, pairs, degree, guide_unit, tol, cam, rule, vtol,
+                                      tally_like)
     hip = np.full(rows.shape[0], -1, dtype=np.int64)
     found = False
     for s in range(rows.shape[0]):

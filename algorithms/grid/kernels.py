@@ -163,7 +163,7 @@ def image_weights(cells, nc, spec, weight, touched):
     count (``touched`` lists them, for a cheap reset).
     """
     g = spec.g
-    nt = 0
+    nt = np.int64(0)   # not a literal: one signature of _mark
     for i in range(nc):
         c = cells[i]
         row = c // g
@@ -230,7 +230,7 @@ def identify_kernel(x_px, y_px, sensor, table, guides_unit, spec, acc, trace):
                 w = weight[c]
                 for q in range(np.uint64(table.cell_start[c]), np.uint64(table.cell_start[c + 1])):
                     raw[table.patterns[q]] += w
-            found = 0
+            found = np.int64(0)   # not a literal: one signature of keep_best
             for p in range(n_pat):
                 score = raw[p]
                 raw[p] = 0.0

@@ -384,7 +384,7 @@ def identify_kernel(x_px, y_px, sensor, chars, guides_unit, search, acc, trace):
                 q += 1
         index_image(img_sector, img_level, nz, search, level_start, by_level, mask)
         image = ImageString(img_sector, img_level, nz, level_start, by_level, mask)
-        found = 0
+        found = np.int64(0)   # not a literal: one signature of keep_best
         need = search.min_score
         for g in range(n_guide):
             n_chars = chars.start[g + 1] - chars.start[g]

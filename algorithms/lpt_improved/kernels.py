@@ -139,7 +139,7 @@ def sad_search(table, vec, nz_idx, nz, count_tol, n_best, best_row, best_sad, co
             c = np.int32(col[r])
             d = a - c
             acc[r] += max(d, -d) - c
-    found = 0
+    found = np.int64(0)   # not a literal: one signature of keep_best
     for r in range(r0, r1):
         if found == n_best and -acc[r] <= best_sad[found - 1]:
             continue   # keep_best would drop it

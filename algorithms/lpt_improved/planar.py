@@ -238,7 +238,7 @@ def prepare_image(x_px, y_px, sensor, double_px):
         if usable[i]:
             m += 1
     order = np.empty(m, dtype=np.int64)
-    m = 0
+    m = np.int64(0)   # not a literal: one signature of sort_rows
     for i in range(n):
         if usable[i]:
             order[m] = i
@@ -255,7 +255,7 @@ def image_neighbours(unit, usable, x_px, y_px, s, cos_radius, out):
     """
     n = unit.shape[0]
     key = np.empty(n)
-    k = 0
+    k = np.int64(0)   # not a literal: one signature of sort_rows
     for j in range(n):
         if j == s or not usable[j]:
             continue
@@ -335,7 +335,7 @@ def confirm(unit, rows, attitude, guides_unit, sensor, acc, solved_from):
     if not stale:   # when stale, the last pass used this A with acc.eps already
         n_seen, n_pred = reproject_assign(A, unit, guides_unit, acc.c_fov + eps, eps, rows, sensor.f_px,
                                           sensor.cx_px, sensor.cy_px, sensor.width_px, sensor.height_px)
-    keep = verify_pairwise(unit, rows, guides_unit, acc.eps, 2, 0.5)
+    keep = verify_pairwise(unit, rows, guides_unit, acc.eps, np.int64(2), 0.5)
     n_keep = 0
     for i in range(n):
         if not keep[i]:

@@ -859,7 +859,7 @@ def deep_v_mag(catalog, deep) -> np.ndarray:
 @njit(cache=True)
 def _deep_mag_of(deep, deep_mag, r_icrs, eps_chord, hip):
     """V of the deep star ``hip``, which lies within chord ``eps_chord`` of the ICRS direction ``r_icrs``."""
-    start, stop = z_band_rows(deep.unit, r_icrs[2], 2.0 * eps_chord)
+    start, stop = z_band_rows(deep.unit, float(r_icrs[2]), 2.0 * eps_chord)
     for g in range(start, stop):
         if deep.hip[g] == hip:
             return float(deep_mag[g])
@@ -869,7 +869,7 @@ def _deep_mag_of(deep, deep_mag, r_icrs, eps_chord, hip):
 @njit(cache=True)
 def _rivals(deep, deep_mag, r_icrs, eps_chord, mag_max):
     """How many deep stars with V <= ``mag_max`` lie within chord ``eps_chord`` of the ICRS direction ``r_icrs``."""
-    start, stop = z_band_rows(deep.unit, r_icrs[2], eps_chord)
+    start, stop = z_band_rows(deep.unit, float(r_icrs[2]), eps_chord)
     count = 0
     for g in range(start, stop):
         if deep_mag[g] <= mag_max:

@@ -97,7 +97,7 @@ def nearest_slaves(dist_row, unit, usable, master, d_min, d_max, n_slaves, out):
     n = dist_row.shape[0]
     m = 0
     while m < n_slaves:
-        pick = -1
+        pick = np.int64(-1)   # not a literal: one signature of _before
         for j in range(n):
             if j == master or not usable[j] or not (d_min <= dist_row[j] <= d_max) or dist_row[j] <= 0.0:
                 continue
@@ -366,7 +366,7 @@ def match_rows(unit, view, db, tol):
     m_tri = np.empty(m_cap, dtype=np.int64)
     m_img = np.empty((m_cap, 3), dtype=np.int64)
     m_cat = np.empty((m_cap, 3), dtype=np.int64)
-    n_match = 0
+    n_match = np.int64(0)   # not a literal: one signature of try_hypotheses
     sides = np.empty(3)
     order_img = np.empty(3, dtype=np.int64)
     for master in range(n):
@@ -474,7 +474,7 @@ def match_rows(unit, view, db, tol):
             result[s] = best[s]
     tol_chord = side_beta * math.sqrt(2.0) * sigma
     if tol.verify:
-        keep = verify_pairwise(unit, result, guide_unit, tol_chord, 2, tol.verify_min_fraction)
+        keep = verify_pairwise(unit, result, guide_unit, tol_chord, np.int64(2), tol.verify_min_fraction)
         for s in range(n):
             if not keep[s]:
                 result[s] = -1
@@ -516,11 +516,11 @@ def drop_displaced(unit, result, guide_unit, eps_chord):
         for a in range(3):
             pred[0, a] = (attitude[a, 0] * guide_unit[g, 0] + attitude[a, 1] * guide_unit[g, 1]
                           + attitude[a, 2] * guide_unit[g, 2])
-        own = chord_rows(unit, s, pred, 0)
+        own = chord_rows(unit, s, pred, np.int64(0))
         if own <= eps_chord:
             continue
         for t in range(n):
-            if t != s and chord_rows(unit, t, pred, 0) < own:
+            if t != s and chord_rows(unit, t, pred, np.int64(0)) < own:
                 drop[s] = True
                 break
     n_found = 0

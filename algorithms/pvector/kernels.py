@@ -228,7 +228,7 @@ def match_extras(oc, by_c0, c0_sorted, tri_obs, cat_rows, unit, eps, c_band, out
     r0 = cat_rows[0]
     r1 = cat_rows[1]
     r2 = cat_rows[2]
-    g, g_stop = z_band_rows(unit, unit[r0, 2], c_band)
+    g, g_stop = z_band_rows(unit, float(unit[r0, 2]), c_band)
     while g < g_stop:
         if g != r0 and g != r1 and g != r2:
             c0 = chord_rows(unit, g, unit, r0)
@@ -357,7 +357,7 @@ def identify_rows(x_px, y_px, mag, frame, db, tol):
     hyp_cap = tol.hypotheses if n >= need else 0
     hyp_obs = np.empty((hyp_cap, 3), dtype=np.int64)
     hyp_cat = np.empty((hyp_cap, 3), dtype=np.int64)
-    n_hyp = 0
+    n_hyp = np.int64(0)   # not a literal: one signature of whole_image_pass
 
     for oi in range(n):
         s = order[oi]
@@ -452,7 +452,7 @@ def identify_rows(x_px, y_px, mag, frame, db, tol):
                     continue
                 for j in range(3):
                     rows_best[tri_obs[j]] = best_map[j]
-                keep = verify_pairwise(v, rows_best, unit, eps, 0, 1.0)   # every pair must agree
+                keep = verify_pairwise(v, rows_best, unit, eps, np.int64(0), 1.0)   # every pair must agree
                 n_keep = 0
                 for i in range(n):
                     if keep[i]:

@@ -110,7 +110,7 @@ def table_insert(table_word, table_pattern, keys, edges, patterns):
     size = table_word.shape[0]
     longest = 0
     for i in range(keys.shape[0]):
-        s = hash_slot(keys[i], size)
+        s = hash_slot(np.int64(keys[i]), size)   # int64 keys everywhere: one signature
         run = 0
         while table_word[s] != EMPTY:
             s += 1
@@ -422,9 +422,9 @@ def identify_kernel(x_px, y_px, mag, table, tol, record):
                             img_edge[a, b] = chord_rows(unit, img4[a], unit, img4[b])
                     for p in range(5):
                         digit[p] = lo[p]
-                    n_slot = 0
+                    n_slot = np.int64(0)   # not a literal: one signature of table_lookup
                     while True:             # every key of the window (odometer over the digits)
-                        key = 0
+                        key = np.int64(0)
                         for p in range(5):
                             key = key * bins + digit[p]
                         first = n_slot

@@ -84,7 +84,7 @@ def z_band_rows(unit, z_centre, c_radius):
     dec0 = math.asin(max(-1.0, min(1.0, float(z_centre))))
     z_lo = math.sin(max(-0.5 * math.pi, dec0 - half))
     z_hi = math.sin(min(0.5 * math.pi, dec0 + half))
-    return z_bound(unit, z_lo, False), z_bound(unit, z_hi, True)
+    return z_bound(unit, z_lo, np.bool_(False)), z_bound(unit, z_hi, np.bool_(True))   # runtime bools: one signature
 
 
 @njit(cache=True)
@@ -121,7 +121,7 @@ def reproject_assign(A, v_cam, unit, c_fov, eps, out_row, f_px, cx_px, cy_px, wi
     n_predicted = 0
     g_start, g_stop = z_band_rows(unit, bore[0, 2], c_fov)
     for g in range(g_start, g_stop):
-        if chord_rows(unit, g, bore, 0) > c_fov:
+        if chord_rows(unit, g, bore, np.int64(0)) > c_fov:
             continue
         for a in range(3):
             b[0, a] = A[a, 0] * unit[g, 0] + A[a, 1] * unit[g, 1] + A[a, 2] * unit[g, 2]
@@ -133,7 +133,7 @@ def reproject_assign(A, v_cam, unit, c_fov, eps, out_row, f_px, cx_px, cy_px, wi
         found = -1
         n_found = 0
         for i in range(n):
-            if chord_rows(v_cam, i, b, 0) <= eps:
+            if chord_rows(v_cam, i, b, np.int64(0)) <= eps:
                 n_found += 1
                 found = i
         if n_found == 1:
@@ -141,6 +141,6 @@ def reproject_assign(A, v_cam, unit, c_fov, eps, out_row, f_px, cx_px, cy_px, wi
             out_row[found] = g
         elif n_found > 1:
             for i in range(n):
-                if chord_rows(v_cam, i, b, 0) <= eps:
+                if chord_rows(v_cam, i, b, np.int64(0)) <= eps:
                     n_match[i] += 2
     return keep_unique(n_match, out_row), n_predicted
