@@ -84,3 +84,16 @@ def test_realism_runs_every_camera_and_effect_and_its_flight_rule():
     assert {s.trials for s in realism.experiment(40, flight_trials=100).studies if s.name.startswith("flight")} \
         == {100}
     assert {s.trials for s in realism.experiment(6000).studies if s.name.startswith("flight")} == {6000}
+
+
+def test_realism_gives_the_cubesat_algorithms_the_sensors_guide_star_limit():
+    from starid.experiments import realism
+
+    exp = realism.experiment(10, flight_trials=10)
+    cube = next(s for s in exp.studies if s.name == "rate_cubesat_wide")
+    table4 = next(s for s in exp.studies if s.name == "rate_table4")
+    params = {v.label: dict(v.params) for v in cube.variants}
+    assert params["pyramid"] == {"mag_limit": 3.8}          # its default 6.0 does not follow the world
+    assert params["grid"] == {}                             # grid follows the world's mag_limit
+    assert all(not v.params for v in table4.variants)       # Table 4: every default
+    assert [v.label for v in cube.variants] == [v.label for v in table4.variants]

@@ -7,7 +7,9 @@ same images), at a base of 0.5 px / 0.2 Mv noise in the real sky, on two cameras
 
 * ``table4``: Zhou & Ye's Table 4 camera (1024 x 1024 px, 10 x 10 deg), detection limit V 6;
 * ``cubesat_wide``: the wide CubeSat preset (Erlank 2013: 1024 x 512 px, 50 x 26 deg) at its
-  published limiting magnitude V 3.8 (a fixed ``mag_limit`` axis of its studies).
+  published limiting magnitude V 3.8 (a fixed ``mag_limit`` axis of its studies); the algorithms
+  whose guide-star limit does not follow the world's get it set to the sensor's
+  (:func:`camera_variants`), as a designer would configure them for this sensor.
 
 Neither preset gives an exposure time, so the smear's exposure is
 :data:`starid.sky.DEFAULT_EXPOSURE_S` = 0.1 s on both. Each effect is swept alone from zero to a
@@ -90,6 +92,32 @@ def variants() -> tuple[str, ...]:
     return registered_beyond(())
 
 
+def camera_variants(fixed_cam: dict) -> tuple:
+    """The algorithms on a camera whose detection limit is not the base's: an algorithm whose
+    ``mag_limit`` does not follow the world's keeps its own margin above it (its default minus
+    the base V 6; a derived default, None, gets the limit itself), so its guide catalog is the
+    sensor's; labelled by the plain name."""
+    import dataclasses
+
+    from ..experiment import Variant
+    from ..registry import get_algorithm
+
+    names = variants()
+    if "mag_limit" not in fixed_cam:
+        return names
+    out = []
+    for name in names:
+        cls = get_algorithm(name)
+        fields = {f.name: f.default for f in dataclasses.fields(cls)} if dataclasses.is_dataclass(cls) else {}
+        if "mag_limit" not in fields or "mag_limit" in getattr(cls, "follows", {}):
+            out.append(Variant(name))
+            continue
+        default = fields["mag_limit"]
+        margin = default - SIM["mag_limit"] if isinstance(default, (int, float)) else 0.0
+        out.append(Variant(name, (("mag_limit", round(fixed_cam["mag_limit"] + margin, 3)),), label=name))
+    return tuple(out)
+
+
 def study_name(effect: str, camera: str) -> str:
     return f"{effect}_{camera}"
 
@@ -97,10 +125,10 @@ def study_name(effect: str, camera: str) -> str:
 def experiment(trials: int = DEFAULT_TRIALS, seed: int = 0, flight_trials: int | None = None) -> Experiment:
     """The experiment: ``trials`` images per sweep point, ``flight_trials`` (default
     ``max(FLIGHT_TRIALS, trials)``) at each flight point."""
-    algos = variants()
     flight_n = max(FLIGHT_TRIALS, trials) if flight_trials is None else int(flight_trials)
     studies = []
     for cam, (spec, fixed_cam) in CAMERAS.items():
+        algos = camera_variants(fixed_cam)
         for effect, (axis, values, fixed, _, _) in SWEEPS.items():
             grid = Grid({axis: values, **{k: [v] for k, v in {**fixed_cam, **fixed}.items()}})
             camera = DISTORTED[cam] if effect == "distortion" else spec
