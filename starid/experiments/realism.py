@@ -22,7 +22,7 @@ harsh value (:data:`SWEEPS`; study ``EFFECT_CAMERA``, e.g. ``rate_table4``):
   the field (:func:`starid.sky.forced_planets`), boresights within 5 deg of the ecliptic; the same
   attitudes and draws at every count, so the k-planet field is the (k-1)-planet field plus one;
 * ``aberration``: observer speed 0-40 km/s (the catalog the algorithms use is not corrected);
-* ``focal``: the algorithms' assumed focal length off by 0-2 % (the cameras issue's calibration
+* ``focal``: the algorithms' assumed focal length off by 0-1 % (the cameras issue's calibration
   error, docs/cameras.md);
 * ``distortion``: the same optics with a barrel lens of k1 = -0.1 (``cubesat_wide_distorted``;
   on Table 4 the same k1 in :data:`DISTORTED`), the algorithms given the true lens
@@ -80,7 +80,7 @@ SWEEPS = {
                 f"Planets: id rate vs naked-eye planets in the field (near the ecliptic, magnitudes at {EPOCH})"),
     "aberration": ("velocity_kms", [0.0, 20.0, 40.0], {}, "speed (km/s)",
                    "Stellar aberration: id rate vs observer speed (catalog not corrected)"),
-    "focal": ("focal_error_pct", [0.0, 0.5, 1.0, 2.0], {}, "focal error (%)",
+    "focal": ("focal_error_pct", [0.0, 0.5, 1.0], {}, "focal error (%)",
               "Calibration: id rate vs focal-length error"),
     "distortion": ("assumed_distortion", ["true", "none"], {}, "assumed lens",
                    "Uncalibrated distortion: k1 = -0.1 lens, algorithms given the true lens or a pinhole"),
