@@ -47,6 +47,9 @@ AXIS_NAMES = {
     "sigma_px": "centroid noise σ (px)", "sigma_mag": "magnitude noise σ (mag)", "false_stars": "false stars per image",
     "lost_stars": "lost stars per image", "mag_limit": "detection limit (mag)", "sky_mag_limit": "sky limit V (mag)",
     "min_stars": "minimum true stars per image", "merge_radius_px": "merge radius (px)", "sky": "sky",
+    "rate_deg_s": "angular rate (deg/s)", "velocity_kms": "observer speed (km/s)",
+    "planets_in_view": "planets in view (count)", "focal_error_pct": "focal-length error (%)",
+    "assumed_distortion": "lens the algorithms assume",
 }
 #: How ``starid show`` marks each star (shape first, colour second).
 STAR_MARKS = {

@@ -89,6 +89,8 @@ class SimConfig:
     moon: bool = False
     near_ecliptic: bool = False
     velocity_kms: float = 0.0
+    #: that many of the naked-eye planets imaged in every field (:func:`starid.sky.forced_planets`)
+    planets_in_view: int = 0
 
     def __post_init__(self):
         for name in ("planets", "moon", "near_ecliptic"):   # 0/1 from a numeric grid axis
@@ -97,6 +99,8 @@ class SimConfig:
                 object.__setattr__(self, name, bool(value))
             elif not isinstance(value, bool):
                 raise ConfigError(f"{name} must be true or false, got {value!r}")
+        if isinstance(self.planets_in_view, float) and self.planets_in_view.is_integer():   # 2.0 from --param
+            object.__setattr__(self, "planets_in_view", int(self.planets_in_view))
         sky.check_config(self)
         for name in ("sigma_px", "sigma_mag", "merge_radius_px"):
             check_number(name, getattr(self, name), lo=0)
@@ -246,6 +250,10 @@ class Simulator:
         mag = v_mag + z[0] * cfg.sigma_mag
         x_px = x_px + z[1] * cfg.sigma_px
         y_px = y_px + z[2] * cfg.sigma_px
+        forced = sky.forced_planets(cfg, cam, draws) if cfg.planets_in_view else None
+        if forced is not None:   # planets_in_view: planets put into the field (truth id -1)
+            x_px, y_px, mag = (np.concatenate([a, b]) for a, b in zip((x_px, y_px, mag), forced, strict=True))
+            hip = np.concatenate([hip, np.full(forced[0].size, sky.PLANET_ID, dtype=hip.dtype)])
         keep = (mag <= cfg.mag_limit) & cam.in_image(x_px, y_px)
         x_px, y_px, mag, hip = x_px[keep], y_px[keep], mag[keep], hip[keep]
         if cfg.lost_stars:

@@ -11,6 +11,11 @@
 * **Planets** (``planets``, ``moon``, ``epoch``): Mercury..Neptune (and the Moon) at their
   geocentric apparent places (astropy's built-in ephemeris, nothing downloaded) with magnitudes
   from :func:`planet_v_mag`; they carry no HIP (truth id -1, like a false star).
+* **Planets in view** (``planets_in_view`` = k, with ``epoch``): k of the five naked-eye planets
+  (:data:`NAKED_EYE`, a random choice per trial, nested: the k + 1 field holds the k field's
+  planets and one more) are imaged in every field at their apparent magnitudes at the epoch and
+  at positions drawn uniformly on the sensor (stream 3), so "planets in view" is a controlled
+  axis (:func:`forced_planets`); the real planets are seldom within one field of each other.
 * **Near the ecliptic** (``near_ecliptic``): boresights drawn uniformly in the band
   ``|ecliptic latitude| <= NEAR_ECLIPTIC_DEG`` (the roll and the draw stream unchanged).
 * **Proper motion** (``epoch``): the stars imaged at their places at the epoch, propagated from
@@ -52,6 +57,8 @@ STREAK_STEP_SIGMAS = 0.5
 #: The planets, in order, and the truth id they get (no HIP).
 PLANETS = ("mercury", "venus", "mars", "jupiter", "saturn", "uranus", "neptune")
 PLANET_ID = -1
+#: The planets ``planets_in_view`` draws from: the five seen with the naked eye (V < 6 at any epoch).
+NAKED_EYE = ("mercury", "venus", "mars", "jupiter", "saturn")
 #: V(1, 0) and phase coefficients (per deg, deg^2, deg^3) of the planets' magnitudes: Meeus,
 #: Astronomical Algorithms (2nd ed. 1998), ch. 41, the Astronomical Almanac (1984) formulae;
 #: Saturn without its rings' term (up to ~1 mag too faint at the rings' widest).
@@ -104,6 +111,13 @@ def check_config(config) -> None:
         rate_axis(config)
     if (config.planets or config.moon) and config.epoch is None:
         raise ConfigError("planets and moon need an epoch (ISO UTC, e.g. --epoch 2030-01-01T00:00:00)")
+    k = config.planets_in_view
+    if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or not 0 <= k <= len(NAKED_EYE):
+        raise ConfigError(f"planets_in_view must be a whole number from 0 to {len(NAKED_EYE)}, got {k!r}")
+    if k and config.epoch is None:
+        raise ConfigError("planets_in_view needs an epoch (the planets' magnitudes), e.g. epoch = 2030-01-01T00:00:00")
+    if k and config.pipeline != "centroids":
+        raise ConfigError("planets_in_view is a centroid-mode setting; use planets = true with --pipeline image")
     parse_epoch(config.epoch)
 
 
@@ -132,7 +146,13 @@ def trial_draws(config, seed: int, trial: int) -> dict:
     smear_axis = _unit_sphere(rng)
     apex = _unit_sphere(rng)
     given = rate_axis(config)
-    return {"smear_axis": given if given is not None else smear_axis, "apex": apex}
+    out = {"smear_axis": given if given is not None else smear_axis, "apex": apex}
+    if getattr(config, "planets_in_view", 0):   # after the draws above, which stay the same
+        n = len(NAKED_EYE)
+        out["planet_order"] = rng.permutation(n)
+        out["planet_uv"] = rng.uniform(0.0, 1.0, (2, n))
+        out["planet_z"] = rng.normal(0.0, 1.0, (3, n))
+    return out
 
 
 def smear_on(config) -> bool:
@@ -329,6 +349,29 @@ def world_stars(unit_icrs, v_mag, hip, config):
     return (np.concatenate([unit_icrs, u]), np.concatenate([v_mag, m]),
             np.concatenate([hip, np.full(len(m), PLANET_ID, dtype=hip.dtype)]),
             np.concatenate([body, np.ones(len(m), dtype=bool)]))
+
+
+@lru_cache(maxsize=8)
+def naked_eye_v_mag(epoch_iso: str) -> np.ndarray:
+    """V magnitudes of :data:`NAKED_EYE` at ``epoch_iso`` (:func:`planet_places`)."""
+    names, _, mags = planet_places(epoch_iso)
+    return np.array([mags[names.index(n)] for n in NAKED_EYE])
+
+
+def forced_planets(config, camera, draws):
+    """The ``planets_in_view`` planets of one trial as detections before the detection cut:
+    ``(x_px, y_px, mag)``, each uniform on the sensor with the trial's centroid and magnitude
+    noise (the same unit draws at every k, so the k-planet field is the (k-1)-planet field plus
+    one planet). Blending with a star closer than the merge radius is not modelled."""
+    k = config.planets_in_view
+    if not k:
+        return None
+    pick = draws["planet_order"][:k]
+    when = parse_epoch(config.epoch).strftime("%Y-%m-%dT%H:%M:%S.%f")
+    u, v = draws["planet_uv"][:, pick]
+    z = draws["planet_z"][:, pick]
+    return (u * camera.width_px + z[1] * config.sigma_px, v * camera.height_px + z[2] * config.sigma_px,
+            naked_eye_v_mag(when)[pick] + z[0] * config.sigma_mag)
 
 
 # --- the trial nearest a boresight ------------------------------------------------------------

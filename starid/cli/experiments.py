@@ -174,7 +174,8 @@ def reproduce(args, name: str) -> tuple[str, pd.DataFrame, object]:
     """Run a built-in experiment, write its tables beside the results; the Markdown text."""
     mod = builtin.get(name)
     trials = args.trials if args.trials is not None else mod.DEFAULT_TRIALS
-    exp = mod.experiment(trials, args.seed)
+    extra = {"flight_trials": args.flight_trials} if getattr(args, "flight_trials", None) else {}
+    exp = mod.experiment(trials, args.seed, **extra)
     check_out(args.out)
     if hasattr(mod, "run"):     # an experiment over several cameras runs its parts (experiments/cameras.py)
         frame, wall_s = mod.run(args, _engine)
@@ -289,6 +290,8 @@ def add_parsers(sub, formatter) -> None:
                        formatter_class=formatter, epilog=EXAMPLES["reproduce"])
     p.add_argument("name", metavar="NAME", help="a built-in experiment (see 'starid experiment list')")
     p.add_argument("--trials", type=trials_type, default=None, help="images per grid point (default: the experiment's)")
+    p.add_argument("--flight-trials", type=trials_type, default=None,
+                   help="realism only: images at each flight point (default: max(5000, --trials))")
     add_engine(p, trials=None)
     add_out(p, "NAME.md, tables/*.csv and *.md, results.parquet, manifest.json")
     p.set_defaults(func=cmd_reproduce)

@@ -42,6 +42,8 @@ class Chunk:
     variant: Variant
     start: int
     stop: int
+    #: the study's own camera (:attr:`Study.camera`); None = the experiment's
+    camera: object = None
 
 
 @dataclass(frozen=True)
@@ -87,12 +89,18 @@ def catalog_identity(catalog) -> str:
 
 def plan(experiment: Experiment, catalog, rule: SuccessRule = SuccessRule()) -> list[Placement]:
     """Every chunk of the experiment, in frame order (study, point, variant, block)."""
-    camera = experiment.make_camera()
-    common = {"camera": camera.as_dict(), "seed": experiment.seed, "catalog": catalog_identity(catalog),
+    base_camera = experiment.make_camera()
+    common = {"camera": base_camera.as_dict(), "seed": experiment.seed, "catalog": catalog_identity(catalog),
               "rule": rule.min_correct, "starid": versions()["starid_version"], "core": source_fingerprint("starid")}
     plugin_code: dict[str, str] = {}
     out = []
     for study in experiment.studies:
+        own = None if study.camera is None else experiment.study_camera(study)
+        if own is not None:
+            common = {**common, "camera": own.as_dict()}
+        elif common["camera"] != base_camera.as_dict():
+            common = {**common, "camera": base_camera.as_dict()}
+        trials = experiment.study_trials(study)
         for p, point in enumerate(study.grid.points()):
             settings = sim_settings(experiment.sim, point)
             settings_key = _hash(settings)
@@ -102,14 +110,14 @@ def plan(experiment: Experiment, catalog, rule: SuccessRule = SuccessRule()) -> 
                 if variant.name not in plugin_code:
                     plugin_code[variant.name] = source_fingerprint(info.cls.__module__.rpartition(".")[0]
                                                                    or info.cls.__module__)
-                for start in range(0, experiment.trials, BLOCK):
-                    stop = min(start + BLOCK, experiment.trials)
+                for start in range(0, trials, BLOCK):
+                    stop = min(start + BLOCK, trials)
                     key = _hash({**common, "settings": settings, "algorithm": variant.name,
                                  "params": [list(kv) for kv in variant.params], "label": variant.label,
                                  "plugin": [info.dist, info.dist_version, plugin_code[variant.name]],
                                  "start": start, "stop": stop})
                     out.append(Placement(study.name, p, point, Chunk(key, settings, settings_key, variant, start,
-                                                                     stop)))
+                                                                     stop, own)))
     return out
 
 
@@ -144,7 +152,8 @@ def run_experiment(experiment: Experiment, out: str | Path | None = None, jobs: 
     todo = [chunks[k] for k in keys if store is None or not store.has(k)]
     ex = make_executor(executor, jobs, scheduler, time_limit_s)
     camera = experiment.make_camera()
-    tasks = [Task(i, c, catalog_path, camera, experiment.seed, rule.min_correct) for i, c in enumerate(todo)]
+    tasks = [Task(i, c, catalog_path, camera if c.camera is None else c.camera, experiment.seed, rule.min_correct)
+             for i, c in enumerate(todo)]
     bar = _progress_bar(len(tasks), sys.stderr.isatty() if progress is None else progress)
 
     def on_result(task: Task, frame: pd.DataFrame) -> None:
@@ -179,7 +188,7 @@ def assemble(placements: list[Placement], experiment: Experiment, read) -> pd.Da
         lead = {"study": pl.study, "point": pl.point, **{f"grid_{k}": v for k, v in pl.grid_values.items()}}
         tail = {"seed": experiment.seed,
                 **{f"sim_{k}": v for k, v in SimConfig(**pl.chunk.settings).as_dict().items()},
-                **camera.columns()}
+                **(camera if pl.chunk.camera is None else pl.chunk.camera).columns()}
         frames.append(pd.concat([constant_columns(lead, df.index), df, constant_columns(tail, df.index)], axis=1))
     out = keep_integers(pd.concat(frames, ignore_index=True), integer_columns(frames))   # 8, not 8.0 (#27)
     return _uniform_types(out)

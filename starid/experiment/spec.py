@@ -202,11 +202,17 @@ def sim_settings(base: dict, point: dict) -> dict:
 
 @dataclass(frozen=True)
 class Study:
-    """Some algorithm variants at every point of a grid."""
+    """Some algorithm variants at every point of a grid.
+
+    ``trials`` (images per point) and ``camera`` (a camera spec as :attr:`Experiment.camera`)
+    override the experiment's for this study alone; None keeps the experiment's.
+    """
 
     name: str
     variants: tuple
     grid: Grid = field(default_factory=Grid)
+    trials: int | None = None
+    camera: dict | None = None
 
     def __post_init__(self):
         variants = tuple(v if isinstance(v, Variant) else Variant.parse(v) for v in self.variants)
@@ -218,6 +224,10 @@ class Study:
                               f"give each variant its own parameters or label")
         if not variants:
             raise ConfigError(f"study {self.name!r} has no algorithms")
+        if self.trials is not None and (isinstance(self.trials, bool) or not isinstance(self.trials, int)
+                                        or not 1 <= self.trials <= 10_000_000):
+            raise ConfigError(f"study {self.name!r}: trials must be an integer from 1 to 10,000,000, "
+                              f"got {self.trials!r}")
 
 
 @dataclass(frozen=True)
@@ -245,8 +255,18 @@ class Experiment:
             raise ConfigError("an experiment needs at least one study, each with its own name")
         self.make_camera()
         for study in self.studies:
+            self.study_camera(study)
             for point in study.grid.points():
                 sim_settings(self.sim, point)
+
+    def study_trials(self, study: Study) -> int:
+        """Images per point of ``study``: its own ``trials``, else the experiment's."""
+        return study.trials if study.trials is not None else self.trials
+
+    def study_camera(self, study: Study) -> Camera:
+        """The camera of ``study``: its own ``camera`` spec, else the experiment's."""
+        return self.make_camera() if study.camera is None else Experiment(
+            self.name, (Study(study.name, study.variants),), camera=dict(study.camera)).make_camera()
 
     def make_camera(self) -> Camera:
         spec = dict(self.camera)
@@ -271,7 +291,9 @@ class Experiment:
         return {"name": self.name, "description": self.description, "trials": self.trials, "seed": self.seed,
                 "camera": dict(self.camera), "sim": dict(self.sim),
                 "studies": [{"name": s.name, "variants": [v.to_dict() for v in s.variants],
-                             "grid": {"axes": {k: list(v) for k, v in s.grid.axes}, "mode": s.grid.mode}}
+                             "grid": {"axes": {k: list(v) for k, v in s.grid.axes}, "mode": s.grid.mode},
+                             **({"trials": s.trials} if s.trials is not None else {}),
+                             **({"camera": dict(s.camera)} if s.camera is not None else {})}
                             for s in self.studies]}
 
     def digest(self) -> str:
@@ -305,7 +327,9 @@ class Experiment:
                 grid_obj = Grid(grid["axes"], grid.get("mode", "product"))
             else:
                 grid_obj = Grid(grid, s.get("mode", "product"))
-            out.append(Study(s.get("name", "main"), tuple(variants), grid_obj))
+            camera = s.get("camera")
+            out.append(Study(s.get("name", "main"), tuple(variants), grid_obj, s.get("trials"),
+                             {"preset": camera} if isinstance(camera, str) else camera))
         unknown = set(d) - {"name", "trials", "seed", "camera", "sim", "description"}
         if unknown:
             raise ConfigError(f"unknown experiment key(s) {sorted(unknown)}")
