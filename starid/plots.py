@@ -26,7 +26,7 @@ import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
-from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
+from matplotlib.ticker import FuncFormatter, LogLocator, MaxNLocator, NullFormatter
 
 from .stats import mcnemar, wilson_interval
 
@@ -252,6 +252,8 @@ def rate_curve(frame: pd.DataFrame, axis: str, paper: pd.DataFrame | None = None
     if not numeric:
         ax.set_xticks(range(len(cats)), [str(c) for c in cats])
         ax.set_xlim(-0.5, len(cats) - 0.5)
+    elif np.all(np.mod(r[col].astype(float).to_numpy(), 1.0) == 0.0):   # a count: no 0.5 ticks
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True))
     ax.set_xlabel(axis_name(axis))
     ax.set_ylabel("identification rate (%), 95 % Wilson band")
     lo_y = min(100 * r["lo"].min(), 100 * paper["paper_id_rate"].astype(float).min()

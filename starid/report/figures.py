@@ -145,7 +145,7 @@ def save(figures: list[ReportFigure], folder: Path, svg: bool = True) -> list[Pa
     paths = []
     for f in figures:
         png = folder / f"{f.name}.png"
-        f.figure.savefig(png, dpi=150, facecolor="white")
+        f.figure.savefig(png, dpi=150, facecolor="white", bbox_inches="tight", pad_inches=0.1)
         if svg:
             f.figure.savefig(folder / f"{f.name}.svg", facecolor="white")
         paths.append(png)
