@@ -10,21 +10,89 @@ A chunk's file name is the hash of everything that determines its rows (settings
 plugin version, trial range, seed, starid version), so resuming is a file-existence test and
 rows of two definitions can never mix: a changed experiment simply asks for other keys. A folder
 holding anything else, or another experiment's results, is refused.
+
+The manifest's ``checksums`` map each chunk key to the SHA-256 of its file (updated as each chunk
+is written). On resume a chunk that does not match its checksum, or (written before checksums or
+before the manifest caught up) does not read, is damaged -- a truncated or corrupted file after a
+full disk or a partial copy: it is reported in one line, set aside as
+``chunks/<key>.parquet.damaged`` (never deleted) and recomputed (:meth:`Store.usable`);
+:func:`damaged_chunks` lists them for ``starid report``.
 """
 
 from __future__ import annotations
 
+import hashlib
 import io
 import json
+import warnings
 from pathlib import Path
 
 import pandas as pd
 
-from ..errors import ConfigError
+from ..errors import ConfigError, StarIDWarning
 from ..io import atomic_write_bytes, atomic_write_text
 from ..provenance import command_line, machine
 
 MANIFEST = "manifest.json"
+#: manifest key: chunk key -> SHA-256 (hex) of ``chunks/<key>.parquet``
+CHECKSUMS = "checksums"
+#: suffix a damaged chunk file is renamed to (set aside, never deleted)
+DAMAGED = ".damaged"
+
+
+def file_sha256(path: str | Path) -> str:
+    """SHA-256 (hex) of a file's bytes."""
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def chunk_problem(path: str | Path, checksum: str | None) -> str | None:
+    """Why the chunk file at ``path`` cannot be used (``None``: it can): unreadable, or not the
+    ``checksum`` the manifest recorded for it. Without a checksum the file must read as Parquet."""
+    path = Path(path)
+    try:
+        digest = file_sha256(path)
+    except OSError as exc:
+        return f"unreadable ({exc.strerror})"
+    if checksum is not None:
+        return None if digest == checksum else f"checksum mismatch (manifest {checksum[:12]}, file {digest[:12]})"
+    try:
+        pd.read_parquet(path)
+    except Exception as exc:  # pyarrow raises several types for a damaged file
+        return f"unreadable ({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''})"
+    return None
+
+
+def damaged_chunks(root: str | Path) -> list[tuple[str, str]]:
+    """``(chunk key, problem)`` of every chunk of the manifest whose file is there but damaged
+    (checksum mismatch or unreadable; missing chunks are not listed), in manifest order."""
+    root = Path(root)
+    manifest = read_manifest(root)
+    sums = manifest.get(CHECKSUMS) or {}
+    out = []
+    for key in manifest.get("chunks") or []:
+        path = root / "chunks" / f"{key}.parquet"
+        if path.is_file():
+            problem = chunk_problem(path, sums.get(key))
+            if problem is not None:
+                out.append((key, problem))
+    return out
+
+
+def damaged_note(root: str | Path) -> str:
+    """``""``, or a sentence naming the damaged chunks of a results folder (for ``starid report``)."""
+    try:
+        bad = damaged_chunks(root)
+    except ConfigError:
+        return ""
+    if not bad:
+        return ""
+    return (f"; {len(bad)} damaged chunk(s) in {Path(root) / 'chunks'}: "
+            + ", ".join(f"{key}.parquet ({problem})" for key, problem in bad)
+            + " -- run the same command again: it sets them aside and recomputes them")
 
 
 class Store:
@@ -34,6 +102,8 @@ class Store:
         self.root = Path(root)
         self.experiment = experiment
         self.chunks = self.root / "chunks"
+        self.checksums: dict[str, str] = {}
+        self._manifest: dict | None = None
         self._check()
 
     def _check(self) -> None:
@@ -53,6 +123,8 @@ class Store:
             if name != self.experiment.name:
                 raise ConfigError(f"--out {root} holds results of experiment {name!r}, not {self.experiment.name!r}; "
                                   f"choose another folder")
+            if isinstance(old.get(CHECKSUMS), dict):
+                self.checksums = {str(k): str(v) for k, v in old[CHECKSUMS].items()}
         try:
             self.chunks.mkdir(parents=True, exist_ok=True)
             probe = root / ".write-test"
@@ -64,10 +136,38 @@ class Store:
     def has(self, key: str) -> bool:
         return (self.chunks / f"{key}.parquet").is_file()
 
+    def usable(self, key: str) -> bool:
+        """The chunk is there and whole. A damaged one (:func:`chunk_problem`) is reported in one
+        line (a :class:`StarIDWarning`), set aside as ``<key>.parquet.damaged`` and reported missing,
+        so that it is recomputed."""
+        path = self.chunks / f"{key}.parquet"
+        if not path.is_file():
+            return False
+        problem = chunk_problem(path, self.checksums.get(key))
+        if problem is None:
+            if key not in self.checksums:
+                self.checksums[key] = file_sha256(path)
+            return True
+        aside = path.with_name(path.name + DAMAGED)
+        n = 1
+        while aside.exists():
+            n += 1
+            aside = path.with_name(f"{path.name}{DAMAGED}-{n}")
+        path.rename(aside)
+        self.checksums.pop(key, None)
+        warnings.warn(f"chunk {key} in {self.root} is damaged: {problem}; set aside as chunks/{aside.name}, "
+                      f"recomputing it", StarIDWarning, stacklevel=2)
+        return False
+
     def write(self, key: str, frame: pd.DataFrame) -> None:
         buf = io.BytesIO()
         frame.to_parquet(buf, index=False)
-        atomic_write_bytes(self.chunks / f"{key}.parquet", buf.getvalue())
+        data = buf.getvalue()
+        atomic_write_bytes(self.chunks / f"{key}.parquet", data)
+        self.checksums[key] = hashlib.sha256(data).hexdigest()
+        if self._manifest is not None:      # the manifest follows every chunk (a killed run keeps its sums)
+            self._manifest[CHECKSUMS] = dict(self.checksums)
+            atomic_write_text(self.root / MANIFEST, json.dumps(self._manifest, indent=2, default=str) + "\n")
 
     def read(self, key: str) -> pd.DataFrame:
         return pd.read_parquet(self.chunks / f"{key}.parquet")
@@ -77,6 +177,8 @@ class Store:
                 "machine": machine(), "command": command_line(), "started": started, "finished": finished,
                 "chunks": keys, **(extra or {})}
         data["camera"] = self.experiment.make_camera().as_dict()    # the resolved camera, every field (#23)
+        data[CHECKSUMS] = dict(self.checksums)
+        self._manifest = data
         atomic_write_text(self.root / MANIFEST, json.dumps(data, indent=2, default=str) + "\n")
 
     def write_results(self, frame: pd.DataFrame) -> Path:
