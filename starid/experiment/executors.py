@@ -37,6 +37,7 @@ from ..provenance import versions
 from ..registry import algorithm_info
 from ..scoring import CRASHED, ERROR, TIMEOUT, SuccessRule
 from ..simulate import SimConfig, Simulator
+from .store import release_in_child
 from .warmup import schedule
 
 DEFAULT_TIME_LIMIT_S = 10.0
@@ -141,6 +142,7 @@ class _Unmade:
 # ---- local supervised workers ------------------------------------------------------------------
 
 def _worker_main(conn, beat):
+    release_in_child()          # a worker outliving a killed run must not keep its folder locked
     signal.signal(signal.SIGINT, signal.SIG_IGN)      # the parent alone handles Ctrl-C
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     while True:

@@ -138,6 +138,17 @@ def run_experiment(experiment: Experiment, out: str | Path | None = None, jobs: 
     chunks = {pl.chunk.key: pl.chunk for pl in placements}
     keys = list(chunks)
     store = Store(out, experiment) if out is not None else None
+    lock = store.lock() if store is not None else None      # one run per folder (exit 2 naming the holder)
+    try:
+        return _run(experiment, placements, chunks, keys, store, jobs, executor, scheduler, catalog_path,
+                    time_limit_s, progress, rule)
+    finally:
+        if lock is not None:
+            lock.release()
+
+
+def _run(experiment, placements, chunks, keys, store, jobs, executor, scheduler, catalog_path, time_limit_s,
+         progress, rule) -> pd.DataFrame:
     started = now()
     # a chunk file that is damaged (checksum, unreadable) is reported, set aside and recomputed
     todo = [chunks[k] for k in keys if store is None or not store.usable(k)]

@@ -24,6 +24,8 @@ from __future__ import annotations
 import hashlib
 import io
 import json
+import os
+import socket
 import warnings
 from pathlib import Path
 
@@ -31,13 +33,94 @@ import pandas as pd
 
 from ..errors import ConfigError, StarIDWarning
 from ..io import atomic_write_bytes, atomic_write_text
-from ..provenance import command_line, machine
+from ..provenance import command_line, machine, now
 
 MANIFEST = "manifest.json"
 #: manifest key: chunk key -> SHA-256 (hex) of ``chunks/<key>.parquet``
 CHECKSUMS = "checksums"
 #: suffix a damaged chunk file is renamed to (set aside, never deleted)
 DAMAGED = ".damaged"
+#: the folder lock (``filelock``; an OS lock, so a killed run's lock is free) and who holds it
+LOCK, HOLDER = ".starid.lock", ".starid.lock.json"
+_HELD: list = []      # locks this process holds (closed in forked workers, see release_in_child)
+
+
+def _holder_text(info: dict) -> str:
+    return (f"pid {info.get('pid', '?')} on {info.get('host', '?')}, started {info.get('started', '?')}"
+            + (f" ({info['command']})" if info.get("command") else ""))
+
+
+def _read_holder(root: Path) -> dict:
+    try:
+        info = json.loads((root / HOLDER).read_text())
+        return info if isinstance(info, dict) else {}
+    except (OSError, ValueError):
+        return {}
+
+
+class FolderLock:
+    """One run at a time per results folder: an exclusive ``filelock`` lock on ``DIR/.starid.lock``,
+    its holder (pid, host, start time, command) in ``DIR/.starid.lock.json``.
+
+    A second run is refused at once (:class:`ConfigError`, exit 2) naming the holder. The lock is
+    the operating system's, so it dies with the process that held it: the holder file a killed run
+    left behind is stale, and the next run takes the lock over, saying so in one line.
+    """
+
+    def __init__(self, root: str | Path):
+        self.root = Path(root)
+        self._lock = None
+
+    def acquire(self) -> FolderLock:
+        from filelock import FileLock, Timeout
+
+        lock = FileLock(str(self.root / LOCK), timeout=0)
+        try:
+            lock.acquire()
+        except Timeout:
+            info = _read_holder(self.root)
+            raise ConfigError(f"--out {self.root} is in use by another starid run: {_holder_text(info)}; wait for it "
+                              f"to finish or choose another folder") from None
+        self._lock = lock
+        _HELD.append(lock)
+        old = _read_holder(self.root)
+        if old:
+            warnings.warn(f"{self.root}: taking over the lock of a run that is no longer running "
+                          f"({_holder_text(old)})", StarIDWarning, stacklevel=2)
+        info = {"pid": os.getpid(), "host": socket.gethostname(), "started": now(), "command": command_line()}
+        atomic_write_text(self.root / HOLDER, json.dumps(info) + "\n")
+        return self
+
+    def release(self) -> None:
+        if self._lock is None:
+            return
+        (self.root / HOLDER).unlink(missing_ok=True)
+        self._lock.release()
+        if self._lock in _HELD:
+            _HELD.remove(self._lock)
+        self._lock = None
+
+    def __enter__(self) -> FolderLock:
+        return self.acquire()
+
+    def __exit__(self, *exc) -> None:
+        self.release()
+
+
+def release_in_child() -> None:
+    """In a forked worker: let go of the inherited descriptors of the folder locks, so that a worker
+    outliving a killed run does not keep its folder locked (filelock < 4 flocks the inherited file;
+    filelock 4 also breaks a lock whose holder pid is dead)."""
+    while _HELD:
+        lock = _HELD.pop()
+        fd = getattr(getattr(lock, "_context", None), "lock_file_fd", None)
+        if isinstance(fd, int):     # /dev/null in its place: the number stays taken, the lock's file is let go
+            try:
+                null = os.open(os.devnull, os.O_RDWR)
+                os.dup2(null, fd)
+                os.close(null)
+            except OSError:
+                pass
 
 
 def file_sha256(path: str | Path) -> str:
@@ -111,7 +194,7 @@ class Store:
         if root.exists() and not root.is_dir():
             raise ConfigError(f"--out {root} is a file, not a folder")
         manifest = root / MANIFEST
-        if root.is_dir() and any(root.iterdir()):
+        if root.is_dir() and any(p.name not in (LOCK, HOLDER) for p in root.iterdir()):
             if not manifest.is_file():
                 raise ConfigError(f"--out {root} already holds files that are not a starid results folder; "
                                   f"choose a new or empty folder")
@@ -135,6 +218,10 @@ class Store:
 
     def has(self, key: str) -> bool:
         return (self.chunks / f"{key}.parquet").is_file()
+
+    def lock(self) -> FolderLock:
+        """Take the folder's :class:`FolderLock` (released by the caller)."""
+        return FolderLock(self.root).acquire()
 
     def usable(self, key: str) -> bool:
         """The chunk is there and whole. A damaged one (:func:`chunk_problem`) is reported in one
