@@ -18,8 +18,8 @@ The success rule and status words are :mod:`starid.scoring`'s; summaries are :mo
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 import pandas as pd
@@ -59,11 +59,17 @@ def _describe(exc: BaseException) -> str:
 
 
 def prepare(algorithm: Algorithm, catalog: Catalog, camera, warmup: Observation | None,
-            label: str | None = None) -> Prepared:
+            label: str | None = None, on_phase: Callable[[str], None] | None = None) -> Prepared:
     """Derive the sensor-dependent parameters, build the database once and warm the JIT up on
-    ``warmup`` (never scored). The prepared algorithm is the derived one (:meth:`Algorithm.derived`)."""
+    ``warmup`` (never scored). The prepared algorithm is the derived one (:meth:`Algorithm.derived`).
+
+    ``on_phase`` hears ``"build"`` before ``derived``/``build`` and ``"warmup"`` before the warm-up
+    ``identify``: the supervising executor holds each phase to its limit (``--build-time-limit``,
+    ``--time-limit``), so that a plugin hanging there is that algorithm's ``timeout``."""
     label = label or algorithm.name
     camera = camera.pinhole_frame    # a distorted camera: plugins work in its undistorted frame
+    if on_phase is not None:
+        on_phase("build")
     t0 = time.perf_counter()
     try:
         algorithm = algorithm.derived(catalog, camera)
@@ -73,6 +79,8 @@ def prepare(algorithm: Algorithm, catalog: Catalog, camera, warmup: Observation 
     build_s = time.perf_counter() - t0
     t0 = time.perf_counter()
     if warmup is not None:
+        if on_phase is not None:
+            on_phase("warmup")
         plugin_view = warmup.for_plugin()
         try:
             algorithm.identify(database, plugin_view)

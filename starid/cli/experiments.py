@@ -79,7 +79,8 @@ def _engine(args, experiment: Experiment, out: Path | None):
     t0 = time.perf_counter()
     frame = run_experiment(experiment, out, jobs=args.jobs, executor=args.executor, scheduler=args.scheduler,
                            catalog_path=getattr(args, "catalog", None) or "", time_limit_s=args.time_limit,
-                           progress=progress(args))
+                           progress=progress(args), build_time_limit_s=args.build_time_limit,
+                           memory_limit_gb=args.memory_limit_gb)
     return frame, time.perf_counter() - t0
 
 

@@ -9,7 +9,7 @@ from pathlib import Path
 
 from ..camera import Camera
 from ..errors import ConfigError
-from ..experiment.executors import DEFAULT_TIME_LIMIT_S
+from ..experiment.executors import BUILD_TIME_LIMIT_S, DEFAULT_TIME_LIMIT_S
 from ..simulate import PIPELINES, SKIES
 
 MAX_TRIALS = 10_000_000
@@ -65,6 +65,12 @@ def add_engine(p: argparse.ArgumentParser, trials: int | None, seed: int = 0) ->
     p.add_argument("--scheduler", metavar="ADDRESS", help="Dask scheduler address (default: a LocalCluster)")
     p.add_argument("--time-limit", type=float, default=DEFAULT_TIME_LIMIT_S, metavar="S",
                    help="per-image identify time limit in seconds; slower images are recorded as 'timeout'")
+    p.add_argument("--build-time-limit", type=float, default=BUILD_TIME_LIMIT_S, metavar="S",
+                   help="seconds an algorithm may take to prepare (derived + build) per worker; beyond, its images "
+                        "are recorded as 'timeout'")
+    p.add_argument("--memory-limit-gb", type=float, default=None, metavar="GB",
+                   help="address-space limit per worker process (default: the machine's memory / --jobs); an "
+                        "image that exceeds it is recorded as 'crashed'")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 

@@ -35,12 +35,59 @@ from ..errors import ConfigError
 from ..harness import constant_columns, failed_row, param_columns, prepare, rows_to_frame, trial_row
 from ..provenance import versions
 from ..registry import algorithm_info
-from ..scoring import CRASHED, ERROR, TIMEOUT, SuccessRule
+from ..scoring import CRASHED, TIMEOUT, SuccessRule
 from ..simulate import SimConfig, Simulator
+from .store import release_in_child
 from .warmup import schedule
 
 DEFAULT_TIME_LIMIT_S = 10.0
-BUILD_TIME_LIMIT_S = 900.0
+#: ``--build-time-limit``: seconds a worker may spend preparing a chunk (simulating its trials,
+#: ``derived`` + ``build``) before that algorithm's images become ``timeout`` rows
+BUILD_TIME_LIMIT_S = 600.0
+#: the ``--memory-limit-gb`` default is never below this (a worker's address space, not its resident
+#: memory: numba, threads and the inherited parent already reserve ~1 GB)
+MIN_MEMORY_GB = 4.0
+
+
+def fair_share_gb(jobs: int) -> float:
+    """The per-worker ``--memory-limit-gb`` default: physical memory / ``jobs`` in GB, at least
+    :data:`MIN_MEMORY_GB`."""
+    try:
+        total = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError, AttributeError):
+        return float("inf")
+    return max(MIN_MEMORY_GB, round(total / 1e9 / max(jobs, 1), 1))
+
+
+_MEMORY = {"limit_gb": None}    # this worker's address-space limit (None: unlimited)
+
+
+def _limit_memory(limit_gb: float | None) -> None:
+    """RLIMIT_AS of this (worker) process: an allocation beyond it fails (``MemoryError``) instead
+    of taking the machine down."""
+    _MEMORY["limit_gb"] = limit_gb
+    if limit_gb is None or limit_gb == float("inf"):
+        return
+    import resource
+
+    limit = int(limit_gb * 1e9)
+    _, hard = resource.getrlimit(resource.RLIMIT_AS)
+    if hard != resource.RLIM_INFINITY:
+        limit = min(limit, hard)
+    resource.setrlimit(resource.RLIMIT_AS, (limit, hard))
+
+
+def _memory_row(row: dict) -> dict:
+    """A row whose error is a ``MemoryError`` under the worker's limit is ``crashed``, saying so."""
+    limit = _MEMORY["limit_gb"]
+    if limit is not None and "MemoryError" in row.get("error", ""):
+        row = {**row, "status": CRASHED, "error": f"memory limit of {limit:g} GB per worker (--memory-limit-gb) "
+                                                  f"exceeded: {row['error']}"}
+    return row
+
+
+#: beat positions: preparing (simulate, derived, build) / the warm-up identify / between images
+_BUILD, _WARMUP, _IDLE = -1.0, -3.0, -2.0
 
 
 @dataclass(frozen=True)
@@ -92,14 +139,23 @@ def execute_task(task: Task, beat=None) -> pd.DataFrame:
     sim, trials, image_stats = _trials(task, catalog)
     chunk = task.chunk
     if beat is not None:   # the time first: the parent never pairs a new position with an old start
-        beat[2], beat[0], beat[1] = time.monotonic(), task.index, -1.0
+        beat[2], beat[0], beat[1] = time.monotonic(), task.index, _BUILD
     try:
         algorithm = chunk.variant.make().resolved(sim.config)
         info = algorithm_info(chunk.variant.name)
         key = (chunk.variant.name, repr(sorted(algorithm.params().items())), task.catalog_path, trials.camera)
         prepared = _CACHE["prepared"].get(key)
-        if prepared is None:
-            prepared = prepare(algorithm, catalog, trials.camera, trials.warmup, chunk.variant.label)
+        skipped = len(task.skip) >= len(trials) and all(i in task.skip for i in range(len(trials)))
+        if prepared is None and skipped:    # every image already decided (a build that hung): no new call
+            from ..harness import Prepared
+
+            prepared = Prepared(algorithm, chunk.variant.label, None, 0.0, 0.0, task.skip[0][1])
+        elif prepared is None:
+            def on_phase(phase: str) -> None:
+                if beat is not None:
+                    beat[2], beat[1] = time.monotonic(), _WARMUP if phase == "warmup" else _BUILD
+
+            prepared = prepare(algorithm, catalog, trials.camera, trials.warmup, chunk.variant.label, on_phase)
             _CACHE["prepared"][key] = prepared
         elif prepared.label != chunk.variant.label:
             prepared = type(prepared)(prepared.algorithm, chunk.variant.label, prepared.database, prepared.build_s,
@@ -120,9 +176,9 @@ def execute_task(task: Task, beat=None) -> pd.DataFrame:
             continue
         if beat is not None:
             beat[2], beat[1] = time.monotonic(), float(i)
-        rows.append(trial_row(prepared, trials, i, catalog, rule))
+        rows.append(_memory_row(trial_row(prepared, trials, i, catalog, rule)))
     if beat is not None:
-        beat[1] = -2.0
+        beat[1] = _IDLE
     df = rows_to_frame(prepared, rows)
     if image_stats is not None:     # what render -> extract did to each image
         df = df.merge(image_stats, on="trial", how="left")
@@ -140,7 +196,9 @@ class _Unmade:
 
 # ---- local supervised workers ------------------------------------------------------------------
 
-def _worker_main(conn, beat):
+def _worker_main(conn, beat, memory_limit_gb=None):
+    release_in_child()          # a worker outliving a killed run must not keep its folder locked
+    _limit_memory(memory_limit_gb)
     signal.signal(signal.SIGINT, signal.SIG_IGN)      # the parent alone handles Ctrl-C
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     while True:
@@ -154,10 +212,10 @@ def _worker_main(conn, beat):
 
 
 class _Worker:
-    def __init__(self, ctx):
+    def __init__(self, ctx, memory_limit_gb=None):
         self.beat = ctx.Array("d", [-1.0, -2.0, 0.0], lock=False)
         self.conn, child = ctx.Pipe()
-        self.proc = ctx.Process(target=_worker_main, args=(child, self.beat), daemon=True)
+        self.proc = ctx.Process(target=_worker_main, args=(child, self.beat, memory_limit_gb), daemon=True)
         self.proc.start()
         child.close()
         self.task: Task | None = None
@@ -190,21 +248,31 @@ def check_jobs(jobs: int) -> int:
 class LocalExecutor:
     """Supervised worker processes on this machine (see the module docstring)."""
 
-    def __init__(self, jobs: int | None = None, time_limit_s: float = DEFAULT_TIME_LIMIT_S):
+    def __init__(self, jobs: int | None = None, time_limit_s: float = DEFAULT_TIME_LIMIT_S,
+                 build_time_limit_s: float = BUILD_TIME_LIMIT_S, memory_limit_gb: float | None = None):
         self.jobs = check_jobs(jobs if jobs is not None else (os.cpu_count() or 1))
-        if not (isinstance(time_limit_s, (int, float)) and time_limit_s > 0):
-            raise ConfigError(f"--time-limit must be a number of seconds > 0, got {time_limit_s!r}")
+        if memory_limit_gb is None:
+            memory_limit_gb = fair_share_gb(self.jobs)
+        if isinstance(memory_limit_gb, bool) or not (isinstance(memory_limit_gb, (int, float)) and memory_limit_gb > 0):
+            raise ConfigError(f"--memory-limit-gb must be a number of GB > 0, got {memory_limit_gb!r}")
+        self.memory_limit_gb = float(memory_limit_gb)
+        for flag, value in (("--time-limit", time_limit_s), ("--build-time-limit", build_time_limit_s)):
+            if isinstance(value, bool) or not (isinstance(value, (int, float)) and 0 < value < float("inf")):
+                raise ConfigError(f"{flag} must be a number of seconds > 0, got {value!r}")
         self.time_limit_s = float(time_limit_s)
+        self.build_time_limit_s = float(build_time_limit_s)
+        # (variant, settings, catalog, camera) -> (status, error) of a prepare that hung or died
+        self._failed: dict = {}
 
     def run(self, tasks: list[Task], on_result) -> None:
         ctx = mp.get_context("fork" if "fork" in mp.get_all_start_methods() else "spawn")
         pending = deque(schedule(tasks))   # each plugin's first chunk first: one compile per plugin
-        workers = [_Worker(ctx) for _ in range(min(self.jobs, len(tasks)))]
+        workers = [_Worker(ctx, self.memory_limit_gb) for _ in range(min(self.jobs, len(tasks)))]
         try:
             while pending or any(w.task is not None for w in workers):
                 for w in workers:
                     if w.task is None and pending:
-                        w.task = pending.popleft()
+                        w.task = self._known_failure(pending.popleft())
                         w.conn.send(w.task)
                 busy = [w for w in workers if w.task is not None]
                 ready = wait([w.conn for w in busy], timeout=0.1)
@@ -224,36 +292,55 @@ class LocalExecutor:
                     replacement = self._check(w)
                     if replacement is not None:
                         w.stop(kill=True)
-                        workers[k] = _Worker(ctx)
+                        workers[k] = _Worker(ctx, self.memory_limit_gb)
                         pending.appendleft(replacement)
         finally:
             for w in workers:
                 w.stop(kill=w.task is not None)
 
+    @staticmethod
+    def _prepare_key(task: Task):
+        return (task.chunk.variant, task.chunk.settings_key, task.catalog_path, task.camera)
+
+    def _known_failure(self, task: Task) -> Task:
+        """``task`` with every image decided when preparing its algorithm already hung or died in
+        another chunk (it is not called again)."""
+        failure = self._failed.get(self._prepare_key(task))
+        if failure is None or task.skip:
+            return task
+        n = task.chunk.stop - task.chunk.start
+        return Task(task.index, task.chunk, task.catalog_path, task.camera, task.seed, task.min_correct,
+                    {i: failure for i in range(n)})
+
     def _check(self, w: _Worker) -> Task | None:
         """A task to redo when ``w`` died or overran, else ``None``."""
         task = w.task
-        position, since = int(w.beat[1]), w.beat[2]
+        position, since = w.beat[1], w.beat[2]
         alive = w.proc.is_alive()
         elapsed = time.monotonic() - since
-        if alive and not (position >= 0 and elapsed > self.time_limit_s) and \
-                not (position == -1 and elapsed > BUILD_TIME_LIMIT_S):
+        image = position >= 0
+        limit = {_BUILD: self.build_time_limit_s, _WARMUP: self.time_limit_s}.get(position, self.time_limit_s)
+        if alive and not ((image or position in (_BUILD, _WARMUP)) and elapsed > limit):
             return None
+        phase = "identify" if image else "the warm-up identify" if position == _WARMUP else \
+            "preparing the chunk (derived/build)"
         if alive:
             status = TIMEOUT
-            error = (f"identify ran longer than the {self.time_limit_s:g} s limit" if position >= 0
-                     else f"build ran longer than {BUILD_TIME_LIMIT_S:g} s")
+            flag = "--build-time-limit" if position == _BUILD else "--time-limit"
+            error = f"{phase} ran longer than the {limit:g} s {flag}"
         else:
             w.proc.join()
             status = CRASHED
-            error = f"the worker process died (exit code {w.proc.exitcode}) inside " + \
-                    ("identify" if position >= 0 else "build")
+            error = f"the worker process died (exit code {w.proc.exitcode}) inside {phase}"
+            if w.proc.exitcode in (-6, -9, -11):     # abort / killed / segfault: often a failed allocation
+                error += f" (memory limit {self.memory_limit_gb:g} GB per worker, --memory-limit-gb)"
         skip = dict(task.skip)
-        if position >= 0 and int(w.beat[0]) == task.index:
-            skip[position] = (status, error)
-        else:       # died or hung while building: every image of the chunk fails the same way
+        if image and int(w.beat[0]) == task.index:
+            skip[int(position)] = (status, error)
+        else:       # hung or died while preparing: every image of the chunk fails the same way
             n = task.chunk.stop - task.chunk.start
-            skip = {i: (ERROR if status == TIMEOUT else CRASHED, error) for i in range(n)}
+            skip = {i: (status, error) for i in range(n)}
+            self._failed[self._prepare_key(task)] = (status, error)
         w.task = None
         return Task(task.index, task.chunk, task.catalog_path, task.camera, task.seed, task.min_correct, skip)
 
@@ -292,12 +379,13 @@ class DaskExecutor:
 
 
 def make_executor(name: str, jobs: int | None, scheduler: str | None = None,
-                  time_limit_s: float = DEFAULT_TIME_LIMIT_S):
+                  time_limit_s: float = DEFAULT_TIME_LIMIT_S, build_time_limit_s: float = BUILD_TIME_LIMIT_S,
+                  memory_limit_gb: float | None = None):
     """``local`` or ``dask``."""
     if name == "local":
         if scheduler:
             raise ConfigError("--scheduler goes with --executor dask")
-        return LocalExecutor(jobs, time_limit_s)
+        return LocalExecutor(jobs, time_limit_s, build_time_limit_s, memory_limit_gb)
     if name == "dask":
         return DaskExecutor(jobs, scheduler)
     raise ConfigError(f"unknown executor {name!r}; use 'local' or 'dask'")

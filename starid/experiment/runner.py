@@ -26,7 +26,7 @@ from ..provenance import now, versions
 from ..registry import algorithm_info
 from ..scoring import SuccessRule
 from ..simulate import SimConfig
-from .executors import DEFAULT_TIME_LIMIT_S, Task, make_executor
+from .executors import BUILD_TIME_LIMIT_S, DEFAULT_TIME_LIMIT_S, Task, make_executor
 from .spec import Experiment, Variant, sim_settings
 from .store import Store
 
@@ -87,8 +87,9 @@ def catalog_identity(catalog) -> str:
     return h.hexdigest()[:16]
 
 
-def plan(experiment: Experiment, catalog, rule: SuccessRule = SuccessRule()) -> list[Placement]:
+def plan(experiment: Experiment, catalog, rule: SuccessRule | None = None) -> list[Placement]:
     """Every chunk of the experiment, in frame order (study, point, variant, block)."""
+    rule = rule or SuccessRule()
     base_camera = experiment.make_camera()
     common = {"camera": base_camera.as_dict(), "seed": experiment.seed, "catalog": catalog_identity(catalog),
               "rule": rule.min_correct, "starid": versions()["starid_version"], "core": source_fingerprint("starid")}
@@ -134,23 +135,38 @@ def _progress_bar(total: int, enabled: bool):
 def run_experiment(experiment: Experiment, out: str | Path | None = None, jobs: int | None = None,
                    executor: str = "local", scheduler: str | None = None, catalog_path: str = "",
                    time_limit_s: float = DEFAULT_TIME_LIMIT_S, progress: bool | None = None,
-                   rule: SuccessRule = SuccessRule()) -> pd.DataFrame:
+                   rule: SuccessRule | None = None, build_time_limit_s: float = BUILD_TIME_LIMIT_S,
+                   memory_limit_gb: float | None = None) -> pd.DataFrame:
     """Run (or resume) ``experiment``; the tidy frame, one row per (study, point, variant, trial).
 
     With ``out`` the results folder (:mod:`.store`) keeps every chunk as it finishes, so an
-    interrupted run resumes where it stopped; without it nothing is written.
+    interrupted run resumes where it stopped; without it nothing is written. The local executor
+    holds every call of plugin code to a limit: ``time_limit_s`` per image (and the warm-up image),
+    ``build_time_limit_s`` for ``derived``/``build``; ``memory_limit_gb`` per worker (None: the
+    machine's memory / workers).
     """
+    rule = rule or SuccessRule()
     catalog = load_csv(catalog_path) if catalog_path else load_hipparcos()
     placements = plan(experiment, catalog, rule)
     chunks = {pl.chunk.key: pl.chunk for pl in placements}
     keys = list(chunks)
     store = Store(out, experiment) if out is not None else None
+    lock = store.lock() if store is not None else None      # one run per folder (exit 2 naming the holder)
+    try:
+        ex = make_executor(executor, jobs, scheduler, time_limit_s, build_time_limit_s, memory_limit_gb)
+        return _run(experiment, placements, chunks, keys, store, ex, catalog_path, progress, rule)
+    finally:
+        if lock is not None:
+            lock.release()
+
+
+def _run(experiment, placements, chunks, keys, store, ex, catalog_path, progress, rule) -> pd.DataFrame:
     started = now()
+    # a chunk file that is damaged (checksum, unreadable) is reported, set aside and recomputed
+    todo = [chunks[k] for k in keys if store is None or not store.usable(k)]
     if store is not None:
         store.write_manifest(keys, started, None)
     done: dict[str, pd.DataFrame] = {}
-    todo = [chunks[k] for k in keys if store is None or not store.has(k)]
-    ex = make_executor(executor, jobs, scheduler, time_limit_s)
     camera = experiment.make_camera()
     tasks = [Task(i, c, catalog_path, camera if c.camera is None else c.camera, experiment.seed, rule.min_correct)
              for i, c in enumerate(todo)]

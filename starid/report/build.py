@@ -14,15 +14,16 @@ import base64
 import html
 import math
 import re
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
 import pandas as pd
 
 from .. import experiments as builtin
-from ..errors import ConfigError
+from ..errors import ConfigError, StarIDWarning
 from ..experiment import Experiment, read_manifest
-from ..experiment.store import check_current, record_derived
+from ..experiment.store import check_current, damaged_note, record_derived
 from ..io import atomic_write_text
 from ..provenance import versions
 from ..stats import mcnemar_all, summarize
@@ -48,13 +49,16 @@ def load(folder: str | Path) -> tuple[dict, pd.DataFrame]:
     path = folder / "results.parquet"
     if not path.is_file():
         raise ConfigError(f"{folder} has no results.parquet (an unfinished run? run the same command again to "
-                          f"finish it)")
+                          f"finish it){damaged_note(folder)}")
     try:
         frame = pd.read_parquet(path)
     except Exception as exc:  # pyarrow raises several types for a damaged file
-        raise ConfigError(f"{path} is unreadable: {exc}") from None
+        raise ConfigError(f"{path} is unreadable: {exc}{damaged_note(folder)}") from None
     if frame.empty:
         raise ConfigError(f"{path} holds no rows")
+    note = damaged_note(folder)
+    if note:        # the report reads results.parquet; the damaged chunks matter only to a resumed run
+        warnings.warn(f"{folder}: results.parquet reads{note}", StarIDWarning, stacklevel=2)
     return manifest, frame
 
 

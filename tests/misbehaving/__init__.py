@@ -33,6 +33,8 @@ class Misbehaving(Algorithm):
     def build(self, catalog, camera):
         if self.mode == "build_raises":
             raise RuntimeError("cannot build")
+        if self.mode == "build_hang":
+            time.sleep(3600)
         return Empty(catalog.hip[:10].copy())
 
     def _hit(self, observation) -> bool:
@@ -46,6 +48,8 @@ class Misbehaving(Algorithm):
             sys.exit(3)
         if self.mode == "crash" and self._hit(observation):
             os._exit(9)
+        if self.mode == "alloc" and self._hit(observation):     # without bound: 64 GB, written to
+            np.ones(8 * 10**9)
         if self.mode == "mutate":
             observation.x_px[:] = 0.0
         if self.mode == "cheat":

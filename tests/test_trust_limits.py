@@ -1,0 +1,54 @@
+"""Every call of plugin code under a limit (issue #26): a build or warm-up that hangs, or memory without
+bound, is that algorithm's ``timeout`` / ``crashed`` rows, the others' rows intact."""
+
+import pytest
+from misbehaving import register_all, unregister_all
+
+from starid.errors import ConfigError
+from starid.experiment import Experiment, Study, Variant, run_experiment, runner
+from starid.experiment.executors import LocalExecutor
+from starid.scoring import CRASHED, FAILED, TIMEOUT
+
+
+@pytest.fixture(autouse=True)
+def misbehaving_registered():
+    register_all()
+    yield
+    unregister_all()
+
+
+def _run(monkeypatch, bad: str, trials: int = 6, **limits):
+    monkeypatch.setattr(runner, "BLOCK", 3)         # two chunks per algorithm
+    exp = Experiment("limits", (Study("s", (Variant.parse(bad), Variant("ptp"))),), trials=trials, seed=3)
+    frame = run_experiment(exp, None, jobs=1, progress=False, **limits)
+    return frame[frame["algorithm"] == "misbehaving"], frame[frame["algorithm"] == "ptp"]
+
+
+def test_a_build_that_hangs_is_timeout_rows_and_is_not_called_again(monkeypatch):
+    bad, good = _run(monkeypatch, "misbehaving[mode=build_hang]", time_limit_s=5.0, build_time_limit_s=0.5)
+    assert len(bad) == 6 and (bad["status"] == TIMEOUT).all()
+    assert bad["error"].eq("preparing the chunk (derived/build) ran longer than the 0.5 s --build-time-limit").all()
+    assert len(good) == 6 and not good["status"].isin(FAILED).any()
+
+
+def test_a_warm_up_that_hangs_is_timeout_rows(monkeypatch):
+    bad, good = _run(monkeypatch, "misbehaving[mode=hang,every=1]", trials=3, time_limit_s=0.5)
+    assert len(bad) == 3 and (bad["status"] == TIMEOUT).all()
+    assert bad["error"].eq("the warm-up identify ran longer than the 0.5 s --time-limit").all()
+    assert not good["status"].isin(FAILED).any()
+
+
+def test_memory_without_bound_is_a_crashed_row(monkeypatch):
+    bad, good = _run(monkeypatch, "misbehaving[mode=alloc,every=1]", trials=3, memory_limit_gb=6.0)
+    assert len(bad) == 3 and (bad["status"] == CRASHED).all()
+    assert bad["error"].str.startswith("memory limit of 6 GB per worker (--memory-limit-gb) exceeded: "
+                                       "MemoryError").all()
+    assert not good["status"].isin(FAILED).any()
+
+
+@pytest.mark.parametrize("kwargs, flag", [({"build_time_limit_s": 0}, "--build-time-limit"),
+                                          ({"build_time_limit_s": float("nan")}, "--build-time-limit"),
+                                          ({"memory_limit_gb": -1}, "--memory-limit-gb")])
+def test_bad_limits_are_refused(kwargs, flag):
+    with pytest.raises(ConfigError, match=flag):
+        LocalExecutor(1, **kwargs)
