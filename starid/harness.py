@@ -31,6 +31,9 @@ from .plugin import Algorithm, check_identification
 from .provenance import versions
 from .scoring import ERROR, SuccessRule, attitude_error_arcsec, attitude_from_ids, score_trial
 
+#: The success rule when none is given (frozen, so one instance serves every call).
+DEFAULT_RULE = SuccessRule()
+
 #: The trial-row schema: every result row of ``run``, ``table6``, ``identify`` and the engine
 #: starts with these columns (the engine then adds the grid point's settings, the algorithm's
 #: parameters as ``param_<key>`` columns, the seed and the versions).
@@ -173,7 +176,7 @@ def rows_to_frame(prepared: Prepared, rows: list[dict]) -> pd.DataFrame:
     return df.reindex(columns=TRIAL_COLUMNS + extra)
 
 
-def score(prepared: Prepared, trials: TrialSet, catalog: Catalog, rule: SuccessRule = SuccessRule(),
+def score(prepared: Prepared, trials: TrialSet, catalog: Catalog, rule: SuccessRule = DEFAULT_RULE,
           keep_ids: bool = False, on_trial: Callable[[int], None] | None = None) -> pd.DataFrame:
     """Time and score a prepared algorithm on every image of ``trials``; one row per image.
 
@@ -187,7 +190,7 @@ def score(prepared: Prepared, trials: TrialSet, catalog: Catalog, rule: SuccessR
     return rows_to_frame(prepared, rows)
 
 
-def run(algorithms, trials: TrialSet, catalog: Catalog, simulator=None, rule: SuccessRule = SuccessRule(),
+def run(algorithms, trials: TrialSet, catalog: Catalog, simulator=None, rule: SuccessRule = DEFAULT_RULE,
         keep_ids: bool = False, progress: bool = False) -> pd.DataFrame:
     """Score several algorithms on the same trials, in this process: the notebook entry point.
 
@@ -203,7 +206,7 @@ def run(algorithms, trials: TrialSet, catalog: Catalog, simulator=None, rule: Su
         from .errors import ConfigError
 
         raise ConfigError(f"algorithm label(s) {sorted(dup)} given twice; give each variant its own label")
-    for (_, algorithm), label in zip(items, labels):
+    for (_, algorithm), label in zip(items, labels, strict=True):
         if simulator is not None:
             algorithm = algorithm.resolved(simulator.config)
         prepared = prepare(algorithm, catalog, trials.camera, trials.warmup, label)

@@ -83,7 +83,7 @@ class Identification:
     attitude: np.ndarray | None = None
 
     @classmethod
-    def none(cls, n: int) -> "Identification":
+    def none(cls, n: int) -> Identification:
         """No star identified."""
         return cls(np.full(n, -1, dtype=np.int64))
 
@@ -149,7 +149,7 @@ class Algorithm(abc.ABC):
     def identify(self, database: Database, observation: Observation) -> Identification:
         """Identify the observed stars; must not read ``observation.truth_hip``."""
 
-    def resolved(self, world) -> "Algorithm":
+    def resolved(self, world) -> Algorithm:
         """This algorithm with every ``follows`` parameter left ``None`` set from ``world``.
 
         ``world`` is the simulator's :class:`~starid.simulate.SimConfig`; pinned parameters
@@ -162,7 +162,7 @@ class Algorithm(abc.ABC):
             raise PluginError(f"{self.name}: 'follows' needs the algorithm to be a dataclass")
         return dataclasses.replace(self, **fill)
 
-    def derived(self, catalog: Catalog, camera: Camera) -> "Algorithm":
+    def derived(self, catalog: Catalog, camera: Camera) -> Algorithm:
         """This algorithm with every parameter it derives from ``catalog`` and ``camera`` when left
         ``None`` set to the value ``build`` uses; pinned parameters are kept.
 

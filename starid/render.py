@@ -390,7 +390,8 @@ def image_trials(simulator: Simulator, n_trials: int, start: int = 0, config: Re
                       x_px=cat("x_px", np.float64), y_px=cat("y_px", np.float64), mag=cat("mag", np.float64),
                       truth_hip=cat("truth_hip", np.int64),
                       attitude=np.array([it.rendered.attitude for it in items]).reshape(n_trials, 3, 3),
-                      n_redraws=np.array([it.rendered.n_redraws for it in items], dtype=np.int64), camera=simulator.assumed, warmup=warm,
+                      n_redraws=np.array([it.rendered.n_redraws for it in items], dtype=np.int64),
+                      camera=simulator.assumed, warmup=warm,
                       true_camera=None if simulator.assumed is simulator.camera else simulator.camera)
     stats = pd.DataFrame([{"trial": it.rendered.trial, **it.stats} for it in items])
     return trials, stats
@@ -404,8 +405,10 @@ def summarize_stats(stats) -> dict:
             "detection_rate": float(stats["n_detected"].sum()) / n_det if n_det else float("nan"),
             "false_per_image": float(stats["n_false"].mean()) if len(stats) else float("nan"),
             "detections_per_image": float(stats["n_detections"].mean()) if len(stats) else float("nan"),
-            "rms_centroid_err_px": math.sqrt(float(stats["sq_err_px2_sum"].sum()) / n_match) if n_match else float("nan")}
+            "rms_centroid_err_px": (math.sqrt(float(stats["sq_err_px2_sum"].sum()) / n_match) if n_match
+                                    else float("nan"))}
 
 
-__all__ = ["ImageTrial", "RenderConfig", "RenderedTrial", "Renderer", "image_trials", "match_stats", "match_radius", "match_truth",
+__all__ = ["ImageTrial", "RenderConfig", "RenderedTrial", "Renderer", "image_trials", "match_stats", "match_radius",
+           "match_truth",
            "observation_from_image", "render_image", "summarize_stats"]

@@ -45,8 +45,8 @@ from .attitude import random_attitude
 from .camera import Camera
 from .catalog import Catalog
 from .errors import ConfigError
-from .params import check_choice, check_number, check_whole
 from .observation import Observation, TrialSet
+from .params import check_choice, check_number, check_whole
 
 MAX_REDRAWS = 10_000
 #: Centroid-noise margin (px) around the sensor inside which stars get noise draws at any noise level.
@@ -122,7 +122,7 @@ PIPELINES = ("centroids", "image")
 ASSUMED_DISTORTION = ("true", "none")
 
 
-def assumed_camera(camera: Camera, config: "SimConfig") -> Camera:
+def assumed_camera(camera: Camera, config: SimConfig) -> Camera:
     """The calibration an algorithm is given for ``camera`` under ``config``'s camera errors
     (``camera`` itself when there are none)."""
     changes = {}

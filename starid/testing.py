@@ -168,7 +168,7 @@ def _check_read_only_input(cls, algorithm, db, catalog, camera):
     view = obs.for_plugin()
     before = (view.x_px.copy(), view.y_px.copy(), view.mag.copy())
     algorithm.identify(db, view)
-    _require(all(np.array_equal(a, b) for a, b in zip(before, (view.x_px, view.y_px, view.mag))),
+    _require(all(np.array_equal(a, b) for a, b in zip(before, (view.x_px, view.y_px, view.mag), strict=True)),
              "identify changed the observation it was handed")
 
 

@@ -70,5 +70,6 @@ def test_pixel_ratio_and_solid_angle():
     # off-centre principal point: the two halves of a sensor add up to the whole
     half = dict(width_px=500, height_px=1000, cx_px=500.0, cy_px=500.0)
     left, right = Camera(**half), Camera(**{**half, "cx_px": 0.0})
-    assert left.solid_angle_sr + right.solid_angle_sr == pytest.approx(Camera(width_px=1000, height_px=1000).solid_angle_sr,
+    whole = Camera(width_px=1000, height_px=1000).solid_angle_sr
+    assert left.solid_angle_sr + right.solid_angle_sr == pytest.approx(whole,
                                                                        rel=1e-12)

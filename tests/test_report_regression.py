@@ -9,8 +9,16 @@ import pytest
 from starid.cli import main
 from starid.errors import ConfigError
 from starid.experiment import Experiment, Grid, Study, Variant, run_experiment
-from starid.report.regression import (build_regression, compare, gate, newcombe_paired, one_sided, paired,
-                                      parse_fail_on, time_ratio)
+from starid.report.regression import (
+    build_regression,
+    compare,
+    gate,
+    newcombe_paired,
+    one_sided,
+    paired,
+    parse_fail_on,
+    time_ratio,
+)
 
 BROKEN = Variant("ptp", (("beta", 0.05), ("side_beta", 0.05)), label="ptp")   # windows 60 x too narrow: id rate 0
 
@@ -120,5 +128,6 @@ def test_one_sided_points_and_labels():
     a = pd.DataFrame({"study": "s", "grid_x": [0.0, 0.0, 1.0], "label": ["a", "b", "a"]})
     b = pd.DataFrame({"study": "s", "grid_x": [0.0, 2.0], "label": ["a", "a"]})
     lone = one_sided(a, b)
-    assert set(zip(lone["side"], lone["where"], lone["label"])) == {("old", "x=0", "b"), ("old", "x=1", "a"),
+    got = set(zip(lone["side"], lone["where"], lone["label"], strict=True))
+    assert got == {("old", "x=0", "b"), ("old", "x=1", "a"),
                                                                     ("new", "x=2", "a")}

@@ -1,8 +1,8 @@
 """Bad input never becomes a wrong number; a plugin cannot hide or clash; runs stop cleanly."""
 
 import gzip
-import re
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -39,7 +39,7 @@ def test_identify_keeps_huge_trial_ids_apart(tmp_path, catalog, camera):
     rows = []
     for t, trial in enumerate((2**53, 2**53 + 1)):
         obs = sim.observation(t)
-        rows += [f"{trial},{x:.17g},{y:.17g},{m:.17g}" for x, y, m in zip(obs.x_px, obs.y_px, obs.mag)]
+        rows += [f"{trial},{x:.17g},{y:.17g},{m:.17g}" for x, y, m in zip(obs.x_px, obs.y_px, obs.mag, strict=True)]
     (tmp_path / "o.csv").write_text("trial,x_px,y_px,mag\n" + "\n".join(rows) + "\n")
     assert main(["identify", "ptp", str(tmp_path / "o.csv"), "--out", str(tmp_path / "id")]) == 0
     trials = pd.read_csv(tmp_path / "id" / "trials.csv", dtype={"trial": "int64"})
@@ -247,9 +247,9 @@ def twice(x):
 def test_a_broken_numba_cache_is_named_not_scored(tmp_path):
     """A garbage cache file: the failure says which folder to clear (never a silent rate of 0)."""
     (tmp_path / "cachedmod.py").write_text(KERNEL)
-    run = ("import sys; sys.path.insert(0, %r)\nfrom starid.jitcache import describe\nimport cachedmod\n"
-           "try:\n    print('value', cachedmod.twice(21))\nexcept Exception as exc:\n    print('failed:', describe(exc))\n"
-           % str(tmp_path))
+    run = (f"import sys; sys.path.insert(0, {str(tmp_path)!r})\nfrom starid.jitcache import describe\n"
+           "import cachedmod\ntry:\n    print('value', cachedmod.twice(21))\nexcept Exception as exc:\n"
+           "    print('failed:', describe(exc))\n")
     env = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}    # cache beside the module
     first = subprocess.run([sys.executable, "-c", run], capture_output=True, text=True, timeout=300, env=env)
     assert "value 42" in first.stdout, first.stderr

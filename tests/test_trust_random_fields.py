@@ -19,7 +19,8 @@ class _HipDatabase(Database):
 
 @dataclass(frozen=True)
 class NamesInOddFields(Algorithm):
-    """Names its brightest detection as the first catalog star in every field of an odd number of points (a test double)."""
+    """Names its brightest detection as the first catalog star in every field of an odd number of points
+    (a test double)."""
 
     name: ClassVar[str] = "names_in_odd_fields"
 
@@ -41,7 +42,8 @@ def test_the_fields_are_200_of_10_to_40_points():
 
 
 def test_one_id_in_a_field_of_noise_is_refused():
-    with pytest.raises(ConformanceError, match=r"identified stars in \d+ of 200 fields of 10 to 40 .*none may be named"):
+    pattern = r"identified stars in \d+ of 200 fields of 10 to 40 .*none may be named"
+    with pytest.raises(ConformanceError, match=pattern):
         check_algorithm(NamesInOddFields, checks=["random_fields"])
 
 

@@ -20,9 +20,9 @@ from typing import NamedTuple
 
 import numpy as np
 from numba import njit
+from starid_algorithms.pyramid.kernels import pair_windows, select_stars
 
 from starid.kernels import backproject_px, chord_rows, reproject_assign, verify_pairwise, wahba_rows
-from starid_algorithms.pyramid.kernels import pair_windows, select_stars
 
 #: ``starid.kernels.chord_rows`` itself, inlined into the innermost loop of :func:`pick_candidates`
 #: (a numba call there costs more than the arithmetic)
@@ -250,7 +250,8 @@ def pick_candidates(v_cam, sel, cand_row, cand_votes, guide_unit, eps):
                     big_j = cand_row[b, t]
                     if big_j < 0:
                         break
-                    if big_j != big_i and abs(chord_rows_inline(guide_unit, big_i, guide_unit, big_j) - c_img[b]) <= eps:
+                    c_cat = chord_rows_inline(guide_unit, big_i, guide_unit, big_j)
+                    if big_j != big_i and abs(c_cat - c_img[b]) <= eps:
                         support += 1
                         break
             if support > best_support or (support == best_support and cand_votes[a, s] > got[a]):

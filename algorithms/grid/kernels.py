@@ -12,8 +12,15 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from ..lpt_improved.planar import (begin_identify, confirm_pair, guide_pattern, keep_best, no_match, polar_buffers,
-                                   reference_pattern)
+from ..lpt_improved.planar import (
+    begin_identify,
+    confirm_pair,
+    guide_pattern,
+    keep_best,
+    no_match,
+    polar_buffers,
+    reference_pattern,
+)
 
 
 class GridSpec(NamedTuple):

@@ -12,8 +12,16 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from ..lpt_improved.planar import (begin_identify, confirm, guide_pattern, keep_best, no_match, polar_buffers,
-                                   reference_pattern, seed_attitude_roll)
+from ..lpt_improved.planar import (
+    begin_identify,
+    confirm,
+    guide_pattern,
+    keep_best,
+    no_match,
+    polar_buffers,
+    reference_pattern,
+    seed_attitude_roll,
+)
 
 
 class StringSearch(NamedTuple):

@@ -14,8 +14,17 @@ from numba import njit
 
 from starid.kernels import chord_rows
 
-from .planar import (SEPARATION_TOL, begin_identify, confirm_pair, guide_pattern, keep_best, no_match, polar_buffers,
-                     reference_pattern, relative_angle)
+from .planar import (
+    SEPARATION_TOL,
+    begin_identify,
+    confirm_pair,
+    guide_pattern,
+    keep_best,
+    no_match,
+    polar_buffers,
+    reference_pattern,
+    relative_angle,
+)
 
 
 class FeatureTable(NamedTuple):

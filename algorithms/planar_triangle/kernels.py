@@ -16,8 +16,18 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from starid.kernels import (KVector, assign_all, backproject_px, chord_rows, field_chord, kvector_query,
-                           triple_product, verify_pairwise, wahba_rows, z_band_rows)
+from starid.kernels import (
+    KVector,
+    assign_all,
+    backproject_px,
+    chord_rows,
+    field_chord,
+    kvector_query,
+    triple_product,
+    verify_pairwise,
+    wahba_rows,
+    z_band_rows,
+)
 
 MOMENT_BLOCK = 256  # triangles per block of the moment index (offsets fit uint8)
 HASH_ROOM = 8  # hash-table slots per cached candidate (3 pairs, table at most 3/4 full, power of two)
@@ -361,9 +371,9 @@ def _signatures(members, length):
     ids = np.empty(3 * length, dtype=np.int64)
     masks = np.zeros(3 * length, dtype=np.int64)
     n = 0
-    for l in range(length):
+    for li in range(length):
         for x in range(3):
-            s = members[l, x]
+            s = members[li, x]
             p = -1
             for q in range(n):
                 if ids[q] == s:
@@ -373,7 +383,7 @@ def _signatures(members, length):
                 p = n
                 ids[n] = s
                 n += 1
-            masks[p] |= np.int64(1) << l
+            masks[p] |= np.int64(1) << li
     return np.sort(masks[:n])
 
 
@@ -432,8 +442,8 @@ def _pivot(first, img, db, tol, pivot_limit, cache):
         _, hkeys, hcand = _moment_candidates(t, img, db, tol, cache)
         hmask = hkeys.shape[0] - 1
         img_members = np.empty((step + 1, 3), dtype=np.int64)
-        for l in range(step + 1):
-            img_members[l] = img_tri[chain[l]]
+        for li in range(step + 1):
+            img_members[li] = img_tri[chain[li]]
         img_sig = _signatures(img_members, step + 1)
         cat_members = np.empty((step + 1, 3), dtype=np.int64)
         layer_hi = layer_lo + n_fin
@@ -467,9 +477,9 @@ def _pivot(first, img, db, tol, pivot_limit, cache):
                         continue
                     if consistent_chain:
                         node = f
-                        for l in range(step - 1, -1, -1):
+                        for li in range(step - 1, -1, -1):
                             for x in range(3):
-                                cat_members[l, x] = tri_stars[node_cat[node], x]
+                                cat_members[li, x] = tri_stars[node_cat[node], x]
                             node = node_parent[node]
                         for x in range(3):
                             cat_members[step, x] = tri_stars[c, x]
@@ -499,8 +509,8 @@ def _pivot(first, img, db, tol, pivot_limit, cache):
     if n_fin == 1:
         cat_chain = np.empty(length, dtype=np.int64)
         node = layer_lo
-        for l in range(length - 1, -1, -1):
-            cat_chain[l] = node_cat[node]
+        for li in range(length - 1, -1, -1):
+            cat_chain[li] = node_cat[node]
             node = node_parent[node]
     return chain[:length], cat_chain, n_fin
 
@@ -817,9 +827,9 @@ def identify_subsets(img_v, bright, db, tol, stages):
                     sub[a] = img_v[idx[a]]
                 rows, sub_chain = _identify_img(_sub_triangles(img, idx, size, sub), db, tol, cache)
                 chain = np.empty_like(sub_chain)
-                for l in range(sub_chain.shape[0]):
+                for li in range(sub_chain.shape[0]):
                     for x in range(3):
-                        chain[l, x] = idx[sub_chain[l, x]]
+                        chain[li, x] = idx[sub_chain[li, x]]
                 if rows.max() >= 0:
                     for a in range(size):
                         out[idx[a]] = rows[a]

@@ -8,8 +8,20 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from starid.kernels import (DeepSky, Frame, KVector, assign_all, backproject_px, chord_rows, explained, kvector_query,
-                            refine_explained, reproject_assign, verify_pairwise, wahba_rows)
+from starid.kernels import (
+    DeepSky,
+    Frame,
+    KVector,
+    assign_all,
+    backproject_px,
+    chord_rows,
+    explained,
+    kvector_query,
+    refine_explained,
+    reproject_assign,
+    verify_pairwise,
+    wahba_rows,
+)
 
 
 class View(NamedTuple):

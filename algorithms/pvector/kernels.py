@@ -15,9 +15,24 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from starid.kernels import (DeepSky, KVector, assign_all, backproject_px, chord_rows, chord_to_rad, explained,
-                            field_chord, keep_unique, kvector_slice, refine_explained, reproject_assign, triple_product,
-                            verify_pairwise, wahba_rows, z_band_rows)
+from starid.kernels import (
+    DeepSky,
+    KVector,
+    assign_all,
+    backproject_px,
+    chord_rows,
+    chord_to_rad,
+    explained,
+    field_chord,
+    keep_unique,
+    kvector_slice,
+    refine_explained,
+    reproject_assign,
+    triple_product,
+    verify_pairwise,
+    wahba_rows,
+    z_band_rows,
+)
 
 # The six vertex correspondences (observed vertex j -> database vertex PERMS[p, j]).
 PERMS = np.array([[0, 1, 2], [1, 2, 0], [2, 0, 1], [0, 2, 1], [2, 1, 0], [1, 0, 2]], dtype=np.int64)
@@ -467,7 +482,8 @@ def identify_rows(x_px, y_px, mag, frame, db, tol):
                 n_predicted = 0
                 for _ in range(2):
                     attitude = wahba_rows(v, rows_best, unit)
-                    n_assigned, n_predicted = reproject_assign(attitude, v, unit, c_fov, eps, rows_try, f_px, cx_px, cy_px,
+                    n_assigned, n_predicted = reproject_assign(attitude, v, unit, c_fov, eps, rows_try, f_px, cx_px,
+                                                               cy_px,
                                                                width_px, height_px)
                     for i in range(n):
                         rows_best[i] = rows_try[i]
@@ -503,7 +519,8 @@ def whole_image_pass(v, db, c_fov, eps, frame, hyp_obs, hyp_cat, n_hyp, need, co
     """Extension (``hypotheses``): when no triangle was confirmed, each correspondence that passed the side and
     handedness checks (in the order they were met: main-star preference, brightest pair first) is a hypothesis.
     Its attitude (Wahba on the three stars) must explain its own three stars and ``need`` detections
-    (:func:`starid.kernels.explained`); the attitude is then refined twice on every explained detection and must still explain
+    (:func:`starid.kernels.explained`); the attitude is then refined twice on every explained detection and
+    must still explain
     ``need`` detections, at least 3 of them guide stars, and ``confirm_fraction`` of the guide stars it predicts.
     Returns the index of the first hypothesis that passes (its guide rows in ``rows_guide``), or -1."""
     n = v.shape[0]

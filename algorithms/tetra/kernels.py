@@ -395,14 +395,14 @@ def identify_kernel(x_px, y_px, mag, table, tol, record):
     trial_rows = np.full(n, -1, dtype=np.int64)
     out_row = np.empty(n, dtype=np.int64)
     tried = 0
-    for l in range(3, m):               # breadth-first: the faintest member advances slowest
-        for kk in range(2, l):
+    for li in range(3, m):               # breadth-first: the faintest member advances slowest
+        for kk in range(2, li):
             for j in range(1, kk):
                 for i in range(0, j):
                     rows4[0] = order[i]
                     rows4[1] = order[j]
                     rows4[2] = order[kk]
-                    rows4[3] = order[l]
+                    rows4[3] = order[li]
                     emax = sorted_edges(unit, rows4, edges)
                     if emax < tol.min_edge - edge_tol or emax > tol.max_edge + edge_tol or emax <= 0.0:
                         continue

@@ -8,16 +8,15 @@ from typing import ClassVar
 
 import numpy as np
 from scipy.spatial import cKDTree
+from starid_algorithms.planar_triangle.kernels import Finish, deep_v_mag, finish
 
 from starid.camera import Camera
 from starid.catalog import Catalog
 from starid.errors import ConfigError
-from starid.params import check_flag, check_number, check_whole, param
 from starid.kernels import DeepSky, backproject_px, camera_frame, deep_sky, rad_to_chord
 from starid.observation import Observation
+from starid.params import check_flag, check_number, check_whole, param
 from starid.plugin import Algorithm, Database, Explanation, Identification
-
-from starid_algorithms.planar_triangle.kernels import Finish, deep_v_mag, finish
 
 from .kernels import Tables, Tolerance, build_triangles, identify_rows, sky_cell_of, vote
 
@@ -70,7 +69,9 @@ class TriangleVotingDatabase(Database):
 
 @dataclass(frozen=True)
 class TriangleVoting(Algorithm):
-    """Triangle voting with double (base, height) feature constraints (Fan & Zhong, Adv. Space Res. 61(4):1132-1142, 2018).
+    """Triangle voting with double (base, height) feature constraints (Fan & Zhong, Adv. Space Res. 2018).
+
+    Fan Q., Zhong X., Adv. Space Res. 61(4):1132-1142, 2018.
 
     From the paper (abstract and section 2.1.1, the only parts at hand): every star ``S`` builds
     triangles with its ``n_neighbours`` (the paper's lambda) brightest neighbours lying between
@@ -232,7 +233,7 @@ class TriangleVoting(Algorithm):
     def build(self, catalog: Catalog, camera: Camera) -> TriangleVotingDatabase:
         guide = catalog.brighter_than(self.mag_limit)
         if self.double_star_deg > 0 and len(guide) > 1:
-            # the fainter member of a pair closer than double_star_deg is dropped 
+            # the fainter member of a pair closer than double_star_deg is dropped
             pairs = cKDTree(guide.unit_icrs).query_pairs(rad_to_chord(math.radians(self.double_star_deg)),
                                                         output_type="ndarray")
             if pairs.size:

@@ -16,9 +16,9 @@ def cmd_cameras(args) -> int:
     rows = [describe(load_camera(n)) for n in preset_names()]
     head = ("name", "size_px", "fov_deg", "arcsec_per_px", "distortion", "source")
     widths = [max(len(h), *(len(str(r[h])) for r in rows)) for h in head[:-1]]
-    print("  ".join(h.ljust(w) for h, w in zip(head[:-1], widths)) + "  source")
+    print("  ".join(h.ljust(w) for h, w in zip(head[:-1], widths, strict=True)) + "  source")
     for r in rows:
-        print("  ".join(str(r[h]).ljust(w) for h, w in zip(head[:-1], widths)) + "  " + r["source"])
+        print("  ".join(str(r[h]).ljust(w) for h, w in zip(head[:-1], widths, strict=True)) + "  " + r["source"])
     return 0
 
 

@@ -18,7 +18,17 @@ from ..provenance import versions
 from ..registry import get_algorithm
 from ..scoring import FAILED
 from ..stats import IMAGE_COLUMNS, SUMMARY_COLUMNS, summarize
-from .options import trials_type, add_camera, add_engine, add_out, add_world, camera_spec, check_out, progress, world_settings
+from .options import (
+    add_camera,
+    add_engine,
+    add_out,
+    add_world,
+    camera_spec,
+    check_out,
+    progress,
+    trials_type,
+    world_settings,
+)
 
 #: The summary columns ``run`` prints (then the failure columns when anything failed).
 SHOWN = ["label"] + SUMMARY_COLUMNS[1:SUMMARY_COLUMNS.index("compile_s") + 1]

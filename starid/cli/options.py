@@ -66,8 +66,8 @@ def add_engine(p: argparse.ArgumentParser, trials: int | None, seed: int = 0) ->
     p.add_argument("--time-limit", type=float, default=DEFAULT_TIME_LIMIT_S, metavar="S",
                    help="per-image identify time limit in seconds; slower images are recorded as 'timeout'")
     p.add_argument("--build-time-limit", type=float, default=BUILD_TIME_LIMIT_S, metavar="S",
-                   help="seconds an algorithm may take to prepare (derived + build) per worker; beyond, its images "
-                        "are recorded as 'timeout'")
+                   help="seconds an algorithm may take to prepare (derived + build, then the warm-up identify that "
+                        "compiles its kernels) per worker; beyond, its images are recorded as 'timeout'")
     p.add_argument("--memory-limit-gb", type=float, default=None, metavar="GB",
                    help="address-space limit per worker process (default: the machine's memory / --jobs); an "
                         "image that exceeds it is recorded as 'crashed'")

@@ -7,11 +7,11 @@ import inspect
 import re
 import typing
 
+from ..camera import Camera
 from ..catalog import load_hipparcos
 from ..experiment.spec import Variant
-from ..camera import Camera
-from ..simulate import SimConfig
 from ..registry import algorithm_info, available_algorithms
+from ..simulate import SimConfig
 
 
 def cmd_list(args) -> int:

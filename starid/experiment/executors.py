@@ -319,14 +319,16 @@ class LocalExecutor:
         alive = w.proc.is_alive()
         elapsed = time.monotonic() - since
         image = position >= 0
-        limit = {_BUILD: self.build_time_limit_s, _WARMUP: self.time_limit_s}.get(position, self.time_limit_s)
+        # the warm-up identify compiles the plugin's kernels (tens of seconds on a cold cache), so it is part of
+        # preparing and runs under the build limit, not the per-image one
+        limit = {_BUILD: self.build_time_limit_s, _WARMUP: self.build_time_limit_s}.get(position, self.time_limit_s)
         if alive and not ((image or position in (_BUILD, _WARMUP)) and elapsed > limit):
             return None
         phase = "identify" if image else "the warm-up identify" if position == _WARMUP else \
             "preparing the chunk (derived/build)"
         if alive:
             status = TIMEOUT
-            flag = "--build-time-limit" if position == _BUILD else "--time-limit"
+            flag = "--build-time-limit" if position in (_BUILD, _WARMUP) else "--time-limit"
             error = f"{phase} ran longer than the {limit:g} s {flag}"
         else:
             w.proc.join()

@@ -101,7 +101,7 @@ class Variant:
             object.__setattr__(self, "label", f"{self.name}[{inner}]" if inner else self.name)
 
     @classmethod
-    def as_published(cls, name: str, **params) -> "Variant":
+    def as_published(cls, name: str, **params) -> Variant:
         """``NAME:paper``: the plugin's ``published`` overrides, then ``params`` on top
         (labelled ``NAME:paper[KEY=VALUE,...]``)."""
         algo = get_algorithm(name)
@@ -112,7 +112,7 @@ class Variant:
         return cls(name, tuple({**algo.published, **params}.items()), label)
 
     @classmethod
-    def parse(cls, text: str) -> "Variant":
+    def parse(cls, text: str) -> Variant:
         """``"ptp"``, ``"ptp[n_slaves=3,verify=false]"`` (values coerced by the field types),
         ``"ptp:paper"`` or ``"ptp:paper[n_slaves=3]"`` (:meth:`as_published`)."""
         m = _LABEL.match(text)
@@ -130,7 +130,7 @@ class Variant:
                 params.append((key.strip(), coerce(algo, key.strip(), value)))
         return cls.as_published(name, **dict(params)) if paper else cls(name, tuple(params))
 
-    def with_params(self, **params) -> "Variant":
+    def with_params(self, **params) -> Variant:
         """The same variant with more overrides (the label follows unless it was set explicitly)."""
         merged = dict(self.params)
         merged.update(params)
@@ -181,8 +181,8 @@ class Grid:
             return [{}]
         names = [n for n, _ in self.axes]
         values = [v for _, v in self.axes]
-        combos = itertools.product(*values) if self.mode == "product" else zip(*values)
-        return [dict(zip(names, c)) for c in combos]
+        combos = itertools.product(*values) if self.mode == "product" else zip(*values, strict=True)
+        return [dict(zip(names, c, strict=True)) for c in combos]
 
 
 def sim_settings(base: dict, point: dict) -> dict:
@@ -272,7 +272,7 @@ class Experiment:
         spec = dict(self.camera)
         if "preset" in spec or ("fov_deg" in spec and {"width_px", "height_px"} & set(spec)) \
                 or {"distortion", "name", "source", "exposure_s"} & set(spec):
-            from ..cameras import camera_from_spec     # a preset or camera file, its fields overridden
+            from ..cameras import camera_from_spec  # a preset or camera file, its fields overridden
 
             return camera_from_spec(spec)
         if "fov_deg" in spec:
@@ -303,7 +303,7 @@ class Experiment:
         return hashlib.sha256(json.dumps(d, sort_keys=True, default=str).encode()).hexdigest()[:16]
 
     @classmethod
-    def from_dict(cls, d: dict) -> "Experiment":
+    def from_dict(cls, d: dict) -> Experiment:
         d = dict(d)
         studies = d.pop("studies", None) or d.pop("study", None)
         if studies is None:
@@ -338,7 +338,7 @@ class Experiment:
                    sim=d.get("sim", {}), description=d.get("description", ""))
 
     @classmethod
-    def from_toml(cls, path: str | Path) -> "Experiment":
+    def from_toml(cls, path: str | Path) -> Experiment:
         path = Path(path)
         try:
             data = tomllib.loads(path.read_text(encoding="utf-8-sig"))

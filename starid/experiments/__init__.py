@@ -42,7 +42,7 @@ def registered_beyond(paper: tuple[str, ...]) -> tuple[str, ...]:
 def rate_cells(s: pd.DataFrame) -> list[str]:
     """Each summary row's id rate with its interval, and the paper's (``paper_id_rate``) beside where it gives one."""
     return [rate_ci(r, lo, hi) + (f" (paper {pct(p)})" if not np.isnan(p) else "")
-            for r, lo, hi, p in zip(s["id_rate"], s["id_rate_lo"], s["id_rate_hi"], s["paper_id_rate"])]
+            for r, lo, hi, p in zip(s["id_rate"], s["id_rate_lo"], s["id_rate_hi"], s["paper_id_rate"], strict=True)]
 
 
 def sweep_table(frame: pd.DataFrame, study: str, axis: str, paper: dict, unit: str, title: str,
@@ -51,7 +51,7 @@ def sweep_table(frame: pd.DataFrame, study: str, axis: str, paper: dict, unit: s
     paper's printed ``{(value, algorithm): rate}`` beside ours where it gives one."""
     part = frame[frame["study"] == study]
     s = summarize(part, by=(f"grid_{axis}", "label")).rename(columns={f"grid_{axis}": axis})
-    s["paper_id_rate"] = [paper.get((float(v), a), np.nan) for v, a in zip(s[axis], s["algorithm"])]
+    s["paper_id_rate"] = [paper.get((float(v), a), np.nan) for v, a in zip(s[axis], s["algorithm"], strict=True)]
     cells = s.assign(cell=rate_cells(s))
     wide = cells.pivot(index="label", columns=axis, values="cell").reindex(index=list(dict.fromkeys(s["label"])))
     wide.columns = [f"{unit} = {c:g}" for c in wide.columns]

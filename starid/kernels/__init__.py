@@ -15,11 +15,30 @@ Euclidean distance between two unit vectors, ``2 sin(theta / 2)`` (:func:`rad_to
   the whole-image check of a hypothesis (``explained``).
 """
 
-from .assign import (DeepSky, Frame, assign_all, camera_frame, check_stars, deep_sky, explained, field_chord,
-                     refine_explained)
+from .assign import (
+                     DeepSky,
+                     Frame,
+                     assign_all,
+                     camera_frame,
+                     check_stars,
+                     deep_sky,
+                     explained,
+                     field_chord,
+                     refine_explained,
+)
 from .attitude import wahba_rows
-from .geometry import (angular_distance_rad, backproject_px, chord, chord_rows, chord_to_rad, pairwise_chords,
-                       project_cam, rad_to_chord, triangle_sides, triple_product)
+from .geometry import (
+                     angular_distance_rad,
+                     backproject_px,
+                     chord,
+                     chord_rows,
+                     chord_to_rad,
+                     pairwise_chords,
+                     project_cam,
+                     rad_to_chord,
+                     triangle_sides,
+                     triple_product,
+)
 from .kvector import KVector, kvector_build, kvector_make, kvector_query, kvector_range, kvector_slice
 from .order import before, order_by, sort_rows
 from .verify import keep_unique, reproject_assign, verify_pairwise, z_band_rows, z_bound

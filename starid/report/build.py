@@ -29,6 +29,7 @@ from ..provenance import versions
 from ..stats import mcnemar_all, summarize
 from . import figures as figs
 from . import skymap
+from .regression import build_regression, compare
 from .tables import Table, markdown, mcnemar_markdown, pct, rate_ci
 from .tables import setting as _fmt
 
@@ -138,7 +139,8 @@ def provenance(manifest: dict, frame: pd.DataFrame) -> list[Block]:
     if "plugin_dist" in frame.columns:
         plug = frame.drop_duplicates("label")[["label", "algorithm", "plugin_dist", "plugin_version"]]
         params = [c for c in frame.columns if c.startswith("param_")]
-        plug = plug.assign(parameters=[", ".join(f"{c[6:]}={_fmt(v)}" for c, v in zip(params, row) if not _missing(v))
+        plug = plug.assign(parameters=[", ".join(f"{c[6:]}={_fmt(v)}" for c, v in zip(params, row, strict=True)
+                                                 if not _missing(v))
                                        for row in frame.drop_duplicates("label")[params].itertuples(index=False)])
         blocks.append(Block("p", "Algorithm labels, the plugin distribution that provided them and the parameters "
                                  "they ran with (at the first point; parameters that follow the simulator change "
@@ -161,7 +163,7 @@ def generic_tables(frame: pd.DataFrame) -> list[Table]:
         shown["label"] = s["label"]
         shown["trials"] = s["trials"]
         shown["id rate [95% CI]"] = [rate_ci(a, b, c) for a, b, c in zip(s["id_rate"], s["id_rate_lo"],
-                                                                          s["id_rate_hi"])]
+                                                                          s["id_rate_hi"], strict=True)]
         shown["misid"] = s["misid_rate"].map(pct)
         shown["no result"] = s["no_result_rate"].map(pct)
         shown["failed"] = (s["error_rate"] + s["timeout_rate"] + s["crash_rate"]).map(pct)
@@ -170,7 +172,7 @@ def generic_tables(frame: pd.DataFrame) -> list[Table]:
         notes = []
         if part["label"].nunique() > 1:
             rows = []
-            for point, g in part.groupby("point", sort=False):
+            for _point, g in part.groupby("point", sort=False):
                 t = mcnemar_all(g)
                 where = ", ".join(f"{c[5:]} = {_fmt(g[c].iloc[0])}" for c in grid) or "-"
                 rows.append(t.assign(point=where))
@@ -186,7 +188,7 @@ def generic_tables(frame: pd.DataFrame) -> list[Table]:
 def _prepend_column(md: str, name: str, values: list) -> str:
     lines = md.rstrip("\n").split("\n")
     out = [f"| {name} " + lines[0], "|---" + lines[1]]
-    out += [f"| {v} " + line for v, line in zip(values, lines[2:])]
+    out += [f"| {v} " + line for v, line in zip(values, lines[2:], strict=True)]
     return "\n".join(out) + "\n"
 
 
@@ -221,7 +223,8 @@ def build_report(folder: str | Path, formats=FORMATS, svg: bool = True) -> dict:
     folder = Path(folder)
     bad = [f for f in formats if f not in FORMATS]
     if bad or not formats:
-        raise ConfigError(f"--format takes {', '.join(FORMATS)} (comma-separated), got {','.join(formats) or 'nothing'}")
+        given = ",".join(formats) or "nothing"
+        raise ConfigError(f"--format takes {', '.join(FORMATS)} (comma-separated), got {given}")
     manifest, frame = load(folder)
     mod = experiment_module(manifest)
     paper = mod.paper_points() if mod is not None and hasattr(mod, "paper_points") else None
@@ -369,9 +372,7 @@ def render_html(blocks: list[Block], title: str, folder: Path) -> str:
 
 
 # ---------------------------------------------------------------------------------------------- regression
-# the regression report lives in regression.py (every metric, world check, --fail-on gates)
-
-from .regression import build_regression, compare
+# the regression report (every metric, world check, --fail-on gates) lives in regression.py
 
 __all__ = ["build_regression", "build_report", "compare", "load", "markdown_to_html", "render_html",
            "render_markdown"]

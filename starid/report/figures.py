@@ -124,7 +124,7 @@ def _histogram_rows(frame: pd.DataFrame, main: pd.DataFrame) -> tuple[pd.DataFra
     star counts as Fig. 10 counts them); else the main condition."""
     if "grid_sky" in frame.columns:
         studies = sorted(frame.groupby("study", sort=False), key=lambda item: item[0] != "fig10")
-        for study, part in studies:
+        for _study, part in studies:
             if part["grid_sky"].nunique() > 1 and grid_axes(part) == ["sky"]:
                 return part, "grid_sky"
     return main, None

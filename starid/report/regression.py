@@ -384,41 +384,45 @@ def build_regression(old: str | Path, new: str | Path, out: str | Path | None = 
     ident = pd.DataFrame({
         "study": diff["study"], "point": diff["where"], "label": diff["label"], "trials": diff["trials"],
         "old": diff["old_rate"].map(pct), "new": diff["new_rate"].map(pct),
-        "new − old [95% CI]": [_pp(a, b, c) for a, b, c in zip(diff["diff"], diff["diff_lo"], diff["diff_hi"])],
+        "new − old [95% CI]": [_pp(a, b, c)
+                               for a, b, c in zip(diff["diff"], diff["diff_lo"], diff["diff_hi"], strict=True)],
         "only old correct": diff["only_old_correct"], "only new correct": diff["only_new_correct"],
         "McNemar p": diff["p_value"].map(p_value),
-        "": [_mark(p, x, w != "all points") for p, x, w in zip(diff["p_value"], diff["diff"], diff["where"])]})
+        "": [_mark(p, x, w != "all points")
+             for p, x, w in zip(diff["p_value"], diff["diff"], diff["where"], strict=True)]})
     errs = pd.DataFrame({
         "study": diff["study"], "point": diff["where"], "label": diff["label"],
         "misid old": diff["misid_old"].map(pct), "misid new": diff["misid_new"].map(pct),
         "misid new − old [95% CI]": [_pp(a, b, c) for a, b, c in zip(diff["misid_diff"], diff["misid_lo"],
-                                                                     diff["misid_hi"])],
+                                                                     diff["misid_hi"], strict=True)],
         "misid p": diff["misid_p"].map(p_value),
         "failed old": diff["failed_old"].map(pct) + " (" + diff["failures_old"] + ")",
         "failed new": diff["failed_new"].map(pct) + " (" + diff["failures_new"] + ")",
         "failed new − old [95% CI]": [_pp(a, b, c) for a, b, c in zip(diff["failed_diff"], diff["failed_lo"],
-                                                                      diff["failed_hi"])],
+                                                                      diff["failed_hi"], strict=True)],
         "failed p": diff["failed_p"].map(p_value),
         "": [(_mark(p, x, w != "all points", False) + " " + _mark(q, y, w != "all points", False)).strip()
              for p, x, q, y, w in zip(diff["misid_p"], diff["misid_diff"], diff["failed_p"], diff["failed_diff"],
-                                      diff["where"])]})
+                                      diff["where"], strict=True)]})
     cost = pd.DataFrame({
         "study": diff["study"], "point": diff["where"], "label": diff["label"],
         "median time old / new (ms)": [f"{a / 1e3:.3f} / {b / 1e3:.3f}" for a, b in
-                                       zip(diff["time_median_old_us"], diff["time_median_new_us"])],
+                                       zip(diff["time_median_old_us"], diff["time_median_new_us"], strict=True)],
         "median ratio [95% CI]": [_ratio(a, b, c) for a, b, c in zip(diff["time_ratio"], diff["time_ratio_lo"],
-                                                                     diff["time_ratio_hi"])],
+                                                                     diff["time_ratio_hi"], strict=True)],
         "p95 time old / new (ms)": [f"{a / 1e3:.3f} / {b / 1e3:.3f}" for a, b in
-                                    zip(diff["time_p95_old_us"], diff["time_p95_new_us"])],
+                                    zip(diff["time_p95_old_us"], diff["time_p95_new_us"], strict=True)],
         "p95 ratio [95% CI]": [_ratio(a, b, c) for a, b, c in zip(diff["time_p95_ratio"], diff["time_p95_ratio_lo"],
-                                                                  diff["time_p95_ratio_hi"])],
-        "DB old / new (MB)": [f"{a:.3f} / {b:.3f}" for a, b in zip(diff["db_mb_old"], diff["db_mb_new"])],
-        "build old / new (s)": [f"{a:.2f} / {b:.2f}" for a, b in zip(diff["build_s_old"], diff["build_s_new"])]})
+                                                                  diff["time_p95_ratio_hi"], strict=True)],
+        "DB old / new (MB)": [f"{a:.3f} / {b:.3f}" for a, b in zip(diff["db_mb_old"], diff["db_mb_new"], strict=True)],
+        "build old / new (s)": [f"{a:.2f} / {b:.2f}"
+                                for a, b in zip(diff["build_s_old"], diff["build_s_new"], strict=True)]})
 
     def side(m, f, name, path):
         plug = f.drop_duplicates("label")
+        # a missing column is "": the zip is then empty, so not strict
         pv = ", ".join(f"{lab} {dd} {v}" for lab, dd, v in zip(plug["label"], plug.get("plugin_dist", ""),
-                                                             plug.get("plugin_version", "")))
+                                                             plug.get("plugin_version", ""), strict=False))
         ver = ", ".join(f"{c[:-8]} {f[c].iloc[0]}" for c in f.columns if c.endswith("_version") and
                         c != "plugin_version")
         return [(f"{name} folder", f"`{path}`"), (f"{name} versions", ver), (f"{name} plugins", pv),

@@ -77,7 +77,7 @@ def sky_map(frame: pd.DataFrame, labels: list[str], title: str) -> Figure:
                              shading="flat", edgecolors="0.7", linewidth=0.2)
         lon_g = _lon(g_ra)
         brk = np.flatnonzero(np.abs(np.diff(lon_g)) > np.pi) + 1
-        for seg_x, seg_y in zip(np.split(lon_g, brk), np.split(np.radians(g_dec), brk)):
+        for seg_x, seg_y in zip(np.split(lon_g, brk), np.split(np.radians(g_dec), brk), strict=True):
             ax.plot(seg_x, seg_y, color="white", linestyle="-", linewidth=2.4)
             ax.plot(seg_x, seg_y, color="black", linestyle="--", linewidth=1.3)
         ax.set_xticks(np.radians([-120, -60, 0, 60, 120]))
@@ -89,7 +89,7 @@ def sky_map(frame: pd.DataFrame, labels: list[str], title: str) -> Figure:
         ax.set_ylabel("declination (deg)", fontsize=8)
     if mesh is not None:
         cb = fig.colorbar(mesh, ax=fig.axes, orientation="horizontal", shrink=0.5, aspect=40)
-        cb.set_label("identification rate per equal-area cell (blank: < %d trials)" % MIN_CELL_TRIALS)
+        cb.set_label(f"identification rate per equal-area cell (blank: < {MIN_CELL_TRIALS} trials)")
     fig.suptitle(title + " (dashed: galactic plane)", fontsize=11)
     return fig
 

@@ -7,17 +7,18 @@ from itertools import combinations
 
 import numpy as np
 import pytest
+from starid_algorithms.planar_triangle.testing import (
+    assert_explain_draws_triangles,
+    assert_sigma_follows_with_1px_floor,
+)
+from starid_algorithms.triangle_voting import TriangleVoting
+from starid_algorithms.triangle_voting.kernels import triangle_features
 
-from starid import ConfigError, Observation, SimConfig, Simulator
-from starid import run, summarize
+from starid import ConfigError, Observation, SimConfig, Simulator, run, summarize
 from starid.harness import Prepared, score
 from starid.kernels import chord
 from starid.plugin import check_identification
 from starid.registry import get_algorithm
-from starid_algorithms.planar_triangle.testing import (assert_explain_draws_triangles,
-                                                      assert_sigma_follows_with_1px_floor)
-from starid_algorithms.triangle_voting import TriangleVoting
-from starid_algorithms.triangle_voting.kernels import triangle_features
 
 
 @pytest.fixture(scope="module")
@@ -124,7 +125,7 @@ def test_neighbours_are_the_brightest(algo, db, catalog):
         ring = ring[np.lexsort((db.hip[ring], vmag[ring]))][:algo.n_neighbours]
         expected = {tuple(sorted(p)) for p in combinations(ring.tolist(), 2)
                     if chord(unit[p[0]], unit[p[1]]) >= db.d_min_chord}
-        got = {tuple(sorted((int(i), int(j)))) for i, j in zip(db.n_i[db.main == s], db.n_j[db.main == s])}
+        got = {tuple(sorted((int(i), int(j)))) for i, j in zip(db.n_i[db.main == s], db.n_j[db.main == s], strict=True)}
         assert got == expected
 
 
