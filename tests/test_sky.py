@@ -122,6 +122,9 @@ def test_skymap_cells_are_equal_area_and_the_worst_cell_is_found():
     assert len(figures) == 1 and tables[0].frame.iloc[0]["ra_deg"] == "40-60"
     assert tables[0].frame.iloc[0]["id_rate"] == "0.000"
     assert skymap.skymap_parts(frame.head(100)) == ([], [])
+    figures, tables = skymap.skymap_parts(frame, "flight_cubesat_wide", suffix="_flight_cubesat_wide")
+    assert figures[0].name == "skymap_flight_cubesat_wide" and tables[0].name == "worst_cells_flight_cubesat_wide"
+    assert "(flight_cubesat_wide)" in figures[0].title
 
 
 def test_nearest_trial_finds_the_trial_of_a_given_boresight(catalog):

@@ -69,8 +69,9 @@ EPOCH = "2030-01-01T00:00:00"
 #: One flight-like point: 0.5 deg/s (a slow slew; 5 px streaks on Table 4 at 0.1 s), the real planets
 #: at the epoch, Earth's orbital speed plus a low orbit's (30 + 7.7 km/s), a 0.1 % focal-length error.
 FLIGHT = {"rate_deg_s": 0.5, "planets": True, "epoch": EPOCH, "velocity_kms": 37.7, "focal_error_pct": 0.1}
-#: The study the report's sky maps are drawn for (starid.report.skymap, >= 2,000 trials).
-SKYMAP_STUDY = "flight_table4"
+#: The studies the report's sky maps are drawn for, one map each (starid.report.skymap, >= 2,000 trials):
+#: the flight point on each camera.
+SKYMAP_STUDY = ("flight_table4", "flight_cubesat_wide")
 
 #: effect -> (axis, values, fixed settings, unit, title)
 SWEEPS = {

@@ -231,9 +231,15 @@ def build_report(folder: str | Path, formats=FORMATS, svg: bool = True) -> dict:
     fig10 = getattr(mod, "PAPER_FIG10", None) if mod is not None else None
     tables, which = tables_for(manifest, frame)
     figures = figs.report_figures(frame, paper, fig10)
-    sky_study = getattr(mod, "SKYMAP_STUDY", None) if mod is not None else None   # an experiment's own choice
-    sky_rows = frame[frame["study"] == sky_study] if sky_study in set(frame["study"]) else figs.main_condition(frame)
-    sky_figures, sky_tables = skymap.skymap_parts(sky_rows)   # >= 2,000 trials (sky issue)
+    # an experiment's own choice: one study or several (one map each); else the main condition
+    sky_choice = getattr(mod, "SKYMAP_STUDY", None) if mod is not None else None
+    sky_studies = [s for s in ([sky_choice] if isinstance(sky_choice, str) else list(sky_choice or ()))
+                   if s in set(frame["study"])]
+    sky_figures, sky_tables = [], []
+    for k, study in enumerate(sky_studies or [None]):       # >= 2,000 trials each (sky issue)
+        rows = figs.main_condition(frame) if study is None else frame[frame["study"] == study]
+        f, t = skymap.skymap_parts(rows, where=study or "", suffix="" if k == 0 else f"_{study}")
+        sky_figures, sky_tables = sky_figures + f, sky_tables + t
     figures, tables = figures + sky_figures, tables + sky_tables
     figs.save(figures, folder / "figures", svg=svg)
     exp = manifest.get("experiment", {})

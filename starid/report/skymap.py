@@ -110,9 +110,10 @@ def worst_cells(frame: pd.DataFrame, labels: list[str], n: int = 5) -> pd.DataFr
     return pd.DataFrame(out)
 
 
-def skymap_parts(main: pd.DataFrame, where: str = ""):
-    """``(figures, tables)`` for the report of ``main`` (the main condition's rows); empty below
-    :data:`MIN_TRIALS` distinct trials or without boresight columns."""
+def skymap_parts(main: pd.DataFrame, where: str = "", suffix: str = ""):
+    """``(figures, tables)`` for the report of ``main`` (the main condition's rows, or one study's);
+    empty below :data:`MIN_TRIALS` distinct trials or without boresight columns. ``suffix`` keeps
+    the names of a second map apart (``skymap`` + suffix, ``worst_cells`` + suffix)."""
     from .figures import ReportFigure
 
     if "boresight_ra_deg" not in main.columns or main["trial"].nunique() < MIN_TRIALS:
@@ -121,13 +122,13 @@ def skymap_parts(main: pd.DataFrame, where: str = ""):
     labels = list(dict.fromkeys(main["label"]))
     n = main["trial"].nunique()
     fig = ReportFigure(
-        "skymap", "Where on the sky each algorithm fails",
+        "skymap" + suffix, "Where on the sky each algorithm fails" + (f" ({where})" if where else ""),
         f"Identification rate by boresight ({where}; {n} images), {N_DEC} x {N_RA} equal-area cells "
         f"({4 * 180 ** 2 / math.pi / (N_DEC * N_RA):.0f} deg^2 each, about {n / (N_DEC * N_RA):.0f} images per "
         f"cell), Mollweide projection, RA increasing to the left; dashed: the galactic plane.",
-        sky_map(main, labels, "identification rate by boresight"))
+        sky_map(main, labels, "identification rate by boresight" + (f", {where}" if where else "")))
     worst = worst_cells(main, labels)
-    table = Table("worst_cells", "Worst sky cells", worst, markdown(worst),
+    table = Table("worst_cells" + suffix, "Worst sky cells" + (f" ({where})" if where else ""), worst, markdown(worst),
                   (f"The {5} cells of lowest identification rate per label (cells with >= {MIN_CELL_TRIALS} "
                    f"images).",))
     return [fig], [table]
