@@ -33,14 +33,15 @@ def kvector_build(sorted_values: np.ndarray) -> tuple[np.ndarray, float, float]:
 
 
 @njit(cache=True)
-def kvector_range(sorted_values, k, m, q, lo, hi):
-    """Index range ``[start, stop)`` of ``sorted_values`` lying in ``[lo, hi]``.
+def kvector_slice(k, m, q, n, lo, hi):
+    """Index range ``[start, stop)`` of the ``n`` sorted keys that holds every key in ``[lo, hi]``,
+    from the k-vector alone: the O(1) slice :func:`kvector_range` then trims
+    (Zhou & Ye 2015, eqs. 17-19), so the keys themselves need not be stored.
 
-    The k-vector gives a slightly wide slice in O(1) (Zhou & Ye 2015, eqs. 17-19); its ends
-    are then trimmed exactly, so the result equals
-    ``searchsorted(s, lo, 'left'), searchsorted(s, hi, 'right')``.
+    The line puts a margin of one full bin ``m`` on each side (``z(jb) <= lo - m``, ``z(jt) >= hi + m``),
+    so the slice holds at most a few keys outside ``[lo, hi]`` on each end; a caller that checks each
+    candidate anyway (P-vector's three sides) gets the same matches as with the trimmed range.
     """
-    n = sorted_values.shape[0]
     if n == 0 or hi < lo:
         return 0, 0
     jb = int(math.floor((lo - q) / m)) - 1
@@ -57,6 +58,23 @@ def kvector_range(sorted_values, k, m, q, lo, hi):
         stop = n
     else:
         stop = k[jt - 1]
+    if stop < start:
+        stop = start
+    return start, stop
+
+
+@njit(cache=True)
+def kvector_range(sorted_values, k, m, q, lo, hi):
+    """Index range ``[start, stop)`` of ``sorted_values`` lying in ``[lo, hi]``.
+
+    The k-vector gives a slightly wide slice in O(1) (Zhou & Ye 2015, eqs. 17-19); its ends
+    are then trimmed exactly, so the result equals
+    ``searchsorted(s, lo, 'left'), searchsorted(s, hi, 'right')``.
+    """
+    n = sorted_values.shape[0]
+    if n == 0 or hi < lo:
+        return 0, 0
+    start, stop = kvector_slice(k, m, q, n, lo, hi)
     # Trim (or widen, when float rounding put the line on the wrong side) to the exact range.
     while start > 0 and sorted_values[start - 1] >= lo:
         start -= 1
@@ -93,37 +111,6 @@ def kvector_make(sorted_values: np.ndarray, values_dtype=np.float64, index_dtype
     values = np.ascontiguousarray(sorted_values, dtype=values_dtype)
     k, m, q = kvector_build(values.astype(np.float64))
     return KVector(values, k.astype(index_dtype), m, q)
-
-
-@njit(cache=True)
-def kvector_slice(k, m, q, n, lo, hi):
-    """Index range ``[start, stop)`` of the ``n`` sorted keys that holds every key in ``[lo, hi]``,
-    from the k-vector alone: the O(1) slice of :func:`kvector_range` before its ends are trimmed
-    (Zhou & Ye 2015, eqs. 17-19), so the keys themselves need not be stored.
-
-    The line puts a margin of one full bin ``m`` on each side (``z(jb) <= lo - m``, ``z(jt) >= hi + m``),
-    so the slice holds at most a few keys outside ``[lo, hi]`` on each end; a caller that checks each
-    candidate anyway (P-vector's three sides) gets the same matches as with the trimmed range.
-    """
-    if n == 0 or hi < lo:
-        return 0, 0
-    jb = int(math.floor((lo - q) / m)) - 1
-    jt = int(math.ceil((hi - q) / m)) + 1
-    if jb < 1:
-        start = 0
-    elif jb > n:
-        start = n
-    else:
-        start = k[jb - 1]
-    if jt < 1:
-        stop = 0
-    elif jt > n:
-        stop = n
-    else:
-        stop = k[jt - 1]
-    if stop < start:
-        stop = start
-    return start, stop
 
 
 @njit(cache=True)
