@@ -16,7 +16,15 @@ MAX_TRIALS = 10_000_000
 
 
 class Formatter(argparse.ArgumentDefaultsHelpFormatter, argparse.RawDescriptionHelpFormatter):
-    """Defaults in every help line, examples kept as written."""
+    """Defaults in every help line that does not already say its default, examples kept as
+    written; an unset default (None, a flag's False) is not printed."""
+
+    def _get_help_string(self, action):
+        text = action.help or ""
+        unset = action.default is None or action.default is False or action.default is argparse.SUPPRESS
+        if unset or "default" in text:
+            return text
+        return super()._get_help_string(action)
 
 
 def trials_type(text: str) -> int:
