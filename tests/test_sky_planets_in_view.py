@@ -97,3 +97,17 @@ def test_realism_gives_the_cubesat_algorithms_the_sensors_guide_star_limit():
     assert params["grid"] == {}                             # grid follows the world's mag_limit
     assert all(not v.params for v in table4.variants)       # Table 4: every default
     assert [v.label for v in cube.variants] == [v.label for v in table4.variants]
+
+
+def test_planets_in_view_is_a_flag_of_the_commands():
+    from starid.cli import build_parser
+    from starid.cli.options import sky_settings
+
+    parser = build_parser()
+    heads = {"run": ["run", "tetra"], "sweep": ["sweep", "tetra", "--param", "sigma_px=0,1", "--out", "d"],
+             "simulate": ["simulate", "--out", "x.npz"], "render": ["render", "--trial", "0", "--out", "d"]}
+    for command, head in heads.items():
+        args = parser.parse_args(head + ["--planets-in-view", "2", "--epoch", EPOCH])
+        assert sky_settings(args)["planets_in_view"] == 2, command
+    off = parser.parse_args(["run", "tetra"])
+    assert "planets_in_view" not in sky_settings(off)      # off: the settings (and every table) stay as they were

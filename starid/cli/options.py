@@ -131,6 +131,9 @@ def add_sky(p: argparse.ArgumentParser, exposure: bool = True) -> None:
     g.add_argument("--epoch", default=None, help="observation time, ISO UTC (e.g. 2030-01-01T00:00:00) or a year")
     g.add_argument("--planets", action="store_true", help="put Mercury..Neptune in the sky at --epoch")
     g.add_argument("--moon", action="store_true", help="put the Moon in the sky at --epoch")
+    g.add_argument("--planets-in-view", type=int, default=0, metavar="K",
+                   help="put K (0-5) of the naked-eye planets, drawn per trial, at their magnitudes at --epoch "
+                        "into every field")
     g.add_argument("--near-ecliptic", action="store_true", help="draw boresights within 5 deg of the ecliptic")
     g.add_argument("--velocity-kms", type=float, default=0.0, help="observer speed in km/s (stellar aberration; "
                    "the catalog is not corrected)")
@@ -140,7 +143,8 @@ def sky_settings(args) -> dict:
     """The sky effects the options give (only those that are not off, so existing settings stay equal)."""
     out = {}
     for key, off in (("rate_deg_s", 0.0), ("rate_axis", None), ("exposure_s", None), ("epoch", None),
-                     ("planets", False), ("moon", False), ("near_ecliptic", False), ("velocity_kms", 0.0)):
+                     ("planets", False), ("moon", False), ("planets_in_view", 0), ("near_ecliptic", False),
+                     ("velocity_kms", 0.0)):
         value = getattr(args, key, off)
         if value != off:
             out[key] = value
