@@ -93,11 +93,20 @@ def prepare(algorithm: Algorithm, catalog: Catalog, camera, warmup: Observation 
     return Prepared(algorithm, label, database, build_s, time.perf_counter() - t0)
 
 
-def timed_identify(prepared: Prepared, obs: Observation, catalog_hip: np.ndarray):
+def counter_columns(counters: dict | None) -> dict:
+    """An :class:`~starid.plugin.Identification`'s work counters as trial-row columns ``n_<name>``
+    (none when the plugin reports none); a name whose column the schema already has is skipped."""
+    if not counters:
+        return {}
+    return {f"n_{k}": int(v) for k, v in counters.items() if f"n_{k}" not in TRIAL_COLUMNS}
+
+
+def timed_identify(prepared: Prepared, obs: Observation, catalog_hip: np.ndarray, counters: dict | None = None):
     """One ``identify`` call on ``obs.for_plugin()``, timed around the call alone.
 
     Returns ``(hip, elapsed_ns, error)``: on an exception or a broken contract the ids are all
-    -1 and ``error`` says what happened.
+    -1 and ``error`` says what happened. ``counters``, when given, is filled with the
+    identification's work counters (:attr:`~starid.plugin.Identification.counters`), if any.
     """
     view = obs.for_plugin()
     if prepared.error:
@@ -109,6 +118,8 @@ def timed_identify(prepared: Prepared, obs: Observation, catalog_hip: np.ndarray
         check_identification(result, len(obs), catalog_hip)
     except (Exception, SystemExit) as exc:
         return np.full(len(obs), -1, dtype=np.int64), time.perf_counter_ns() - t0, _describe(exc)
+    if counters is not None and result.counters:
+        counters.update(result.counters)
     return np.asarray(result.hip, dtype=np.int64), elapsed_ns, ""
 
 
@@ -143,9 +154,10 @@ def trial_row(prepared: Prepared, trials: TrialSet, i: int, catalog: Catalog, ru
               keep_ids: bool = False) -> dict:
     """Run, time and score image ``i`` of ``trials``: one trial row."""
     obs = trials.observation(i)
-    hip, elapsed_ns, error = timed_identify(prepared, obs, catalog.hip)
+    counters: dict = {}
+    hip, elapsed_ns, error = timed_identify(prepared, obs, catalog.hip, counters)
     row = {**_image_fields(trials, i, obs), "error": error, **score_trial(hip, obs.truth_hip, rule),
-           "time_us": elapsed_ns / 1e3}
+           "time_us": elapsed_ns / 1e3, **counter_columns(counters)}
     if error:
         row["status"] = ERROR
         row["attitude_err_arcsec"] = float("nan")

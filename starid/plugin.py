@@ -77,10 +77,14 @@ class Identification:
 
     hip : int64 (n,) catalog id per observed star, in input order, -1 where unidentified.
     attitude : optional 3x3 ICRS -> camera rotation the algorithm estimated.
+    counters : optional small dict ``{name: int}`` of the work done on this image (e.g.
+        ``{"kvector_searches": 12, "candidates": 340, "verifications": 2}``), machine-independent;
+        the harness records each as a trial-row column ``n_<name>`` (absent: no column / NaN).
     """
 
     hip: np.ndarray
     attitude: np.ndarray | None = None
+    counters: dict | None = None
 
     @classmethod
     def none(cls, n: int) -> Identification:
@@ -201,4 +205,12 @@ def check_identification(result, n_stars: int, catalog_hip: np.ndarray) -> Ident
             raise PluginError(f"identify gave id {int(uniq[counts > 1][0])} to more than one star")
     if result.attitude is not None and np.asarray(result.attitude).shape != (3, 3):
         raise PluginError(f"identify returned an attitude of shape {np.asarray(result.attitude).shape}")
+    if result.counters is not None:
+        if not isinstance(result.counters, dict):
+            raise PluginError(f"identify returned counters of type {type(result.counters).__name__}, expected a dict")
+        for key, value in result.counters.items():
+            if not isinstance(key, str) or not key.isidentifier():
+                raise PluginError(f"identify returned a counter named {key!r}; names must be identifiers")
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
+                raise PluginError(f"identify returned counter {key}={value!r}; counters are non-negative integers")
     return result

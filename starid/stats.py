@@ -54,6 +54,15 @@ def mcnemar_all(trials: pd.DataFrame, by: str = "label") -> pd.DataFrame:
                         columns=["a", "b", "only_a_correct", "only_b_correct", "p_value"])
 
 
+def counter_columns_of(df: pd.DataFrame) -> list[str]:
+    """The work-counter columns of trial rows: ``n_<name>`` columns beyond the harness schema
+    (:data:`starid.harness.TRIAL_COLUMNS`) holding numbers."""
+    from .harness import TRIAL_COLUMNS
+
+    return [c for c in df.columns if c.startswith("n_") and c not in TRIAL_COLUMNS
+            and pd.api.types.is_numeric_dtype(df[c])]
+
+
 def _rate(g: pd.DataFrame, status: str) -> float:
     return float((g["status"] == status).mean())
 
@@ -68,6 +77,7 @@ def summarize(df: pd.DataFrame, by=("label",)) -> pd.DataFrame:
     if "label" in by and "label" not in df.columns:
         df = df.assign(label=df["algorithm"])
     out = []
+    counters = counter_columns_of(df)
     for key, g in df.groupby(by, sort=False):
         key = key if isinstance(key, tuple) else (key,)
         n = len(g)
@@ -98,9 +108,12 @@ def summarize(df: pd.DataFrame, by=("label",)) -> pd.DataFrame:
                         "false_detections_per_image": float(g["img_n_false"].mean()),
                         "rms_centroid_err_px": float(np.sqrt(g["img_sq_err_px2_sum"].sum() / n_match))
                         if n_match else float("nan")})
+        for c in counters:   # work counters (harness ``n_<name>`` columns): mean per image that ran
+            row[f"{c}_mean"] = float(ran[c].mean()) if ran[c].notna().any() else float("nan")
         out.append(row)
     cols = SUMMARY_COLUMNS + [c for c in by if c != "label"]
     cols += [c for c in IMAGE_COLUMNS if out and c in out[0]]
+    cols += [f"{c}_mean" for c in counters]
     return pd.DataFrame(out, columns=cols)
 
 

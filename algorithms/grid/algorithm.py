@@ -21,6 +21,7 @@ from ..lpt_improved.planar import (
     effective_double_px,
     explain_pattern,
     neighbour_lists,
+    new_trace,
     prepare_image,
     select_guides,
 )
@@ -158,7 +159,7 @@ class Grid(PlanarAlgorithm):
     def _run(self, db: GridDatabase, observation: Observation):
         cam = observation.camera
         acc = acceptance(cam, self.sigma_px, self.beta, self.min_matches, self.confirm_fraction)
-        trace = np.full(4, -1, dtype=np.int64)
+        trace = new_trace()
         rows, attitude, ok = identify_kernel(observation.x_px, observation.y_px, camera_frame(cam), db.table,
                                              db.guide_unit, self._spec_for(db), acc, trace)
         return rows, attitude, ok, trace

@@ -15,6 +15,7 @@ from numba import njit
 from ..lpt_improved.planar import (
     begin_identify,
     confirm_pair,
+    count_work,
     guide_pattern,
     keep_best,
     no_match,
@@ -228,6 +229,7 @@ def identify_kernel(x_px, y_px, sensor, table, guides_unit, spec, acc, trace):
             o = cand[a]
             nc = grid_cells(r_px, phi, k, o, spec, cells)
             nt = image_weights(cells, nc, spec, weight, touched)
+            count_work(trace, 0, 1)
             # credit of every pattern: each credited cell adds its weight to the patterns holding it,
             # cells in ascending order (each pattern's sum is then added up in the same order as
             # over its own sorted cells, so it is the same float)
@@ -237,6 +239,7 @@ def identify_kernel(x_px, y_px, sensor, table, guides_unit, spec, acc, trace):
                 w = weight[c]
                 for q in range(np.uint64(table.cell_start[c]), np.uint64(table.cell_start[c + 1])):
                     raw[table.patterns[q]] += w
+                count_work(trace, 1, table.cell_start[c + 1] - table.cell_start[c])
             found = np.int64(0)   # not a literal: one signature of keep_best
             for p in range(n_pat):
                 score = raw[p]
@@ -253,6 +256,7 @@ def identify_kernel(x_px, y_px, sensor, table, guides_unit, spec, acc, trace):
                 p = best_p[c]
                 ok, A = confirm_pair(unit, rows, seed, s, nbrs[o], table.guide[p], table.orient[p], guides_unit,
                                      sensor, acc)
+                count_work(trace, 2, 1)
                 if ok:
                     trace[0] = s
                     trace[1] = nbrs[o]

@@ -22,6 +22,7 @@ from ..lpt_improved.planar import (
     explain_pattern,
     image_neighbours,
     neighbour_lists,
+    new_trace,
     plane_polar,
     prepare_image,
     select_guides,
@@ -152,7 +153,7 @@ class LPT(PlanarAlgorithm):
         search = self._search(db)
         eps0_extra = math.pi / self.n_sectors * (1 + self.sector_tol) * math.tan(math.radians(db.radius_deg))
         acc = acceptance(cam, self.sigma_px, self.beta, self.min_matches, self.confirm_fraction, eps0_extra)
-        trace = np.full(4, -1, dtype=np.int64)
+        trace = new_trace()
         rows, attitude, ok = identify_kernel(observation.x_px, observation.y_px, camera_frame(cam), db.chars,
                                              db.guide_unit, search, acc, trace)
         return rows, attitude, ok, trace

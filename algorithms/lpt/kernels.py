@@ -15,6 +15,7 @@ from numba import njit
 from ..lpt_improved.planar import (
     begin_identify,
     confirm,
+    count_work,
     guide_pattern,
     keep_best,
     no_match,
@@ -383,6 +384,7 @@ def identify_kernel(x_px, y_px, sensor, chars, guides_unit, search, acc, trace):
         nz = lpt_string(r_px, phi, k, search, img, owner)
         if nz < 1:
             continue
+        count_work(trace, 0, 1)
         q = 0
         for j in range(m):
             if img[j] != 0:
@@ -401,6 +403,7 @@ def identify_kernel(x_px, y_px, sensor, chars, guides_unit, search, acc, trace):
             if need > nz or match_bound(chars, g, image) < need:
                 continue
             matched, sh = shift_scores(chars, g, image, search, sets, planes)
+            count_work(trace, 1, 1)
             if matched < need:
                 continue
             found = keep_best(best_sc, best_item, found, n_best, rank_key(matched, n_chars), g * m + sh)
@@ -410,6 +413,7 @@ def identify_kernel(x_px, y_px, sensor, chars, guides_unit, search, acc, trace):
             roll = refined_roll(row, img_sector, img_level, img_phi, nz, best_item[c] % m, search)
             A = seed_attitude_roll(unit, s, guides_unit, g, roll)
             ok, A = confirm(unit, rows, A, guides_unit, sensor, acc, unsolved)
+            count_work(trace, 2, 1)
             if ok:
                 trace[0] = s
                 trace[2] = g

@@ -23,6 +23,7 @@ from .planar import (
     explain_pattern,
     image_neighbours,
     neighbour_lists,
+    new_trace,
     plane_polar,
     prepare_image,
     select_guides,
@@ -133,6 +134,8 @@ class ImprovedLPT(PlanarAlgorithm):
     """
 
     name: ClassVar[str] = "lpt_improved"
+    #: work counters its kernel does not count (the SAD search's comparisons are not counted)
+    _uncounted: ClassVar[tuple] = ("comparisons",)
     #: the paper's procedure: one reference star (nearest the centre), its best match only, one
     #: alignment, the count window Ls-1..Ls+1, ranked on the feature alone (``lpt_improved:paper``)
     published: ClassVar[dict] = {"max_refs": 1, "n_candidates": 1, "image_alignments": 1, "count_tol_above": 1,
@@ -194,7 +197,7 @@ class ImprovedLPT(PlanarAlgorithm):
         cam = observation.camera
         sensor = camera_frame(cam)._replace(f_px=float(cam.f_px))
         acc = acceptance(cam, self.sigma_px, self.beta, self.min_matches, self.confirm_fraction)
-        trace = np.full(4, -1, dtype=np.int64)
+        trace = new_trace()
         rows, attitude, ok = identify_kernel(observation.x_px, observation.y_px, sensor, db.table, db.guide_unit,
                                              self._search(db), acc, trace)
         return rows, attitude, ok, trace

@@ -18,6 +18,7 @@ from .planar import (
     SEPARATION_TOL,
     begin_identify,
     confirm_pair,
+    count_work,
     guide_pattern,
     keep_best,
     no_match,
@@ -191,6 +192,7 @@ def identify_kernel(x_px, y_px, sensor, table, guides_unit, search, acc, trace):
         k = reference_pattern(unit, usable, x_px, y_px, s, search.cos_radius, sensor.f_px, nbrs, r_px, phi)
         for a in range(min(search.image_alignments, k)):
             nz = feature_vector(r_px, phi, k, a, m, search.log_scale, vec)
+            count_work(trace, 0, 1)
             q = 0
             for i in range(m):
                 if vec[i] != 0:
@@ -202,6 +204,7 @@ def identify_kernel(x_px, y_px, sensor, table, guides_unit, search, acc, trace):
                 r = best_row[c]
                 ok, A = confirm_pair(unit, rows, seed, s, nbrs[a], table.guide[r], table.align[r], guides_unit,
                                      sensor, acc)
+                count_work(trace, 2, 1)
                 if ok:
                     trace[0] = s
                     trace[1] = nbrs[a]

@@ -377,7 +377,7 @@ def begin_identify(x_px, y_px, sensor, double_px, trace):
     """
     n = x_px.shape[0]
     for t in range(trace.shape[0]):
-        trace[t] = -1
+        trace[t] = -1 if t < TRACE_WORK else 0   # the work counters (slots TRACE_WORK...) start at 0
     unit, usable, order = prepare_image(x_px, y_px, sensor, double_px)
     if n < 3:
         order = order[:0]
@@ -442,6 +442,35 @@ def confirm_pair(unit, rows, seed, s, o, guide_s, guide_o, guides_unit, sensor, 
     seed[s] = -1
     seed[o] = -1
     return ok, A
+
+
+#: ``trace`` slots from this one on are per-image work counters (when the trace is that long):
+#: reference patterns formed, database entries compared with them, attitudes verified
+TRACE_WORK = 4
+WORK_COUNTERS = ("patterns", "comparisons", "verifications")
+
+
+@njit(cache=True, inline="always")
+def count_work(trace, k, n):
+    """Add ``n`` to work counter ``k`` (0 patterns, 1 comparisons, 2 verifications) of ``trace``
+    when ``trace`` has room for it (a 4-slot trace counts nothing)."""
+    if trace.shape[0] > TRACE_WORK + k:
+        trace[TRACE_WORK + k] += n
+
+
+def new_trace() -> np.ndarray:
+    """The ``trace`` of a kernel call: 4 explain slots (-1) and the :data:`WORK_COUNTERS` (0)."""
+    trace = np.full(TRACE_WORK + len(WORK_COUNTERS), -1, dtype=np.int64)
+    trace[TRACE_WORK:] = 0
+    return trace
+
+
+def trace_counters(trace: np.ndarray, skip=()) -> dict | None:
+    """The work counters of a kernel's ``trace`` as ``Identification.counters`` (names in ``skip``
+    left out: a kernel that does not count them)."""
+    if not isinstance(trace, np.ndarray) or trace.shape[0] < TRACE_WORK + len(WORK_COUNTERS):
+        return None
+    return {k: int(v) for k, v in zip(WORK_COUNTERS, trace[TRACE_WORK:], strict=False) if k not in skip}
 
 
 @njit(cache=True)
@@ -515,8 +544,9 @@ class PlanarAlgorithm(Algorithm):
         return dataclasses.replace(self, mag_limit=mag_limit, radius_deg=radius_deg)
 
     def identify(self, database, observation: Observation) -> Identification:
-        rows, attitude, ok, _ = self._run(database, observation)
-        return Identification(rows_to_hip(rows, database.guide_hip), attitude if ok else None)
+        rows, attitude, ok, trace = self._run(database, observation)
+        return Identification(rows_to_hip(rows, database.guide_hip), attitude if ok else None,
+                              counters=trace_counters(trace, getattr(self, "_uncounted", ())))
 
 
 def explain_pattern(observation: Observation, rows: np.ndarray, guide_hip: np.ndarray, ref: int, align: int,

@@ -20,6 +20,7 @@ from starid.plugin import Algorithm, Database, Explanation, Identification
 
 from .kernels import (
     MOMENT_BLOCK,
+    WORK_COUNTERS,
     Finish,
     Rules,
     Tables,
@@ -420,10 +421,11 @@ class PlanarTriangle(Algorithm):
         return max(self.max_stars, self.wide_stars or 0)
 
     def _run(self, database: PlanarTriangleDatabase, observation: Observation):
-        """``(rows per observed star, chain as observed-star indices (L, 3), stage)`` of one image;
-        ``stage`` is the subset stage that identified (-1: none; 0 without subsets)."""
+        """``(rows per observed star, chain as observed-star indices (L, 3), stage, counters)`` of one
+        image; ``stage`` is the subset stage that identified (-1: none; 0 without subsets);
+        ``counters`` the kernel's work counters (``None`` when it did not run)."""
         n = len(observation)
-        none = np.full(n, -1, dtype=np.int64), np.zeros((0, 3), dtype=np.int64), -1
+        none = np.full(n, -1, dtype=np.int64), np.zeros((0, 3), dtype=np.int64), -1, None
         if n < 3:
             return none
         x, y, mag = observation.x_px, observation.y_px, observation.mag
@@ -441,19 +443,19 @@ class PlanarTriangle(Algorithm):
         v_cam = cam.backproject(x[order], y[order])
         tol = self._tolerance(cam)
         if self.subset_size is None:
-            rows, chain = identify_rows(v_cam, database.tables(), tol)
+            rows, chain, work = identify_rows(v_cam, database.tables(), tol)
             stage = 0 if rows.max() >= 0 else -1
         else:
             rank = np.lexsort((y[order], x[order], mag[order]))  # brightest first, ties by position
-            rows, chain, stage = identify_subsets(v_cam, rank, database.tables(), tol, self._stages(order.size))
+            rows, chain, stage, work = identify_subsets(v_cam, rank, database.tables(), tol, self._stages(order.size))
         all_rows = np.full(n, -1, dtype=np.int64)
         all_rows[order] = rows
-        return all_rows, order[chain], int(stage)
+        return all_rows, order[chain], int(stage), dict(zip(WORK_COUNTERS, work.tolist(), strict=True))
 
     def identify(self, database: PlanarTriangleDatabase, observation: Observation) -> Identification:
-        all_rows, _, stage = self._run(database, observation)
+        all_rows, _, stage, counters = self._run(database, observation)
         if not np.any(all_rows >= 0):
-            return Identification.none(len(observation))
+            return Identification(np.full(len(observation), -1, dtype=np.int64), counters=counters)
         cam = observation.camera
         tol = self._tolerance(cam)
         small = self.small_subset_size is not None and stage == len(self._stages(1)) - 1 and stage > 0
@@ -468,14 +470,14 @@ class PlanarTriangle(Algorithm):
             others = int(np.count_nonzero(~guide))
             need = max(min(self.small_confirm, others), math.ceil(self.small_confirm_fraction * others))
             if int(np.count_nonzero(hip[~guide] >= 0)) < need:
-                return Identification.none(len(observation))
+                return Identification(np.full(len(observation), -1, dtype=np.int64), counters=counters)
             if not self.assign_all:
                 hip = np.where(guide, hip, -1)
-        return Identification(hip, attitude if accepted else None)
+        return Identification(hip, attitude if accepted else None, counters=counters)
 
     def explain(self, database: PlanarTriangleDatabase, observation: Observation) -> Explanation:
         """The pivot sequence of image triangles (the accepted one's last triangle highlighted)."""
-        _, chain, _ = self._run(database, observation)
+        _, chain, _, _ = self._run(database, observation)
         hip = self.identify(database, observation).hip
         x, y = observation.x_px, observation.y_px
         segments, polygons = [], []

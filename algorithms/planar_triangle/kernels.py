@@ -32,6 +32,12 @@ from starid.kernels import (
 MOMENT_BLOCK = 256  # triangles per block of the moment index (offsets fit uint8)
 HASH_ROOM = 8  # hash-table slots per cached candidate (3 pairs, table at most 3/4 full, power of two)
 EMPTY = np.uint32(0xFFFFFFFF)  # an empty hash slot (no star pair lo < hi < 65536 has this key)
+#: names of the per-image work counters the identify kernels return (``Identification.counters``):
+#: star subsets pivoted, pivots made (triangles appended to a chain), catalog candidates examined
+#: (start-triangle hits plus star-pair hash hits at each pivot), unique finalists verified, and
+#: image triangles kept after the area k-vector search (one k-vector search each)
+WORK_COUNTERS = ("subsets", "pivots", "candidates", "verifications", "image_triangles")
+N_WORK = len(WORK_COUNTERS)
 CACHE_PER_TRIANGLE = 2048  # room for moment candidates per image triangle (on average) in the cache
 KEY_BASE = 65536  # star indices are < 65536 (uint16), so a sorted pair packs into lo * 65536 + hi
 
@@ -388,6 +394,41 @@ def _signatures(members, length):
 
 
 @njit(cache=True)
+def _same_signatures(members, length, want, ids, masks):
+    """``_signatures(members, length)`` equals ``want`` (sorted), computed in the scratch arrays
+    ``ids`` and ``masks`` (at least ``3 * length`` long) without allocating: the pivot calls this
+    once per candidate, where allocating and sorting new arrays was most of its time."""
+    n = 0
+    for li in range(length):
+        for x in range(3):
+            s = members[li, x]
+            p = -1
+            for q in range(n):
+                if ids[q] == s:
+                    p = q
+                    break
+            if p < 0:
+                p = n
+                ids[n] = s
+                masks[n] = 0
+                n += 1
+            masks[p] |= np.int64(1) << li
+    if n != want.shape[0]:
+        return False
+    for i in range(1, n):  # insertion sort (n <= 3 * length, a few dozen at most)
+        v = masks[i]
+        j = i - 1
+        while j >= 0 and masks[j] > v:
+            masks[j + 1] = masks[j]
+            j -= 1
+        masks[j + 1] = v
+    for i in range(n):
+        if masks[i] != want[i]:
+            return False
+    return True
+
+
+@njit(cache=True)
 def _grow(arr, size):
     out = np.empty(max(2 * arr.shape[0], size), dtype=arr.dtype)
     out[:arr.shape[0]] = arr
@@ -395,7 +436,7 @@ def _grow(arr, size):
 
 
 @njit(cache=True)
-def _pivot(first, img, db, tol, pivot_limit, cache):
+def _pivot(first, img, db, tol, pivot_limit, cache, work):
     """The chain and pivot procedure of ``MatchStarsWPlanarTris.m``.
 
     The chain starts at image triangle ``first``; each pivot appends the unused triangle of
@@ -411,7 +452,8 @@ def _pivot(first, img, db, tol, pivot_limit, cache):
     same two stars throughout.
 
     Returns ``(chain, cat_chain, n_finalists)``: the image triangles used and, when exactly one
-    finalist survives, its catalog triangles (else an empty array).
+    finalist survives, its catalog triangles (else an empty array). Adds to ``work`` (see
+    :data:`WORK_COUNTERS`) the pivots made and the candidates examined.
     """
     img_tri = img.tri
     img_area = img.area
@@ -426,6 +468,7 @@ def _pivot(first, img, db, tol, pivot_limit, cache):
     # finalist tree: node = (catalog triangle, parent node); one layer per chain triangle
     node_cat = _moment_candidates(first, img, db, tol, cache)[0].copy()
     n_nodes = node_cat.shape[0]
+    work[2] += n_nodes
     node_parent = np.full(max(n_nodes, 1), -1, dtype=np.int64)
     layer_lo = 0
     n_fin = n_nodes
@@ -438,6 +481,7 @@ def _pivot(first, img, db, tol, pivot_limit, cache):
         chain[step] = t
         used_tri[t] = True
         length += 1
+        work[1] += 1
         # the candidates indexed by each of their three star pairs (sorted keys)
         _, hkeys, hcand = _moment_candidates(t, img, db, tol, cache)
         hmask = hkeys.shape[0] - 1
@@ -446,6 +490,8 @@ def _pivot(first, img, db, tol, pivot_limit, cache):
             img_members[li] = img_tri[chain[li]]
         img_sig = _signatures(img_members, step + 1)
         cat_members = np.empty((step + 1, 3), dtype=np.int64)
+        sig_ids = np.empty(3 * (step + 1), dtype=np.int64)
+        sig_masks = np.empty(3 * (step + 1), dtype=np.int64)
         layer_hi = layer_lo + n_fin
         n_new = 0
         grew = False
@@ -468,6 +514,7 @@ def _pivot(first, img, db, tol, pivot_limit, cache):
                         continue
                     c = np.int64(hcand[pos])
                     pos = (pos + 1) & hmask
+                    work[2] += 1
                     shared = 0
                     for x in range(3):
                         s = tri_stars[c, x]
@@ -483,8 +530,7 @@ def _pivot(first, img, db, tol, pivot_limit, cache):
                             node = node_parent[node]
                         for x in range(3):
                             cat_members[step, x] = tri_stars[c, x]
-                        cat_sig = _signatures(cat_members, step + 1)
-                        if cat_sig.shape[0] != img_sig.shape[0] or np.any(cat_sig != img_sig):
+                        if not _same_signatures(cat_members, step + 1, img_sig, sig_ids, sig_masks):
                             continue
                     if abort_if_grow and n_new >= n_fin:
                         grew = True
@@ -702,8 +748,8 @@ def image_triangles(img_v, db, tol):
 
 
 @njit(cache=True)
-def _identify_img(img, db, tol, cache):
-    """Steps 2-5 of :func:`identify_rows` on the image triangles ``img``."""
+def _identify_img(img, db, tol, cache, work):
+    """Steps 2-5 of :func:`identify_rows` on the image triangles ``img`` (counting into ``work``)."""
     img_v = img.v
     n = img_v.shape[0]
     none = np.full(n, -1, dtype=np.int64)
@@ -717,10 +763,11 @@ def _identify_img(img, db, tol, cache):
         pivot_limit = m - 1
     ranked = np.argsort(-img.area, kind="mergesort")
     for attempt in range(min(tol.restarts + 1, m)):
-        chain, cat_chain, n_fin = _pivot(ranked[attempt], img, db, tol, pivot_limit, cache)
+        chain, cat_chain, n_fin = _pivot(ranked[attempt], img, db, tol, pivot_limit, cache, work)
         no_chain = img.tri[chain]
         if n_fin != 1:
             continue
+        work[3] += 1
         rows = recover_correspondence(img, chain, cat_chain, db, tol_chord)
         if tol.extend:
             rows = extend_by_distance(img_v, rows, db, tol_chord)
@@ -748,14 +795,19 @@ def identify_rows(img_v, db, tol):
        at least ``min_verified`` verified stars are needed;
     5. (extension, ``restarts`` > 0) on failure, start again from the next-largest triangle.
 
-    Returns ``(rows, chain)``: ``chain`` (L, 3) the stars of the image triangles of the accepted
-    pivot sequence (of the last one tried when none is accepted; for ``explain``).
+    Returns ``(rows, chain, work)``: ``chain`` (L, 3) the stars of the image triangles of the accepted
+    pivot sequence (of the last one tried when none is accepted; for ``explain``); ``work`` the
+    int64 counters of :data:`WORK_COUNTERS`.
     """
     n = img_v.shape[0]
+    work = np.zeros(N_WORK, dtype=np.int64)
     if n < 3:
-        return np.full(n, -1, dtype=np.int64), np.zeros((0, 3), dtype=np.int64)
+        return np.full(n, -1, dtype=np.int64), np.zeros((0, 3), dtype=np.int64), work
     img = image_triangles(img_v, db, tol)
-    return _identify_img(img, db, tol, new_cache(img))
+    work[0] = 1
+    work[4] = img.tri.shape[0]
+    rows, chain = _identify_img(img, db, tol, new_cache(img), work)
+    return rows, chain, work
 
 
 @njit(cache=True)
@@ -794,17 +846,19 @@ def identify_subsets(img_v, bright, db, tol, stages):
     breaks every pivot chain through it; a subset without it does not. The image triangles and
     their moment-filtered area hits are computed once for all subsets.
 
-    Returns ``(rows, chain, stage)``: the row per star of ``img_v`` (-1 = none), the pivot sequence
-    of the last subset tried (star indices of ``img_v``, see :func:`identify_rows`) and the stage
-    that identified (-1: none).
+    Returns ``(rows, chain, stage, work)``: the row per star of ``img_v`` (-1 = none), the pivot
+    sequence of the last subset tried (star indices of ``img_v``, see :func:`identify_rows`), the
+    stage that identified (-1: none) and the int64 counters of :data:`WORK_COUNTERS`.
     """
     n = img_v.shape[0]
     k = bright.shape[0]
     out = np.full(n, -1, dtype=np.int64)
     chain = np.zeros((0, 3), dtype=np.int64)
+    work = np.zeros(N_WORK, dtype=np.int64)
     if n < 3:
-        return out, chain, -1
+        return out, chain, -1, work
     img = image_triangles(img_v, db, tol)
+    work[4] = img.tri.shape[0]
     cache = new_cache(img)
     for st in range(stages.shape[0]):
         pool = min(stages[st, 1], k)
@@ -821,11 +875,12 @@ def identify_subsets(img_v, bright, db, tol, stages):
                     seen = True
             if not seen:
                 tried += 1
+                work[0] += 1
                 idx = np.sort(bright[comb])
                 sub = np.empty((size, 3))
                 for a in range(size):
                     sub[a] = img_v[idx[a]]
-                rows, sub_chain = _identify_img(_sub_triangles(img, idx, size, sub), db, tol, cache)
+                rows, sub_chain = _identify_img(_sub_triangles(img, idx, size, sub), db, tol, cache, work)
                 chain = np.empty_like(sub_chain)
                 for li in range(sub_chain.shape[0]):
                     for x in range(3):
@@ -833,7 +888,7 @@ def identify_subsets(img_v, bright, db, tol, stages):
                 if rows.max() >= 0:
                     for a in range(size):
                         out[idx[a]] = rows[a]
-                    return out, chain, st
+                    return out, chain, st, work
             # next combination of ``size`` out of ``pool`` in lexicographic order
             p = size - 1
             while p >= 0 and comb[p] == pool - size + p:
@@ -843,7 +898,7 @@ def identify_subsets(img_v, bright, db, tol, stages):
             comb[p] += 1
             for q in range(p + 1, size):
                 comb[q] = comb[q - 1] + 1
-    return out, chain, -1
+    return out, chain, -1, work
 
 
 # -- the final step (shared with triangle_voting) -------------------------------------------

@@ -275,13 +275,15 @@ class Tetra(Algorithm):
 
     def _run(self, database: TetraDatabase, observation: Observation):
         tables, settings = _bundles(self, database, observation.camera)
-        record = np.empty(9, dtype=np.int64)
+        record = np.empty(12, dtype=np.int64)   # 9 explain slots, 3 work counters
         hip, rows = identify_kernel(observation.x_px, observation.y_px, observation.mag, tables, settings, record)
         return hip, rows, record
 
     def identify(self, database: TetraDatabase, observation: Observation) -> Identification:
-        hip, _, _ = self._run(database, observation)
-        return Identification(hip)
+        hip, _, record = self._run(database, observation)
+        counters = {"patterns": max(int(record[8]), 0), "hash_lookups": int(record[9]), "candidates": int(record[10]),
+                    "verifications": int(record[11])}
+        return Identification(hip, counters=counters)
 
     def explain(self, database: TetraDatabase, observation: Observation) -> Explanation:
         """The 4-star pattern that matched (its six edges, bold) and the verified stars with their HIP."""

@@ -364,13 +364,15 @@ def identify_kernel(x_px, y_px, mag, table, tol, record):
        not reported.
 
     ``record`` (int64 (9,)) receives the winning pattern: 4 image stars, 4 guide rows in
-    matching order, and the number of patterns tried.
+    matching order, and the number of patterns tried; a 12-slot ``record`` also counts the work
+    (slots 9-11: hash-table lookups, catalog patterns whose edges were compared, verifications).
     """
     n = x_px.shape[0]
     result = np.full(n, -1, dtype=np.int64)
     hip = np.full(n, -1, dtype=np.int64)
     for k in range(record.shape[0]):
-        record[k] = -1
+        record[k] = -1 if k < 9 else 0
+    counting = record.shape[0] >= 12
     if n < 4:
         return hip, result
     unit = backproject_px(x_px, y_px, tol.f_px, tol.cx_px, tol.cy_px)
@@ -429,6 +431,8 @@ def identify_kernel(x_px, y_px, mag, table, tol, record):
                             key = key * bins + digit[p]
                         first = n_slot
                         n_slot = table_lookup(table.word, key, slots, n_slot)
+                        if counting:
+                            record[9] += 1
                         kept = first
                         for s in range(first, n_slot):   # absolute scale: the largest edge
                             if abs(float(table.word[slots[s]] & EDGE_MASK) * edge_unit - emax) <= edge_window:
@@ -445,8 +449,12 @@ def identify_kernel(x_px, y_px, mag, table, tol, record):
                     for s in range(n_slot):
                         for a in range(4):
                             cat4[a] = table.pattern[slots[s], a]
+                        if counting:
+                            record[10] += 1
                         if not _match_order(img_edge, img_dist, table.unit, cat4, edge_tol, perm, cat_edge):
                             continue
+                        if counting:
+                            record[11] += 1
                         for a in range(n):
                             trial_rows[a] = -1
                         for a in range(4):

@@ -189,15 +189,15 @@ def test_subsets_share_work_but_not_results(db, camera, catalog):
         keep = np.argsort(obs.mag, kind="stable")[:6]
         v = camera.backproject(obs.x_px[keep], obs.y_px[keep])
         rank = np.argsort(obs.mag[keep], kind="stable")
-        rows, _ = identify_rows(v, tables, tol)
-        got, _, stage = identify_subsets(v, rank, tables, tol, np.array([[6, 6, 1]]))
+        rows, _, _ = identify_rows(v, tables, tol)
+        got, _, stage, _ = identify_subsets(v, rank, tables, tol, np.array([[6, 6, 1]]))
         assert np.array_equal(got, rows) and stage == (0 if rows.max() >= 0 else -1)
         for size in (4, 5):
-            got, _, stage = identify_subsets(v, rank, tables, tol, np.array([[size, 6, 100]]))
+            got, _, stage, _ = identify_subsets(v, rank, tables, tol, np.array([[size, 6, 100]]))
             found = False
             for comb in itertools.combinations(range(6), size):
                 idx = np.sort(rank[list(comb)])
-                sub_rows, _ = identify_rows(v[idx], tables, tol)
+                sub_rows, _, _ = identify_rows(v[idx], tables, tol)
                 if sub_rows.max() >= 0:
                     found = True
                     want = np.full(6, -1)
