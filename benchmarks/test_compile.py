@@ -53,9 +53,13 @@ for name in sys.argv[1:]:
 
 
 def _names() -> list[str]:
+    """Every registered plugin, in Table 6's order (the order its first chunks reach the workers)."""
+    from starid.experiments import table6
     from starid.registry import available_algorithms
 
-    return sorted(i.name for i in available_algorithms() if i.status == "ok")
+    ok = {i.name for i in available_algorithms() if i.status == "ok"}
+    order = [v.name for v in table6.study().variants]
+    return [n for n in order if n in ok] + sorted(ok - set(order))
 
 
 def cold_compile(cache_dir: Path, jobs: int) -> tuple[float, list[dict]]:
