@@ -30,3 +30,21 @@ def test_observation_arrays_are_read_only(catalog):
         assert not o.x_px.flags.writeable and not o.y_px.flags.writeable
         with pytest.raises(ValueError):
             o.x_px[0] = 0.0
+
+
+def _chunk_task(name, block, sky="paper"):
+    chunk = SimpleNamespace(variant=SimpleNamespace(name=name), settings_key=sky, start=block * 10,
+                            stop=block * 10 + 10)
+    return SimpleNamespace(chunk=chunk, catalog_path="", camera=None, seed=0, k=(name, sky, block))
+
+
+def test_later_chunks_run_block_by_block_so_workers_reuse_simulated_images():
+    """Plan order is plugin-major; after the first chunks, every plugin's chunk of a block comes
+    before the next block, so a worker's simulated-trials cache hits."""
+    plan = [_chunk_task(n, b, sky) for sky in ("paper", "real") for n in ("ptp", "tetra") for b in range(3)]
+    out = [t.k for t in schedule(plan)]
+    assert out[:2] == [("ptp", "paper", 0), ("tetra", "paper", 0)]
+    assert out[2:] == [("ptp", "paper", 1), ("tetra", "paper", 1), ("ptp", "paper", 2), ("tetra", "paper", 2),
+                       ("ptp", "real", 0), ("tetra", "real", 0), ("ptp", "real", 1), ("tetra", "real", 1),
+                       ("ptp", "real", 2), ("tetra", "real", 2)]
+    assert sorted(out) == sorted(t.k for t in plan)
