@@ -1,6 +1,7 @@
 """Issue #26, "done when": a run killed with SIGKILL mid-way, one of its chunks then truncated, resumed, ends with
 the frame of an uninterrupted run (every column but the times)."""
 
+import contextlib
 import json
 import os
 import signal
@@ -30,6 +31,14 @@ def _start(out):
                             text=True)
 
 
+def _gone(pid):
+    try:
+        with open(f"/proc/{pid}/status") as fh:
+            return "zombie" in fh.read().lower()
+    except OSError:
+        return True
+
+
 def _frame(out):
     return pd.read_parquet(out / "results.parquet").drop(columns=TIMES)
 
@@ -42,14 +51,21 @@ def test_killed_truncated_and_resumed_equals_uninterrupted(tmp_path, monkeypatch
     while time.monotonic() < deadline and proc.poll() is None and not list(chunks.glob("*.parquet")):
         time.sleep(0.01)
     workers = subprocess.run(["pgrep", "-P", str(proc.pid)], capture_output=True, text=True).stdout.split()
-    os.kill(proc.pid, signal.SIGKILL)           # no handler runs: no cleanup, the lock left behind
-    for pid in workers:                          # as `kill -9` of the whole job would
-        try:
-            os.kill(int(pid), signal.SIGKILL)
-        except ProcessLookupError:
-            pass
-    proc.communicate(timeout=60)
+    assert workers, "no worker process"
+    os.kill(proc.pid, signal.SIGKILL)           # the run alone: no handler runs, no cleanup, the lock left behind
+    try:
+        proc.communicate(timeout=60)             # its workers end with it (they held its stdout/stderr open)
+    except subprocess.TimeoutExpired:
+        for pid in workers:
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(int(pid), signal.SIGKILL)
+        raise AssertionError("the workers of the killed run outlived it") from None
     assert proc.returncode == -signal.SIGKILL
+    for _ in range(100):
+        if all(_gone(pid) for pid in workers):
+            break
+        time.sleep(0.1)
+    assert all(_gone(pid) for pid in workers), "the workers of the killed run outlived it"
     manifest = json.loads((killed / "manifest.json").read_text())
     done = sorted(chunks.glob("*.parquet"))
     assert 1 <= len(done) < len(manifest["chunks"]) == 2 * TRIALS // BLOCK, "the kill did not land mid-way"
