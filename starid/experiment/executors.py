@@ -23,6 +23,7 @@ from __future__ import annotations
 import multiprocessing as mp
 import os
 import signal
+import sys
 import time
 from collections import OrderedDict, deque
 from dataclasses import dataclass, field
@@ -199,13 +200,48 @@ class _Unmade:
 
 # ---- local supervised workers ------------------------------------------------------------------
 
-def _worker_main(conn, beat, memory_limit_gb=None):
+#: the parent's ends of the pipes of this process's live workers: a forked worker inherits them and
+#: closes its copies (:func:`_die_with_parent`)
+_PARENT_ENDS: set = set()
+
+
+def _die_with_parent(parent_pid: int) -> None:
+    """In a forked worker: end with the run that started it, even when that run is killed (SIGKILL: no
+    ``finally`` stops the workers). Without this a worker outlives it -- computing, compiling, holding the
+    run's stdout/stderr open, waiting forever on a pipe whose other end it inherited itself.
+
+    The inherited copies of the parent's pipe ends are closed (so the parent's death is an end of file
+    or a broken pipe here), and on Linux the kernel kills the worker when its parent dies
+    (``PR_SET_PDEATHSIG``)."""
+    for end in list(_PARENT_ENDS):
+        try:
+            end.close()
+        except OSError:
+            pass
+    _PARENT_ENDS.clear()
+    if sys.platform.startswith("linux"):
+        try:
+            import ctypes
+
+            ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)     # PR_SET_PDEATHSIG = 1
+        except (OSError, AttributeError):
+            pass
+    if os.getppid() != parent_pid:      # the parent died before the line above
+        os._exit(1)
+
+
+def _worker_main(conn, beat, memory_limit_gb=None, parent_pid=None):
+    if parent_pid is not None:
+        _die_with_parent(parent_pid)
     release_in_child()          # a worker outliving a killed run must not keep its folder locked
     _limit_memory(memory_limit_gb)
     signal.signal(signal.SIGINT, signal.SIG_IGN)      # the parent alone handles Ctrl-C
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     while True:
-        task = conn.recv()
+        try:
+            task = conn.recv()
+        except (EOFError, OSError):     # the parent is gone
+            return
         if task is None:
             return
         try:
@@ -218,7 +254,9 @@ class _Worker:
     def __init__(self, ctx, memory_limit_gb=None):
         self.beat = ctx.Array("d", [-1.0, -2.0, 0.0], lock=False)
         self.conn, child = ctx.Pipe()
-        self.proc = ctx.Process(target=_worker_main, args=(child, self.beat, memory_limit_gb), daemon=True)
+        self.proc = ctx.Process(target=_worker_main, args=(child, self.beat, memory_limit_gb, os.getpid()),
+                                daemon=True)
+        _PARENT_ENDS.add(self.conn)     # before the fork: the child closes its copy
         self.proc.start()
         child.close()
         self.task: Task | None = None
@@ -235,6 +273,7 @@ class _Worker:
         if self.proc.is_alive():
             self.proc.kill()
             self.proc.join()
+        _PARENT_ENDS.discard(self.conn)
 
 
 def check_jobs(jobs: int) -> int:

@@ -43,6 +43,13 @@ from ..simulate import SKIES, SimConfig
 
 #: The suffix of the "as published" variant of a plugin (its ``published`` overrides).
 PAPER_SUFFIX = ":paper"
+#: the most points one study's grid may have (a typo such as a range of 10**6 values is refused before any work)
+MAX_GRID_POINTS = 100_000
+#: keys an experiment definition and each of its studies may hold, and the type each must be
+_TOP_KEYS = {"name": str, "trials": int, "seed": int, "camera": (dict, str), "sim": dict, "description": str,
+             "studies": list, "study": list, "algorithms": list, "grid": dict, "mode": str}
+_STUDY_KEYS = {"name": str, "algorithms": list, "variants": list, "grid": dict, "mode": str, "trials": int,
+               "camera": (dict, str)}
 _LABEL = re.compile(r"^\s*([A-Za-z_][\w.-]*)(" + PAPER_SUFFIX + r")?\s*(?:\[(.*)\])?\s*$")
 
 
@@ -175,6 +182,12 @@ class Grid:
                 raise ConfigError(f"grid axis {name!r} has no values")
         if self.mode == "zip" and len({len(v) for _, v in axes}) > 1:
             raise ConfigError("a zip grid needs value lists of equal length")
+        n = len(axes[0][1]) if axes and self.mode == "zip" else 1
+        for _, values in axes if self.mode == "product" else ():
+            n *= len(values)
+        if n > MAX_GRID_POINTS:
+            raise ConfigError(f"grid of {n:,} points ({' x '.join(f'{k}: {len(v)}' for k, v in axes)}) exceeds "
+                              f"{MAX_GRID_POINTS:,} points; split it into studies")
 
     def points(self) -> list[dict]:
         if not self.axes:
@@ -304,6 +317,16 @@ class Experiment:
 
     @classmethod
     def from_dict(cls, d: dict) -> Experiment:
+        _check_shape(d)
+        try:
+            return cls._from_dict(d)
+        except ConfigError:
+            raise
+        except (TypeError, ValueError, KeyError, AttributeError) as exc:    # a shape _check_shape did not foresee
+            raise ConfigError(f"malformed experiment definition: {type(exc).__name__}: {exc}") from None
+
+    @classmethod
+    def _from_dict(cls, d: dict) -> Experiment:
         d = dict(d)
         studies = d.pop("studies", None) or d.pop("study", None)
         if studies is None:
@@ -350,3 +373,33 @@ class Experiment:
             return cls.from_dict(data)
         except ConfigError as exc:
             raise ConfigError(f"{path}: {exc}") from None
+
+
+def _type_name(kind) -> str:
+    kinds = kind if isinstance(kind, tuple) else (kind,)
+    return " or ".join({dict: "a table", list: "a list", str: "a string", int: "an integer"}[k] for k in kinds)
+
+
+def _check_keys(d: dict, allowed: dict, where: str) -> None:
+    unknown = sorted(str(k) for k in d if k not in allowed)
+    if unknown:
+        raise ConfigError(f"unknown {where}key(s) {unknown}; valid: {', '.join(sorted(allowed))}")
+    for key, kind in allowed.items():
+        value = d.get(key)
+        if key in d and (not isinstance(value, kind) or (kind is int and isinstance(value, bool))):
+            raise ConfigError(f"{where}{key!r} must be {_type_name(kind)}, got {value!r}")
+
+
+def _check_shape(d) -> None:
+    """The keys and types of an experiment definition (a parsed TOML file), each wrong one named."""
+    if not isinstance(d, dict):
+        raise ConfigError(f"an experiment definition is a table, got {type(d).__name__}")
+    _check_keys(d, _TOP_KEYS, "")
+    for k, study in enumerate(d.get("studies") or d.get("study") or []):
+        if not isinstance(study, dict):
+            raise ConfigError(f"studies[{k}] must be a table, got {study!r}")
+        _check_keys(study, _STUDY_KEYS, f"study {study.get('name', k)!r}: ")
+        for a in study.get("algorithms") or []:
+            if not isinstance(a, (str, dict)):
+                raise ConfigError(f"study {study.get('name', k)!r}: 'algorithms' entries are names or tables, "
+                                  f"got {a!r}")
