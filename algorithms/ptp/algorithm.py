@@ -154,6 +154,12 @@ class PTP(Algorithm):
       roles swapped, a neighbouring look-alike) are matched too and would wipe out true stars, so
       by default the pairing proposed by more distinct observed triangles wins (``majority``,
       reconstruction); ``majority=False`` drops every conflicting star;
+    * readings of the paper's open steps, off by default and measured against Tables 5 and 6
+      (docs/algorithms/ptp.md, "Paper versus reconstruction"): ``unique_only`` (only a triangle with one
+      catalog match votes), ``conflict_fails`` (a conflict fails the image), ``stop_first`` (masters
+      brightest first, stop at the first after which validation gives >= 3 stars), ``lone_triangles``
+      (nothing validated: matched triangles stand if none conflicts), ``radial_sigma`` (sigma is the 2-D
+      noise); ``ptp:paper`` uses the last three with ``majority`` and ``sigma_floor_px=0.1``;
     * ``sigma_px`` is the centroid noise the tolerances assume (1 px in Table 6). It follows the
       simulator (``None``, the default: the harness sets it to the simulated noise), with a floor
       ``sigma_floor_px`` so a noise-free world still gets windows wide enough for the catalog's and the
