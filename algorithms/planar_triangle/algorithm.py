@@ -271,9 +271,10 @@ class PlanarTriangle(Algorithm):
     follows: ClassVar[dict] = {"sigma_px": "sigma_px"}
     name: ClassVar[str] = "planar_triangle"
     #: the paper's method: V <= 6 catalog, pivoting over every image star, no subsets, no coverage
-    #: check, only the pivot's stars reported (``planar_triangle:paper``)
+    #: check, only the pivot's stars reported; after a failure it starts again from the next-largest
+    #: triangle twice (closest to Zhou & Ye's Table 6, docs/algorithms/planar_triangle.md) (``planar_triangle:paper``)
     published: ClassVar[dict] = {"mag_limit": 6.0, "max_stars": None, "subset_size": None, "small_subset_size": None,
-                                 "assign_all": False, "max_missed_fraction": 1.0}
+                                 "assign_all": False, "max_missed_fraction": 1.0, "restarts": 2}
 
     mag_limit: float | None = param(
         None, unit="mag",

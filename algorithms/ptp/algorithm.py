@@ -154,6 +154,12 @@ class PTP(Algorithm):
       roles swapped, a neighbouring look-alike) are matched too and would wipe out true stars, so
       by default the pairing proposed by more distinct observed triangles wins (``majority``,
       reconstruction); ``majority=False`` drops every conflicting star;
+    * readings of the paper's open steps, off by default and measured against Tables 5 and 6
+      (docs/algorithms/ptp.md, "Paper versus reconstruction"): ``unique_only`` (only a triangle with one
+      catalog match votes), ``conflict_fails`` (a conflict fails the image), ``stop_first`` (masters
+      brightest first, stop at the first after which validation gives >= 3 stars), ``lone_triangles``
+      (nothing validated: matched triangles stand if none conflicts), ``radial_sigma`` (sigma is the 2-D
+      noise); ``ptp:paper`` uses the last three with ``majority`` and ``sigma_floor_px=0.1``;
     * ``sigma_px`` is the centroid noise the tolerances assume (1 px in Table 6). It follows the
       simulator (``None``, the default: the harness sets it to the simulated noise), with a floor
       ``sigma_floor_px`` so a noise-free world still gets windows wide enough for the catalog's and the
@@ -216,10 +222,15 @@ class PTP(Algorithm):
 
     name: ClassVar[str] = "ptp"
     #: the paper's method (section 2): no pairwise verification, confirmation or hypotheses, 4 image
-    #: slaves, 0.05 deg <= D_ms <= 5 deg on every camera, a conflicting star is a failure (``ptp:paper``)
+    #: slaves, 0.05 deg <= D_ms <= 5 deg on every camera; of the readings the text leaves open, the one
+    #: closest to Tables 5 and 6 (docs/algorithms/ptp.md, "Paper versus reconstruction"): windows that
+    #: follow the simulated noise (floor 0.1 px, so noise-free windows are not 1 px wide), sigma read as
+    #: the 2-D noise, the search stops at the first master that validates 3 stars, conflicts go to the
+    #: better supported pairing, and mutually consistent unvalidated matches stand when nothing validates
     published: ClassVar[dict] = {"verify": False, "confirm_fraction": 0.0, "image_slaves": 4, "hypotheses": 0,
-                                 "d_max_deg": 5.0, "majority": False, "d_min_deg": D_MIN_DEG,
-                                 "nearest_check": False}
+                                 "d_max_deg": 5.0, "majority": True, "d_min_deg": D_MIN_DEG,
+                                 "nearest_check": False, "sigma_floor_px": 0.1, "radial_sigma": True,
+                                 "stop_first": True, "lone_triangles": True}
     follows: ClassVar[dict] = {"sigma_px": "sigma_px"}
 
     mag_limit: float = param(6.0, help="guide stars (masters) have V <= this (paper, section 2.1)", unit="mag")
@@ -270,6 +281,16 @@ class PTP(Algorithm):
     check_fraction: float = param(0.5, help="fraction of the detections a hypothesis's attitude must explain")
     nearest_check: bool = param(
         True, help="drop a pairing when another detection lies nearer its predicted star (starid's extension)")
+    unique_only: bool = param(
+        False, help="only an image triangle with exactly one catalog match votes (reading of section 2.2)")
+    conflict_fails: bool = param(
+        False, help="any conflicting star among the validated triangles fails the whole image (reading of 2.3)")
+    lone_triangles: bool = param(
+        False, help="when validation gives < 3 stars, accept the matched triangles if none conflicts (a reading)")
+    radial_sigma: bool = param(
+        False, help="read sigma_px as the 2-D (radial) centroid noise: the windows use sigma_px / sqrt(2) per axis")
+    stop_first: bool = param(
+        False, help="stop at the first master (brightest first) after which validation gives >= 3 stars (reading)")
 
     def __post_init__(self):
         check_number("mag_limit", self.mag_limit)
@@ -299,7 +320,9 @@ class PTP(Algorithm):
         check_number("check_fraction", self.check_fraction, lo=0, hi=1)
         for name in ("verify_min_fraction", "confirm_fraction"):
             check_number(name, getattr(self, name), lo=0, hi=1)
-        for name in ("exclude_doubles", "swap_slaves", "majority", "verify", "nearest_check"):
+        for name in ("exclude_doubles", "swap_slaves", "majority", "verify", "nearest_check", "unique_only",
+                     "conflict_fails", "stop_first", "radial_sigma",
+                     "lone_triangles"):
             check_flag(name, getattr(self, name))
 
     def derived(self, catalog: Catalog, camera: Camera) -> PTP:
@@ -311,8 +334,10 @@ class PTP(Algorithm):
 
     def sigma_eff_px(self, sigma_floor_px: float = SIGMA_FLOOR_PX) -> float:
         """The centroid noise the windows use: ``sigma_px`` (None = 0) floored at ``sigma_floor_px``
-        (the database's; the default is the paper camera's 1 px)."""
-        return max(self.sigma_px or 0.0, sigma_floor_px)
+        (the database's; the default is the paper camera's 1 px); with ``radial_sigma`` divided by sqrt(2)
+        (the per-axis share of a 2-D noise of that size)."""
+        sigma = max(self.sigma_px or 0.0, sigma_floor_px)
+        return sigma / math.sqrt(2.0) if self.radial_sigma else sigma
 
     def tolerances(self, database: PTPDatabase) -> Tolerances:
         """The parameters as the kernel's tolerance bundle; d_min and the noise floor, when left None
@@ -338,7 +363,8 @@ class PTP(Algorithm):
                           float(self.verify_min_fraction), float(self.confirm_fraction), int(self.max_stars),
                           int(self.max_candidates), int(self.image_slaves), float(self.mag_limit + self.mag_margin),
                           bool(self.assign_all), int(self.hypotheses), int(self.check_min_stars),
-                          float(self.check_fraction), bool(self.nearest_check))
+                          float(self.check_fraction), bool(self.nearest_check), bool(self.unique_only),
+                          bool(self.conflict_fails), bool(self.stop_first), bool(self.lone_triangles))
 
     def build(self, catalog: Catalog, camera: Camera) -> PTPDatabase:
         settled = self.derived(catalog, camera)

@@ -85,6 +85,10 @@ class Tolerances(NamedTuple):
     check_min_stars: int
     check_fraction: float
     nearest_check: bool
+    unique_only: bool
+    conflict_fails: bool
+    stop_first: bool
+    lone_triangles: bool
 
 
 @njit(cache=True)
@@ -353,7 +357,7 @@ def match_rows(unit, view, db, tol):
     guide_unit = db.guide_unit
     sigma = tol.sigma_px / f_px
     scale, d_min, d_max, n_slaves = tol.scale, tol.d_min, tol.d_max, tol.n_slaves
-    side_beta, exclude_doubles, majority = tol.side_beta, tol.exclude_doubles, tol.majority
+    side_beta, exclude_doubles = tol.side_beta, tol.exclude_doubles
     n_guide = guide_unit.shape[0]
     n = unit.shape[0]
     result = np.full(n, -1, dtype=np.int64)
@@ -406,6 +410,8 @@ def match_rows(unit, view, db, tol):
                     nc = _side_check(sides, start, stop, db.sides, sigma, scale, side_beta, cand)
                     if nc > tol.max_candidates:
                         continue    # an uninformative triangle (a window far wider than the catalog's spacing)
+                    if tol.unique_only and nc > 1:
+                        continue    # reading: only a triangle with one catalog match votes
                     for c in range(nc):
                         if n_match == m_cap:
                             m_cap *= 2
@@ -421,8 +427,67 @@ def match_rows(unit, view, db, tol):
                             m_img[n_match, v] = order_img[v]
                             m_cat[n_match, v] = db.ids[cand[c], v]
                         n_match += 1
+        if tol.stop_first and n_match > 0:
+            # reading: the search stops at the first master after which validation identifies >= 3 stars
+            validate(n, n_guide, n_match, m_tri, m_img, m_cat, tol, tol.min_shared, tol.conflict_fails, result)
+            found = 0
+            for s in range(n):
+                if result[s] >= 0:
+                    found += 1
+            if found >= 3:
+                break
+            result[:] = -1
     if n_match == 0:
         return result   # all -1
+    support = validate(n, n_guide, n_match, m_tri, m_img, m_cat, tol, tol.min_shared, tol.conflict_fails, result)
+    if tol.lone_triangles:
+        n_found = 0
+        for s in range(n):
+            if result[s] >= 0:
+                n_found += 1
+        if n_found < 3:
+            # reading: nothing to validate against, so unvalidated matches stand if none conflicts with another
+            validate(n, n_guide, n_match, m_tri, m_img, m_cat, tol, 0, True, result)
+    tol_chord = side_beta * math.sqrt(2.0) * sigma
+    if tol.verify:
+        keep = verify_pairwise(unit, result, guide_unit, tol_chord, np.int64(2), tol.verify_min_fraction)
+        for s in range(n):
+            if not keep[s]:
+                result[s] = -1
+    n_found = 0
+    for s in range(n):
+        if result[s] >= 0:
+            n_found += 1
+    if tol.confirm_fraction > 0 and n_found >= 2:
+        attitude = wahba_rows(unit, result, guide_unit)
+        seen = np.empty(n, dtype=np.int64)
+        n_seen, n_predicted = reproject_assign(attitude, unit, guide_unit, view.c_fov + tol_chord, tol_chord, seen,
+                                               f_px, cx_px, cy_px, frame.width_px, frame.height_px)
+        if n_seen < tol.confirm_fraction * n_predicted:
+            result[:] = -1
+            n_found = 0
+    if tol.nearest_check and n_found >= 3:
+        n_found = drop_displaced(unit, result, guide_unit, tol_chord)
+    if n_found < 3 and tol.hypotheses > 0:
+        if try_hypotheses(unit, view, db, tol, n_match, m_img, m_cat, support, tol_chord, result):
+            return result
+        result[:] = -1
+    return result
+
+
+@njit(cache=True)
+def validate(n, n_guide, n_match, m_tri, m_img, m_cat, tol, min_shared, conflict_fails, result):
+    """Sharing-star validation (section 2.3, Table 3) of the first ``n_match`` match records: writes the
+    accepted guide row of each of the ``n`` image stars into ``result`` (-1 = none) and returns the support
+    of every pairing (``3 * n_match``: distinct observed triangles proposing it).
+
+    A record is validated when at least ``min_shared`` of its pairings have support >= 2. Conflicts
+    (an image star offered two catalog stars, a catalog star offered to two image stars) go to the better
+    supported pairing (``tol.majority``; a tie drops it) or are dropped; with ``conflict_fails`` any
+    conflict among validated records makes the whole image a failure (``result`` all -1).
+    """
+    majority = tol.majority
+    result[:] = -1
     # Support of each pairing = number of distinct observed triangles that propose it.
     n_pair = 3 * n_match
     key = np.empty(n_pair, dtype=np.int64)
@@ -457,7 +522,7 @@ def match_rows(unit, view, db, tol):
         for v in range(3):
             if support[3 * mi + v] >= 2:
                 shared += 1
-        if shared < tol.min_shared:
+        if shared < min_shared:
             continue
         for v in range(3):
             s = m_img[mi, v]
@@ -471,9 +536,11 @@ def match_rows(unit, view, db, tol):
                 tie[s] = False
             elif sup == best_support[s] and g != best[s]:
                 tie[s] = True
+    n_conflict = 0
     for s in range(n):
         if tie[s]:
             best[s] = -1
+            n_conflict += 1
     # A catalog star proposed for several image stars goes to the best supported one, if unique.
     for s in range(n):
         if best[s] < 0:
@@ -484,31 +551,11 @@ def match_rows(unit, view, db, tol):
                 win = False
         if win:
             result[s] = best[s]
-    tol_chord = side_beta * math.sqrt(2.0) * sigma
-    if tol.verify:
-        keep = verify_pairwise(unit, result, guide_unit, tol_chord, np.int64(2), tol.verify_min_fraction)
-        for s in range(n):
-            if not keep[s]:
-                result[s] = -1
-    n_found = 0
-    for s in range(n):
-        if result[s] >= 0:
-            n_found += 1
-    if tol.confirm_fraction > 0 and n_found >= 2:
-        attitude = wahba_rows(unit, result, guide_unit)
-        seen = np.empty(n, dtype=np.int64)
-        n_seen, n_predicted = reproject_assign(attitude, unit, guide_unit, view.c_fov + tol_chord, tol_chord, seen,
-                                               f_px, cx_px, cy_px, frame.width_px, frame.height_px)
-        if n_seen < tol.confirm_fraction * n_predicted:
-            result[:] = -1
-            n_found = 0
-    if tol.nearest_check and n_found >= 3:
-        n_found = drop_displaced(unit, result, guide_unit, tol_chord)
-    if n_found < 3 and tol.hypotheses > 0:
-        if try_hypotheses(unit, view, db, tol, n_match, m_img, m_cat, support, tol_chord, result):
-            return result
+        else:
+            n_conflict += 1
+    if conflict_fails and n_conflict > 0:
         result[:] = -1
-    return result
+    return support
 
 
 @njit(cache=True)

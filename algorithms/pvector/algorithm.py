@@ -178,9 +178,12 @@ class PVector(Algorithm):
     """
 
     name: ClassVar[str] = "pvector"
-    #: closest to the paper: one triangle per guide star (its two brightest neighbours within 4 deg), no
-    #: whole-image pass, the sorted table searched without a k-vector (``pvector:paper``)
-    published: ClassVar[dict] = {"triangles_per_star": 2, "pattern_radius_deg": 4.0, "image_neighbours": 2,
+    #: closest to the paper's numbers (Table 6, Figs. 12-13, 0.537 MB; docs/algorithms/pvector.md): the
+    #: triangles of each guide star's three brightest neighbours within 4 deg (K = 3, 0.352 MB). The PTP
+    #: paper describes one triangle of the two brightest (K = 2, 0.188 MB), which reads 5-11 points below
+    #: its Table 6 and Fig. 13 numbers. No whole-image pass; the sorted table searched without a k-vector
+    #: (``pvector:paper``)
+    published: ClassVar[dict] = {"triangles_per_star": 3, "pattern_radius_deg": 4.0, "image_neighbours": 3,
                                  "hypotheses": 0, "search": "linear", "unique_triangles": False}
     follows: ClassVar[dict] = {"sigma_px": "sigma_px"}
 
