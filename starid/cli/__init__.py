@@ -52,9 +52,6 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     previous = signal.signal(signal.SIGTERM, _on_sigterm)
-    # a process started with SIGINT ignored (a background job of a non-interactive shell, as CI and
-    # `cmd &` start it) would never hear Ctrl-C / `kill -INT`: it stops like any other run
-    previous_int = signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("always", StarIDWarning)
@@ -76,7 +73,6 @@ def main(argv: list[str] | None = None) -> int:
         return 141
     finally:
         signal.signal(signal.SIGTERM, previous)
-        signal.signal(signal.SIGINT, previous_int)
 
 
 if __name__ == "__main__":
