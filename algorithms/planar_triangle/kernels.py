@@ -375,29 +375,15 @@ def _signatures(members, length):
     lists are equal.
     """
     ids = np.empty(3 * length, dtype=np.int64)
-    masks = np.zeros(3 * length, dtype=np.int64)
-    n = 0
-    for li in range(length):
-        for x in range(3):
-            s = members[li, x]
-            p = -1
-            for q in range(n):
-                if ids[q] == s:
-                    p = q
-                    break
-            if p < 0:
-                p = n
-                ids[n] = s
-                n += 1
-            masks[p] |= np.int64(1) << li
+    masks = np.empty(3 * length, dtype=np.int64)
+    n = _fill_masks(members, length, ids, masks)
     return np.sort(masks[:n])
 
 
 @njit(cache=True)
-def _same_signatures(members, length, want, ids, masks):
-    """``_signatures(members, length)`` equals ``want`` (sorted), computed in the scratch arrays
-    ``ids`` and ``masks`` (at least ``3 * length`` long) without allocating: the pivot calls this
-    once per candidate, where allocating and sorting new arrays was most of its time."""
+def _fill_masks(members, length, ids, masks):
+    """The chain's distinct stars into ``ids[:n]`` and their membership bitmasks (bit ``l`` for
+    triangle ``l``) into ``masks[:n]``, in first-seen order; returns ``n``."""
     n = 0
     for li in range(length):
         for x in range(3):
@@ -413,6 +399,15 @@ def _same_signatures(members, length, want, ids, masks):
                 masks[n] = 0
                 n += 1
             masks[p] |= np.int64(1) << li
+    return n
+
+
+@njit(cache=True)
+def _same_signatures(members, length, want, ids, masks):
+    """``_signatures(members, length)`` equals ``want`` (sorted), computed in the scratch arrays
+    ``ids`` and ``masks`` (at least ``3 * length`` long) without allocating: the pivot calls this
+    once per candidate, where allocating and sorting new arrays was most of its time."""
+    n = _fill_masks(members, length, ids, masks)
     if n != want.shape[0]:
         return False
     for i in range(1, n):  # insertion sort (n <= 3 * length, a few dozen at most)
