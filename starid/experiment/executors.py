@@ -429,6 +429,10 @@ WORKER_HOWTO = ("start the workers with DASK_DISTRIBUTED__WORKER__DAEMON=False i
                 "(dask worker ADDRESS, the nanny then starts them as non-daemonic processes), or with "
                 "dask worker --no-nanny ADDRESS")
 
+#: ``--scheduler``: how long a run waits for the cluster's first worker
+WAIT_FOR_WORKERS_S = 60.0
+
+
 #: in a Dask worker process: thread -> (run id, the LocalExecutor(1) supervising the chunks it runs)
 _SUPERVISORS: dict = {}
 
@@ -585,10 +589,6 @@ class DaskExecutor:
             failed.update(learned)
             on_result(task, frame)
             submit()
-
-
-#: ``--scheduler``: how long a run waits for the cluster's first worker
-WAIT_FOR_WORKERS_S = 60.0
 
 
 def make_executor(name: str, jobs: int | None, scheduler: str | None = None,
