@@ -69,8 +69,10 @@ def add_engine(p: argparse.ArgumentParser, trials: int | None, seed: int = 0) ->
                    help="worker processes (default: all cores); every result but the times is identical for any "
                         "number")
     p.add_argument("--executor", choices=("local", "dask"), default="local",
-                   help="where chunks run: supervised local processes, or a Dask cluster (starid-bench[dask])")
-    p.add_argument("--scheduler", metavar="ADDRESS", help="Dask scheduler address (default: a LocalCluster)")
+                   help="where chunks run: supervised local processes, or a Dask cluster (starid-bench[dask]) whose "
+                        "workers supervise them the same way, under the same limits")
+    p.add_argument("--scheduler", metavar="ADDRESS", help="Dask scheduler address (default: a LocalCluster); its "
+                   "workers must not be daemonic: DASK_DISTRIBUTED__WORKER__DAEMON=False dask worker ADDRESS")
     p.add_argument("--time-limit", type=float, default=DEFAULT_TIME_LIMIT_S, metavar="S",
                    help="per-image identify time limit in seconds; slower images are recorded as 'timeout'")
     p.add_argument("--build-time-limit", type=float, default=BUILD_TIME_LIMIT_S, metavar="S",

@@ -14,8 +14,11 @@ fresh worker redoes the chunk with that image skipped. Ctrl-C or SIGTERM stop ev
 finished chunks are already in the results folder.
 
 :class:`DaskExecutor` (``--executor dask [--scheduler ADDRESS]``, the ``starid[dask]`` extra)
-submits the same tasks to a Dask cluster (a ``LocalCluster`` without an address); Dask, not
-starid, then handles worker failures, and there is no per-image time limit.
+submits the same tasks to a Dask cluster (a ``LocalCluster`` without an address). A Dask worker
+runs each task under the same supervision (:func:`run_supervised`: a :class:`LocalExecutor` of one
+worker kept per worker thread), so the same limits hold and record the same rows; its process must
+not be daemonic (``distributed.worker.daemon = False``, which starid sets for its LocalCluster and
+checks on a cluster given by address).
 """
 
 from __future__ import annotations
@@ -24,7 +27,9 @@ import multiprocessing as mp
 import os
 import signal
 import sys
+import threading
 import time
+import uuid
 from collections import OrderedDict, deque
 from dataclasses import dataclass, field
 from multiprocessing.connection import wait
@@ -287,29 +292,67 @@ def check_jobs(jobs: int) -> int:
     return jobs
 
 
+def check_limits(jobs: int, time_limit_s: float, build_time_limit_s: float,
+                 memory_limit_gb: float | None) -> tuple[float, float, float]:
+    """``(time_limit_s, build_time_limit_s, memory_limit_gb)`` as floats, or a clear error naming the flag;
+    ``memory_limit_gb`` None is the fair share of this machine for ``jobs`` workers."""
+    if memory_limit_gb is None:
+        memory_limit_gb = fair_share_gb(jobs)
+    if isinstance(memory_limit_gb, bool) or not (isinstance(memory_limit_gb, (int, float)) and memory_limit_gb > 0):
+        raise ConfigError(f"--memory-limit-gb must be a number of GB > 0, got {memory_limit_gb!r}")
+    for flag, value in (("--time-limit", time_limit_s), ("--build-time-limit", build_time_limit_s)):
+        if isinstance(value, bool) or not (isinstance(value, (int, float)) and 0 < value < float("inf")):
+            raise ConfigError(f"{flag} must be a number of seconds > 0, got {value!r}")
+    return float(time_limit_s), float(build_time_limit_s), float(memory_limit_gb)
+
+
+def known_failure(task: Task, failed: dict) -> Task:
+    """``task`` with every image decided when preparing its algorithm already hung or died in another
+    chunk (``failed``: prepare key -> (status, error)); it is not called again."""
+    failure = failed.get(prepare_key(task))
+    if failure is None or task.skip:
+        return task
+    n = task.chunk.stop - task.chunk.start
+    return Task(task.index, task.chunk, task.catalog_path, task.camera, task.seed, task.min_correct,
+                {i: failure for i in range(n)})
+
+
+def prepare_key(task: Task):
+    """What a prepared algorithm depends on: variant, settings, catalog, camera."""
+    return (task.chunk.variant, task.chunk.settings_key, task.catalog_path, task.camera)
+
+
 class LocalExecutor:
-    """Supervised worker processes on this machine (see the module docstring)."""
+    """Supervised worker processes on this machine (see the module docstring).
+
+    ``keep_workers``: the workers outlive :meth:`run` (and the databases they built), until
+    :meth:`close` or a run that fails; the Dask executor supervises each chunk with one of these.
+    """
 
     def __init__(self, jobs: int | None = None, time_limit_s: float = DEFAULT_TIME_LIMIT_S,
-                 build_time_limit_s: float = BUILD_TIME_LIMIT_S, memory_limit_gb: float | None = None):
+                 build_time_limit_s: float = BUILD_TIME_LIMIT_S, memory_limit_gb: float | None = None,
+                 keep_workers: bool = False):
         self.jobs = check_jobs(jobs if jobs is not None else (os.cpu_count() or 1))
-        if memory_limit_gb is None:
-            memory_limit_gb = fair_share_gb(self.jobs)
-        if isinstance(memory_limit_gb, bool) or not (isinstance(memory_limit_gb, (int, float)) and memory_limit_gb > 0):
-            raise ConfigError(f"--memory-limit-gb must be a number of GB > 0, got {memory_limit_gb!r}")
-        self.memory_limit_gb = float(memory_limit_gb)
-        for flag, value in (("--time-limit", time_limit_s), ("--build-time-limit", build_time_limit_s)):
-            if isinstance(value, bool) or not (isinstance(value, (int, float)) and 0 < value < float("inf")):
-                raise ConfigError(f"{flag} must be a number of seconds > 0, got {value!r}")
-        self.time_limit_s = float(time_limit_s)
-        self.build_time_limit_s = float(build_time_limit_s)
+        self.time_limit_s, self.build_time_limit_s, self.memory_limit_gb = check_limits(
+            self.jobs, time_limit_s, build_time_limit_s, memory_limit_gb)
+        self.keep_workers = keep_workers
+        self._workers: list[_Worker] = []
         # (variant, settings, catalog, camera) -> (status, error) of a prepare that hung or died
         self._failed: dict = {}
+
+    def close(self) -> None:
+        """Stop the workers (kept ones included)."""
+        for w in self._workers:
+            w.stop(kill=w.task is not None)
+        self._workers.clear()
 
     def run(self, tasks: list[Task], on_result) -> None:
         ctx = mp.get_context("fork" if "fork" in mp.get_all_start_methods() else "spawn")
         pending = deque(schedule(tasks))   # each plugin's first chunk first: one compile per plugin
-        workers = [_Worker(ctx, self.memory_limit_gb) for _ in range(min(self.jobs, len(tasks)))]
+        workers = self._workers
+        while len(workers) < min(self.jobs, len(tasks)):
+            workers.append(_Worker(ctx, self.memory_limit_gb))
+        finished = False
         try:
             while pending or any(w.task is not None for w in workers):
                 for w in workers:
@@ -336,23 +379,13 @@ class LocalExecutor:
                         w.stop(kill=True)
                         workers[k] = _Worker(ctx, self.memory_limit_gb)
                         pending.appendleft(replacement)
+            finished = True
         finally:
-            for w in workers:
-                w.stop(kill=w.task is not None)
-
-    @staticmethod
-    def _prepare_key(task: Task):
-        return (task.chunk.variant, task.chunk.settings_key, task.catalog_path, task.camera)
+            if not (self.keep_workers and finished):
+                self.close()
 
     def _known_failure(self, task: Task) -> Task:
-        """``task`` with every image decided when preparing its algorithm already hung or died in
-        another chunk (it is not called again)."""
-        failure = self._failed.get(self._prepare_key(task))
-        if failure is None or task.skip:
-            return task
-        n = task.chunk.stop - task.chunk.start
-        return Task(task.index, task.chunk, task.catalog_path, task.camera, task.seed, task.min_correct,
-                    {i: failure for i in range(n)})
+        return known_failure(task, self._failed)
 
     def _check(self, w: _Worker) -> Task | None:
         """A task to redo when ``w`` died or overran, else ``None``."""
@@ -384,42 +417,178 @@ class LocalExecutor:
         else:       # hung or died while preparing: every image of the chunk fails the same way
             n = task.chunk.stop - task.chunk.start
             skip = {i: (status, error) for i in range(n)}
-            self._failed[self._prepare_key(task)] = (status, error)
+            self._failed[prepare_key(task)] = (status, error)
         w.task = None
         return Task(task.index, task.chunk, task.catalog_path, task.camera, task.seed, task.min_correct, skip)
 
 
 # ---- Dask ---------------------------------------------------------------------------------------
 
-class DaskExecutor:
-    """The same tasks on a Dask cluster (``scheduler`` address, or a LocalCluster of ``jobs`` workers)."""
+#: how to start Dask workers that can supervise (said by the error when they cannot)
+WORKER_HOWTO = ("start the workers with DASK_DISTRIBUTED__WORKER__DAEMON=False in their environment "
+                "(dask worker ADDRESS, the nanny then starts them as non-daemonic processes), or with "
+                "dask worker --no-nanny ADDRESS")
 
-    def __init__(self, jobs: int | None = None, scheduler: str | None = None):
+#: ``--scheduler``: how long a run waits for the cluster's first worker
+WAIT_FOR_WORKERS_S = 60.0
+
+
+#: in a Dask worker process: thread -> (run id, the LocalExecutor(1) supervising the chunks it runs)
+_SUPERVISORS: dict = {}
+
+
+def cannot_supervise() -> str:
+    """Why this (Dask worker) process cannot start the supervised process a chunk runs in, or ``""``."""
+    proc = mp.current_process()
+    if proc.daemon:
+        return (f"the Dask worker process {proc.name!r} (pid {os.getpid()}) is daemonic, and a daemonic process "
+                f"cannot start the supervised process that holds plugin code to --time-limit, --build-time-limit "
+                f"and --memory-limit-gb")
+    return ""
+
+
+def run_supervised(task: Task, run_id: str, limits: tuple, registrations: tuple = ()) -> tuple[pd.DataFrame, dict]:
+    """In a Dask worker: ``task``'s rows, computed in a supervised child process exactly as
+    :class:`LocalExecutor` computes them (same limits, same ``timeout``/``crashed`` rows), and what this
+    worker knows of prepares that hung or died (prepare key -> (status, error)).
+
+    ``limits`` is ``(time_limit_s, build_time_limit_s, memory_limit_gb)``, memory None meaning this
+    machine's memory / its cores. ``registrations``: the client's in-process algorithm registrations
+    (classes), made here too, as a forked local worker inherits them. Each worker thread keeps its child
+    (and the databases it built) for the later chunks of run ``run_id``; a chunk of another run stops it."""
+    from .. import registry
+
+    for cls in registrations:
+        if registry._registered.get(cls.name) is not cls:
+            registry.register(cls)
+    thread = threading.get_ident()
+    held = _SUPERVISORS.get(thread)
+    if held is not None and held[0] != run_id:     # left by an earlier run
+        held[1].close()
+        del _SUPERVISORS[thread]
+        held = None
+    if held is None:
+        reason = cannot_supervise()
+        if reason:
+            raise ConfigError(f"{reason}; {WORKER_HOWTO}")
+        # what the parent of local workers has done before forking them (planning loads every entry point):
+        # the child then inherits the imports, and a plugin's imports are not counted in its build time
+        registry.available_algorithms()
+        time_limit_s, build_time_limit_s, memory_limit_gb = limits
+        if memory_limit_gb is None:
+            memory_limit_gb = fair_share_gb(os.cpu_count() or 1)
+        held = _SUPERVISORS[thread] = (run_id, LocalExecutor(1, time_limit_s, build_time_limit_s, memory_limit_gb,
+                                                             keep_workers=True))
+    supervisor = held[1]
+    out = []
+    supervisor.run([task], lambda _, frame: out.append(frame))
+    return out[0], dict(supervisor._failed)
+
+
+def close_supervisors(run_id: str | None = None) -> None:
+    """Stop this Dask worker's supervised children (of run ``run_id`` only, when given) that are not
+    computing (a chunk still running after its run was interrupted finishes first)."""
+    for thread, (rid, supervisor) in list(_SUPERVISORS.items()):
+        busy = any(w.task is not None for w in supervisor._workers)
+        if (run_id is None or rid == run_id) and not busy:
+            supervisor.close()
+            del _SUPERVISORS[thread]
+
+
+class DaskExecutor:
+    """The same tasks on a Dask cluster (``scheduler`` address, or a LocalCluster of ``jobs`` workers),
+    each chunk under the same limits as :class:`LocalExecutor`: a Dask worker runs it in a supervised
+    child process (:func:`run_supervised`), which its process must be allowed to start (not daemonic;
+    starid starts its LocalCluster so, and checks a cluster it is given)."""
+
+    def __init__(self, jobs: int | None = None, scheduler: str | None = None,
+                 time_limit_s: float = DEFAULT_TIME_LIMIT_S, build_time_limit_s: float = BUILD_TIME_LIMIT_S,
+                 memory_limit_gb: float | None = None):
         try:
             import distributed  # noqa: F401
         except ImportError:
             raise ConfigError("--executor dask needs the dask extra: pip install 'starid[dask]'") from None
         self.jobs = check_jobs(jobs if jobs is not None else (os.cpu_count() or 1))
         self.scheduler = scheduler
+        # a LocalCluster's workers share this machine: each gets the local executor's fair share; the
+        # workers of a cluster given by address each take their own machine's (memory / cores)
+        self.time_limit_s, self.build_time_limit_s, memory_gb = check_limits(
+            self.jobs, time_limit_s, build_time_limit_s, memory_limit_gb)
+        self.memory_limit_gb = None if memory_limit_gb is None and scheduler else memory_gb
 
     def run(self, tasks: list[Task], on_result) -> None:
+        import dask
         from distributed import Client, LocalCluster, as_completed
 
+        from .. import registry
+
+        limits = (self.time_limit_s, self.build_time_limit_s, self.memory_limit_gb)
+        run_id = uuid.uuid4().hex
+        registrations = tuple(registry._registered.values())
         cluster = None
-        if self.scheduler:
-            client = Client(self.scheduler)
-        else:
-            cluster = LocalCluster(n_workers=self.jobs, threads_per_worker=1, processes=True,
-                                   dashboard_address=None)
-            client = Client(cluster)
+        # the nanny reads this when it (re)starts a worker process: for the whole run
+        with dask.config.set({"distributed.worker.daemon": False}):
+            if self.scheduler:
+                try:
+                    client = Client(self.scheduler)
+                except (OSError, TimeoutError) as exc:
+                    raise ConfigError(f"--scheduler {self.scheduler}: cannot reach the Dask scheduler: "
+                                      f"{exc}") from None
+            else:
+                cluster = LocalCluster(n_workers=self.jobs, threads_per_worker=1, processes=True,
+                                       dashboard_address=None)
+                client = Client(cluster)
+            try:
+                if self.scheduler:
+                    self._check_workers(client)
+                self._submit_all(client, as_completed(), tasks, run_id, limits, registrations, on_result)
+            finally:
+                if self.scheduler:      # the cluster lives on: its workers' children of this run end now
+                    try:
+                        client.run(close_supervisors, run_id)
+                    except Exception:  # noqa: BLE001 -- a worker gone; its children die with it
+                        pass
+                client.close()
+                if cluster is not None:
+                    cluster.close()
+
+    def _check_workers(self, client) -> None:
+        """A clear error (exit 2) unless the cluster at ``self.scheduler`` has workers and each can
+        supervise a chunk."""
         try:
-            futures = {client.submit(execute_task, t, pure=False): t for t in tasks}
-            for future in as_completed(futures):
-                on_result(futures[future], future.result())
-        finally:
-            client.close()
-            if cluster is not None:
-                cluster.close()
+            client.wait_for_workers(1, timeout=WAIT_FOR_WORKERS_S)
+        except TimeoutError:
+            raise ConfigError(f"--scheduler {self.scheduler}: the Dask scheduler has no workers "
+                              f"(waited {WAIT_FOR_WORKERS_S:g} s)") from None
+        reasons = {addr: why for addr, why in client.run(cannot_supervise).items() if why}
+        if reasons:
+            addr, why = next(iter(reasons.items()))
+            raise ConfigError(f"--scheduler {self.scheduler}: {len(reasons)} of {len(client.nthreads())} Dask "
+                              f"workers cannot supervise plugin code ({addr}: {why}); {WORKER_HOWTO}")
+
+    @staticmethod
+    def _submit_all(client, completed, tasks, run_id, limits, registrations, on_result) -> None:
+        """Each plugin's first chunk first (:func:`schedule`), at most two per worker thread in flight, so a
+        chunk whose prepare hung or died elsewhere is sent with its images decided, not called again."""
+        pending = deque(schedule(tasks))
+        failed: dict = {}
+        futures: dict = {}
+
+        def submit() -> None:
+            window = max(1, 2 * sum(client.nthreads().values()))
+            while pending and len(futures) < window:
+                task = known_failure(pending.popleft(), failed)
+                future = client.submit(run_supervised, task, run_id, limits, registrations, pure=False)
+                futures[future] = task
+                completed.add(future)
+
+        submit()
+        for future in completed:
+            task = futures.pop(future)
+            frame, learned = future.result()
+            failed.update(learned)
+            on_result(task, frame)
+            submit()
 
 
 def make_executor(name: str, jobs: int | None, scheduler: str | None = None,
@@ -431,8 +600,9 @@ def make_executor(name: str, jobs: int | None, scheduler: str | None = None,
             raise ConfigError("--scheduler goes with --executor dask")
         return LocalExecutor(jobs, time_limit_s, build_time_limit_s, memory_limit_gb)
     if name == "dask":
-        return DaskExecutor(jobs, scheduler)
+        return DaskExecutor(jobs, scheduler, time_limit_s, build_time_limit_s, memory_limit_gb)
     raise ConfigError(f"unknown executor {name!r}; use 'local' or 'dask'")
 
 
-__all__ = ["DaskExecutor", "LocalExecutor", "Task", "check_jobs", "execute_task", "make_executor"]
+__all__ = ["DaskExecutor", "LocalExecutor", "Task", "check_jobs", "check_limits", "execute_task", "make_executor",
+           "run_supervised"]

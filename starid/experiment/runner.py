@@ -140,10 +140,11 @@ def run_experiment(experiment: Experiment, out: str | Path | None = None, jobs: 
     """Run (or resume) ``experiment``; the tidy frame, one row per (study, point, variant, trial).
 
     With ``out`` the results folder (:mod:`.store`) keeps every chunk as it finishes, so an
-    interrupted run resumes where it stopped; without it nothing is written. The local executor
-    holds every call of plugin code to a limit: ``time_limit_s`` per image (and the warm-up image),
+    interrupted run resumes where it stopped; without it nothing is written. Both executors hold
+    every call of plugin code to a limit: ``time_limit_s`` per image (and the warm-up image),
     ``build_time_limit_s`` for ``derived``/``build``; ``memory_limit_gb`` per worker (None: the
-    machine's memory / workers).
+    machine's memory / workers; on a Dask cluster given by ``scheduler``, each worker machine's memory /
+    its cores).
     """
     rule = rule or SuccessRule()
     catalog = load_csv(catalog_path) if catalog_path else load_hipparcos()
