@@ -67,6 +67,16 @@ def test_sigma_px_follows_the_simulator_with_a_floor():
     assert PVector().resolved(SimConfig())._tol.sigma_px == 1.0
 
 
+def test_published_tolerance_is_the_papers_fixed_1px():
+    """``pvector:paper`` keeps the 1 px windows whatever the simulated noise (Fig. 12's fall,
+    docs/algorithms/pvector.md); at and below 1 px that is what following the noise gives."""
+    paper = PVector(**PVector.published)
+    assert paper.resolved(SimConfig(sigma_px=2.0))._tol.sigma_px == 1.0
+    for noise in (0.0, 0.5, 1.0):
+        assert paper.resolved(SimConfig(sigma_px=noise))._tol == dataclasses.replace(
+            paper, sigma_px=None).resolved(SimConfig(sigma_px=noise))._tol
+
+
 # ------------------------------------------------------------------------------- database
 def test_database_invariants(algo, db, catalog):
     assert isinstance(db, PVectorDatabase)
