@@ -99,6 +99,7 @@ class Angle(Algorithm):
     n_check: int = param(8, help="other stars the direct-match test looks at, brightest first")
     min_support: int = param(2, help="of them, how many must overlay a catalog star")
     chirality: bool = param(True, help="a supporting star must have its catalog star's handedness (starid's)")
+    widen: float = param(1.0, help="first reprojection pass within widen x the window, to re-solve the attitude")
     confirm_fraction: float = param(
         0.5, help="fraction of the guide stars the attitude predicts that must be seen; 0 = off (starid's)")
     min_extra: int = param(3, help="stars besides the pair reprojection must identify; 0 = off (starid's)")
@@ -124,6 +125,7 @@ class Angle(Algorithm):
             check_flag(name, getattr(self, name))
         check_number("confirm_fraction", self.confirm_fraction, lo=0, hi=1)
         check_whole("min_extra", self.min_extra, 0)
+        check_number("widen", self.widen, lo=1, hi=100)
         check_whole("max_triangles", self.max_triangles, 1)
 
     def tolerances(self, camera: Camera, database: PairDatabase) -> AngleTol:
@@ -141,6 +143,7 @@ class Angle(Algorithm):
                         unique_window=bool(self.unique_window), n_check=int(self.n_check),
                         min_support=int(self.min_support), compare=bool(self.compare), chirality=bool(self.chirality),
                         confirm_fraction=float(self.confirm_fraction), min_extra=int(self.min_extra),
+                        widen=float(self.widen),
                         max_triangles=int(self.max_triangles))
 
     def derived(self, catalog: Catalog, camera: Camera) -> Angle:

@@ -34,6 +34,7 @@ class AngleTol(NamedTuple):
     compare : hoku's direct-match test: of the two orientations keep the one with more support.
     chirality : a supporting star must also have the same handedness as its catalog star.
     confirm_fraction, min_extra : reprojection confirmation (both 0: off).
+    widen : first reprojection pass within ``widen`` x ``eps_match`` (see :func:`confirm_pattern`).
     max_triangles : an anchor star supporting more pairings than this is skipped (starid's test).
     """
 
@@ -53,6 +54,7 @@ class AngleTol(NamedTuple):
     confirm_fraction: float
     min_extra: int
     max_triangles: int
+    widen: float
 
 
 @njit(cache=True)
@@ -94,15 +96,20 @@ def support(v_cam, sel, a, b, big_i, big_j, nbr, nbr_chord, nbr_start, guide_uni
 
 
 @njit(cache=True)
-def confirm_pattern(v_cam, pat_star, pat_row, guide_unit, c_fov, eps, cam, min_extra, confirm_fraction, rows):
+def confirm_pattern(v_cam, pat_star, pat_row, guide_unit, c_fov, eps, widen, cam, min_extra, confirm_fraction, rows):
     """Attitude of a matched pattern (Wahba), the other stars by reprojection, and the confirmation.
 
-    ``reproject_assign`` identifies every detection within ``eps`` of exactly one predicted guide
-    star, repeated once with the attitude of all stars found. With the confirmation on
-    (``min_extra`` or ``confirm_fraction`` above 0) the pattern stands when every pattern star keeps
-    its row, at least ``min_extra`` stars besides the pattern are identified and at least
-    ``confirm_fraction`` of the guide stars the attitude puts on the sensor are seen; off, the
-    pattern's own rows are kept whatever reprojection says. Fills ``rows``; returns whether it stands.
+    ``reproject_assign`` identifies every detection within the radius of exactly one predicted
+    guide star: first ``widen`` x ``eps`` (with ``widen`` > 1: a pattern of close stars gives an
+    attitude whose error grows across the field; this pass only gathers stars to re-solve it),
+    then three times ``eps``, re-solving the attitude from all stars found before each pass (the
+    last pass checks the pattern against the attitude of every star found: a pattern star matched
+    to the wrong one of two close guide stars is caught there). With the
+    confirmation on (``min_extra`` or ``confirm_fraction`` above 0) the pattern stands when, in
+    the ``eps`` passes, every pattern star keeps its row, at least ``min_extra`` stars besides the
+    pattern are identified and at least ``confirm_fraction`` of the guide stars the attitude puts on
+    the sensor are seen; off, the pattern's own rows are kept whatever reprojection says. Fills
+    ``rows``; returns whether it stands.
     """
     n = v_cam.shape[0]
     k = pat_star.shape[0]
@@ -111,20 +118,23 @@ def confirm_pattern(v_cam, pat_star, pat_row, guide_unit, c_fov, eps, cam, min_e
     for a in range(k):
         rows[pat_star[a]] = pat_row[a]
     attitude = wahba_rows(v_cam, rows, guide_unit)
-    for _ in range(2):
-        n_seen, n_predicted = reproject_assign(attitude, v_cam, guide_unit, c_fov + eps, eps, rows,
+    for step in range(4 if widen > 1.0 else 3):
+        first = widen > 1.0 and step == 0
+        radius = widen * eps if first else eps
+        n_seen, n_predicted = reproject_assign(attitude, v_cam, guide_unit, c_fov + radius, radius, rows,
                                                cam.f_px, cam.cx_px, cam.cy_px, cam.width_px, cam.height_px)
         for a in range(k):
             if rows[pat_star[a]] != pat_row[a]:
-                if strict:
+                if strict and not first:
                     return False
                 for s in range(n):                      # the pattern's own pairing wins
                     if rows[s] == pat_row[a]:
                         rows[s] = -1
                 rows[pat_star[a]] = pat_row[a]
-        if strict and (n_seen - k < min_extra or n_seen < confirm_fraction * n_predicted):
+        if strict and not first and (n_seen - k < min_extra or n_seen < confirm_fraction * n_predicted):
             return False
-        attitude = wahba_rows(v_cam, rows, guide_unit)
+        if step < (3 if widen > 1.0 else 2):
+            attitude = wahba_rows(v_cam, rows, guide_unit)
     return True
 
 
@@ -188,7 +198,7 @@ def angle_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_un
                         continue
                     pat_row[0] = pairs[p, best]
                     pat_row[1] = pairs[p, 1 - best]
-                    if confirm_pattern(v_cam, pat_star, pat_row, guide_unit, tol.c_fov, tol.eps_match, cam,
+                    if confirm_pattern(v_cam, pat_star, pat_row, guide_unit, tol.c_fov, tol.eps_match, tol.widen, cam,
                                        tol.min_extra, tol.confirm_fraction, rows):
                         pair[:] = pat_star
                         return rows, pair, n_pairs
@@ -218,7 +228,7 @@ def angle_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_un
                         continue
                     pat_row[0] = big_i
                     pat_row[1] = big_j
-                    if confirm_pattern(v_cam, pat_star, pat_row, guide_unit, tol.c_fov, tol.eps_match, cam,
+                    if confirm_pattern(v_cam, pat_star, pat_row, guide_unit, tol.c_fov, tol.eps_match, tol.widen, cam,
                                        tol.min_extra, tol.confirm_fraction, rows):
                         pair[:] = pat_star
                         return rows, pair, n_pairs

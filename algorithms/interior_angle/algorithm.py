@@ -94,6 +94,7 @@ class InteriorAngle(Algorithm):
     unique: bool = param(False, help="use only a query returning exactly one trio (the paper's |R| = 1)")
     ordered: bool = param(False, help="the catalog trio must have theta(C, C1) < theta(C, C2) (the paper)")
     chirality: bool = param(True, help="the catalog trio must have the image trio's handedness (starid's)")
+    widen: float = param(3.0, help="first reprojection pass within widen x the window, to re-solve the attitude")
     confirm_fraction: float = param(
         0.5, help="fraction of the guide stars the attitude predicts that must be seen; 0 = off (starid's)")
     min_extra: int = param(2, help="stars besides the trio reprojection must identify; 0 = off (starid's)")
@@ -117,6 +118,7 @@ class InteriorAngle(Algorithm):
             check_flag(name, getattr(self, name))
         check_number("confirm_fraction", self.confirm_fraction, lo=0, hi=1)
         check_whole("min_extra", self.min_extra, 0)
+        check_number("widen", self.widen, lo=1, hi=100)
 
     def tolerances(self, camera: Camera, database: PairDatabase) -> InteriorTol:
         if self.sigma_query_deg is None:
@@ -133,7 +135,7 @@ class InteriorAngle(Algorithm):
                            max_stars=int(self.max_stars), max_centres=int(self.max_centres), unique=bool(self.unique),
                            ordered=bool(self.ordered), chirality=bool(self.chirality),
                            max_candidates=int(self.max_candidates), confirm_fraction=float(self.confirm_fraction),
-                           min_extra=int(self.min_extra))
+                           min_extra=int(self.min_extra), widen=float(self.widen))
 
     def derived(self, catalog: Catalog, camera: Camera) -> InteriorAngle:
         """``d_min_deg`` left None set to pyramid's :func:`d_min_for` ``camera``."""

@@ -36,6 +36,7 @@ class InteriorTol(NamedTuple):
     chirality : the catalog trio must have the image trio's handedness (signed interior angle).
     max_candidates : a query returning more trios is skipped.
     confirm_fraction, min_extra : reprojection confirmation (both 0: off).
+    widen : first reprojection pass within ``widen`` x ``eps`` (``confirm_pattern``).
     """
 
     eps: float
@@ -54,6 +55,7 @@ class InteriorTol(NamedTuple):
     max_candidates: int
     confirm_fraction: float
     min_extra: int
+    widen: float
 
 
 @njit(cache=True)
@@ -174,7 +176,7 @@ def interior_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide
         for t in range(count):
             for a in range(3):
                 pat_row[a] = out[t, a]
-            if confirm_pattern(v_cam, pat_star, pat_row, guide_unit, tol.c_fov, tol.eps, cam, tol.min_extra,
+            if confirm_pattern(v_cam, pat_star, pat_row, guide_unit, tol.c_fov, tol.eps, tol.widen, cam, tol.min_extra,
                                tol.confirm_fraction, rows):
                 trio[:] = pat_star
                 return rows, trio, n_centres
