@@ -72,6 +72,9 @@ class Angle(Algorithm):
       pairing stands when ``min_support`` of the next ``n_check`` stars overlay with the right
       handedness (``chirality``) and the reprojection confirmation (``confirm_fraction``,
       ``min_extra``) passes -- the safeguard that keeps random fields unidentified;
+    * with ``compare`` off, the pairings are not tested one by one: each of the ``n_check`` stars in
+      turn anchors the test, and the pairings it supports are the catalog triangles of the image
+      pair and the anchor (pyramid's join of two windows), then counted over the other stars;
     * detections and guide stars closer than ``d_min_deg`` to another are not used (pyramid's rule).
     """
 
