@@ -189,7 +189,7 @@ def angle_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_un
                     s_best = -1
                     for o in range(2):
                         s = support(v_cam, sel, a, b, np.int64(pairs[p, o]), np.int64(pairs[p, 1 - o]), nbr,
-                                    nbr_chord, nbr_start, guide_unit, tol.eps_match, tol.n_check, -1,
+                                    nbr_chord, nbr_start, guide_unit, tol.eps_match, tol.n_check, np.int64(-1),
                                     tol.chirality)
                         if s >= s_best:
                             s_best = s

@@ -20,6 +20,9 @@ from starid_algorithms.pyramid.kernels import neighbours_within, select_stars, t
 
 from starid.kernels import backproject_px, chord_rows, kvector_query
 
+#: numba: float() of a float32 stays a float32; np.float64 casts (one signature for image and catalog)
+f64 = np.float64
+
 
 class InteriorTol(NamedTuple):
     """Tolerances and limits (chords of unit vectors, ~radians; ``eps_phi*`` in radians).
@@ -59,17 +62,21 @@ class InteriorTol(NamedTuple):
 
 
 @njit(cache=True)
+def angle_at(cx, cy, cz, ix, iy, iz, jx, jy, jz):
+    """Angle at unit vector c between the great circles to i and j (radians, in [0, pi]).
+
+    Scalars (float64) so that image (float64) and catalog (float32) vectors share one signature:
+    atan2(|c . (i x j)|, i . j - (i . c)(j . c)), the tangent-plane angle.
+    """
+    t = abs(cx * (iy * jz - iz * jy) + cy * (iz * jx - ix * jz) + cz * (ix * jy - iy * jx))
+    return math.atan2(t, ix * jx + iy * jy + iz * jz - (ix * cx + iy * cy + iz * cz) * (jx * cx + jy * cy + jz * cz))
+
+
+@njit(cache=True)
 def interior_angle(u, c, i, j):
-    """Angle at ``u[c]`` between the great circles to ``u[i]`` and ``u[j]`` (radians, in [0, pi])."""
-    t = abs(triple(u, c, u, i, u, j))
-    dij = 0.0
-    dci = 0.0
-    dcj = 0.0
-    for a in range(3):
-        dij += float(u[i, a]) * float(u[j, a])
-        dci += float(u[c, a]) * float(u[i, a])
-        dcj += float(u[c, a]) * float(u[j, a])
-    return math.atan2(t, dij - dci * dcj)
+    """:func:`angle_at` of rows ``c``, ``i``, ``j`` of the (n, 3) image vectors ``u`` (float64)."""
+    return angle_at(f64(u[c, 0]), f64(u[c, 1]), f64(u[c, 2]), f64(u[i, 0]), f64(u[i, 1]), f64(u[i, 2]), f64(u[j, 0]),
+                    f64(u[j, 1]), f64(u[j, 2]))
 
 
 @njit(cache=True)
@@ -126,7 +133,11 @@ def trio_query(v_cam, sc, s1, s2, kv, pairs, nbr, nbr_chord, nbr_start, guide_un
                     continue
                 if tol.chirality and triple(guide_unit, big_c, guide_unit, big_1, guide_unit, big_2) * t_obs <= 0.0:
                     continue
-                if abs(interior_angle(guide_unit, big_c, big_1, big_2) - phi) > eps_phi:
+                g = guide_unit
+                phi_cat = angle_at(f64(g[big_c, 0]), f64(g[big_c, 1]), f64(g[big_c, 2]), f64(g[big_1, 0]),
+                                   f64(g[big_1, 1]), f64(g[big_1, 2]), f64(g[big_2, 0]), f64(g[big_2, 1]),
+                                   f64(g[big_2, 2]))
+                if abs(phi_cat - phi) > eps_phi:
                     continue
                 if count == out.shape[0]:
                     return count + 1

@@ -9,7 +9,7 @@ import dataclasses
 import numpy as np
 import pytest
 from starid_algorithms.interior_angle import GALVIZO2018, InteriorAngle
-from starid_algorithms.interior_angle.kernels import interior_angle, nearest_two, trio_query
+from starid_algorithms.interior_angle.kernels import angle_at, interior_angle, nearest_two, trio_query
 from starid_algorithms.pyramid.kernels import select_stars
 from starid_algorithms.pyramid.testing import noisy_results
 
@@ -41,6 +41,7 @@ def test_interior_angle_matches_tangent_plane():
     for c, i, j in rng.integers(0, 30, (40, 3)):
         if len({c, i, j}) == 3:
             assert interior_angle(u, c, i, j) == pytest.approx(_phi(u, c, i, j), abs=1e-9)
+            assert angle_at(*u[c], *u[i], *u[j]) == pytest.approx(_phi(u, c, i, j), abs=1e-9)
 
 
 def test_trio_query_matches_brute_force(algo, db, catalog, camera):
