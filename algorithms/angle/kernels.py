@@ -1,0 +1,236 @@
+"""numba kernels of the two-star angle method (Galvizo & Lim 2018, their "ANG"; see ``docs/algorithms/angle.md``).
+
+The search runs over pyramid's star-pair database (``starid_algorithms.pyramid``): the k-vector over
+the pair chords and each guide star's partners sorted by chord. :func:`confirm_pattern` (attitude
+from a matched pattern, the rest by reprojection, the confirmation test) is shared with the
+interior-angle plugin.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+from starid_algorithms.pyramid.kernels import neighbours_within, pair_windows, select_stars, triad_triangles, triple
+
+from starid.kernels import backproject_px, chord_rows, reproject_assign, wahba_rows
+
+
+class AngleTol(NamedTuple):
+    """Tolerances and limits of one identification (chords of unit vectors, ~radians).
+
+    eps : half-width of the pair-angle window (the catalog query).
+    eps_match : distance tolerance of the direct-match test and of reprojection.
+    d_min : detections closer than this to another are not used.
+    c_max : largest catalog pair chord stored.
+    c_fov : chord from the boresight to the farthest image corner.
+    max_window : an image pair whose window holds more catalog pairs is not used.
+    max_stars : the brightest detections the pairs are formed from.
+    max_pairs : iteration cutoff (image pairs tried; hoku's nu_max).
+    unique_window : only a window holding exactly one catalog pair is used (hoku's |R| = 1).
+    n_check : other stars the direct-match test looks at (brightest first).
+    min_support : of them, how many must overlay a catalog star for the pairing to stand.
+    compare : hoku's direct-match test: of the two orientations keep the one with more support.
+    chirality : a supporting star must also have the same handedness as its catalog star.
+    confirm_fraction, min_extra : reprojection confirmation (both 0: off).
+    widen : first reprojection pass within ``widen`` x ``eps_match`` (see :func:`confirm_pattern`).
+    max_triangles : an anchor star supporting more pairings than this is skipped (starid's test).
+    """
+
+    eps: float
+    eps_match: float
+    d_min: float
+    c_max: float
+    c_fov: float
+    max_window: int
+    max_stars: int
+    max_pairs: int
+    unique_window: bool
+    n_check: int
+    min_support: int
+    compare: bool
+    chirality: bool
+    confirm_fraction: float
+    min_extra: int
+    max_triangles: int
+    widen: float
+
+
+@njit(cache=True)
+def support(v_cam, sel, a, b, big_i, big_j, nbr, nbr_chord, nbr_start, guide_unit, eps, n_check, need, chirality):
+    """Direct-match test of the pairing ``sel[a] -> I``, ``sel[b] -> J``: how many of the next
+    ``n_check`` selected stars k (brightness order) have a guide star K within ``eps`` of the right
+    distance from both I and J (and, with ``chirality``, the same sign of the triple product).
+
+    K runs over I's neighbours at chord(b_a, b_k) +- eps (bisection in the partner list). Stops as
+    soon as ``need`` stars agree or ``need`` can no longer be reached; ``need`` < 0 counts them all.
+    """
+    m = sel.shape[0]
+    sa = sel[a]
+    sb = sel[b]
+    count = 0
+    tried = 0
+    for k in range(m):
+        if k == a or k == b:
+            continue
+        if tried == n_check:
+            break
+        tried += 1
+        sk = sel[k]
+        ci = chord_rows(v_cam, sa, v_cam, sk)
+        cj = chord_rows(v_cam, sb, v_cam, sk)
+        t_obs = triple(v_cam, sa, v_cam, sb, v_cam, sk)
+        lo, hi = neighbours_within(nbr_chord, nbr_start, big_i, ci - eps, ci + eps)
+        for e in range(lo, hi):
+            big_k = np.int64(nbr[e])
+            if big_k == big_j or abs(chord_rows(guide_unit, big_j, guide_unit, big_k) - cj) > eps:
+                continue
+            if chirality and triple(guide_unit, big_i, guide_unit, big_j, guide_unit, big_k) * t_obs <= 0.0:
+                continue
+            count += 1
+            break
+        if need >= 0 and (count >= need or count + (n_check - tried) < need):
+            return count
+    return count
+
+
+@njit(cache=True)
+def confirm_pattern(v_cam, pat_star, pat_row, guide_unit, c_fov, eps, widen, cam, min_extra, confirm_fraction, rows):
+    """Attitude of a matched pattern (Wahba), the other stars by reprojection, and the confirmation.
+
+    ``reproject_assign`` identifies every detection within the radius of exactly one predicted
+    guide star: first ``widen`` x ``eps`` (with ``widen`` > 1: a pattern of close stars gives an
+    attitude whose error grows across the field; this pass only gathers stars to re-solve it),
+    then three times ``eps``, re-solving the attitude from all stars found before each pass (the
+    last pass checks the pattern against the attitude of every star found: a pattern star matched
+    to the wrong one of two close guide stars is caught there). With the
+    confirmation on (``min_extra`` or ``confirm_fraction`` above 0) the pattern stands when, in
+    the ``eps`` passes, every pattern star keeps its row, at least ``min_extra`` stars besides the
+    pattern are identified and at least ``confirm_fraction`` of the guide stars the attitude puts on
+    the sensor are seen; off, the pattern's own rows are kept whatever reprojection says. Fills
+    ``rows``; returns whether it stands.
+    """
+    n = v_cam.shape[0]
+    k = pat_star.shape[0]
+    strict = min_extra > 0 or confirm_fraction > 0.0
+    rows[:] = -1
+    for a in range(k):
+        rows[pat_star[a]] = pat_row[a]
+    attitude = wahba_rows(v_cam, rows, guide_unit)
+    for step in range(4 if widen > 1.0 else 3):
+        first = widen > 1.0 and step == 0
+        radius = widen * eps if first else eps
+        n_seen, n_predicted = reproject_assign(attitude, v_cam, guide_unit, c_fov + radius, radius, rows,
+                                               cam.f_px, cam.cx_px, cam.cy_px, cam.width_px, cam.height_px)
+        for a in range(k):
+            if rows[pat_star[a]] != pat_row[a]:
+                if strict and not first:
+                    return False
+                for s in range(n):                      # the pattern's own pairing wins
+                    if rows[s] == pat_row[a]:
+                        rows[s] = -1
+                rows[pat_star[a]] = pat_row[a]
+        if strict and not first and (n_seen - k < min_extra or n_seen < confirm_fraction * n_predicted):
+            return False
+        if step < (3 if widen > 1.0 else 2):
+            attitude = wahba_rows(v_cam, rows, guide_unit)
+    return True
+
+
+@njit(cache=True)
+def angle_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_unit, tol, cam):
+    """The angle method on one image. Returns ``(rows, pair, n_pairs)``.
+
+    ``rows[s]`` is the guide row of detection ``s`` (-1 = none); ``pair`` the two detections of the
+    accepted pairing (-1 when none); ``n_pairs`` how many image pairs were examined.
+
+    1. isolated detections, brightest first, at most ``tol.max_stars``;
+    2. image pairs in hoku's order ``for i: for j > i``, at most ``tol.max_pairs``;
+    3. the pair's k-vector window: catalog pairs whose chord is within ``tol.eps``
+       (``tol.unique_window``: the window must hold exactly one);
+    4. for each catalog pair and each orientation, the direct-match test (:func:`support`);
+       ``tol.compare``: only the orientation with more support (ties: the second, as hoku);
+    5. a pairing with at least ``tol.min_support`` supporting stars goes through
+       :func:`confirm_pattern`; the first that stands is the answer.
+    """
+    n = x_px.shape[0]
+    rows = np.full(n, -1, dtype=np.int64)
+    pair = np.full(2, -1, dtype=np.int64)
+    if n < 2:
+        return rows, pair, 0
+    v_cam = backproject_px(x_px, y_px, cam.f_px, cam.cx_px, cam.cy_px)
+    sel = select_stars(x_px, y_px, mag, v_cam, tol.d_min, tol.max_stars)
+    m = sel.shape[0]
+    pat_star = np.empty(2, dtype=np.int64)
+    pat_row = np.empty(2, dtype=np.int64)
+    start, stop = pair_windows(v_cam, sel, kv, tol)
+    n_guide = guide_unit.shape[0]
+    cap = 2 * max(tol.max_window, 1)
+    work = (np.full(n_guide, -1, dtype=np.int32), np.zeros(n_guide, dtype=np.int32),
+            np.empty(cap, dtype=np.int32), np.empty(cap, dtype=np.int32))
+    tri = np.empty((max(tol.max_triangles, 1), 3), dtype=np.int64)
+    tick = 0
+    n_pairs = 0
+    for a in range(m - 1):
+        for b in range(a + 1, m):
+            if n_pairs >= tol.max_pairs:
+                rows[:] = -1
+                return rows, pair, n_pairs
+            n_pairs += 1
+            lo, hi = start[a, b], stop[a, b]
+            if hi == lo or (tol.unique_window and hi - lo != 1):
+                continue
+            pat_star[0] = sel[a]
+            pat_star[1] = sel[b]
+            if tol.compare:                         # hoku's test: every candidate, the better orientation
+                for p in range(lo, hi):
+                    best = -1
+                    s_best = -1
+                    for o in range(2):
+                        s = support(v_cam, sel, a, b, np.int64(pairs[p, o]), np.int64(pairs[p, 1 - o]), nbr,
+                                    nbr_chord, nbr_start, guide_unit, tol.eps_match, tol.n_check, np.int64(-1),
+                                    tol.chirality)
+                        if s >= s_best:
+                            s_best = s
+                            best = o
+                    if s_best < tol.min_support:
+                        continue
+                    pat_row[0] = pairs[p, best]
+                    pat_row[1] = pairs[p, 1 - best]
+                    if confirm_pattern(v_cam, pat_star, pat_row, guide_unit, tol.c_fov, tol.eps_match, tol.widen, cam,
+                                       tol.min_extra, tol.confirm_fraction, rows):
+                        pair[:] = pat_star
+                        return rows, pair, n_pairs
+                continue
+            # starid's test: each of the first n_check other stars k in turn anchors the test; the
+            # pairings it supports are the catalog triangles of (a, b, k) (pyramid's join of the
+            # windows ab and ak, with the handedness test), then counted over the other stars
+            tried = 0
+            for k in range(m):
+                if k == a or k == b:
+                    continue
+                if tried == tol.n_check:
+                    break
+                tried += 1
+                if stop[a, k] == start[a, k] or tol.min_support < 1:
+                    continue
+                tick += 1
+                n_tri = triad_triangles(v_cam, sel[a], sel[b], sel[k], (lo, hi), (start[a, k], stop[a, k]), pairs,
+                                        guide_unit, tol.eps_match, work, tick, tri)
+                if n_tri > tri.shape[0]:
+                    continue
+                for t in range(n_tri):
+                    big_i = tri[t, 0]
+                    big_j = tri[t, 1]
+                    if support(v_cam, sel, a, b, big_i, big_j, nbr, nbr_chord, nbr_start, guide_unit, tol.eps_match,
+                               tol.n_check, tol.min_support, tol.chirality) < tol.min_support:
+                        continue
+                    pat_row[0] = big_i
+                    pat_row[1] = big_j
+                    if confirm_pattern(v_cam, pat_star, pat_row, guide_unit, tol.c_fov, tol.eps_match, tol.widen, cam,
+                                       tol.min_extra, tol.confirm_fraction, rows):
+                        pair[:] = pat_star
+                        return rows, pair, n_pairs
+    rows[:] = -1
+    return rows, pair, n_pairs

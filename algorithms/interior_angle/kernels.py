@@ -1,0 +1,195 @@
+"""numba kernels of the interior-angle method (Galvizo & Lim 2018, their "INT"; see
+``docs/algorithms/interior_angle.md``).
+
+The permutation table of the paper (every catalog trio (C, C1, C2) with its two angles from the
+central star C and the interior angle at C) is searched without being stored: the first angle
+through pyramid's pair k-vector (either end of a pair may be C), the second through C's partner
+list sorted by chord, and the interior angle is then computed. Attitude, reprojection and the
+confirmation test are the angle plugin's :func:`~starid_algorithms.angle.kernels.confirm_pattern`.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+from starid_algorithms.angle.kernels import confirm_pattern
+from starid_algorithms.pyramid.kernels import neighbours_within, select_stars, triple
+
+from starid.kernels import backproject_px, chord_rows, kvector_query
+
+#: numba: float() of a float32 stays a float32; np.float64 casts (one signature for image and catalog)
+f64 = np.float64
+
+
+class InteriorTol(NamedTuple):
+    """Tolerances and limits (chords of unit vectors, ~radians; ``eps_phi*`` in radians).
+
+    eps : half-width of both angle windows.
+    eps_phi : fixed half-width of the interior-angle window; 0 = from ``phi_sigma`` (below).
+    phi_sigma : per-axis position noise (chord) the interior-angle window follows:
+        ``phi_beta`` phi_sigma sqrt(2/t1^2 + 2/t2^2 + 2/(t1 t2)).
+    phi_beta : its multiplier.
+    d_min, c_max, c_fov, max_window, max_stars : as in pyramid's ``PairTol``.
+    max_centres : iteration cutoff: central stars tried.
+    unique : only a query returning exactly one trio is used (the paper's |R| = 1).
+    ordered : the catalog trio must have theta(C, C1) < theta(C, C2) (the paper's fourth predicate).
+    chirality : the catalog trio must have the image trio's handedness (signed interior angle).
+    max_candidates : a query returning more trios is skipped.
+    confirm_fraction, min_extra : reprojection confirmation (both 0: off).
+    widen : first reprojection pass within ``widen`` x ``eps`` (``confirm_pattern``).
+    """
+
+    eps: float
+    eps_phi: float
+    phi_sigma: float
+    phi_beta: float
+    d_min: float
+    c_max: float
+    c_fov: float
+    max_window: int
+    max_stars: int
+    max_centres: int
+    unique: bool
+    ordered: bool
+    chirality: bool
+    max_candidates: int
+    confirm_fraction: float
+    min_extra: int
+    widen: float
+
+
+@njit(cache=True)
+def angle_at(cx, cy, cz, ix, iy, iz, jx, jy, jz):
+    """Angle at unit vector c between the great circles to i and j (radians, in [0, pi]).
+
+    Scalars (float64) so that image (float64) and catalog (float32) vectors share one signature:
+    atan2(|c . (i x j)|, i . j - (i . c)(j . c)), the tangent-plane angle.
+    """
+    t = abs(cx * (iy * jz - iz * jy) + cy * (iz * jx - ix * jz) + cz * (ix * jy - iy * jx))
+    return math.atan2(t, ix * jx + iy * jy + iz * jz - (ix * cx + iy * cy + iz * cz) * (jx * cx + jy * cy + jz * cz))
+
+
+@njit(cache=True)
+def interior_angle(u, c, i, j):
+    """:func:`angle_at` of rows ``c``, ``i``, ``j`` of the (n, 3) image vectors ``u`` (float64)."""
+    return angle_at(f64(u[c, 0]), f64(u[c, 1]), f64(u[c, 2]), f64(u[i, 0]), f64(u[i, 1]), f64(u[i, 2]), f64(u[j, 0]),
+                    f64(u[j, 1]), f64(u[j, 2]))
+
+
+@njit(cache=True)
+def nearest_two(v_cam, sel, c):
+    """Positions in ``sel`` of the two stars nearest to ``sel[c]`` (Liebe's choice; ties by position)."""
+    best1 = -1
+    best2 = -1
+    d1 = np.inf
+    d2 = np.inf
+    for k in range(sel.shape[0]):
+        if k == c:
+            continue
+        d = chord_rows(v_cam, sel[c], v_cam, sel[k])
+        if d < d1:
+            best2, d2 = best1, d1
+            best1, d1 = k, d
+        elif d < d2:
+            best2, d2 = k, d
+    return best1, best2
+
+
+@njit(cache=True)
+def trio_query(v_cam, sc, s1, s2, kv, pairs, nbr, nbr_chord, nbr_start, guide_unit, tol, out):
+    """Catalog trios (C, C1, C2) matching the image trio (central ``sc``, nearest ``s1``, second ``s2``).
+
+    |theta(C, C1) - t1| and |theta(C, C2) - t2| within ``tol.eps`` (chords), the interior angle at
+    C within its window, and the ``ordered`` / ``chirality`` rules. Writes up to ``out.shape[0]`` trios;
+    returns their count (``out.shape[0] + 1`` when there were more, -1 when the window was unusable).
+    """
+    t1 = chord_rows(v_cam, sc, v_cam, s1)
+    t2 = chord_rows(v_cam, sc, v_cam, s2)
+    if t2 - tol.eps > tol.c_max:
+        return -1
+    lo, hi = kvector_query(kv, t1 - tol.eps, t1 + tol.eps)
+    if hi == lo or hi - lo > tol.max_window:
+        return -1
+    phi = interior_angle(v_cam, sc, s1, s2)
+    t_obs = triple(v_cam, sc, v_cam, s1, v_cam, s2)
+    eps_phi = tol.eps_phi
+    if eps_phi <= 0.0:
+        eps_phi = tol.phi_beta * tol.phi_sigma * math.sqrt(2.0 / (t1 * t1) + 2.0 / (t2 * t2) + 2.0 / (t1 * t2))
+    count = 0
+    for p in range(lo, hi):
+        for o in range(2):
+            big_c = np.int64(pairs[p, o])
+            big_1 = np.int64(pairs[p, 1 - o])
+            c1 = chord_rows(guide_unit, big_c, guide_unit, big_1)
+            a, b = neighbours_within(nbr_chord, nbr_start, big_c, t2 - tol.eps, t2 + tol.eps)
+            for e in range(a, b):
+                big_2 = np.int64(nbr[e])
+                if big_2 == big_1:
+                    continue
+                if tol.ordered and not nbr_chord[e] > c1:
+                    continue
+                if tol.chirality and triple(guide_unit, big_c, guide_unit, big_1, guide_unit, big_2) * t_obs <= 0.0:
+                    continue
+                g = guide_unit
+                phi_cat = angle_at(f64(g[big_c, 0]), f64(g[big_c, 1]), f64(g[big_c, 2]), f64(g[big_1, 0]),
+                                   f64(g[big_1, 1]), f64(g[big_1, 2]), f64(g[big_2, 0]), f64(g[big_2, 1]),
+                                   f64(g[big_2, 2]))
+                if abs(phi_cat - phi) > eps_phi:
+                    continue
+                if count == out.shape[0]:
+                    return count + 1
+                out[count, 0] = big_c
+                out[count, 1] = big_1
+                out[count, 2] = big_2
+                count += 1
+    return count
+
+
+@njit(cache=True)
+def interior_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_unit, tol, cam):
+    """The interior-angle method on one image. Returns ``(rows, trio, n_centres)``.
+
+    1. isolated detections, brightest first, at most ``tol.max_stars``;
+    2. each in turn is the central star (at most ``tol.max_centres``), with its two nearest
+       selected stars (:func:`nearest_two`);
+    3. the query (:func:`trio_query`); ``tol.unique``: exactly one trio, else the next central star;
+    4. each returned trio goes through ``confirm_pattern``; the first that stands is the answer.
+    """
+    n = x_px.shape[0]
+    rows = np.full(n, -1, dtype=np.int64)
+    trio = np.full(3, -1, dtype=np.int64)
+    if n < 3:
+        return rows, trio, 0
+    v_cam = backproject_px(x_px, y_px, cam.f_px, cam.cx_px, cam.cy_px)
+    sel = select_stars(x_px, y_px, mag, v_cam, tol.d_min, tol.max_stars)
+    m = sel.shape[0]
+    if m < 3:
+        return rows, trio, 0
+    out = np.empty((max(tol.max_candidates, 1), 3), dtype=np.int64)
+    pat_star = np.empty(3, dtype=np.int64)
+    pat_row = np.empty(3, dtype=np.int64)
+    n_centres = 0
+    for c in range(m):
+        if n_centres >= tol.max_centres:
+            break
+        n_centres += 1
+        k1, k2 = nearest_two(v_cam, sel, c)
+        pat_star[0] = sel[c]
+        pat_star[1] = sel[k1]
+        pat_star[2] = sel[k2]
+        count = trio_query(v_cam, sel[c], sel[k1], sel[k2], kv, pairs, nbr, nbr_chord, nbr_start, guide_unit, tol,
+                           out)
+        if count <= 0 or count > tol.max_candidates or (tol.unique and count != 1):
+            continue
+        for t in range(count):
+            for a in range(3):
+                pat_row[a] = out[t, a]
+            if confirm_pattern(v_cam, pat_star, pat_row, guide_unit, tol.c_fov, tol.eps, tol.widen, cam, tol.min_extra,
+                               tol.confirm_fraction, rows):
+                trio[:] = pat_star
+                return rows, trio, n_centres
+    rows[:] = -1
+    return rows, trio, n_centres
