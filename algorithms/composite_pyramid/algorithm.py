@@ -8,13 +8,6 @@ import math
 from dataclasses import dataclass
 from typing import ClassVar
 
-from starid.camera import Camera
-from starid.catalog import Catalog
-from starid.kernels import camera_frame, rad_to_chord
-from starid.kernels.triangles import PLANAR, guide_triangles
-from starid.observation import Observation
-from starid.params import check_flag, check_number, check_whole, param
-from starid.plugin import Algorithm, Explanation, Identification
 from starid_algorithms.pyramid.algorithm import d_min_for
 from starid_algorithms.spherical_triangle.algorithm import (
     SIGMA_FLOOR_PX,
@@ -23,6 +16,14 @@ from starid_algorithms.spherical_triangle.algorithm import (
     short_side_deg,
     triangle_explanation,
 )
+
+from starid.camera import Camera
+from starid.catalog import Catalog
+from starid.kernels import camera_frame, rad_to_chord
+from starid.kernels.triangles import PLANAR, guide_triangles
+from starid.observation import Observation
+from starid.params import check_flag, check_number, check_whole, param
+from starid.plugin import Algorithm, Explanation, Identification
 
 from .kernels import ComTol, composite_kernel
 
@@ -152,7 +153,8 @@ class CompositePyramid(Algorithm):
         return ComTol(kind=PLANAR, depth=1, sigma_rad=sigma, beta=float(self.beta), fixed_area=float(fixed_a),
                       fixed_moment=float(fixed_m), chord_max=rad_to_chord(math.radians(database.fov_db_deg)),
                       max_hits=int(self.max_hits), truncate=bool(self.truncate_hits),
-                      max_candidates=int(self.max_candidates), eps=eps, match_sides=bool(self.match_sides), eps_side=eps if self.match_sides else 0.0,
+                      max_candidates=int(self.max_candidates), eps=eps, match_sides=bool(self.match_sides),
+                      eps_side=eps if self.match_sides else 0.0,
                       c_fov=rad_to_chord(camera.half_diagonal_rad), min_extra=int(self.min_extra),
                       confirm_fraction=float(self.confirm_fraction), max_stars=int(self.max_stars),
                       d_min=max(rad_to_chord(math.radians(database.d_min_deg)), eps),

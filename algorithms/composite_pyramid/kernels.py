@@ -11,10 +11,10 @@ from typing import NamedTuple
 
 import numpy as np
 from numba import njit
+from starid_algorithms.pyramid.kernels import select_stars
 
 from starid.kernels import backproject_px, wahba_rows
 from starid.kernels.triangles import trio_confirm, trio_query
-from starid_algorithms.pyramid.kernels import select_stars
 
 
 class ComTol(NamedTuple):
@@ -93,11 +93,11 @@ def composite_kernel(x_px, y_px, mag, index, guide_unit, tol, cam):
     2. trios in Mortari's order ``for dj, for dk, for i: j = i + dj, k = j + dk``, at most ``max_trios``;
     3. R = catalog triangles in the area and moment windows; more than ``max_candidates``: skipped;
        ``unique``: only |R| = 1 goes on (the paper);
-    4. the fourth-star test: for up to ``fourth_tries`` other stars beta (brightest first), the three trios
-       of beta with two trio stars are queried; a candidate passes when exactly one catalog star completes
-       all three (:func:`fourth_star`);
-    5. the direct-match test (``trio_confirm``) of each passing candidate; the trio is accepted when
-       exactly one stands.
+    4. the direct-match test (``trio_confirm``) of each candidate;
+    5. the fourth-star test of a candidate that passed it: for up to ``fourth_tries`` other stars beta
+       (brightest first), the three trios of beta with two trio stars are queried; it passes when exactly
+       one catalog star completes all three (:func:`fourth_star`). The trio is accepted when exactly one
+       candidate passes both (the paper runs 5 before 4; the conjunction is the same, 4 is cheaper).
     """
     n = x_px.shape[0]
     rows = np.full(n, -1, dtype=np.int64)
@@ -112,8 +112,6 @@ def composite_kernel(x_px, y_px, mag, index, guide_unit, tol, cam):
     hits = np.empty((3, 4 * nc_max), dtype=np.int64)
     counts = np.zeros(3, dtype=np.int64)
     buf = np.empty(4 * nc_max, dtype=np.int64)
-    fourth = np.full(nc_max, -1, dtype=np.int64)
-    beta_of = np.full(nc_max, -1, dtype=np.int64)
     trio = np.empty(3, dtype=np.int64)
     cat = np.empty(3, dtype=np.int64)
     try_rows = np.empty(n, dtype=np.int64)
@@ -136,44 +134,42 @@ def composite_kernel(x_px, y_px, mag, index, guide_unit, tol, cam):
                                 tol.truncate, guide_unit, tol.eps_side, cand)
                 if nc <= 0 or (tol.unique and nc != 1):
                     continue
-                fourth[:nc] = -1
-                tries = 0
-                for b in range(m):
-                    if b == i or b == j or b == k:
-                        continue
-                    if tries >= tol.fourth_tries:
-                        break
-                    tries += 1
-                    for q in range(3):
-                        s0 = trio[0] if q < 2 else trio[1]
-                        s1 = trio[1] if q == 0 else trio[2]
-                        counts[q] = trio_query(v_cam, s0, s1, sel[b], index, tol.kind, tol.depth, tol.sigma_rad,
-                                               tol.beta, tol.fixed_area, tol.fixed_moment, tol.chord_max,
-                                               tol.max_hits, tol.truncate, guide_unit, tol.eps_side,
-                                               hits[q])
-                    for c in range(nc):
-                        if fourth[c] >= 0:
-                            continue
-                        for a in range(3):
-                            cat[a] = np.int64(stars[cand[c], a])
-                        e = fourth_star(stars, hits, counts, cat, buf)
-                        if e >= 0:
-                            fourth[c] = e
-                            beta_of[c] = sel[b]
                 n_ok = 0
                 for c in range(nc):
-                    if fourth[c] < 0:
-                        continue
+                    # the direct-match test first (cheap, and it rejects nearly every chance candidate),
+                    # then the fourth-star test; a candidate must pass both
                     seen = trio_confirm(v_cam, trio, stars[cand[c]], guide_unit, tol.eps, tol.match_sides,
                                         tol.c_fov, tol.min_extra, tol.confirm_fraction, cam, try_rows, trial)
                     if seen < 0:
+                        continue
+                    for a in range(3):
+                        cat[a] = np.int64(stars[cand[c], a])
+                    beta = -1
+                    tries = 0
+                    for b in range(m):
+                        if b == i or b == j or b == k:
+                            continue
+                        if tries >= tol.fourth_tries:
+                            break
+                        tries += 1
+                        for q in range(3):
+                            s0 = trio[0] if q < 2 else trio[1]
+                            s1 = trio[1] if q == 0 else trio[2]
+                            counts[q] = trio_query(v_cam, s0, s1, sel[b], index, tol.kind, tol.depth,
+                                                   tol.sigma_rad, tol.beta, tol.fixed_area, tol.fixed_moment,
+                                                   tol.chord_max, tol.max_hits, tol.truncate, guide_unit,
+                                                   tol.eps_side, hits[q])
+                        if fourth_star(stars, hits, counts, cat, buf) >= 0:
+                            beta = sel[b]
+                            break
+                    if beta < 0:
                         continue
                     n_ok += 1
                     if n_ok > 1:
                         break
                     rows[:] = try_rows
                     out4[:3] = trio
-                    out4[3] = beta_of[c]
+                    out4[3] = beta
                 if n_ok == 1:
                     return rows, wahba_rows(v_cam, rows, guide_unit), out4, n_trios
                 rows[:] = -1

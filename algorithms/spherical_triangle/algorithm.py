@@ -9,6 +9,7 @@ from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
+from starid_algorithms.pyramid.algorithm import d_min_for
 
 from starid.camera import Camera
 from starid.catalog import Catalog
@@ -17,7 +18,6 @@ from starid.kernels.triangles import SPHERICAL, TriangleIndex, guide_triangles
 from starid.observation import Observation
 from starid.params import check_flag, check_number, check_whole, param
 from starid.plugin import Algorithm, Database, Explanation, Identification
-from starid_algorithms.pyramid.algorithm import d_min_for
 
 from .kernels import SphTol, spherical_kernel
 
@@ -201,7 +201,8 @@ class SphericalTriangle(Algorithm):
                       fixed_area=float(fixed_a), fixed_moment=float(fixed_m),
                       chord_max=rad_to_chord(math.radians(database.fov_db_deg)), max_hits=int(self.max_hits),
                       truncate=bool(self.truncate_hits), max_candidates=int(self.max_candidates), eps=eps,
-                      match_sides=bool(self.match_sides), eps_side=eps if self.match_sides else 0.0, c_fov=rad_to_chord(camera.half_diagonal_rad),
+                      match_sides=bool(self.match_sides), eps_side=eps if self.match_sides else 0.0,
+                      c_fov=rad_to_chord(camera.half_diagonal_rad),
                       min_extra=int(self.min_extra), confirm_fraction=float(self.confirm_fraction),
                       max_stars=int(self.max_stars),
                       d_min=max(rad_to_chord(math.radians(database.d_min_deg)), eps), max_trios=int(self.max_trios),

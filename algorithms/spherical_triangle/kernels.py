@@ -10,10 +10,10 @@ from typing import NamedTuple
 
 import numpy as np
 from numba import njit
+from starid_algorithms.pyramid.kernels import select_stars
 
 from starid.kernels import backproject_px, wahba_rows
 from starid.kernels.triangles import trio_confirm, trio_query
-from starid_algorithms.pyramid.kernels import select_stars
 
 
 class SphTol(NamedTuple):

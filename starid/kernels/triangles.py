@@ -81,27 +81,49 @@ def tri_features(r1, r2, r3, kind, depth):
         s2 = e1 @ e1 + e2 @ e2 + d @ d
         return area, area * s2 / 36.0
     area = _solid_angle(r1[0], r1[1], r1[2], r2[0], r2[1], r2[2], r3[0], r3[1], r3[2])
-    g = (r1 + r2 + r3) / 3.0
     n = 1 << depth
     inv = 1.0 / n
+    # grid points r1 + (a e1 + b e2) / n of the flat triangle (a + b <= n): flat and unit
+    npt = (n + 1) * (n + 2) // 2
+    flat = np.empty((npt, 3))
+    unit = np.empty((npt, 3))
+    q = 0
+    for a in range(n + 1):
+        for b in range(n + 1 - a):
+            for x in range(3):
+                flat[q, x] = r1[x] + (a * inv) * e1[x] + (b * inv) * e2[x]
+            ln = math.sqrt(flat[q, 0] ** 2 + flat[q, 1] ** 2 + flat[q, 2] ** 2)
+            for x in range(3):
+                unit[q, x] = flat[q, x] / ln
+            q += 1
+    g0 = (r1[0] + r2[0] + r3[0]) / 3.0
+    g1 = (r1[1] + r2[1] + r3[1]) / 3.0
+    g2 = (r1[2] + r2[2] + r3[2]) / 3.0
     moment = 0.0
-    # the 4^depth sub-triangles of the flat triangle's midpoint grid, seen from the centre (a partition
-    # of the spherical triangle): "up" (a, b), (a+1, b), (a, b+1) and "down" (a+1, b), (a, b+1), (a+1, b+1)
+    # the 4^depth sub-triangles of the midpoint grid, seen from the centre (a partition of the spherical
+    # triangle): "up" (a, b), (a+1, b), (a, b+1) and "down" (a+1, b), (a, b+1), (a+1, b+1); point (a, b) is
+    # row a * (n + 1) - a (a - 1) / 2 + b of the grid
     for a in range(n):
         for b in range(n - a):
             for up in range(2):
                 if up == 1 and a + b > n - 2:
                     continue
                 if up == 0:
-                    p0, q0, p1, q1, p2, q2 = a, b, a + 1, b, a, b + 1
+                    i0 = a * (n + 1) - a * (a - 1) // 2 + b
+                    i1 = (a + 1) * (n + 1) - (a + 1) * a // 2 + b
+                    i2 = i0 + 1
                 else:
-                    p0, q0, p1, q1, p2, q2 = a + 1, b, a, b + 1, a + 1, b + 1
-                v0 = r1 + (p0 * inv) * e1 + (q0 * inv) * e2
-                v1 = r1 + (p1 * inv) * e1 + (q1 * inv) * e2
-                v2 = r1 + (p2 * inv) * e1 + (q2 * inv) * e2
-                da = _solid_angle(v0[0], v0[1], v0[2], v1[0], v1[1], v1[2], v2[0], v2[1], v2[2])
-                c = v0 + v1 + v2
-                th = _angle(g[0], g[1], g[2], c[0], c[1], c[2])
+                    i0 = (a + 1) * (n + 1) - (a + 1) * a // 2 + b
+                    i1 = a * (n + 1) - a * (a - 1) // 2 + b + 1
+                    i2 = i0 + 1
+                ax, ay, az = unit[i0, 0], unit[i0, 1], unit[i0, 2]
+                bx, by, bz = unit[i1, 0], unit[i1, 1], unit[i1, 2]
+                cx, cy, cz = unit[i2, 0], unit[i2, 1], unit[i2, 2]
+                trip = ax * (by * cz - bz * cy) + ay * (bz * cx - bx * cz) + az * (bx * cy - by * cx)
+                den = 1.0 + ax * bx + ay * by + az * bz + ax * cx + ay * cy + az * cz + bx * cx + by * cy + bz * cz
+                da = 2.0 * math.atan2(abs(trip), den)
+                th = _angle(g0, g1, g2, flat[i0, 0] + flat[i1, 0] + flat[i2, 0],
+                            flat[i0, 1] + flat[i1, 1] + flat[i2, 1], flat[i0, 2] + flat[i1, 2] + flat[i2, 2])
                 moment += da * th * th
     return area, moment
 
@@ -183,8 +205,12 @@ def block_order(area: np.ndarray, moment: np.ndarray) -> np.ndarray:
     """Permutation: ascending area, then each run of ``BLOCK`` re-sorted by moment."""
     by_area = np.argsort(area, kind="stable")
     n = by_area.shape[0]
-    blk = np.arange(n) // BLOCK
-    return by_area[np.lexsort((moment[by_area], blk))]
+    nb = -(-n // BLOCK)
+    mom = np.full(nb * BLOCK, np.inf)
+    mom[:n] = moment[by_area]
+    within = np.argsort(mom.reshape(nb, BLOCK), axis=1, kind="stable") + (np.arange(nb) * BLOCK)[:, None]
+    within = within.ravel()
+    return by_area[within[within < n]]
 
 
 @njit(cache=True)
