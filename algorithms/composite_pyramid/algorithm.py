@@ -3,26 +3,25 @@ database, identify, explain (over ``kernels.py`` and ``starid.kernels.triangles`
 
 from __future__ import annotations
 
-import dataclasses
-import math
 from dataclasses import dataclass
 from typing import ClassVar
 
-from starid_algorithms.pyramid.algorithm import d_min_for
 from starid_algorithms.spherical_triangle.algorithm import (
-    SIGMA_FLOOR_PX,
     TriangleDatabase,
+    build_triangle_database,
+    check_triangle_params,
+    common_tolerances,
+    derive_triangle_params,
     hip_of,
-    short_side_deg,
     triangle_explanation,
 )
 
 from starid.camera import Camera
 from starid.catalog import Catalog
-from starid.kernels import camera_frame, rad_to_chord
-from starid.kernels.triangles import PLANAR, guide_triangles
+from starid.kernels import camera_frame
+from starid.kernels.triangles import PLANAR
 from starid.observation import Observation
-from starid.params import check_flag, check_number, check_whole, param
+from starid.params import check_whole, param
 from starid.plugin import Algorithm, Explanation, Identification
 
 from .kernels import ComTol, composite_kernel
@@ -103,63 +102,19 @@ class CompositePyramid(Algorithm):
                                     help="detections closer than this to another are unused; None = 5.11 px")
 
     def __post_init__(self):
-        check_number("mag_limit", self.mag_limit)
-        if self.fov_db_deg is not None:
-            check_number("fov_db_deg", self.fov_db_deg, lo=0, lo_open=True, hi=90)
-        check_number("min_area_fov2", self.min_area_fov2, lo=0, hi=1)
-        if self.sigma_px is not None:
-            check_number("sigma_px", self.sigma_px, lo=0)
-        check_number("beta", self.beta, lo=0, lo_open=True)
-        for key in ("sigma_area", "sigma_moment"):
-            if getattr(self, key) is not None:
-                check_number(key, getattr(self, key), lo=0, lo_open=True)
-        check_whole("max_stars", self.max_stars, 4)
-        check_whole("max_trios", self.max_trios, 1)
-        check_whole("max_hits", self.max_hits, 1)
-        check_whole("max_candidates", self.max_candidates, 1)
+        check_triangle_params(self, 4, ())
         check_whole("fourth_tries", self.fourth_tries, 1)
-        for key in ("truncate_hits", "unique_candidate", "match_sides"):
-            check_flag(key, getattr(self, key))
-        check_whole("min_extra", self.min_extra, 0)
-        check_number("confirm_fraction", self.confirm_fraction, lo=0, hi=1)
-        if self.d_min_deg is not None:
-            check_number("d_min_deg", self.d_min_deg, lo=0, hi=1)
 
     def derived(self, catalog: Catalog, camera: Camera):
         """``fov_db_deg`` left None: the sensor's short side; ``d_min_deg`` left None: pyramid's 5.11 px."""
-        fill = {}
-        if self.fov_db_deg is None:
-            fill["fov_db_deg"] = short_side_deg(camera)
-        if self.d_min_deg is None:
-            fill["d_min_deg"] = d_min_for(camera)
-        return dataclasses.replace(self, **fill) if fill else self
+        return derive_triangle_params(self, camera)
 
     def build(self, catalog: Catalog, camera: Camera) -> TriangleDatabase:
-        d = self.derived(catalog, camera)
-        min_area = d.min_area_fov2 * math.radians(d.fov_db_deg) ** 2
-        index, unit, hip = guide_triangles(catalog, d.mag_limit, d.fov_db_deg, PLANAR, 1, min_area, self.name)
-        return TriangleDatabase(index=index, guide_unit=unit, guide_hip=hip, fov_db_deg=float(d.fov_db_deg),
-                                d_min_deg=float(d.d_min_deg))
+        return build_triangle_database(self, catalog, camera, PLANAR, 1)
 
     def tolerances(self, camera: Camera, database) -> ComTol:
-        sigma = max(self.sigma_px or 0.0, SIGMA_FLOOR_PX) / camera.f_px
-        eps = self.beta * math.sqrt(2.0) * sigma
-        fixed_a = self.beta * self.sigma_area if self.sigma_area is not None else 0.0
-        fixed_m = self.beta * self.sigma_moment if self.sigma_moment is not None else 0.0
-        if fixed_a > 0.0 and fixed_m <= 0.0:
-            fixed_m = math.inf
-        if fixed_m > 0.0 and fixed_a <= 0.0:
-            fixed_a = math.inf
-        return ComTol(kind=PLANAR, depth=1, sigma_rad=sigma, beta=float(self.beta), fixed_area=float(fixed_a),
-                      fixed_moment=float(fixed_m), chord_max=rad_to_chord(math.radians(database.fov_db_deg)),
-                      max_hits=int(self.max_hits), truncate=bool(self.truncate_hits),
-                      max_candidates=int(self.max_candidates), eps=eps, match_sides=bool(self.match_sides),
-                      eps_side=eps if self.match_sides else 0.0,
-                      c_fov=rad_to_chord(camera.half_diagonal_rad), min_extra=int(self.min_extra),
-                      confirm_fraction=float(self.confirm_fraction), max_stars=int(self.max_stars),
-                      d_min=max(rad_to_chord(math.radians(database.d_min_deg)), eps),
-                      max_trios=int(self.max_trios), unique=bool(self.unique_candidate),
-                      fourth_tries=int(self.fourth_tries))
+        return ComTol(kind=PLANAR, depth=1, unique=bool(self.unique_candidate), fourth_tries=int(self.fourth_tries),
+                      **common_tolerances(self, camera, database))
 
     def _run(self, database: TriangleDatabase, observation: Observation):
         cam = observation.camera

@@ -78,6 +78,70 @@ def triangle_explanation(database, observation, rows, trio, n_trios, method) -> 
                        highlight=np.arange(len(segments)))
 
 
+def check_triangle_params(algo, min_stars: int, flags: tuple[str, ...]) -> None:
+    """The parameter checks the two triangle-feature plugins share (``composite_pyramid`` too)."""
+    check_number("mag_limit", algo.mag_limit)
+    if algo.fov_db_deg is not None:
+        check_number("fov_db_deg", algo.fov_db_deg, lo=0, lo_open=True, hi=90)
+    check_number("min_area_fov2", algo.min_area_fov2, lo=0, hi=1)
+    if algo.sigma_px is not None:
+        check_number("sigma_px", algo.sigma_px, lo=0)
+    check_number("beta", algo.beta, lo=0, lo_open=True)
+    for key in ("sigma_area", "sigma_moment"):
+        if getattr(algo, key) is not None:
+            check_number(key, getattr(algo, key), lo=0, lo_open=True)
+    check_whole("max_stars", algo.max_stars, min_stars)
+    check_whole("max_trios", algo.max_trios, 1)
+    check_whole("max_hits", algo.max_hits, 1)
+    check_whole("max_candidates", algo.max_candidates, 1)
+    for key in ("truncate_hits", "unique_candidate", "match_sides", *flags):
+        check_flag(key, getattr(algo, key))
+    check_whole("min_extra", algo.min_extra, 0)
+    check_number("confirm_fraction", algo.confirm_fraction, lo=0, hi=1)
+    if algo.d_min_deg is not None:
+        check_number("d_min_deg", algo.d_min_deg, lo=0, hi=1)
+
+
+def derive_triangle_params(algo, camera: Camera):
+    """``fov_db_deg`` left None: the sensor's short side; ``d_min_deg`` left None: pyramid's 5.11 px."""
+    fill = {}
+    if algo.fov_db_deg is None:
+        fill["fov_db_deg"] = short_side_deg(camera)
+    if algo.d_min_deg is None:
+        fill["d_min_deg"] = d_min_for(camera)
+    return dataclasses.replace(algo, **fill) if fill else algo
+
+
+def build_triangle_database(algo, catalog: Catalog, camera: Camera, kind: int, depth: int) -> TriangleDatabase:
+    """The :class:`TriangleDatabase` of ``algo``'s (derived) parameters, features of ``kind``."""
+    d = algo.derived(catalog, camera)
+    min_area = d.min_area_fov2 * math.radians(d.fov_db_deg) ** 2
+    index, unit, hip = guide_triangles(catalog, d.mag_limit, d.fov_db_deg, kind, depth, min_area, algo.name)
+    return TriangleDatabase(index=index, guide_unit=unit, guide_hip=hip, fov_db_deg=float(d.fov_db_deg),
+                            d_min_deg=float(d.d_min_deg))
+
+
+def common_tolerances(algo, camera: Camera, database) -> dict:
+    """The tolerance fields both plugins' kernels read: the windows from the centroid noise (floor
+    ``SIGMA_FLOOR_PX``) or fixed (``sigma_area`` / ``sigma_moment``; one pinned leaves the other open),
+    the match radius eps = ``beta`` sqrt(2) sigma, and the work bounds."""
+    sigma = max(algo.sigma_px or 0.0, SIGMA_FLOOR_PX) / camera.f_px
+    eps = algo.beta * math.sqrt(2.0) * sigma
+    fixed_a = algo.beta * algo.sigma_area if algo.sigma_area is not None else 0.0
+    fixed_m = algo.beta * algo.sigma_moment if algo.sigma_moment is not None else 0.0
+    if fixed_a > 0.0 and fixed_m <= 0.0:
+        fixed_m = math.inf
+    if fixed_m > 0.0 and fixed_a <= 0.0:
+        fixed_a = math.inf
+    return dict(sigma_rad=sigma, beta=float(algo.beta), fixed_area=float(fixed_a), fixed_moment=float(fixed_m),
+                chord_max=rad_to_chord(math.radians(database.fov_db_deg)), max_hits=int(algo.max_hits),
+                truncate=bool(algo.truncate_hits), max_candidates=int(algo.max_candidates), eps=eps,
+                match_sides=bool(algo.match_sides), eps_side=eps if algo.match_sides else 0.0,
+                c_fov=rad_to_chord(camera.half_diagonal_rad), min_extra=int(algo.min_extra),
+                confirm_fraction=float(algo.confirm_fraction), max_stars=int(algo.max_stars),
+                d_min=max(rad_to_chord(math.radians(database.d_min_deg)), eps), max_trios=int(algo.max_trios))
+
+
 @dataclass(frozen=True)
 class SphericalTriangle(Algorithm):
     """Spherical-triangle area + polar-moment identification (Cole & Crassidis, JSR 41(1):117-121, 2004).
@@ -149,64 +213,19 @@ class SphericalTriangle(Algorithm):
                                     help="detections closer than this to another are unused; None = 5.11 px")
 
     def __post_init__(self):
-        check_number("mag_limit", self.mag_limit)
-        if self.fov_db_deg is not None:
-            check_number("fov_db_deg", self.fov_db_deg, lo=0, lo_open=True, hi=90)
-        check_number("min_area_fov2", self.min_area_fov2, lo=0, hi=1)
+        check_triangle_params(self, 3, ("pivot",))
         check_whole("moment_depth", self.moment_depth, 1, 5)
-        if self.sigma_px is not None:
-            check_number("sigma_px", self.sigma_px, lo=0)
-        check_number("beta", self.beta, lo=0, lo_open=True)
-        for key in ("sigma_area", "sigma_moment"):
-            if getattr(self, key) is not None:
-                check_number(key, getattr(self, key), lo=0, lo_open=True)
-        check_whole("max_stars", self.max_stars, 3)
-        check_whole("max_trios", self.max_trios, 1)
-        check_whole("max_hits", self.max_hits, 1)
-        check_whole("max_candidates", self.max_candidates, 1)
-        for key in ("truncate_hits", "pivot", "unique_candidate", "match_sides"):
-            check_flag(key, getattr(self, key))
-        check_whole("min_extra", self.min_extra, 0)
-        check_number("confirm_fraction", self.confirm_fraction, lo=0, hi=1)
-        if self.d_min_deg is not None:
-            check_number("d_min_deg", self.d_min_deg, lo=0, hi=1)
 
     def derived(self, catalog: Catalog, camera: Camera):
         """``fov_db_deg`` left None: the sensor's short side; ``d_min_deg`` left None: pyramid's 5.11 px."""
-        fill = {}
-        if self.fov_db_deg is None:
-            fill["fov_db_deg"] = short_side_deg(camera)
-        if self.d_min_deg is None:
-            fill["d_min_deg"] = d_min_for(camera)
-        return dataclasses.replace(self, **fill) if fill else self
+        return derive_triangle_params(self, camera)
 
     def build(self, catalog: Catalog, camera: Camera) -> TriangleDatabase:
-        d = self.derived(catalog, camera)
-        min_area = d.min_area_fov2 * math.radians(d.fov_db_deg) ** 2
-        index, unit, hip = guide_triangles(catalog, d.mag_limit, d.fov_db_deg, self.kind, d.moment_depth,
-                                           min_area, self.name)
-        return TriangleDatabase(index=index, guide_unit=unit, guide_hip=hip, fov_db_deg=float(d.fov_db_deg),
-                                d_min_deg=float(d.d_min_deg))
+        return build_triangle_database(self, catalog, camera, self.kind, int(self.moment_depth))
 
     def tolerances(self, camera: Camera, database) -> SphTol:
-        sigma = max(self.sigma_px or 0.0, SIGMA_FLOOR_PX) / camera.f_px
-        eps = self.beta * math.sqrt(2.0) * sigma
-        fixed_a = self.beta * self.sigma_area if self.sigma_area is not None else 0.0
-        fixed_m = self.beta * self.sigma_moment if self.sigma_moment is not None else 0.0
-        if fixed_a > 0.0 and fixed_m <= 0.0:
-            fixed_m = math.inf
-        if fixed_m > 0.0 and fixed_a <= 0.0:
-            fixed_a = math.inf
-        return SphTol(kind=self.kind, depth=int(self.moment_depth), sigma_rad=sigma, beta=float(self.beta),
-                      fixed_area=float(fixed_a), fixed_moment=float(fixed_m),
-                      chord_max=rad_to_chord(math.radians(database.fov_db_deg)), max_hits=int(self.max_hits),
-                      truncate=bool(self.truncate_hits), max_candidates=int(self.max_candidates), eps=eps,
-                      match_sides=bool(self.match_sides), eps_side=eps if self.match_sides else 0.0,
-                      c_fov=rad_to_chord(camera.half_diagonal_rad),
-                      min_extra=int(self.min_extra), confirm_fraction=float(self.confirm_fraction),
-                      max_stars=int(self.max_stars),
-                      d_min=max(rad_to_chord(math.radians(database.d_min_deg)), eps), max_trios=int(self.max_trios),
-                      pivot=bool(self.pivot), unique=bool(self.unique_candidate))
+        return SphTol(kind=self.kind, depth=int(self.moment_depth), pivot=bool(self.pivot),
+                      unique=bool(self.unique_candidate), **common_tolerances(self, camera, database))
 
     def _run(self, database: TriangleDatabase, observation: Observation):
         cam = observation.camera
