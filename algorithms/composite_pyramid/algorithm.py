@@ -129,4 +129,5 @@ class CompositePyramid(Algorithm):
     def explain(self, database: TriangleDatabase, observation: Observation) -> Explanation:
         """The matched trio's triangle, the identified stars (the fourth star labelled)."""
         rows, _, four, n_trios = self._run(database, observation)
-        return triangle_explanation(database, observation, rows, four[:3], n_trios, "Composite pyramid")
+        return triangle_explanation(database, observation, rows, four[:3], n_trios, "Composite pyramid",
+                                    int(four[3]))

@@ -60,21 +60,23 @@ def hip_of(database, rows: np.ndarray) -> np.ndarray:
     return np.where(rows >= 0, database.guide_hip[np.maximum(rows, 0)], -1).astype(np.int64)
 
 
-def triangle_explanation(database, observation, rows, trio, n_trios, method) -> Explanation:
-    """The matched image triangle as a polygon, its sides bold, every identified star labelled."""
+def triangle_explanation(database, observation, rows, trio, n_trios, method, fourth: int = -1) -> Explanation:
+    """The matched image triangle as a polygon, its sides bold, every identified star labelled (the
+    fourth star ``fourth``, if any, as such)."""
     hip = hip_of(database, rows)
     xy = np.stack([observation.x_px, observation.y_px], axis=1)
     found = np.flatnonzero(hip >= 0)
     corners = [int(s) for s in trio if s >= 0]
     segments = [[xy[corners[a]], xy[corners[(a + 1) % 3]]] for a in range(3)] if len(corners) == 3 else []
     if corners:
-        caption = (f"{method}: the triangle (polygon) matched one catalog triangle after {n_trios} trio(s); "
+        caption = (f"{method}: triangle matched after {n_trios} trio(s);\n"
                    f"{found.size} stars identified by reprojection.")
     else:
-        caption = f"{method}: no triangle confirmed after {n_trios} trio(s): nothing identified."
+        caption = f"{method}: no triangle confirmed after {n_trios} trio(s)."
     return Explanation(segments=np.asarray(segments, dtype=np.float64).reshape(-1, 2, 2),
                        polygons=(xy[corners],) if corners else (), points=xy[found],
-                       labels=tuple(f"HIP {hip[s]}" for s in found.tolist()), caption=caption,
+                       labels=tuple(f"4th: HIP {hip[s]}" if s == fourth else f"HIP {hip[s]}"
+                                    for s in found.tolist()), caption=caption,
                        highlight=np.arange(len(segments)))
 
 

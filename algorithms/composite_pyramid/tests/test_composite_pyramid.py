@@ -75,6 +75,7 @@ def test_explain(algo, db, catalog, camera):
     obs = Simulator(catalog.brighter_than(6.0), camera, SimConfig(), seed=6).generate(1).observation(0)
     ex = algo.explain(db, obs)
     assert len(ex.polygons) == 1 and ex.segments.shape == (3, 2, 2) and "matched" in ex.caption
+    assert sum(label.startswith("4th: HIP") for label in ex.labels) == 1
 
 
 @pytest.mark.parametrize("kwargs", [{"fourth_tries": 0}, {"beta": -1.0}, {"sigma_moment": 0.0}, {"max_stars": 3},
