@@ -152,6 +152,7 @@ def composite_kernel(x_px, y_px, mag, index, guide_unit, tol, cam):
                         if tries >= tol.fourth_tries:
                             break
                         tries += 1
+                        counts[:] = 0
                         for q in range(3):
                             s0 = trio[0] if q < 2 else trio[1]
                             s1 = trio[1] if q == 0 else trio[2]
@@ -159,6 +160,9 @@ def composite_kernel(x_px, y_px, mag, index, guide_unit, tol, cam):
                                                    tol.sigma_rad, tol.beta, tol.fixed_area, tol.fixed_moment,
                                                    tol.chord_max, tol.max_hits, tol.truncate, guide_unit,
                                                    tol.eps_side, hits[q])
+                            # no hit completes a pair of the candidate: this beta fails, skip its other queries
+                            if counts[q] <= 0 or _third_stars(stars, hits[q], counts[q], cat, buf).shape[0] == 0:
+                                break
                         if fourth_star(stars, hits, counts, cat, buf) >= 0:
                             beta = sel[b]
                             break
