@@ -1,0 +1,181 @@
+"""numba kernel of the Composite Pyramid method (Galvizo & Lim 2018, after Toloei et al.).
+
+Mortari's trio order, Cole & Crassidis' planar (area, moment) triangle features from the shared
+``starid.kernels.triangles`` index, a fourth-star test with the same features, and the shared
+direct-match test; the star selection is pyramid's plugin-agnostic ``select_stars``.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+from starid_algorithms.pyramid.kernels import select_stars
+
+from starid.kernels import backproject_px, wahba_rows
+from starid.kernels.triangles import trio_confirm, trio_query
+
+
+class ComTol(NamedTuple):
+    """Tolerances and limits of one identification (chords ~ radians; see ``CompositePyramid``)."""
+
+    kind: int  # starid.kernels.triangles.PLANAR (or SPHERICAL)
+    depth: int  # moment subdivision depth (spherical features only)
+    sigma_rad: float  # centroid noise the windows assume
+    beta: float  # window half-width in sigmas
+    fixed_area: float  # > 0: fixed area half-width, else from the noise
+    fixed_moment: float  # > 0: fixed moment half-width, else from the noise
+    chord_max: float  # largest side of a stored triangle
+    max_hits: int  # area-window work bound
+    truncate: bool  # over max_hits: search the first max_hits (SQL LIMIT) instead of skipping
+    max_candidates: int  # a trio with more candidates is skipped
+    eps: float  # side / reprojection match radius (chord)
+    match_sides: bool  # a bijection's chords and chirality must agree
+    eps_side: float  # > 0: a candidate's sorted chords must agree within this (query-time side filter)
+    c_fov: float  # boresight-to-corner chord
+    min_extra: int  # detections besides the trio the attitude must explain
+    confirm_fraction: float  # fraction of predicted guide stars that must be seen
+    max_stars: int  # brightest usable detections
+    d_min: float  # detections closer than this to another are unused
+    max_trios: int  # iteration cutoff
+    unique: bool  # |R| = 1 required (paper)
+    fourth_tries: int  # fourth stars tried per candidate (paper: one)
+
+
+@njit(cache=True)
+def _third_stars(stars, hits, n_hits, cat, out):
+    """Sorted distinct third stars of the hit triangles containing exactly two stars of ``cat``."""
+    m = 0
+    for h in range(n_hits):
+        t = hits[h]
+        inside = 0
+        other = -1
+        for a in range(3):
+            s = np.int64(stars[t, a])
+            if s == cat[0] or s == cat[1] or s == cat[2]:
+                inside += 1
+            else:
+                other = s
+        if inside == 2:
+            out[m] = other
+            m += 1
+    res = np.unique(out[:m])
+    return res
+
+
+@njit(cache=True)
+def fourth_star(stars, hits, counts, cat, buf):
+    """The catalog star of the fourth image star beta: the stars E that complete, with two stars of the
+    candidate ``cat``, a catalog triangle in the window of each of the three image trios (b1, b2, beta),
+    (b1, b3, beta), (b2, b3, beta) (``hits[q, :counts[q]]``). Returns E when exactly one, else -1."""
+    if counts[0] <= 0 or counts[1] <= 0 or counts[2] <= 0:
+        return -1
+    s0 = _third_stars(stars, hits[0], counts[0], cat, buf)
+    s1 = _third_stars(stars, hits[1], counts[1], cat, buf)
+    s2 = _third_stars(stars, hits[2], counts[2], cat, buf)
+    found = -1
+    n = 0
+    for e in s0:
+        if np.searchsorted(s1, e) < s1.shape[0] and s1[np.searchsorted(s1, e)] == e \
+                and np.searchsorted(s2, e) < s2.shape[0] and s2[np.searchsorted(s2, e)] == e:
+            found = e
+            n += 1
+    return found if n == 1 else -1
+
+
+@njit(cache=True)
+def composite_kernel(x_px, y_px, mag, index, guide_unit, tol, cam):
+    """Identify one image. Returns ``(rows, attitude, stars4, n_trios)`` (``stars4``: the trio and the
+    fourth star of the accepted identification, -1 when none).
+
+    1. usable detections (isolated by ``d_min``), the ``max_stars`` brightest, brightest first;
+    2. trios in Mortari's order ``for dj, for dk, for i: j = i + dj, k = j + dk``, at most ``max_trios``;
+    3. R = catalog triangles in the area and moment windows; more than ``max_candidates``: skipped;
+       ``unique``: only |R| = 1 goes on (the paper);
+    4. the direct-match test (``trio_confirm``) of each candidate;
+    5. the fourth-star test of a candidate that passed it: for up to ``fourth_tries`` other stars beta
+       (brightest first), the three trios of beta with two trio stars are queried; it passes when exactly
+       one catalog star completes all three (:func:`fourth_star`). The trio is accepted when exactly one
+       candidate passes both (the paper runs 5 before 4; the conjunction is the same, 4 is cheaper).
+    """
+    n = x_px.shape[0]
+    rows = np.full(n, -1, dtype=np.int64)
+    out4 = np.full(4, -1, dtype=np.int64)
+    if n < 3:
+        return rows, np.zeros((3, 3)), out4, 0
+    v_cam = backproject_px(x_px, y_px, cam.f_px, cam.cx_px, cam.cy_px)
+    sel = select_stars(x_px, y_px, mag, v_cam, tol.d_min, tol.max_stars)
+    m = sel.shape[0]
+    nc_max = tol.max_candidates
+    cand = np.empty(nc_max, dtype=np.int64)
+    hits = np.empty((3, 4 * nc_max), dtype=np.int64)
+    counts = np.zeros(3, dtype=np.int64)
+    buf = np.empty(4 * nc_max, dtype=np.int64)
+    trio = np.empty(3, dtype=np.int64)
+    cat = np.empty(3, dtype=np.int64)
+    try_rows = np.empty(n, dtype=np.int64)
+    trial = np.empty(n, dtype=np.int64)
+    stars = index.stars
+    n_trios = 0
+    for dj in range(1, m - 1):
+        for dk in range(1, m - dj):
+            for i in range(0, m - dj - dk):
+                if n_trios >= tol.max_trios:
+                    return np.full(n, -1, dtype=np.int64), np.zeros((3, 3)), np.full(4, -1, dtype=np.int64), n_trios
+                j = i + dj
+                k = j + dk
+                n_trios += 1
+                trio[0] = sel[i]
+                trio[1] = sel[j]
+                trio[2] = sel[k]
+                nc = trio_query(v_cam, trio[0], trio[1], trio[2], index, tol.kind, tol.depth, tol.sigma_rad,
+                                tol.beta, tol.fixed_area, tol.fixed_moment, tol.chord_max, tol.max_hits,
+                                tol.truncate, guide_unit, tol.eps_side, cand)
+                if nc <= 0 or (tol.unique and nc != 1):
+                    continue
+                n_ok = 0
+                for c in range(nc):
+                    # the direct-match test first (cheap, and it rejects nearly every chance candidate),
+                    # then the fourth-star test; a candidate must pass both
+                    seen = trio_confirm(v_cam, trio, stars[cand[c]], guide_unit, tol.eps, tol.match_sides,
+                                        tol.c_fov, tol.min_extra, tol.confirm_fraction, cam, try_rows, trial)
+                    if seen < 0:
+                        continue
+                    for a in range(3):
+                        cat[a] = np.int64(stars[cand[c], a])
+                    beta = -1
+                    tries = 0
+                    for b in range(m):
+                        if b == i or b == j or b == k:
+                            continue
+                        if tries >= tol.fourth_tries:
+                            break
+                        tries += 1
+                        counts[:] = 0
+                        for q in range(3):
+                            s0 = trio[0] if q < 2 else trio[1]
+                            s1 = trio[1] if q == 0 else trio[2]
+                            counts[q] = trio_query(v_cam, s0, s1, sel[b], index, tol.kind, tol.depth,
+                                                   tol.sigma_rad, tol.beta, tol.fixed_area, tol.fixed_moment,
+                                                   tol.chord_max, tol.max_hits, tol.truncate, guide_unit,
+                                                   tol.eps_side, hits[q])
+                            # no hit completes a pair of the candidate: this beta fails, skip its other queries
+                            if counts[q] <= 0 or _third_stars(stars, hits[q], counts[q], cat, buf).shape[0] == 0:
+                                break
+                        if fourth_star(stars, hits, counts, cat, buf) >= 0:
+                            beta = sel[b]
+                            break
+                    if beta < 0:
+                        continue
+                    n_ok += 1
+                    if n_ok > 1:
+                        break
+                    rows[:] = try_rows
+                    out4[:3] = trio
+                    out4[3] = beta
+                if n_ok == 1:
+                    return rows, wahba_rows(v_cam, rows, guide_unit), out4, n_trios
+                rows[:] = -1
+                out4[:] = -1
+    return rows, np.zeros((3, 3)), out4, n_trios

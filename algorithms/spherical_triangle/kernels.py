@@ -1,0 +1,135 @@
+"""numba kernel of the spherical-triangle method (Cole & Crassidis 2004, as Galvizo & Lim 2018 ran it).
+
+The triangle catalog, its (area, moment) index, the windows and the direct-match test are the shared
+``starid.kernels.triangles``; the star selection is pyramid's plugin-agnostic ``select_stars``.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+from starid_algorithms.pyramid.kernels import select_stars
+
+from starid.kernels import backproject_px, wahba_rows
+from starid.kernels.triangles import trio_confirm, trio_query
+
+
+class SphTol(NamedTuple):
+    """Tolerances and limits of one identification (chords ~ radians; see ``SphericalTriangle``)."""
+
+    kind: int  # starid.kernels.triangles.SPHERICAL or PLANAR
+    depth: int  # moment subdivision depth
+    sigma_rad: float  # centroid noise the windows assume
+    beta: float  # window half-width in sigmas
+    fixed_area: float  # > 0: fixed area half-width (sr), else from the noise
+    fixed_moment: float  # > 0: fixed moment half-width, else from the noise
+    chord_max: float  # largest side of a stored triangle
+    max_hits: int  # area-window work bound
+    truncate: bool  # over max_hits: search the first max_hits (SQL LIMIT) instead of skipping
+    max_candidates: int  # a trio with more (area, moment) candidates is skipped
+    eps: float  # side / reprojection match radius (chord)
+    match_sides: bool  # a bijection's chords and chirality must agree
+    eps_side: float  # > 0: a candidate's sorted chords must agree within this (query-time side filter)
+    c_fov: float  # boresight-to-corner chord
+    min_extra: int  # detections besides the trio the attitude must explain
+    confirm_fraction: float  # fraction of predicted guide stars that must be seen
+    max_stars: int  # brightest usable detections
+    d_min: float  # detections closer than this to another are unused
+    max_trios: int  # iteration cutoff
+    pivot: bool  # Cole's pivoting when |R| != 1
+    unique: bool  # |R| = 1 required before the direct-match test
+
+
+@njit(cache=True)
+def _share_two(stars, p, q):
+    """True when catalog triangles ``p`` and ``q`` (rows of ``stars``) have at least two stars in common."""
+    n = 0
+    for a in range(3):
+        for b in range(3):
+            if stars[p, a] == stars[q, b]:
+                n += 1
+    return n >= 2
+
+
+@njit(cache=True)
+def spherical_kernel(x_px, y_px, mag, index, guide_unit, tol, cam):
+    """Identify one image. Returns ``(rows, attitude, trio, n_trios)``.
+
+    1. usable detections (isolated by ``d_min``), the ``max_stars`` brightest, brightest first;
+    2. trios (i, j, k) in the naive order i < j < k (Galvizo & Lim's C(n, 3) loop), at most ``max_trios``;
+    3. R = catalog triangles in the area and moment windows (``trio_query``); more than
+       ``max_candidates``: skipped;
+    4. ``pivot`` and |R| != 1: Cole's pivot -- the third star is replaced by the next unused one and
+       R keeps the new trio's candidates sharing two stars with an old one, until |R| <= 1;
+    5. the direct-match test (``trio_confirm``) of each candidate; the trio is accepted when exactly
+       one stands (``unique``: only with |R| = 1).
+    """
+    n = x_px.shape[0]
+    rows = np.full(n, -1, dtype=np.int64)
+    trio_out = np.full(3, -1, dtype=np.int64)
+    if n < 3:
+        return rows, np.zeros((3, 3)), trio_out, 0
+    v_cam = backproject_px(x_px, y_px, cam.f_px, cam.cx_px, cam.cy_px)
+    sel = select_stars(x_px, y_px, mag, v_cam, tol.d_min, tol.max_stars)
+    m = sel.shape[0]
+    cand = np.empty(tol.max_candidates, dtype=np.int64)
+    cand2 = np.empty(tol.max_candidates, dtype=np.int64)
+    cand3 = np.empty(tol.max_candidates, dtype=np.int64)
+    trio = np.empty(3, dtype=np.int64)
+    try_rows = np.empty(n, dtype=np.int64)
+    trial = np.empty(n, dtype=np.int64)
+    stars = index.stars
+    n_trios = 0
+    for i in range(m):
+        for j in range(i + 1, m):
+            for k in range(j + 1, m):
+                if n_trios >= tol.max_trios:
+                    return np.full(n, -1, dtype=np.int64), np.zeros((3, 3)), trio_out, n_trios
+                n_trios += 1
+                nc = trio_query(v_cam, sel[i], sel[j], sel[k], index, tol.kind, tol.depth, tol.sigma_rad,
+                                tol.beta, tol.fixed_area, tol.fixed_moment, tol.chord_max, tol.max_hits,
+                                tol.truncate, guide_unit, tol.eps_side, cand)
+                if nc <= 0:
+                    continue
+                trio[0] = sel[i]
+                trio[1] = sel[j]
+                trio[2] = sel[k]
+                if tol.pivot and nc > 1:
+                    for b in range(m):
+                        if b == i or b == j or b == k:
+                            continue
+                        n2 = trio_query(v_cam, sel[i], sel[j], sel[b], index, tol.kind, tol.depth,
+                                        tol.sigma_rad, tol.beta, tol.fixed_area, tol.fixed_moment, tol.chord_max,
+                                        tol.max_hits, tol.truncate, guide_unit, tol.eps_side, cand2)
+                        kept = 0
+                        for c2 in range(max(n2, 0)):
+                            for c in range(nc):
+                                if _share_two(stars, cand2[c2], cand[c]):
+                                    cand3[kept] = cand2[c2]
+                                    kept += 1
+                                    break
+                        cand[:kept] = cand3[:kept]
+                        nc = kept
+                        trio[2] = sel[b]
+                        if nc <= 1:
+                            break
+                if nc == 0 or (tol.unique and nc != 1):
+                    continue
+                n_ok = 0
+                for c in range(nc):
+                    seen = trio_confirm(v_cam, trio, stars[cand[c]], guide_unit, tol.eps, tol.match_sides,
+                                        tol.c_fov, tol.min_extra, tol.confirm_fraction, cam, try_rows, trial)
+                    if seen < 0:
+                        continue
+                    n_ok += 1
+                    if n_ok > 1:
+                        break
+                    rows[:] = try_rows
+                    trio_out[:] = trio
+                if n_ok == 1:
+                    return rows, wahba_rows(v_cam, rows, guide_unit), trio_out, n_trios
+                rows[:] = -1
+                trio_out[:] = -1
+    return rows, np.zeros((3, 3)), trio_out, n_trios
