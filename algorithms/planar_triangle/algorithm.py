@@ -279,10 +279,13 @@ class PlanarTriangle(Algorithm):
     #: (sigma_a = sigma_tau = 1e-9); here the windows stay Cole & Crassidis' propagated ones for a fixed
     #: 5e-5 deg centroid noise (no 1 px floor); no extension: only the pivot's stars are reported, as
     #: hoku's map h (so 3 verified stars suffice); a new start triangle after a failure while the
-    #: 500-access limit lasts (about 53 accesses per failed start: 9 restarts)
+    #: 500-access limit lasts (about 53 accesses per failed start: 9 restarts); the 24 brightest
+    #: stars (hoku's limit queries at most 500 triangles; this kernel looks up every image triangle
+    #: first and reserves room for each: C(24, 3) = 2,024 of them, 2 GB of address space)
     #: (``planar_triangle:galvizo2018``; docs/experiments.md)
     published_readings: ClassVar[dict] = {"galvizo2018": {
-        **published, "restarts": 9, "extend": False, "min_verified": 3, "sigma_deg": 5e-5, "fov_db_deg": 20.0}}
+        **published, "max_stars": 24, "restarts": 9, "extend": False, "min_verified": 3, "sigma_deg": 5e-5,
+        "fov_db_deg": 20.0}}
 
     mag_limit: float | None = param(
         None, unit="mag",
