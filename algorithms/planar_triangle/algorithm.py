@@ -259,6 +259,9 @@ class PlanarTriangle(Algorithm):
       sensor, at most max(1, ``max_missed_fraction`` x their number) may lack an identified star.
       With 56 subsets tried, 30 random points otherwise give chance 4-star matches.
 
+    ``sigma_deg`` (off by default) pins the centroid noise the windows assume in degrees, without the
+    1 px floor: the fixed tolerance of Galvizo & Lim's comparison (``planar_triangle:galvizo2018``).
+
     The paper's simulation is not "only guide stars imaged": Zhou & Ye (section 3.5), whose
     Table 6 compares this method, add magnitude noise that both adds and removes stars; the sky
     with only V <= 6 stars (``--sky-mag-limit 6``) is this library's calibration of their star

@@ -222,6 +222,8 @@ class Pyramid(Algorithm):
       (:meth:`derived`, :func:`max_triangles_for`) as 64 scaled with eps^3, since chance triangles
       grow as eps^3: 64 at the reference camera's 1 px window, ~4,200 at 2 px on a 20 deg / 1024 px
       camera, whose true triads match ~330 catalog triangles (a fixed 64 skipped every triad there);
+    * ``window_deg`` (off by default) pins eps in degrees instead: the fixed 3 sigma_theta = 3e-4 deg
+      window of Galvizo & Lim's comparison (``pyramid:galvizo2018``);
     * in the image, a detection closer than max(``d_min_deg``, eps) to another is set aside: within
       eps, reprojection sees two detections near its prediction and can never confirm it.
     """

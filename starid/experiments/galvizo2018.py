@@ -42,7 +42,7 @@ from . import registered_beyond
 NAME = "galvizo2018"
 TITLE = "Galvizo & Lim (2018), arXiv 1808.08686"
 DESCRIPTION = "Galvizo & Lim (2018): six methods vs false stars and noise, the paper's rule and starid's"
-DEFAULT_TRIALS = 100
+DEFAULT_TRIALS = 500
 #: The hoku commit whose doc/arxiv-paper.tex and doc/include/floats/*.tex the printed values are from.
 HOKU_COMMIT = "0cb340eca0e9af891acfa8a069776530b111c863"
 #: The source name of the plugins' readings (``NAME:galvizo2018``).
