@@ -21,6 +21,10 @@ An algorithm is a small class (a frozen dataclass is the easy way) that
 * optionally lists in ``published`` the parameter overrides that turn its defaults into the
   method exactly as its paper publishes it (starid's extensions and flight precautions off), so
   "as published" and "as improved" can run side by side: the variant ``NAME:paper``;
+* optionally lists in ``published_readings`` further published readings, each named by its
+  source (``{"galvizo2018": {...overrides...}}``): the method as that source ran it (e.g. another
+  paper's comparison with its own fixed tolerances), the variant ``NAME:SOURCE``. ``paper`` is
+  not a source name (it is ``published``);
 * optionally overrides :meth:`Algorithm.derived` when some defaults depend on the sensor (a
   radius from the field of view, a tolerance from the pixel scale, a magnitude limit from the
   star density): such a parameter defaults to ``None`` = "derive it from the catalog and camera",
@@ -138,6 +142,9 @@ class Algorithm(abc.ABC):
     #: parameter overrides giving the method as published (the ``NAME:paper`` variant); empty when
     #: the defaults are the paper's
     published: ClassVar[dict] = {}
+    #: source name -> parameter overrides giving the method as that source ran it (the
+    #: ``NAME:SOURCE`` variant, e.g. ``pyramid:galvizo2018``); empty when no other source is read
+    published_readings: ClassVar[dict[str, dict]] = {}
 
     def params(self) -> dict:
         """The parameters of this instance, as a plain dict (for result rows)."""

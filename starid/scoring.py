@@ -71,3 +71,13 @@ def attitude_error_arcsec(attitude: np.ndarray | None, attitude_true: np.ndarray
     if attitude is None:
         return float("nan")
     return rotation_angle_rad(attitude, attitude_true) * RAD_TO_ARCSEC
+
+
+def bijection_accuracy(n_correct, n_identified) -> np.ndarray:
+    """Per image, the share of the reported ids that are right, 0 where nothing was reported (or
+    the trial failed: NaN counts): Galvizo & Lim's (2018) accuracy a(h) of the returned map h
+    (their images score only the stars the map names; an empty map scores 0). Averaged over
+    images it is their printed accuracy; it does not ask for ``min_correct`` stars as :class:`SuccessRule`."""
+    correct = np.nan_to_num(np.asarray(n_correct, dtype=np.float64), nan=0.0).clip(min=0)
+    named = np.nan_to_num(np.asarray(n_identified, dtype=np.float64), nan=0.0).clip(min=0)
+    return np.divide(correct, named, out=np.zeros_like(correct), where=named > 0)

@@ -23,6 +23,7 @@ Databases are built once per (class, catalog, camera) and cached.
 
 from __future__ import annotations
 
+import re
 from functools import lru_cache
 
 import numpy as np
@@ -92,6 +93,21 @@ def _check_default_constructible(cls, algorithm, db, catalog, camera):
         except TypeError as exc:
             raise ConformanceError(f"'published' names a parameter {cls.__name__} does not take: {exc}") from None
         _require(published.params() != algorithm.params(), "'published' changes no parameter: leave it empty")
+    readings = getattr(cls, "published_readings", {})
+    _require(isinstance(readings, dict), "'published_readings' must be a dict: source name -> parameter overrides")
+    for source, overrides in readings.items():
+        _require(isinstance(source, str) and re.fullmatch(r"[A-Za-z_]\w*", source) is not None and source != "paper",
+                 f"'published_readings' source {source!r} must be an identifier other than 'paper' "
+                 "(that one is 'published')")
+        _require(isinstance(overrides, dict) and bool(overrides),
+                 f"'published_readings[{source!r}]' must be a non-empty dict of parameter overrides")
+        try:
+            reading = cls(**overrides)
+        except TypeError as exc:
+            raise ConformanceError(f"'published_readings[{source!r}]' names a parameter {cls.__name__} does not "
+                                   f"take: {exc}") from None
+        _require(reading.params() != algorithm.params(),
+                 f"'published_readings[{source!r}]' changes no parameter: drop it")
 
 
 def _check_deterministic(cls, algorithm, db, catalog, camera):

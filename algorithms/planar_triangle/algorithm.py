@@ -259,6 +259,9 @@ class PlanarTriangle(Algorithm):
       sensor, at most max(1, ``max_missed_fraction`` x their number) may lack an identified star.
       With 56 subsets tried, 30 random points otherwise give chance 4-star matches.
 
+    ``sigma_deg`` (off by default) pins the centroid noise the windows assume in degrees, without the
+    1 px floor: the fixed tolerance of Galvizo & Lim's comparison (``planar_triangle:galvizo2018``).
+
     The paper's simulation is not "only guide stars imaged": Zhou & Ye (section 3.5), whose
     Table 6 compares this method, add magnitude noise that both adds and removes stars; the sky
     with only V <= 6 stars (``--sky-mag-limit 6``) is this library's calibration of their star
@@ -275,6 +278,17 @@ class PlanarTriangle(Algorithm):
     #: triangle twice (closest to Zhou & Ye's Table 6, docs/algorithms/planar_triangle.md) (``planar_triangle:paper``)
     published: ClassVar[dict] = {"mag_limit": 6.0, "max_stars": None, "subset_size": None, "small_subset_size": None,
                                  "assign_all": False, "max_missed_fraction": 1.0, "restarts": 2}
+    #: Galvizo & Lim (2018) ran it (hoku) on V < 6 stars, trios within 20 deg, with fixed windows
+    #: (sigma_a = sigma_tau = 1e-9); here the windows stay Cole & Crassidis' propagated ones for a fixed
+    #: 5e-5 deg centroid noise (no 1 px floor); no extension: only the pivot's stars are reported, as
+    #: hoku's map h (so 3 verified stars suffice); a new start triangle after a failure while the
+    #: 500-access limit lasts (about 53 accesses per failed start: 9 restarts); the 24 brightest
+    #: stars (hoku's limit queries at most 500 triangles; this kernel looks up every image triangle
+    #: first and reserves room for each: C(24, 3) = 2,024 of them, 2 GB of address space)
+    #: (``planar_triangle:galvizo2018``; docs/experiments.md)
+    published_readings: ClassVar[dict] = {"galvizo2018": {
+        **published, "max_stars": 24, "restarts": 9, "extend": False, "min_verified": 3, "sigma_deg": 5e-5,
+        "fov_db_deg": 20.0}}
 
     mag_limit: float | None = param(
         None, unit="mag",
@@ -323,6 +337,9 @@ class PlanarTriangle(Algorithm):
         help="coverage check: catalog stars this much brighter than the limit must be seen (starid's extension)")
     max_missed_fraction: float = param(
         1.0 / 3.0, help="coverage check: largest fraction of those bright stars missed; 1 = off (starid's extension)")
+    sigma_deg: float | None = param(
+        None, unit="deg",
+        help="fixed centroid noise the windows assume, no floor; None = from sigma_px (a fixed tolerance, as hoku's)")
 
     @property
     def sigma_window_px(self) -> float:
@@ -335,6 +352,8 @@ class PlanarTriangle(Algorithm):
             check_number("mag_limit (or None: from the field's size)", self.mag_limit)
         if self.sigma_px is not None:
             check_number("sigma_px (or None: follow the simulator)", self.sigma_px, lo=0)
+        if self.sigma_deg is not None:
+            check_number("sigma_deg (or None: from sigma_px)", self.sigma_deg, lo=0, hi=10, lo_open=True)
         if self.fov_db_deg is not None:
             check_number("fov_db_deg (or None: the sensor's)", self.fov_db_deg, lo=0, hi=90, lo_open=True, hi_open=True)
         if self.min_area_deg2 is not None:
@@ -498,7 +517,8 @@ class PlanarTriangle(Algorithm):
 
     def _tolerance(self, cam: Camera) -> Tolerance:
         return Tolerance(
-            sigma_rad=self.sigma_window_px / cam.f_px, beta=float(self.beta), climit=int(self.climit),
+            sigma_rad=(math.radians(self.sigma_deg) if self.sigma_deg is not None else self.sigma_window_px / cam.f_px),
+            beta=float(self.beta), climit=int(self.climit),
             pivot_limit=-1 if self.pivot_limit is None else int(self.pivot_limit),
             abort_if_grow=bool(self.abort_if_finalists_grow), consistent_chain=bool(self.consistent_chain),
             restarts=int(self.restarts), extend=bool(self.extend), min_support=int(self.min_support),

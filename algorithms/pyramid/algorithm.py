@@ -222,6 +222,8 @@ class Pyramid(Algorithm):
       (:meth:`derived`, :func:`max_triangles_for`) as 64 scaled with eps^3, since chance triangles
       grow as eps^3: 64 at the reference camera's 1 px window, ~4,200 at 2 px on a 20 deg / 1024 px
       camera, whose true triads match ~330 catalog triangles (a fixed 64 skipped every triad there);
+    * ``window_deg`` (off by default) pins eps in degrees instead: the fixed 3 sigma_theta = 3e-4 deg
+      window of Galvizo & Lim's comparison (``pyramid:galvizo2018``);
     * in the image, a detection closer than max(``d_min_deg``, eps) to another is set aside: within
       eps, reprojection sees two detections near its prediction and can never confirm it.
     """
@@ -253,9 +255,22 @@ class Pyramid(Algorithm):
         1, help="other guide stars the pyramid's attitude predicts that must be seen; 0 = off (starid's extension)")
     accept_triangle: bool = param(
         False, help="with exactly three usable stars, report a unique triangle without a fourth (paper, n = 3)")
+    window_deg: float | None = param(
+        None, unit="deg",
+        help="fixed half-width of every pair window; None = from sigma_px and beta (a fixed tolerance, as hoku's)")
+
+    #: Galvizo & Lim (2018) ran Pyramid (hoku, its Section IV) with a fixed query window
+    #: |theta_r - theta_b| < 3 sigma_theta, sigma_theta = 1e-4 deg; every triangle unique (|T_i| = 1);
+    #: a fourth star confirming it and nothing else (no attitude check); all stars, no double-star
+    #: cut; a 500 catalog-access limit (3 per triad: 166 triads) (``pyramid:galvizo2018``)
+    published_readings: ClassVar[dict] = {"galvizo2018": {
+        "window_deg": 3e-4, "unique_triangle": True, "confirm_fraction": 0.0, "min_extra": 0, "d_min_deg": 0.0,
+        "max_stars": 100, "max_triads": 166}}
 
     def __post_init__(self):
         check_pair_params(self)
+        if self.window_deg is not None:
+            check_number("window_deg (or None: from sigma_px)", self.window_deg, lo=0, hi=10, lo_open=True)
         check_whole("max_triads", self.max_triads, 1)
         if self.max_triangles is not None:
             check_whole("max_triangles", self.max_triangles, 1)
@@ -264,13 +279,19 @@ class Pyramid(Algorithm):
 
     def tolerances(self, camera: Camera, database: PairDatabase) -> PairTol:
         half_diag = camera.half_diagonal_rad
-        eps = window_eps(camera, self.sigma_px, self.beta)
+        eps = self.window_chord(camera)
         # a detection with another one within eps of it can never be confirmed by reprojection (two
         # detections near its prediction), so the image's isolation radius is at least eps
         return PairTol(eps=eps, d_min=max(rad_to_chord(math.radians(database.d_min_deg)), eps),
                        c_max=database.c_max, c_fov=rad_to_chord(half_diag), max_window=int(self.max_window),
                        max_stars=int(self.max_stars), max_triads=int(self.max_triads),
                        confirm_fraction=float(self.confirm_fraction), min_extra=int(self.min_extra))
+
+    def window_chord(self, camera: Camera) -> float:
+        """Half-width of the pair windows (chord): ``window_deg`` when pinned, else :func:`window_eps`."""
+        if self.window_deg is not None:
+            return float(rad_to_chord(math.radians(self.window_deg)))
+        return window_eps(camera, self.sigma_px, self.beta)
 
     def derived(self, catalog: Catalog, camera: Camera) -> Pyramid:
         """``d_min_deg`` left None set to :func:`d_min_for` ``camera``, ``max_triangles`` left None to

@@ -165,7 +165,7 @@ def cmd_sweep(args) -> int:
 
 def cmd_experiment_list(args) -> int:
     for mod in builtin.all_experiments():
-        print(f"{mod.NAME:<10}  {mod.DESCRIPTION} (default {mod.DEFAULT_TRIALS:,} trials)")
+        print(f"{mod.NAME:<11}  {mod.DESCRIPTION} (default {mod.DEFAULT_TRIALS:,} trials)")
     return 0
 
 

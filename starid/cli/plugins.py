@@ -93,6 +93,8 @@ def cmd_info(args) -> int:
             print(f"  {'':<{width}}  {r['meaning'][:300]}")
     if getattr(cls, "published", None):
         print(f"\nas published ({info.name}:paper): {Variant(info.name, cls.published).label}")
+    for source, overrides in (getattr(cls, "published_readings", None) or {}).items():
+        print(f"as {source} ran it ({info.name}:{source}): {Variant(info.name, overrides).label}")
     if not args.no_build:
         db = cls().build(load_hipparcos(), Camera())
         print(f"\ndatabase for the default camera and the embedded catalog: {db.nbytes / 1e6:.3f} MB")

@@ -43,6 +43,8 @@ from ..simulate import SKIES, SimConfig
 
 #: The suffix of the "as published" variant of a plugin (its ``published`` overrides).
 PAPER_SUFFIX = ":paper"
+#: the source name of ``published`` (``NAME:paper``); every other source is a key of ``published_readings``
+PAPER_SOURCE = PAPER_SUFFIX[1:]
 #: the most points one study's grid may have (a typo such as a range of 10**6 values is refused before any work)
 MAX_GRID_POINTS = 100_000
 #: keys an experiment definition and each of its studies may hold, and the type each must be
@@ -50,7 +52,9 @@ _TOP_KEYS = {"name": str, "trials": int, "seed": int, "camera": (dict, str), "si
              "studies": list, "study": list, "algorithms": list, "grid": dict, "mode": str}
 _STUDY_KEYS = {"name": str, "algorithms": list, "variants": list, "grid": dict, "mode": str, "trials": int,
                "camera": (dict, str)}
-_LABEL = re.compile(r"^\s*([A-Za-z_][\w.-]*)(" + PAPER_SUFFIX + r")?\s*(?:\[(.*)\])?\s*$")
+#: what separates a plugin's name from the source of one of its published readings (``pyramid:galvizo2018``)
+SOURCE_SEP = ":"
+_LABEL = re.compile(r"^\s*([A-Za-z_][\w.-]*)(?:" + SOURCE_SEP + r"([A-Za-z_]\w*))?\s*(?:\[(.*)\])?\s*$")
 
 
 def _format_value(value) -> str:
@@ -88,6 +92,14 @@ def coerce(cls: type[Algorithm], key: str, value):
     raise ConfigError(f"{cls.name}.{key} must be {names}, got {value!r}")
 
 
+def readings_of(cls: type[Algorithm]) -> dict[str, dict]:
+    """Every published reading of ``cls`` by source: ``paper`` (its ``published``, when it declares one)
+    first, then its ``published_readings`` in their order."""
+    out = {PAPER_SOURCE: dict(cls.published)} if getattr(cls, "published", None) else {}
+    out.update({str(k): dict(v) for k, v in (getattr(cls, "published_readings", None) or {}).items()})
+    return out
+
+
 @dataclass(frozen=True)
 class Variant:
     """An algorithm with parameter overrides; its ``label`` is the grouping key of every result.
@@ -111,22 +123,34 @@ class Variant:
     def as_published(cls, name: str, **params) -> Variant:
         """``NAME:paper``: the plugin's ``published`` overrides, then ``params`` on top
         (labelled ``NAME:paper[KEY=VALUE,...]``)."""
+        return cls.as_reading(name, PAPER_SOURCE, **params)
+
+    @classmethod
+    def as_reading(cls, name: str, source: str, **params) -> Variant:
+        """``NAME:SOURCE``: the plugin's published reading ``source`` (``paper`` = its ``published``
+        overrides, any other = ``published_readings[source]``), then ``params`` on top (labelled
+        ``NAME:SOURCE[KEY=VALUE,...]``). An unknown source is refused listing the plugin's sources."""
         algo = get_algorithm(name)
-        if not algo.published:
-            raise ConfigError(f"{name} declares no 'published' parameters: its defaults are the paper's method")
+        readings = readings_of(algo)
+        if source not in readings:
+            if source == PAPER_SOURCE and not readings:
+                raise ConfigError(f"{name} declares no 'published' parameters: its defaults are the paper's method")
+            valid = ", ".join(f"{name}{SOURCE_SEP}{s}" for s in readings) or "none"
+            raise ConfigError(f"{name} has no published reading {source!r}; valid: {valid}")
         inner = ",".join(f"{k}={_format_value(v)}" for k, v in params.items())
-        label = f"{name}{PAPER_SUFFIX}" + (f"[{inner}]" if inner else "")
-        return cls(name, tuple({**algo.published, **params}.items()), label)
+        label = f"{name}{SOURCE_SEP}{source}" + (f"[{inner}]" if inner else "")
+        return cls(name, tuple({**readings[source], **params}.items()), label)
 
     @classmethod
     def parse(cls, text: str) -> Variant:
         """``"ptp"``, ``"ptp[n_slaves=3,verify=false]"`` (values coerced by the field types),
-        ``"ptp:paper"`` or ``"ptp:paper[n_slaves=3]"`` (:meth:`as_published`)."""
+        ``"ptp:paper"`` or ``"ptp:paper[n_slaves=3]"`` (:meth:`as_published`), ``"pyramid:galvizo2018"``
+        (a reading named by its source, :meth:`as_reading`)."""
         m = _LABEL.match(text)
         if not m:
             raise ConfigError(f"cannot read algorithm {text!r}; expected NAME, NAME[KEY=VALUE,...] or "
-                              f"NAME{PAPER_SUFFIX}[KEY=VALUE,...]")
-        name, paper, inner = m.group(1), m.group(2), m.group(3)
+                              f"NAME{SOURCE_SEP}SOURCE[KEY=VALUE,...] (SOURCE: paper or a published reading)")
+        name, source, inner = m.group(1), m.group(2), m.group(3)
         params = []
         if inner and inner.strip():
             algo = get_algorithm(name)
@@ -135,7 +159,7 @@ class Variant:
                 if not sep:
                     raise ConfigError(f"{text!r}: expected KEY=VALUE, got {item!r}")
                 params.append((key.strip(), coerce(algo, key.strip(), value)))
-        return cls.as_published(name, **dict(params)) if paper else cls(name, tuple(params))
+        return cls.as_reading(name, source, **dict(params)) if source else cls(name, tuple(params))
 
     def with_params(self, **params) -> Variant:
         """The same variant with more overrides (the label follows unless it was set explicitly)."""

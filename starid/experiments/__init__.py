@@ -20,7 +20,7 @@ from ..registry import available_algorithms
 from ..report.tables import Table, markdown, pct, rate_ci
 from ..stats import summarize
 
-MODULES = ("table6", "zhou2015", "luo2015", "realism", "cameras")
+MODULES = ("table6", "zhou2015", "luo2015", "galvizo2018", "realism", "cameras")
 
 
 def get(name: str):
