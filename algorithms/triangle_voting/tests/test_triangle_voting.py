@@ -174,6 +174,21 @@ def test_order_invariance_and_determinism(algo, db, catalog, noisy_sim):
         check_identification(algo.identify(db, obs), len(obs), catalog.hip)
 
 
+def test_vote_scratch_is_left_zero(algo, db, catalog, noisy_sim):
+    """The vote counters kept between images (reset through the touched list) are all zero after
+    every call, and an image's answer does not depend on the images identified before it."""
+    from starid_algorithms.triangle_voting.algorithm import _scratch
+
+    obs = [noisy_sim.observation(t) for t in range(12)]
+    first = [algo.identify(db, o).hip for o in obs]
+    votes, mark = _scratch(db, 1)
+    assert votes.shape[1] == mark.shape[1] == db.unit_icrs.shape[0]
+    assert not votes.any() and not mark.any()
+    for o, ref in zip(reversed(obs), reversed(first), strict=True):
+        assert np.array_equal(algo.identify(db, o).hip, ref)
+        assert not votes.any() and not mark.any()
+
+
 # -- identification rates (thresholds well below the measured values) -----------------------
 
 def test_noise_free_rate(algo, db, catalog, camera):
