@@ -20,7 +20,7 @@ from starid.observation import Observation
 from starid.params import check_flag, check_number, check_whole, param
 from starid.plugin import Algorithm, Database, Explanation, Identification
 
-from .kernels import Tables, Tolerance, build_triangles, identify_rows, new_scratch, sky_cell_of, vote
+from .kernels import WORK_COUNTERS, Tables, Tolerance, build_triangles, identify_rows, new_scratch, sky_cell_of, vote
 
 MAX_GUIDE_STARS = np.iinfo(np.uint16).max
 SKY_AXIS = 20  # sky grid cells per axis of [-1, 1]^3 (cell 0.1 ~ 5.7 deg), for reprojection
@@ -320,9 +320,10 @@ class TriangleVoting(Algorithm):
         v_cam = backproject_px(x[order], y[order], cam.f_px, cam.cx_px, cam.cy_px)
         tol = self._tolerance(cam)
         db = database
-        rows = identify_rows(v_cam, db.tables(), tol, *_scratch(db, order.size))
+        rows, work = identify_rows(v_cam, db.tables(), tol, *_scratch(db, order.size))
+        counters = dict(zip(WORK_COUNTERS, work.tolist(), strict=True))
         if rows.max() < 0:
-            return Identification(out)
+            return Identification(out, counters=counters)
         all_rows = np.full(n, -1, dtype=np.int64)
         all_rows[order] = rows
         rules = Finish(tol.eps_chord, float(self.mag_margin), float(self.mag_limit), float(self.coverage_mag_margin),
@@ -330,8 +331,8 @@ class TriangleVoting(Algorithm):
         hip, attitude, accepted = finish(x, y, mag, all_rows, db.unit_icrs, db.hip, db.deep, db.deep_v_mag,
                                          camera_frame(cam), rules)
         if accepted and not self._photometry_agrees(db, hip, mag):
-            return Identification(np.full(n, -1, dtype=np.int64))
-        return Identification(hip, attitude if accepted else None)
+            return Identification(np.full(n, -1, dtype=np.int64), counters=counters)
+        return Identification(hip, attitude if accepted else None, counters=counters)
 
     def _photometry_agrees(self, db: TriangleVotingDatabase, hip: np.ndarray, mag: np.ndarray) -> bool:
         """False for a minimal identification (at most ``min_stars`` ids) whose catalog stars are on
@@ -370,7 +371,7 @@ class TriangleVoting(Algorithm):
         cam = observation.camera
         v_cam = backproject_px(x[order], y[order], cam.f_px, cam.cx_px, cam.cy_px)
         db = database
-        _, cand_votes, hyp, _ = vote(v_cam, db.tables(), self._tolerance(cam), *_scratch(db, v_cam.shape[0]))
+        _, cand_votes, hyp, _, _ = vote(v_cam, db.tables(), self._tolerance(cam), *_scratch(db, v_cam.shape[0]))
         hip = self.identify(database, observation).hip
         segments, highlight, seen = [], [], set()
         for i, ri, a, ra, b, rb in hyp:

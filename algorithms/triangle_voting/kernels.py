@@ -17,6 +17,11 @@ from numba import njit
 
 from starid.kernels import chord, chord_rows, verify_pairwise, wahba_rows
 
+#: names of the per-image work counters :func:`identify_rows` returns (``Identification.counters``):
+#: image triangles looked up in the grid, catalog records in the grid cells scanned, records within
+#: both the base and the height window, and of those the records whose sides matched too
+WORK_COUNTERS = ("triangles", "records", "matches", "side_matches")
+
 
 class Tables(NamedTuple):
     """The database as the kernels read it (see ``TriangleVotingDatabase``)."""
@@ -140,8 +145,8 @@ def vote(v_cam, db, tol, votes, mark):
 
     Returns ``cand`` (n, n_cand) / ``cand_votes``: per star the rows with the most votes (at
     least ``v_min``, -1 / 0 pad), most votes first, ties by row; ``hyp`` (m, 6): every matched
-    record whose sides matched too, as ``(i, row_i, a, row_a, b, row_b)``, and ``score`` (m,):
-    the votes of its three assignments summed.
+    record whose sides matched too, as ``(i, row_i, a, row_a, b, row_b)``; ``score`` (m,):
+    the votes of its three assignments summed; ``work``: int64 counters of :data:`WORK_COUNTERS`.
 
     ``votes`` (int32, at least (n, n_guide)) and ``mark`` (int32 (3, n_guide)) are scratch counters
     that must be all zero on entry (:func:`new_scratch`); they are all zero again on return: only
@@ -169,6 +174,8 @@ def vote(v_cam, db, tol, votes, mark):
     nbr = np.empty(n_nbr, dtype=np.int64)
     hyp = np.empty((256, 6), dtype=np.int64)  # side-matched records: (i, c, a, c_a, b, c_b)
     n_hyp = 0
+    n_records = 0
+    n_matches = 0
     for i in range(n):
         k = 0
         for j in range(n):
@@ -198,6 +205,7 @@ def vote(v_cam, db, tol, votes, mark):
                 n_scan = 0
                 for cb in range(cb0, cb1 + 1):
                     n_scan += cell_start[cb * n_cells_h + ch1 + 1] - cell_start[cb * n_cells_h + ch0]
+                n_records += n_scan
                 while n_touched + 3 * n_scan > touched_o.size:  # room for every possible vote
                     touched_o = _grow(touched_o)
                     touched_c = _grow(touched_c)
@@ -210,6 +218,7 @@ def vote(v_cam, db, tol, votes, mark):
                     for r in range(cell_start[cb * n_cells_h + ch0], cell_start[cb * n_cells_h + ch1 + 1]):
                         if abs(base_db[r] - base) > eps_b or abs(height_db[r] - height) > eps_h:
                             continue
+                        n_matches += 1
                         c = main_db[r]
                         ci = ni_db[r]
                         cj = nj_db[r]
@@ -283,7 +292,12 @@ def vote(v_cam, db, tol, votes, mark):
         mark[0, c] = 0
         mark[1, c] = 0
         mark[2, c] = 0
-    return cand, cand_votes, hyp, score
+    work = np.zeros(len(WORK_COUNTERS), dtype=np.int64)
+    work[0] = tri
+    work[1] = n_records
+    work[2] = n_matches
+    work[3] = n_hyp
+    return cand, cand_votes, hyp, score, work
 
 
 def new_scratch(n, n_guide):
@@ -498,14 +512,15 @@ def best_hypothesis(v_cam, hyp, score, db, tol, min_stars):
 
 @njit(cache=True)
 def identify_rows(v_cam, db, tol, votes, mark):
-    """The whole identification of one image (``v_cam`` brightest first): guide row per star or -1.
+    """The whole identification of one image (``v_cam`` brightest first): ``(rows, work)``, the guide
+    row per star or -1 and :func:`vote`'s work counters.
 
     Voting (:func:`vote`), the best-supported candidate per star (:func:`select_candidates`),
     pairwise verification (``starid.kernels.verify_pairwise``), one consistent set extended by
     reprojection (:func:`confirm`), and when that yields nothing the single-triangle fallback
     (:func:`best_hypothesis`). ``votes``, ``mark``: :func:`vote`'s zeroed scratch (zero again on return).
     """
-    cand, cand_votes, hyp, score = vote(v_cam, db, tol, votes, mark)
+    cand, cand_votes, hyp, score, work = vote(v_cam, db, tol, votes, mark)
     chosen, chosen_votes = select_candidates(v_cam, cand, cand_votes, db.unit, tol.eps_chord)
     verified = verify_pairwise(v_cam, chosen, db.unit, tol.eps_chord, tol.min_support)
     for i in range(chosen.shape[0]):
@@ -514,5 +529,5 @@ def identify_rows(v_cam, db, tol, votes, mark):
     rows = confirm(v_cam, chosen, chosen_votes, db, tol, tol.min_stars)
     if rows.max() < 0 and tol.max_hypotheses > 0:
         rows = best_hypothesis(v_cam, hyp, score, db, tol, tol.min_stars + 1)
-    return rows
+    return rows, work
 

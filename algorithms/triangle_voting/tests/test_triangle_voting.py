@@ -189,6 +189,18 @@ def test_vote_scratch_is_left_zero(algo, db, catalog, noisy_sim):
         assert not votes.any() and not mark.any()
 
 
+def test_work_counters(algo, db, noisy_sim):
+    """Counters of the voting: image triangles looked up, records scanned >= records in both windows
+    >= records whose sides matched too; deterministic and independent of the star order."""
+    from starid_algorithms.triangle_voting.kernels import WORK_COUNTERS
+
+    obs = noisy_sim.observation(3)
+    c = algo.identify(db, obs).counters
+    assert tuple(c) == WORK_COUNTERS
+    assert c["triangles"] > 0 and c["records"] >= c["matches"] >= c["side_matches"] > 0
+    assert algo.identify(db, obs.permuted(np.arange(len(obs))[::-1])).counters == c
+
+
 # -- identification rates (thresholds well below the measured values) -----------------------
 
 def test_noise_free_rate(algo, db, catalog, camera):
