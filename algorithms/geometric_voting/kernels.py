@@ -29,6 +29,12 @@ from starid.kernels import backproject_px, chord_rows, reproject_assign, verify_
 chord_rows_inline = njit(cache=True, inline="always")(chord_rows.py_func)
 
 
+#: names of the per-image work counters :func:`voting_kernel` returns (``Identification.counters``):
+#: voting rounds (each one choice, verification and confirmation), image pairs with a non-empty
+#: k-vector window, and the catalog pairs read from those windows (each gives up to four votes)
+WORK_COUNTERS = ("rounds", "windows", "pairs")
+
+
 class VoteRule(NamedTuple):
     """The voting and verification choices of one identification (see ``GeometricVoting``).
 
@@ -317,13 +323,14 @@ def decide(v_cam, sel, n_voters, start, stop, tally, degree, guide_unit, tol, ca
 
 
 @njit(cache=True)
-def vote_rounds(v_cam, sel, kv, pairs, degree, guide_unit, tol, cam, rule, tally, vtol):
+def vote_rounds(v_cam, sel, kv, pairs, degree, guide_unit, tol, cam, rule, tally, vtol, work):
     """Voting in rounds: the ``rule.round_voters`` brightest selected stars vote, their choice is
     verified and confirmed (:func:`decide`); if that fails, the next ``rule.round_step`` stars
     join, their pairs with every earlier star add votes to the same counters, and the choice is
     made again -- until a round succeeds or every selected star has voted (that last round has
     exactly the votes of one round of all). The windows that vote are ``vtol``'s (see
-    :func:`voting_kernel`). Returns ``(rows, votes, attitude)``."""
+    :func:`voting_kernel`). Returns ``(rows, votes, attitude)``; counts into ``work``
+    (:data:`WORK_COUNTERS`)."""
     n = v_cam.shape[0]
     m = sel.shape[0]
     rows = np.full(n, -1, dtype=np.int64)
@@ -338,6 +345,12 @@ def vote_rounds(v_cam, sel, kv, pairs, degree, guide_unit, tol, cam, rule, tally
     while True:
         upto = min(m, done + (step if done == 0 else rule.round_step))
         start, stop = pair_windows(v_cam, sel[:upto], kv, vtol)
+        work[0] += 1
+        for b in range(done, upto):     # the new image pairs (a, b), a < b, of this round
+            for a in range(b):
+                if stop[a, b] > start[a, b]:
+                    work[1] += 1
+                    work[2] += stop[a, b] - start[a, b]
         level = min(3, upto - 1)    # list the stars with 3 votes or more (enough for every round)
         if level != last_level:
             for a in range(done):   # keep the listed stars that still reach the new level
@@ -367,11 +380,12 @@ def tally_like(rule):
 
 @njit(cache=True)
 def voting_kernel(x_px, y_px, mag, kv, pairs, degree, guide_unit, tol, cam, rule, vtol, tally_like):
-    """Geometric voting on one image. Returns ``(rows, votes, attitude)``.
+    """Geometric voting on one image. Returns ``(rows, votes, attitude, work)``.
 
     ``rows[s]``: guide row of detection ``s`` (-1 = unidentified); ``votes[s]``: the votes its
     chosen catalog star received (-1 for detections that did not vote); ``attitude``: Wahba's
-    ICRS -> camera rotation of the identified stars (zeros when none).
+    ICRS -> camera rotation of the identified stars (zeros when none); ``work``: int64 counters
+    of :data:`WORK_COUNTERS` (all zero when nothing voted).
 
     1. detections with a neighbour closer than ``tol.d_min`` are set aside, the rest sorted
        brightest first and cut to ``tol.max_stars``;
@@ -400,25 +414,27 @@ def voting_kernel(x_px, y_px, mag, kv, pairs, degree, guide_unit, tol, cam, rule
     compiled for the one dtype the rule uses instead of both.
     """
     n = x_px.shape[0]
+    work = np.zeros(len(WORK_COUNTERS), dtype=np.int64)
     if n < 3:
-        return np.full(n, -1, dtype=np.int64), np.full(n, -1, dtype=np.int64), np.zeros((3, 3))
+        return np.full(n, -1, dtype=np.int64), np.full(n, -1, dtype=np.int64), np.zeros((3, 3)), work
     v_cam = backproject_px(x_px, y_px, cam.f_px, cam.cx_px, cam.cy_px)
     sel = select_stars(x_px, y_px, mag, v_cam, tol.d_min, tol.max_stars)
     if sel.shape[0] < 3:
-        return np.full(n, -1, dtype=np.int64), np.full(n, -1, dtype=np.int64), np.zeros((3, 3))
+        return np.full(n, -1, dtype=np.int64), np.full(n, -1, dtype=np.int64), np.zeros((3, 3)), work
     tally = np.zeros((sel.shape[0], degree.shape[0]), dtype=tally_like.dtype)
-    return vote_rounds(v_cam, sel, kv, pairs, degree, guide_unit, tol, cam, rule, tally, vtol)
+    rows, votes, attitude = vote_rounds(v_cam, sel, kv, pairs, degree, guide_unit, tol, cam, rule, tally, vtol, work)
+    return rows, votes, attitude, work
 
 
 @njit(cache=True)
 def identify_kernel(x_px, y_px, mag, kv, pairs, degree, guide_unit, guide_hip, tol, cam, rule, vtol, tally_like):
-    """:func:`voting_kernel` with catalog ids: ``(hip, attitude, found)``, hip -1 = unidentified."""
-    rows, _, attitude = voting_kernel(x_px, y_px, mag, kv, pairs, degree, guide_unit, tol, cam, rule, vtol,
-                                      tally_like)
+    """:func:`voting_kernel` with catalog ids: ``(hip, attitude, found, work)``, hip -1 = unidentified."""
+    rows, _, attitude, work = voting_kernel(x_px, y_px, mag, kv, pairs, degree, guide_unit, tol, cam, rule, vtol,
+                                            tally_like)
     hip = np.full(rows.shape[0], -1, dtype=np.int64)
     found = False
     for s in range(rows.shape[0]):
         if rows[s] >= 0:
             hip[s] = guide_hip[rows[s]]
             found = True
-    return hip, attitude, found
+    return hip, attitude, found, work

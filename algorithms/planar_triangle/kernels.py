@@ -39,6 +39,8 @@ EMPTY = np.uint32(0xFFFFFFFF)  # an empty hash slot (no star pair lo < hi < 6553
 WORK_COUNTERS = ("subsets", "pivots", "candidates", "verifications", "image_triangles")
 N_WORK = len(WORK_COUNTERS)
 CACHE_PER_TRIANGLE = 2048  # room for moment candidates per image triangle (on average) in the cache
+MEMO_DIM = 64  # first pivots (start triangle g0, second g1) with g0, g1 < MEMO_DIM are memoised per image
+MEMO_NODES = 1 << 15  # room for the memoised pivots' new finalists per image (full: no more memoising)
 KEY_BASE = 65536  # star indices are < 65536 (uint16), so a sorted pair packs into lo * 65536 + hi
 
 
@@ -103,6 +105,16 @@ class MomentCache(NamedTuple):
     hsize: np.ndarray  # int64 (M,) a power of two >= 4 x its candidates (3 keys each)
     fill: np.ndarray  # int64 (1,) used length of buf
     hfill: np.ndarray  # int64 (1,) used length of keys
+    # the first pivot of a chain (start triangle g0 -> second triangle g1) depends on (g0, g1) alone,
+    # and the star subsets of one image repeat it (about 40 % of them on false-star images):
+    memo_of: np.ndarray  # int64 (MEMO_DIM^2,) entry of the pivot g0 -> g1 at g0 * MEMO_DIM + g1 (-1: none)
+    memo_start: np.ndarray  # int64 (MEMO_DIM^2,) its new finalists are memo_node/memo_parent[start:start + len]
+    memo_len: np.ndarray  # int64 (MEMO_DIM^2,)
+    memo_work: np.ndarray  # int64 (MEMO_DIM^2,) candidates it examined (added to the counter again)
+    memo_grew: np.ndarray  # bool (MEMO_DIM^2,) it abandoned the chain (more finalists than before)
+    memo_node: np.ndarray  # int64 (MEMO_NODES,) catalog triangle of each new finalist
+    memo_parent: np.ndarray  # int64 (MEMO_NODES,) its parent: index of a start candidate
+    memo_fill: np.ndarray  # int64 (2,) entries and memo_node slots used
 
 
 @njit(cache=True)
@@ -345,7 +357,11 @@ def new_cache(img):
     return MomentCache(np.zeros(m, dtype=np.bool_), np.zeros(m, dtype=np.int64), np.zeros(m, dtype=np.int64),
                        np.empty(total, dtype=np.int64), np.empty(HASH_ROOM * total, dtype=np.uint32),
                        np.empty(HASH_ROOM * total, dtype=np.int32), np.zeros(m, dtype=np.int64),
-                       np.zeros(m, dtype=np.int64), np.zeros(1, dtype=np.int64), np.zeros(1, dtype=np.int64))
+                       np.zeros(m, dtype=np.int64), np.zeros(1, dtype=np.int64), np.zeros(1, dtype=np.int64),
+                       np.full(MEMO_DIM * MEMO_DIM, -1, dtype=np.int64), np.empty(MEMO_DIM * MEMO_DIM, dtype=np.int64),
+                       np.empty(MEMO_DIM * MEMO_DIM, dtype=np.int64), np.empty(MEMO_DIM * MEMO_DIM, dtype=np.int64),
+                       np.empty(MEMO_DIM * MEMO_DIM, dtype=np.bool_), np.empty(MEMO_NODES, dtype=np.int64),
+                       np.empty(MEMO_NODES, dtype=np.int64), np.zeros(2, dtype=np.int64))
 
 
 @njit(cache=True)
@@ -446,6 +462,12 @@ def _pivot(first, img, db, tol, pivot_limit, cache, work):
     membership signatures, :func:`_signatures`), i.e. the two stars a pivot shares are the
     same two stars throughout.
 
+    The first pivot's outcome (the new finalists in order, or the abandonment) depends on the
+    start and second image triangles alone, so it is kept in ``cache`` and replayed when another
+    star subset of the image makes the same first pivot (most of a failing image's time is spent
+    there: ~1,400 start candidates probed each time); the replay adds the candidates the pivot
+    examined to ``work`` again, so the counters stay the method's work, whatever is memoised.
+
     Returns ``(chain, cat_chain, n_finalists)``: the image triangles used and, when exactly one
     finalist survives, its catalog triangles (else an empty array). Adds to ``work`` (see
     :data:`WORK_COUNTERS`) the pivots made and the candidates examined.
@@ -477,6 +499,30 @@ def _pivot(first, img, db, tol, pivot_limit, cache, work):
         used_tri[t] = True
         length += 1
         work[1] += 1
+        layer_hi = layer_lo + n_fin
+        memo_key = -1
+        if step == 1 and img.gid[first] < MEMO_DIM and img.gid[t] < MEMO_DIM:
+            memo_key = img.gid[first] * MEMO_DIM + img.gid[t]
+            e = cache.memo_of[memo_key]
+            if e >= 0:  # this first pivot was made for another subset: the same finalists, in order
+                work[2] += cache.memo_work[e]
+                if cache.memo_grew[e]:
+                    return chain[:length], np.empty(0, dtype=np.int64), 0
+                n_new = cache.memo_len[e]
+                if n_nodes + n_new > node_cat.shape[0]:
+                    node_cat = _grow(node_cat, n_nodes + n_new)
+                if n_nodes + n_new > node_parent.shape[0]:
+                    node_parent = _grow(node_parent, n_nodes + n_new)
+                a = cache.memo_start[e]
+                for q in range(n_new):
+                    node_cat[n_nodes] = cache.memo_node[a + q]
+                    node_parent[n_nodes] = cache.memo_parent[a + q]
+                    n_nodes += 1
+                layer_lo = layer_hi
+                n_fin = n_new
+                continue
+        work_before = work[2]
+        nodes_before = n_nodes
         # the candidates indexed by each of their three star pairs (sorted keys)
         _, hkeys, hcand = _moment_candidates(t, img, db, tol, cache)
         hmask = hkeys.shape[0] - 1
@@ -487,7 +533,6 @@ def _pivot(first, img, db, tol, pivot_limit, cache, work):
         cat_members = np.empty((step + 1, 3), dtype=np.int64)
         sig_ids = np.empty(3 * (step + 1), dtype=np.int64)
         sig_masks = np.empty(3 * (step + 1), dtype=np.int64)
-        layer_hi = layer_lo + n_fin
         n_new = 0
         grew = False
         for f in range(layer_lo, layer_hi):
@@ -542,6 +587,20 @@ def _pivot(first, img, db, tol, pivot_limit, cache, work):
                     break
             if grew:
                 break
+        if memo_key >= 0:
+            e = cache.memo_fill[0]
+            a = cache.memo_fill[1]
+            if a + n_new <= MEMO_NODES:
+                cache.memo_of[memo_key] = e
+                cache.memo_start[e] = a
+                cache.memo_len[e] = n_new
+                cache.memo_work[e] = work[2] - work_before
+                cache.memo_grew[e] = grew
+                for q in range(n_new):
+                    cache.memo_node[a + q] = node_cat[nodes_before + q]
+                    cache.memo_parent[a + q] = node_parent[nodes_before + q]
+                cache.memo_fill[0] = e + 1
+                cache.memo_fill[1] = a + n_new
         if grew:  # more finalists than before: Cole abandons the match (inconclusive)
             return chain[:length], np.empty(0, dtype=np.int64), 0
         layer_lo = layer_hi

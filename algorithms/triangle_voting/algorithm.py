@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import math
+import threading
+import weakref
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -18,7 +20,7 @@ from starid.observation import Observation
 from starid.params import check_flag, check_number, check_whole, param
 from starid.plugin import Algorithm, Database, Explanation, Identification
 
-from .kernels import Tables, Tolerance, build_triangles, identify_rows, sky_cell_of, vote
+from .kernels import WORK_COUNTERS, Tables, Tolerance, build_triangles, identify_rows, new_scratch, sky_cell_of, vote
 
 MAX_GUIDE_STARS = np.iinfo(np.uint16).max
 SKY_AXIS = 20  # sky grid cells per axis of [-1, 1]^3 (cell 0.1 ~ 5.7 deg), for reprojection
@@ -65,6 +67,23 @@ class TriangleVotingDatabase(Database):
         return Tables(self.base, self.height, self.main, self.n_i, self.n_j, self.cell_start, self.n_cells_b,
                       self.n_cells_h, self.cell_b, self.cell_h, self.unit_icrs, self.sky_start, self.sky_axis,
                       self.pattern_radius_chord, self.d_min_chord)
+
+
+_SCRATCH = threading.local()
+
+
+def _scratch(db: TriangleVotingDatabase, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """The vote kernel's zeroed scratch counters for images of ``n`` stars on ``db``, kept per
+    database and thread (the kernel leaves them zero; allocating and zeroing ``n x n_guide``
+    counters per image was a large part of an identification)."""
+    held = getattr(_SCRATCH, "held", None)
+    if held is None:
+        held = _SCRATCH.held = weakref.WeakKeyDictionary()
+    votes, mark = held.get(db, (None, None))
+    if votes is None or votes.shape[0] < n:
+        votes, mark = new_scratch(max(n, 64), db.unit_icrs.shape[0])
+        held[db] = (votes, mark)
+    return votes, mark
 
 
 @dataclass(frozen=True)
@@ -301,9 +320,10 @@ class TriangleVoting(Algorithm):
         v_cam = backproject_px(x[order], y[order], cam.f_px, cam.cx_px, cam.cy_px)
         tol = self._tolerance(cam)
         db = database
-        rows = identify_rows(v_cam, db.tables(), tol)
+        rows, work = identify_rows(v_cam, db.tables(), tol, *_scratch(db, order.size))
+        counters = dict(zip(WORK_COUNTERS, work.tolist(), strict=True))
         if rows.max() < 0:
-            return Identification(out)
+            return Identification(out, counters=counters)
         all_rows = np.full(n, -1, dtype=np.int64)
         all_rows[order] = rows
         rules = Finish(tol.eps_chord, float(self.mag_margin), float(self.mag_limit), float(self.coverage_mag_margin),
@@ -311,8 +331,8 @@ class TriangleVoting(Algorithm):
         hip, attitude, accepted = finish(x, y, mag, all_rows, db.unit_icrs, db.hip, db.deep, db.deep_v_mag,
                                          camera_frame(cam), rules)
         if accepted and not self._photometry_agrees(db, hip, mag):
-            return Identification(np.full(n, -1, dtype=np.int64))
-        return Identification(hip, attitude if accepted else None)
+            return Identification(np.full(n, -1, dtype=np.int64), counters=counters)
+        return Identification(hip, attitude if accepted else None, counters=counters)
 
     def _photometry_agrees(self, db: TriangleVotingDatabase, hip: np.ndarray, mag: np.ndarray) -> bool:
         """False for a minimal identification (at most ``min_stars`` ids) whose catalog stars are on
@@ -351,7 +371,7 @@ class TriangleVoting(Algorithm):
         cam = observation.camera
         v_cam = backproject_px(x[order], y[order], cam.f_px, cam.cx_px, cam.cy_px)
         db = database
-        _, cand_votes, hyp, _ = vote(v_cam, db.tables(), self._tolerance(cam))
+        _, cand_votes, hyp, _, _ = vote(v_cam, db.tables(), self._tolerance(cam), *_scratch(db, v_cam.shape[0]))
         hip = self.identify(database, observation).hip
         segments, highlight, seen = [], [], set()
         for i, ri, a, ra, b, rb in hyp:

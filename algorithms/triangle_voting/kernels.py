@@ -17,6 +17,11 @@ from numba import njit
 
 from starid.kernels import chord, chord_rows, verify_pairwise, wahba_rows
 
+#: names of the per-image work counters :func:`identify_rows` returns (``Identification.counters``):
+#: image triangles looked up in the grid, catalog records in the grid cells scanned, records within
+#: both the base and the height window, and of those the records whose sides matched too
+WORK_COUNTERS = ("triangles", "records", "matches", "side_matches")
+
 
 class Tables(NamedTuple):
     """The database as the kernels read it (see ``TriangleVotingDatabase``)."""
@@ -126,7 +131,7 @@ def _grow(arr):
 
 
 @njit(cache=True)
-def vote(v_cam, db, tol):
+def vote(v_cam, db, tol, votes, mark):
     """Triangle voting (Fan & Zhong's double feature constraint) over a 2-D grid index.
 
     ``v_cam`` (n, 3) must be ordered brightest first (the neighbour ranking reads that order).
@@ -140,13 +145,17 @@ def vote(v_cam, db, tol):
 
     Returns ``cand`` (n, n_cand) / ``cand_votes``: per star the rows with the most votes (at
     least ``v_min``, -1 / 0 pad), most votes first, ties by row; ``hyp`` (m, 6): every matched
-    record whose sides matched too, as ``(i, row_i, a, row_a, b, row_b)``, and ``score`` (m,):
-    the votes of its three assignments summed.
+    record whose sides matched too, as ``(i, row_i, a, row_a, b, row_b)``; ``score`` (m,):
+    the votes of its three assignments summed; ``work``: int64 counters of :data:`WORK_COUNTERS`.
+
+    ``votes`` (int32, at least (n, n_guide)) and ``mark`` (int32 (3, n_guide)) are scratch counters
+    that must be all zero on entry (:func:`new_scratch`); they are all zero again on return: only
+    the entries this image touched are reset (a list of them is kept anyway), instead of zeroing
+    ``n x n_guide`` counters for every image.
     """
     base_db, height_db, main_db, ni_db, nj_db = db.base, db.height, db.main, db.n_i, db.n_j
     cell_start, n_cells_b, n_cells_h, cell_b, cell_h = db.cell_start, db.n_cells_b, db.n_cells_h, db.cell_b, db.cell_h
     cat_unit = db.unit
-    n_guide = cat_unit.shape[0]
     pr_chord, dmin_chord = db.pr_chord, db.dmin_chord
     n_nbr, sigma_chord, k_sigma = tol.n_nbr, tol.sigma_chord, tol.k_sigma
     side_check, vote_neighbours, v_min, n_cand = tol.side_check, tol.vote_neighbours, tol.v_min, tol.n_cand
@@ -154,9 +163,8 @@ def vote(v_cam, db, tol):
     eps_b = k_sigma * math.sqrt(2.0) * sigma_chord
     lo_d = dmin_chord - eps_b
     hi_d = pr_chord + eps_b
-    votes = np.zeros((n, n_guide), dtype=np.int32)
-    # per vertex of the current triangle (main, a, b): the last triangle that voted each row
-    mark = np.zeros((3, n_guide), dtype=np.int32)
+    # votes[o, c]: votes of catalog row c for observed star o; mark[u, c], per vertex of the
+    # current triangle (main, a, b): the last triangle that voted row c (both all zero on entry)
     obs = np.empty(3, dtype=np.int64)
     row = np.empty(3, dtype=np.int64)
     tri = 0
@@ -166,6 +174,8 @@ def vote(v_cam, db, tol):
     nbr = np.empty(n_nbr, dtype=np.int64)
     hyp = np.empty((256, 6), dtype=np.int64)  # side-matched records: (i, c, a, c_a, b, c_b)
     n_hyp = 0
+    n_records = 0
+    n_matches = 0
     for i in range(n):
         k = 0
         for j in range(n):
@@ -195,6 +205,7 @@ def vote(v_cam, db, tol):
                 n_scan = 0
                 for cb in range(cb0, cb1 + 1):
                     n_scan += cell_start[cb * n_cells_h + ch1 + 1] - cell_start[cb * n_cells_h + ch0]
+                n_records += n_scan
                 while n_touched + 3 * n_scan > touched_o.size:  # room for every possible vote
                     touched_o = _grow(touched_o)
                     touched_c = _grow(touched_c)
@@ -207,6 +218,7 @@ def vote(v_cam, db, tol):
                     for r in range(cell_start[cb * n_cells_h + ch0], cell_start[cb * n_cells_h + ch1 + 1]):
                         if abs(base_db[r] - base) > eps_b or abs(height_db[r] - height) > eps_h:
                             continue
+                        n_matches += 1
                         c = main_db[r]
                         ci = ni_db[r]
                         cj = nj_db[r]
@@ -274,7 +286,23 @@ def vote(v_cam, db, tol):
     score = np.empty(n_hyp, dtype=np.int64)
     for h in range(n_hyp):
         score[h] = votes[hyp[h, 0], hyp[h, 1]] + votes[hyp[h, 2], hyp[h, 3]] + votes[hyp[h, 4], hyp[h, 5]]
-    return cand, cand_votes, hyp, score
+    for e in range(n_touched):  # every counter set above is in the touched list: all zero again
+        c = touched_c[e]
+        votes[touched_o[e], c] = 0
+        mark[0, c] = 0
+        mark[1, c] = 0
+        mark[2, c] = 0
+    work = np.zeros(len(WORK_COUNTERS), dtype=np.int64)
+    work[0] = tri
+    work[1] = n_records
+    work[2] = n_matches
+    work[3] = n_hyp
+    return cand, cand_votes, hyp, score, work
+
+
+def new_scratch(n, n_guide):
+    """Zeroed scratch counters ``(votes, mark)`` for :func:`vote` on images of up to ``n`` stars."""
+    return np.zeros((n, n_guide), dtype=np.int32), np.zeros((3, n_guide), dtype=np.int32)
 
 
 @njit(cache=True)
@@ -483,15 +511,16 @@ def best_hypothesis(v_cam, hyp, score, db, tol, min_stars):
 
 
 @njit(cache=True)
-def identify_rows(v_cam, db, tol):
-    """The whole identification of one image (``v_cam`` brightest first): guide row per star or -1.
+def identify_rows(v_cam, db, tol, votes, mark):
+    """The whole identification of one image (``v_cam`` brightest first): ``(rows, work)``, the guide
+    row per star or -1 and :func:`vote`'s work counters.
 
     Voting (:func:`vote`), the best-supported candidate per star (:func:`select_candidates`),
     pairwise verification (``starid.kernels.verify_pairwise``), one consistent set extended by
     reprojection (:func:`confirm`), and when that yields nothing the single-triangle fallback
-    (:func:`best_hypothesis`).
+    (:func:`best_hypothesis`). ``votes``, ``mark``: :func:`vote`'s zeroed scratch (zero again on return).
     """
-    cand, cand_votes, hyp, score = vote(v_cam, db, tol)
+    cand, cand_votes, hyp, score, work = vote(v_cam, db, tol, votes, mark)
     chosen, chosen_votes = select_candidates(v_cam, cand, cand_votes, db.unit, tol.eps_chord)
     verified = verify_pairwise(v_cam, chosen, db.unit, tol.eps_chord, tol.min_support)
     for i in range(chosen.shape[0]):
@@ -500,5 +529,5 @@ def identify_rows(v_cam, db, tol):
     rows = confirm(v_cam, chosen, chosen_votes, db, tol, tol.min_stars)
     if rows.max() < 0 and tol.max_hypotheses > 0:
         rows = best_hypothesis(v_cam, hyp, score, db, tol, tol.min_stars + 1)
-    return rows
+    return rows, work
 

@@ -248,3 +248,17 @@ def test_voting_window_at_the_reference_chance_level_at_2_px(catalog, camera):
             assert np.all(hip[hip >= 0] == obs.truth_hip[hip >= 0])
             n_ok[key] += int(np.sum(hip >= 0) >= 3)
     assert n_ok["derived"] >= 19 and n_ok["full"] <= 17        # measured 20 and 17
+
+
+def test_work_counters(algo, db, voted):
+    """Counters: rounds voted, image pairs with a window, catalog pairs read; one round of all stars
+    reads every pair's window once, and voting in rounds reads a subset of those pairs."""
+    from starid_algorithms.geometric_voting.kernels import WORK_COUNTERS
+
+    obs = voted[0]
+    c = algo.identify(db, obs).counters
+    assert tuple(c) == WORK_COUNTERS
+    assert c["rounds"] >= 1 and c["pairs"] >= c["windows"] > 0
+    one = GeometricVoting(round_voters=0).identify(db, obs).counters
+    assert one["rounds"] == 1
+    assert c["windows"] <= one["windows"] and c["pairs"] <= one["pairs"]   # rounds add pairs, never repeat them

@@ -174,6 +174,33 @@ def test_order_invariance_and_determinism(algo, db, catalog, noisy_sim):
         check_identification(algo.identify(db, obs), len(obs), catalog.hip)
 
 
+def test_vote_scratch_is_left_zero(algo, db, catalog, noisy_sim):
+    """The vote counters kept between images (reset through the touched list) are all zero after
+    every call, and an image's answer does not depend on the images identified before it."""
+    from starid_algorithms.triangle_voting.algorithm import _scratch
+
+    obs = [noisy_sim.observation(t) for t in range(12)]
+    first = [algo.identify(db, o).hip for o in obs]
+    votes, mark = _scratch(db, 1)
+    assert votes.shape[1] == mark.shape[1] == db.unit_icrs.shape[0]
+    assert not votes.any() and not mark.any()
+    for o, ref in zip(reversed(obs), reversed(first), strict=True):
+        assert np.array_equal(algo.identify(db, o).hip, ref)
+        assert not votes.any() and not mark.any()
+
+
+def test_work_counters(algo, db, noisy_sim):
+    """Counters of the voting: image triangles looked up, records scanned >= records in both windows
+    >= records whose sides matched too; deterministic and independent of the star order."""
+    from starid_algorithms.triangle_voting.kernels import WORK_COUNTERS
+
+    obs = noisy_sim.observation(3)
+    c = algo.identify(db, obs).counters
+    assert tuple(c) == WORK_COUNTERS
+    assert c["triangles"] > 0 and c["records"] >= c["matches"] >= c["side_matches"] > 0
+    assert algo.identify(db, obs.permuted(np.arange(len(obs))[::-1])).counters == c
+
+
 # -- identification rates (thresholds well below the measured values) -----------------------
 
 def test_noise_free_rate(algo, db, catalog, camera):
