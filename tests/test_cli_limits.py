@@ -25,11 +25,21 @@ class Hanging(Misbehaving):
     every: int = 1
 
 
+@dataclass(frozen=True)
+class BuildHanging(Misbehaving):
+    """Hangs in build (what ``starid info`` builds: a class with its defaults)."""
+
+    name: ClassVar[str] = "misbehaving_build_hanging"
+    mode: str = "build_hang"
+
+
 @pytest.fixture(autouse=True)
 def misbehaving_registered():
     register_all()
     register(Hanging)
+    register(BuildHanging)
     yield
+    unregister(BuildHanging.name)
     unregister(Hanging.name)
     unregister_all()
 
@@ -120,6 +130,14 @@ def test_check_that_hangs_fails_each_check_and_ends(capsys):
     assert rc == 1
     assert "FAILED (timeout)  check 'deterministic' ran longer than the 0.5 s --build-time-limit" in out
     assert "default_constructible    ok" in out          # the checks that call no identify still pass
+
+
+def test_info_build_that_hangs_says_so_and_ends(capsys):
+    assert main(["info", BuildHanging.name, "--build-time-limit", "0.5"]) == 0
+    out = capsys.readouterr().out
+    assert "derived defaults and database size not known: timeout: build ran longer than the 0.5 s " \
+           "--build-time-limit" in out
+    assert "mode   str" in out                  # the parameter table still printed
 
 
 @pytest.mark.parametrize("command", ["identify", "show", "check"])
