@@ -10,15 +10,17 @@ import pandas as pd
 
 from ..catalog import load_csv, load_hipparcos
 from ..errors import ObservationError
-from ..harness import prepare, rows_to_frame, timed_identify
+from ..experiment.executors import Limits, Outcome, call_per_item, memory_error
+from ..harness import Prepared, prepare, rows_to_frame, timed_identify
 from ..io import read_numeric_csv, write_frames
 from ..observation import Observation
-from ..scoring import ERROR, SuccessRule, score_trial
+from ..scoring import CRASHED, ERROR, SuccessRule, score_trial
 from ..simulate import SimConfig, Simulator
 from ..stats import summarize
 from .experiments import format_summary, variants
 from .options import (
     add_camera,
+    add_limits,
     add_world,
     camera_spec,
     check_out,
@@ -57,48 +59,96 @@ def read_observations(path: Path, camera) -> tuple[list[int], list[Observation],
     return trials, observations, has_truth
 
 
+class _Size:
+    """A database's size alone (what a trial row reports), sent back instead of the database."""
+
+    def __init__(self, nbytes: int):
+        self.nbytes = nbytes
+
+
+def _identify_one(variant, catalog, camera, trials, observations, has_truth, fov_range, control, start):
+    """In the supervised process: prepare ``variant`` and identify images ``start..``, each sent with
+    ``control.emit((k, (row, hip)))``; the prepared algorithm's sizes as ``k = -1``."""
+    from .images import band_preparer, solve_image
+
+    def on_phase(phase: str) -> None:
+        control.phase("the warm-up identify" if phase == "warmup" else "derived/build", build=True)
+
+    prepared = prepare(variant.make(), catalog, camera, observations[0], variant.label, on_phase)
+    db = None if prepared.database is None else _Size(prepared.database.nbytes)
+    control.emit((-1, Prepared(prepared.algorithm, prepared.label, db, prepared.build_s, prepared.compile_s,
+                               prepared.error)))
+    bands = band_preparer(variant, catalog, camera, observations[0], on_phase) if fov_range is not None else None
+    rule = SuccessRule()
+    for k in range(start, len(trials)):
+        t, obs = trials[k], observations[k]
+        control.phase("identify")
+        if fov_range is None:
+            hip, elapsed_ns, error = timed_identify(prepared, obs, catalog.hip)
+        else:          # the field-of-view search: the time is the whole search's; each call under the limit
+            t0 = time.perf_counter_ns()
+            hip, _, _, _, error = solve_image(prepared, obs, catalog, fov_range_deg=fov_range, prepared_for=bands,
+                                              on_call=lambda: control.phase("identify"))
+            elapsed_ns = time.perf_counter_ns() - t0
+        row = {"trial": t, "n_stars": len(obs),
+               "n_true_stars": int((obs.truth_hip >= 0).sum()) if has_truth else -1, "error": error,
+               **score_trial(hip, obs.truth_hip, rule), "time_us": elapsed_ns / 1e3, "n_redraws": 0,
+               "attitude_err_arcsec": float("nan")}
+        if error:
+            row["status"] = ERROR
+        control.emit((k, (row, hip)))
+
+
 def cmd_identify(args) -> int:
-    from .images import band_preparer, parse_fov_range, solve_image
+    from .images import parse_fov_range
 
     check_out(args.out)
+    limits = Limits.from_args(args)
     fov_range = parse_fov_range(args.fov_range) if getattr(args, "fov_range", None) is not None else None
     camera = make_camera(camera_spec(args))
     trials, observations, has_truth = read_observations(args.obs, camera)
     algorithm_variants = variants(args.algorithms, args.set)
     catalog = load_csv(args.catalog) if args.catalog else load_hipparcos()
-    rule = SuccessRule()
     id_frames, trial_frames = [], []
     for variant in algorithm_variants:
-        algorithm = variant.make()
-        prepared = prepare(algorithm, catalog, camera, observations[0], variant.label)
-        bands = band_preparer(variant, catalog, camera, observations[0]) if fov_range is not None else None
-        iterator = zip(trials, observations, strict=True)
+        bar = None
         if progress(args):
             from tqdm.auto import tqdm
 
-            iterator = tqdm(iterator, total=len(trials), desc=variant.label, unit="img", leave=False)
+            bar = tqdm(total=len(trials), desc=variant.label, unit="img", leave=False)
+
+        def compute(control, start, variant=variant):
+            return _identify_one(variant, catalog, camera, trials, observations, has_truth, fov_range, control,
+                                 start)
+
+        # every plugin call in a supervised process (the engine's limits): one that overruns or dies is
+        # that image's (or, preparing, every image's) timeout / crashed row, the other algorithms' intact
+        items = call_per_item(compute, len(trials), limits,
+                              on_item=lambda k, _item, bar=bar: bar.update(1) if bar is not None and k >= 0 else None)
+        if bar is not None:
+            bar.close()
+        prepared = items.get(-1) or Prepared(variant.make(), variant.label, None, float("nan"), float("nan"))
         rows, ids = [], []
-        for t, obs in iterator:
-            if fov_range is None:
-                hip, elapsed_ns, error = timed_identify(prepared, obs, catalog.hip)
-            else:          # the field-of-view search: the time is the whole search's
-                t0 = time.perf_counter_ns()
-                hip, _, _, _, error = solve_image(prepared, obs, catalog, fov_range_deg=fov_range,
-                                                  prepared_for=bands)
-                elapsed_ns = time.perf_counter_ns() - t0
-            row = {"trial": t, "n_stars": len(obs),
-                   "n_true_stars": int((obs.truth_hip >= 0).sum()) if has_truth else -1, "error": error,
-                   **score_trial(hip, obs.truth_hip, rule), "time_us": elapsed_ns / 1e3, "n_redraws": 0,
-                   "attitude_err_arcsec": float("nan")}
-            if error:
-                row["status"] = ERROR
+        for k, (t, obs) in enumerate(zip(trials, observations, strict=True)):
+            item = items[k]
+            if isinstance(item, Outcome):
+                row = {"trial": t, "n_stars": len(obs),
+                       "n_true_stars": int((obs.truth_hip >= 0).sum()) if has_truth else -1, "error": item.error,
+                       "status": item.status, "n_identified": 0, "n_correct": 0, "n_wrong": 0,
+                       "time_us": float("nan"), "n_redraws": 0, "attitude_err_arcsec": float("nan")}
+                hip = np.full(len(obs), -1, dtype=np.int64)
+            else:
+                row, hip = item
+                memory = memory_error(row["error"], limits.memory_limit_gb)
+                if memory:
+                    row = {**row, "status": CRASHED, "error": memory}
             rows.append(row)
             ids.append(pd.DataFrame({"trial": t, "star": np.arange(len(obs)), "x_px": obs.x_px, "y_px": obs.y_px,
                                      "mag": obs.mag, "hip": hip,
                                      "truth_hip": obs.truth_hip if has_truth else -1}))
         trial_frames.append(rows_to_frame(prepared, rows))
         id_frame = pd.concat(ids, ignore_index=True)
-        id_frame.insert(0, "algorithm", algorithm.name)
+        id_frame.insert(0, "algorithm", prepared.algorithm.name)
         id_frame.insert(1, "label", variant.label)
         id_frames.append(id_frame)
     trials_df = pd.concat(trial_frames, ignore_index=True)
@@ -150,6 +200,7 @@ def add_parsers(sub, formatter) -> None:
     p.add_argument("--set", action="append", metavar="LABEL.KEY=VALUE", help="override an algorithm parameter")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     add_camera(p)
+    add_limits(p.add_argument_group("limits (each algorithm runs in a supervised process)"), engine=False)
     p.set_defaults(func=_identify_entry)
 
     p = sub.add_parser("simulate", help="write simulated images as an OBS.csv (with truth) for 'starid identify'",

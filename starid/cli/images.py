@@ -21,13 +21,14 @@ from ..attitude import solve_wahba
 from ..camera import Camera
 from ..catalog import load_csv, load_hipparcos
 from ..errors import ConfigError, ObservationError
+from ..experiment.executors import Limits, Outcome, call_per_item, memory_error
 from ..harness import prepare, timed_identify
 from ..imagefile import WRITE_SUFFIXES, is_image_file, read_image, write_image
 from ..io import write_frames
 from ..observation import Observation
 from ..params import check_number
 from ..render import RenderConfig, Renderer
-from ..scoring import RAD_TO_ARCSEC
+from ..scoring import CRASHED, RAD_TO_ARCSEC
 from ..simulate import SimConfig, Simulator
 from .options import add_camera, add_world, camera_spec, check_out, make_camera, seed_type, world_settings
 
@@ -171,7 +172,7 @@ def band_of(scale: float) -> int:
 
 
 def solve_image(prepared, obs: Observation, catalog, search_pct: float = 5.0,
-                fov_range_deg: tuple[float, float] | None = None, prepared_for=None):
+                fov_range_deg: tuple[float, float] | None = None, prepared_for=None, on_call=None):
     """Identify ``obs`` at its camera and, failing that, over focal-length scales within
     ``search_pct`` per cent (or covering ``fov_range_deg``, degrees across the width); refine the
     focal length and identify again.
@@ -179,7 +180,8 @@ def solve_image(prepared, obs: Observation, catalog, search_pct: float = 5.0,
     With ``fov_range_deg`` the search stops at the first scale where at least
     :data:`MIN_IDENTIFIED` stars fit within 3 px rms, and ``prepared_for(band)`` gives the prepared
     algorithm of each database band (:func:`band_of`; ``prepared`` serves band 0). The searched
-    cameras keep everything of ``obs.camera`` but the focal length (distortion included).
+    cameras keep everything of ``obs.camera`` but the focal length (distortion included). ``on_call()`` is
+    called before each ``identify`` (the supervising process holds each call to ``--time-limit``).
 
     Returns ``(hip, camera, attitude, residual_arcsec, error)``.
     """
@@ -190,6 +192,8 @@ def solve_image(prepared, obs: Observation, catalog, search_pct: float = 5.0,
         o = Observation(obs.x_px, obs.y_px, obs.mag, cam)
         band = band_of(s) if fov_range_deg is not None else 0
         p = prepared if band == 0 or prepared_for is None else prepared_for(band)
+        if on_call is not None:
+            on_call()
         hip, _, error = timed_identify(p, o, catalog.hip)
         if error:
             return hip, obs.camera, None, float("nan"), error
@@ -209,6 +213,8 @@ def solve_image(prepared, obs: Observation, catalog, search_pct: float = 5.0,
     for _ in range(1 if fov_range_deg is None else 3):
         cam = _with_f(cam, _refine_f_px(hip, obs.x_px, obs.y_px, cam, catalog))
         o = Observation(obs.x_px, obs.y_px, obs.mag, cam)
+        if on_call is not None:
+            on_call()
         hip2, _, error = timed_identify(p, o, catalog.hip)
         more = not error and int((hip2 != -1).sum()) > int((hip != -1).sum())
         if not error and int((hip2 != -1).sum()) >= int((hip != -1).sum()):
@@ -219,15 +225,16 @@ def solve_image(prepared, obs: Observation, catalog, search_pct: float = 5.0,
     return hip, cam, attitude, resid, ""
 
 
-def band_preparer(variant, catalog, camera: Camera, warmup=None):
+def band_preparer(variant, catalog, camera: Camera, warmup=None, on_phase=None):
     """``prepared_for(band)`` of :func:`solve_image`: the algorithm prepared for ``camera`` with its
-    focal length scaled by ``BAND ** band`` (built on first use, then kept)."""
+    focal length scaled by ``BAND ** band`` (built on first use, then kept; ``on_phase`` as
+    :func:`~starid.harness.prepare`'s)."""
     cache = {}
 
     def prepared_for(band: int):
         if band not in cache:
             cam = _with_f(camera, camera.f_px * BAND ** band)
-            cache[band] = prepare(variant.make(), catalog, cam, warmup, variant.label)
+            cache[band] = prepare(variant.make(), catalog, cam, warmup, variant.label, on_phase)
         return cache[band]
 
     return prepared_for
@@ -354,6 +361,20 @@ def _split_items(items: list[str]) -> tuple[list[str], list[Path]]:
     return algorithms, images
 
 
+def _solve_images(variant, catalog, camera: Camera, observations, search_pct, fov_range, control, start):
+    """In the supervised process: prepare ``variant`` for ``camera`` and solve images ``start..``, each sent
+    with ``control.emit((k, solve_image's result))``."""
+    def on_phase(phase: str) -> None:
+        control.phase("the warm-up identify" if phase == "warmup" else "derived/build", build=True)
+
+    prepared = prepare(variant.make(), catalog, camera, None, variant.label, on_phase)
+    bands = band_preparer(variant, catalog, camera, None, on_phase)
+    for k in range(start, len(observations)):
+        control.phase("identify")
+        control.emit((k, solve_image(prepared, observations[k], catalog, search_pct, fov_range, bands,
+                                     on_call=lambda: control.phase("identify"))))
+
+
 def identify_images(args) -> int:
     """``starid identify ALGO... IMAGE... --fov-deg F [--out DIR]`` (see the module)."""
     from .experiments import variants
@@ -361,6 +382,7 @@ def identify_images(args) -> int:
     algorithms, paths = _split_items(list(args.items))
     out = args.out if args.out is not None else Path(".")
     check_out(out)
+    limits = Limits.from_args(args)
     if getattr(args, "resolution", None) is not None:
         raise ConfigError("--resolution does not apply to image files: each image's own size is used")
     fov_range = search_range(args)
@@ -380,19 +402,39 @@ def identify_images(args) -> int:
         images.append((path, data, camera, x, y, flux))
     catalog = load_csv(args.catalog) if args.catalog else load_hipparcos()
     chosen = variants(algorithms, args.set)
-    prepared = [prepare(v.make(), catalog, images[0][2], None, v.label) for v in chosen]
-    bands = [band_preparer(v, catalog, images[0][2]) for v in chosen]
     if fov_range is not None:
         print(f"searching fields of view {fov_range[0]:g}-{fov_range[1]:g} deg across the width")
-    att_rows, id_frames, best_ids = [], [], {}
-    for path, _data, camera, x, y, flux in images:
+    observations = []
+    for _path, _data, camera, x, y, flux in images:
         zp = zero_point if zero_point is not None else auto_zero_point(flux, camera, catalog)
         mag = zp - 2.5 * np.log10(flux) if flux.size else np.zeros(0)
-        obs = Observation(x, y, mag, camera)
-        for p, band in zip(prepared, bands, strict=True):
-            hip, cam, attitude, resid, error = solve_image(p, obs, catalog, search_pct, fov_range, band)
+        observations.append(Observation(x, y, mag, camera))
+    # every plugin call in a supervised process per algorithm (the engine's limits): one that overruns or
+    # dies is that image's (preparing: every image's) timeout / crashed row, the other algorithms' intact
+    solved = []
+    for v in chosen:
+        def compute(control, start, v=v):
+            return _solve_images(v, catalog, images[0][2], observations, search_pct, fov_range, control, start)
+
+        solved.append(call_per_item(compute, len(images), limits))
+    att_rows, id_frames, best_ids = [], [], {}
+    for k, (path, _data, camera, x, y, flux) in enumerate(images):
+        obs = observations[k]
+        mag = obs.mag
+        for v, items in zip(chosen, solved, strict=True):
+            item = items[k]
+            status = ""
+            if isinstance(item, Outcome):
+                hip, cam, attitude, resid, error = np.full(len(obs), -1, dtype=np.int64), camera, None, math.nan, \
+                    item.error
+                status = item.status
+            else:
+                hip, cam, attitude, resid, error = item
+                memory = memory_error(error, limits.memory_limit_gb)
+                if memory:
+                    status, error = CRASHED, memory
             n_id = int((hip != -1).sum())
-            row = {"image": str(path), "algorithm": p.label, "status": ERROR if error else NOT_SOLVED,
+            row = {"image": str(path), "algorithm": v.label, "status": status or (ERROR if error else NOT_SOLVED),
                    "ra_deg": math.nan, "dec_deg": math.nan, "roll_deg": math.nan, "residual_arcsec": math.nan,
                    "n_identified": n_id}
             if not error and attitude is not None and n_id >= MIN_IDENTIFIED:
@@ -400,15 +442,15 @@ def identify_images(args) -> int:
                 row.update(status=SOLVED, ra_deg=ra, dec_deg=dec, roll_deg=roll, residual_arcsec=resid)
             att_rows.append(row)
             note = f"fov {cam.fov_x_deg:.4g} deg" if row["status"] == SOLVED else (error or "not solved")
-            print(f"{path}: {p.label}: {row['status']}, {n_id} of {len(obs)} stars identified"
+            print(f"{path}: {v.label}: {row['status']}, {n_id} of {len(obs)} stars identified"
                   + (f", ra {row['ra_deg']:.4f} dec {row['dec_deg']:.4f} roll {row['roll_deg']:.2f} deg, "
                      f"residual {resid:.1f} arcsec, {note}" if row["status"] == SOLVED else f" ({note})"))
-            id_frames.append(pd.DataFrame({"image": str(path), "algorithm": p.algorithm.name, "label": p.label,
+            id_frames.append(pd.DataFrame({"image": str(path), "algorithm": v.name, "label": v.label,
                                            "star": np.arange(len(obs)), "x_px": x, "y_px": y, "mag": mag,
                                            "flux": flux, "hip": hip}))
             prev = best_ids.get(path)
             if prev is None or n_id > prev[0]:
-                best_ids[path] = (n_id, hip, p.label)
+                best_ids[path] = (n_id, hip, v.label)
     frames = {"attitudes.csv": pd.DataFrame(att_rows, columns=ATTITUDE_COLUMNS),
               "identifications.csv": pd.concat(id_frames, ignore_index=True)[IMAGE_ID_COLUMNS]}
     write_frames(out, frames)

@@ -73,15 +73,25 @@ def add_engine(p: argparse.ArgumentParser, trials: int | None, seed: int = 0) ->
                         "workers supervise them the same way, under the same limits")
     p.add_argument("--scheduler", metavar="ADDRESS", help="Dask scheduler address (default: a LocalCluster); its "
                    "workers must not be daemonic: DASK_DISTRIBUTED__WORKER__DAEMON=False dask worker ADDRESS")
+    add_limits(p)
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def add_limits(p: argparse.ArgumentParser, engine: bool = True) -> None:
+    """--time-limit --build-time-limit --memory-limit-gb: the engine's (``engine``), or those of a command
+    that calls plugin code itself (show, identify, check: one supervised process per algorithm)."""
+    where = "per worker" if engine else "per algorithm"
     p.add_argument("--time-limit", type=float, default=DEFAULT_TIME_LIMIT_S, metavar="S",
-                   help="per-image identify time limit in seconds; slower images are recorded as 'timeout'")
+                   help="per-image identify time limit in seconds; slower images are recorded as 'timeout'"
+                        + ("" if engine else " (explain() too)"))
     p.add_argument("--build-time-limit", type=float, default=BUILD_TIME_LIMIT_S, metavar="S",
-                   help="seconds an algorithm may take to prepare (derived + build, then the warm-up identify that "
-                        "compiles its kernels) per worker; beyond, its images are recorded as 'timeout'")
+                   help=f"seconds an algorithm may take to prepare (derived + build, then the warm-up identify that "
+                        f"compiles its kernels) {where}; beyond, its images are recorded as 'timeout'")
     p.add_argument("--memory-limit-gb", type=float, default=None, metavar="GB",
                    help="address-space limit per worker process (default: the machine's memory / --jobs); an "
-                        "image that exceeds it is recorded as 'crashed'")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
+                        "image that exceeds it is recorded as 'crashed'" if engine else
+                        "address-space limit of the process each algorithm runs in (default: the machine's "
+                        "memory); exceeding it is that algorithm's 'crashed'")
 
 
 def add_out(p: argparse.ArgumentParser, what: str, required: bool = False) -> None:

@@ -9,6 +9,7 @@ import typing
 
 from ..camera import Camera
 from ..catalog import load_hipparcos
+from ..experiment.executors import BUILD_TIME_LIMIT_S, Limits, call_supervised
 from ..experiment.spec import Variant
 from ..registry import algorithm_info, available_algorithms
 from ..simulate import SimConfig
@@ -53,11 +54,12 @@ def _derived_defaults(cls) -> dict:
         return {}
 
 
-def parameter_table(cls) -> list[dict]:
+def parameter_table(cls, derived: dict | None = None) -> list[dict]:
     """Each dataclass field of an algorithm: name, type, default, unit, what ``follows`` it, the value
-    ``derived`` gives it on the default camera when it defaults to None, meaning."""
+    ``derived`` gives it on the default camera when it defaults to None (``derived``: those values,
+    already computed), meaning."""
     hints = typing.get_type_hints(cls)
-    derived = _derived_defaults(cls)
+    derived = _derived_defaults(cls) if derived is None else derived
     rows = []
     for f in dataclasses.fields(cls):
         kind = hints.get(f.name, object)
@@ -73,14 +75,33 @@ def parameter_table(cls) -> list[dict]:
     return rows
 
 
+def _supervised_info(cls, no_build: bool, control) -> tuple[dict, float | None]:
+    """In the supervised process: the derived defaults, and the database size in MB (None: ``no_build``)."""
+    control.phase("derived", build=True)
+    derived = _derived_defaults(cls)
+    if no_build:
+        return derived, None
+    control.phase("build", build=True)
+    return derived, cls().build(load_hipparcos(), Camera()).nbytes / 1e6
+
+
 def cmd_info(args) -> int:
+    limits = Limits(build_time_limit_s=args.build_time_limit, memory_limit_gb=args.memory_limit_gb).checked()
     info = algorithm_info(args.name)
     cls = info.cls
+    derived, db_mb, failure = {}, None, ""
+    if dataclasses.is_dataclass(cls):   # the plugin's derived and build in a supervised process, under the limits
+        load_hipparcos()                # loaded once here: the process inherits it
+        outcome = call_supervised(lambda control: _supervised_info(cls, args.no_build, control), limits)
+        if outcome.status:
+            failure = f"{outcome.status}: {outcome.error}"
+        else:
+            derived, db_mb = outcome.value
     print(f"{info.name}: {info.summary}")
     print(f"from {info.dist or 'this process'} {info.dist_version} ({info.source})\n")
     print(inspect.cleandoc(cls.__doc__ or "").split("\n", 1)[-1].strip())
     print("\nparameters (set with NAME[KEY=VALUE,...] or --set NAME.KEY=VALUE):")
-    rows = parameter_table(cls) if dataclasses.is_dataclass(cls) else []
+    rows = parameter_table(cls, derived) if dataclasses.is_dataclass(cls) else []
     width = max((len(r["name"]) for r in rows), default=4)
     for r in rows:
         unit = f" {r['unit']}" if r["unit"] else ""
@@ -95,9 +116,10 @@ def cmd_info(args) -> int:
         print(f"\nas published ({info.name}:paper): {Variant(info.name, cls.published).label}")
     for source, overrides in (getattr(cls, "published_readings", None) or {}).items():
         print(f"as {source} ran it ({info.name}:{source}): {Variant(info.name, overrides).label}")
-    if not args.no_build:
-        db = cls().build(load_hipparcos(), Camera())
-        print(f"\ndatabase for the default camera and the embedded catalog: {db.nbytes / 1e6:.3f} MB")
+    if failure:
+        print(f"\nderived defaults and database size not known: {failure}")
+    elif not args.no_build and db_mb is not None:
+        print(f"\ndatabase for the default camera and the embedded catalog: {db_mb:.3f} MB")
     print(f"\nmore: docs/algorithms/{info.name}.md (built-ins) or the plugin's own documentation")
     return 0
 
@@ -109,4 +131,9 @@ def add_parsers(sub, formatter) -> None:
                        formatter_class=formatter, epilog="example:\n  starid info ptp")
     p.add_argument("name", metavar="ALGO", help="a registered name (see 'starid list')")
     p.add_argument("--no-build", action="store_true", help="skip building the database to report its size")
+    g = p.add_argument_group("limits (derived and build run in a supervised process)")
+    g.add_argument("--build-time-limit", type=float, default=BUILD_TIME_LIMIT_S, metavar="S",
+                   help="seconds derived + build may take; beyond, info says so without them")
+    g.add_argument("--memory-limit-gb", type=float, default=None, metavar="GB",
+                   help="address-space limit of that process (default: the machine's memory)")
     p.set_defaults(func=cmd_info)

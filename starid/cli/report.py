@@ -6,7 +6,8 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..errors import ConfigError
-from .options import add_camera, add_world, camera_spec, make_camera, seed_type, world_settings
+from ..experiment.executors import Limits
+from .options import add_camera, add_limits, add_world, camera_spec, make_camera, seed_type, world_settings
 
 EXAMPLES = {
     "report": """examples:
@@ -69,6 +70,7 @@ def cmd_show(args) -> int:
     from ..report.show import show
 
     out = args.out
+    limits = Limits.from_args(args)     # checked before any work
     if out.suffix.lower() not in (".png", ".svg", ".pdf"):
         raise ConfigError(f"--out {out}: give a .png, .svg or .pdf file name")
     if out.exists() and out.is_dir():
@@ -77,7 +79,7 @@ def cmd_show(args) -> int:
     folder = Path(args.algorithms[0])
     if (folder / "manifest.json").is_file() or (folder.is_dir() and folder.name not in available()):
         # starid show DIR --trial K [--label L ...]
-        return _show_folder(args, folder, catalog)
+        return _show_folder(args, folder, catalog, limits)
     if args.label or args.study or args.point is not None:
         raise ConfigError("--label, --study and --point go with a results folder: starid show DIR --trial K")
     if (args.trial is None) == (args.boresight is None):
@@ -94,16 +96,18 @@ def cmd_show(args) -> int:
         print(f"trial {args.trial}: boresight {sep:.2f} deg from RA {ra:g}, DEC {dec:g} "
               f"(nearest of {args.search_trials} trials)")
     shown = show(args.algorithms, args.trial, args.seed, world_settings(args), make_camera(camera_spec(args)),
-                 catalog, label_stars=not args.no_labels)
+                 catalog, label_stars=not args.no_labels, limits=limits)
     out.parent.mkdir(parents=True, exist_ok=True)
     shown.figure.savefig(out, dpi=args.dpi, facecolor="white")
     print(shown.results[["label", "status", "n_identified", "n_correct", "n_wrong", "time_ms", "explain"]]
           .to_string(index=False, float_format=lambda v: f"{v:.3g}"))
+    for r in shown.results[shown.results["error"] != ""].itertuples():
+        print(f"{r.label}: {r.status}: {r.error}")
     print(f"wrote {out}")
     return 0
 
 
-def _show_folder(args, folder: Path, catalog) -> int:
+def _show_folder(args, folder: Path, catalog, limits) -> int:
     """``starid show DIR --trial K [--label L ...]``: the image the folder scored, redrawn."""
     from ..report.show import show_folder
 
@@ -112,7 +116,7 @@ def _show_folder(args, folder: Path, catalog) -> int:
                           f"(got {' '.join(args.algorithms)})")
     if args.trial is None or args.boresight is not None:
         raise ConfigError("starid show DIR needs --trial K (the folder's trial index)")
-    shown, rows = show_folder(folder, args.trial, args.label, args.study, args.point, catalog,
+    shown, rows = show_folder(folder, args.trial, args.label, args.study, args.point, catalog, limits=limits,
                               label_stars=not args.no_labels)
     args.out.parent.mkdir(parents=True, exist_ok=True)
     shown.figure.savefig(args.out, dpi=args.dpi, facecolor="white")
@@ -178,6 +182,7 @@ def add_parsers(sub, formatter) -> None:
     p.add_argument("--no-labels", action="store_true", help="leave out the HIP numbers beside the stars")
     add_world(p)
     add_camera(p)
+    add_limits(p.add_argument_group("limits (each algorithm runs in a supervised process)"), engine=False)
     p.set_defaults(func=cmd_show)
 
 

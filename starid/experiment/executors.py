@@ -83,13 +83,32 @@ def _limit_memory(limit_gb: float | None) -> None:
     resource.setrlimit(resource.RLIMIT_AS, (limit, hard))
 
 
+def memory_error(error: str, limit_gb: float | None) -> str:
+    """``error`` said as the memory limit's when it is a ``MemoryError`` under a limit, else ``""``."""
+    if limit_gb is None or "MemoryError" not in (error or ""):
+        return ""
+    return f"memory limit of {limit_gb:g} GB per worker (--memory-limit-gb) exceeded: {error}"
+
+
 def _memory_row(row: dict) -> dict:
     """A row whose error is a ``MemoryError`` under the worker's limit is ``crashed``, saying so."""
-    limit = _MEMORY["limit_gb"]
-    if limit is not None and "MemoryError" in row.get("error", ""):
-        row = {**row, "status": CRASHED, "error": f"memory limit of {limit:g} GB per worker (--memory-limit-gb) "
-                                                  f"exceeded: {row['error']}"}
+    error = memory_error(row.get("error", ""), _MEMORY["limit_gb"])
+    if error:
+        row = {**row, "status": CRASHED, "error": error}
     return row
+
+
+def overran_error(phase: str, limit_s: float, build: bool) -> str:
+    """The ``timeout`` error of a ``phase`` that ran past its limit."""
+    return f"{phase} ran longer than the {limit_s:g} s {'--build-time-limit' if build else '--time-limit'}"
+
+
+def died_error(exitcode, phase: str, memory_limit_gb: float | None) -> str:
+    """The ``crashed`` error of a supervised process that died inside ``phase``."""
+    error = f"the worker process died (exit code {exitcode}) inside {phase}"
+    if exitcode in (-6, -9, -11) and memory_limit_gb is not None:  # abort / killed / segfault: often an allocation
+        error += f" (memory limit {memory_limit_gb:g} GB per worker, --memory-limit-gb)"
+    return error
 
 
 #: beat positions: preparing (simulate, derived, build) / the warm-up identify / between images
@@ -235,13 +254,19 @@ def _die_with_parent(parent_pid: int) -> None:
         os._exit(1)
 
 
-def _worker_main(conn, beat, memory_limit_gb=None, parent_pid=None):
+def _child_setup(memory_limit_gb, parent_pid) -> None:
+    """What every supervised process does first: die with its parent, hold no folder lock, take its memory
+    limit, leave Ctrl-C to the parent."""
     if parent_pid is not None:
         _die_with_parent(parent_pid)
     release_in_child()          # a worker outliving a killed run must not keep its folder locked
     _limit_memory(memory_limit_gb)
     signal.signal(signal.SIGINT, signal.SIG_IGN)      # the parent alone handles Ctrl-C
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
+def _worker_main(conn, beat, memory_limit_gb=None, parent_pid=None):
+    _child_setup(memory_limit_gb, parent_pid)
     while True:
         try:
             task = conn.recv()
@@ -403,14 +428,11 @@ class LocalExecutor:
             "preparing the chunk (derived/build)"
         if alive:
             status = TIMEOUT
-            flag = "--build-time-limit" if position in (_BUILD, _WARMUP) else "--time-limit"
-            error = f"{phase} ran longer than the {limit:g} s {flag}"
+            error = overran_error(phase, limit, position in (_BUILD, _WARMUP))
         else:
             w.proc.join()
             status = CRASHED
-            error = f"the worker process died (exit code {w.proc.exitcode}) inside {phase}"
-            if w.proc.exitcode in (-6, -9, -11):     # abort / killed / segfault: often a failed allocation
-                error += f" (memory limit {self.memory_limit_gb:g} GB per worker, --memory-limit-gb)"
+            error = died_error(w.proc.exitcode, phase, self.memory_limit_gb)
         skip = dict(task.skip)
         if image and int(w.beat[0]) == task.index:
             skip[int(position)] = (status, error)
@@ -420,6 +442,161 @@ class LocalExecutor:
             self._failed[prepare_key(task)] = (status, error)
         w.task = None
         return Task(task.index, task.chunk, task.catalog_path, task.camera, task.seed, task.min_correct, skip)
+
+
+# ---- one command's plugin calls (show, identify, check) -----------------------------------------
+
+@dataclass(frozen=True)
+class Limits:
+    """``--time-limit``, ``--build-time-limit`` and ``--memory-limit-gb`` of a command that calls plugin code
+    itself (``show``, ``identify``, ``check``): checked by :func:`check_limits`, memory None being this
+    machine's fair share for one process."""
+
+    time_limit_s: float = DEFAULT_TIME_LIMIT_S
+    build_time_limit_s: float = BUILD_TIME_LIMIT_S
+    memory_limit_gb: float | None = None
+
+    def checked(self) -> Limits:
+        return Limits(*check_limits(1, self.time_limit_s, self.build_time_limit_s, self.memory_limit_gb))
+
+    @classmethod
+    def from_args(cls, args) -> Limits:
+        return cls(args.time_limit, args.build_time_limit, args.memory_limit_gb).checked()
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """What :func:`call_supervised` got back: ``fn``'s value (None when it never returned), what it emitted
+    before, and, when a call overran or the process died, ``status`` (``timeout`` / ``crashed``) and ``error``
+    naming the call (``phase``)."""
+
+    value: object
+    emitted: list
+    status: str = ""
+    error: str = ""
+    phase: str = ""
+    build: bool = False     # the call that failed was held to --build-time-limit (derived, build, warm-up)
+
+
+class _Control:
+    """What ``fn`` of :func:`call_supervised` gets: ``phase(name, build=False)`` before each plugin call (held
+    to ``--build-time-limit`` when ``build``, else to ``--time-limit``) and ``emit(item)`` for a result that
+    must survive a later call's overrun."""
+
+    def __init__(self, conn):
+        self._conn = conn
+
+    def phase(self, name: str, build: bool = False) -> None:
+        self._conn.send(("phase", name, build))
+
+    def emit(self, item) -> None:
+        self._conn.send(("emit", item))
+
+
+def _call_main(conn, fn, memory_limit_gb, parent_pid):
+    _child_setup(memory_limit_gb, parent_pid)
+    try:
+        value = fn(_Control(conn))
+    except BaseException as exc:  # noqa: BLE001 -- a starid error (ConfigError...) is raised in the parent
+        try:
+            conn.send(("raise", exc))
+        except Exception:  # noqa: BLE001 -- an exception that does not pickle
+            conn.send(("raise", RuntimeError(f"{type(exc).__name__}: {exc}")))
+        return
+    conn.send(("ok", value))
+
+
+def call_supervised(fn, limits: Limits, on_emit=None) -> Outcome:
+    """``fn(control)`` run in a forked child process under ``limits``, as :class:`LocalExecutor`'s workers run
+    chunks: the same memory limit (RLIMIT_AS), the child dying with this process, each call that
+    ``control.phase`` announces held to its time limit (the child killed when it overruns) and a child that
+    dies reported, not raised. The value of ``fn`` and what it ``emit`` ted come back over a pipe (pickled);
+    ``on_emit(item)`` hears each item as it comes (a progress bar).
+
+    An exception ``fn`` raises is raised here. Without ``fork`` (not Linux/macOS) ``fn`` runs in this
+    process, unsupervised."""
+    if "fork" not in mp.get_all_start_methods():
+        emitted: list = []
+
+        class _Here:
+            def phase(self, name, build=False):
+                pass
+
+            def emit(self, item):
+                emitted.append(item)
+                if on_emit is not None:
+                    on_emit(item)
+
+        return Outcome(fn(_Here()), emitted)
+    ctx = mp.get_context("fork")
+    conn, child = ctx.Pipe()
+    proc = ctx.Process(target=_call_main, args=(child, fn, limits.memory_limit_gb, os.getpid()), daemon=True)
+    _PARENT_ENDS.add(conn)      # before the fork: the child closes its copy
+    emitted = []
+    phase, build, since = "starting the process", True, time.monotonic()
+    try:
+        proc.start()
+        child.close()
+        while True:
+            limit = limits.build_time_limit_s if build else limits.time_limit_s
+            if not conn.poll(max(0.0, since + limit - time.monotonic())):
+                return Outcome(None, emitted, TIMEOUT, overran_error(phase, limit, build), phase, build)
+            try:
+                message = conn.recv()
+            except (EOFError, OSError):
+                proc.join()
+                return Outcome(None, emitted, CRASHED, died_error(proc.exitcode, phase, limits.memory_limit_gb),
+                               phase, build)
+            kind = message[0]
+            if kind == "phase":
+                phase, build, since = message[1], message[2], time.monotonic()
+            elif kind == "emit":
+                emitted.append(message[1])
+                if on_emit is not None:
+                    on_emit(message[1])
+            elif kind == "ok":
+                return Outcome(message[1], emitted)
+            else:
+                raise message[1]
+    finally:
+        if proc.is_alive():
+            proc.kill()
+        if proc.pid is not None:
+            proc.join()
+        _PARENT_ENDS.discard(conn)
+        conn.close()
+
+
+def call_per_item(fn, n: int, limits: Limits, on_item=None, build_fails_rest: bool = True) -> dict:
+    """Items ``0..n-1`` computed by ``fn(control, start)`` (items ``start..n-1``, each announced with
+    ``control.phase`` and sent with ``control.emit((k, item))``; ``k = -1`` for what the items share, e.g. a
+    prepared algorithm's sizes) in supervised processes (:func:`call_supervised`).
+
+    Returns ``{k: item}`` with an :class:`Outcome` for each item that overran or died: as the engine does, a
+    fresh process goes on after it; a failure while preparing (``build``) is every remaining item's, the
+    plugin not called again (unless not ``build_fails_rest``: items that each prepare their own, such as the
+    conformance checks). ``on_item(k, item)`` hears each item as it comes."""
+    items: dict = {}
+    start = 0
+
+    def heard(message):
+        k, item = message
+        items[k] = item
+        if on_item is not None:
+            on_item(k, item)
+
+    while start < n:
+        outcome = call_supervised(lambda control, start=start: fn(control, start), limits, heard)
+        if not outcome.status:
+            break
+        done = max([k for k in items if k >= start], default=start - 1)
+        if outcome.build and build_fails_rest:
+            for k in range(done + 1, n):
+                heard((k, outcome))
+            break
+        heard((done + 1, outcome))
+        start = done + 2
+    return items
 
 
 # ---- Dask ---------------------------------------------------------------------------------------
@@ -604,5 +781,5 @@ def make_executor(name: str, jobs: int | None, scheduler: str | None = None,
     raise ConfigError(f"unknown executor {name!r}; use 'local' or 'dask'")
 
 
-__all__ = ["DaskExecutor", "LocalExecutor", "Task", "check_jobs", "check_limits", "execute_task", "make_executor",
-           "run_supervised"]
+__all__ = ["DaskExecutor", "Limits", "LocalExecutor", "Outcome", "Task", "call_per_item", "call_supervised",
+           "check_jobs", "check_limits", "execute_task", "make_executor", "memory_error", "run_supervised"]

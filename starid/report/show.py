@@ -20,9 +20,10 @@ from ..camera import Camera
 from ..catalog import Catalog, load_hipparcos
 from ..errors import ConfigError
 from ..experiment import Variant
+from ..experiment.executors import Limits, call_supervised, memory_error
 from ..experiment.spec import sim_settings
 from ..plugin import Explanation, check_identification
-from ..scoring import score_trial
+from ..scoring import CRASHED, score_trial
 from ..simulate import SimConfig, Simulator
 
 
@@ -51,6 +52,41 @@ def explain(algorithm, database, observation) -> tuple[Explanation | None, str]:
     return ex, ""
 
 
+class _InProcess:
+    """The control of :func:`_panel` without supervision (``limits=None``)."""
+
+    def phase(self, name: str, build: bool = False) -> None:
+        pass
+
+    def emit(self, item) -> None:
+        pass
+
+
+def _panel(algorithm, database, catalog: Catalog, camera: Camera, view, control):
+    """One algorithm on one image: build (unless ``database``), warm up, identify, explain; each call
+    announced to ``control`` (:func:`~starid.experiment.executors.call_supervised`). Returns ``(hip, error,
+    elapsed_ms, explanation, why)``; a plugin's exception is its ``error``."""
+    hip, error, elapsed_ms = None, "", float("nan")
+    try:
+        if database is None:
+            control.phase("build", build=True)
+            database = algorithm.build(catalog, camera)
+        control.phase("the warm-up identify", build=True)
+        algorithm.identify(database, view)          # warm the JIT up, as the harness does
+        control.phase("identify")
+        t0 = time.perf_counter()
+        result = algorithm.identify(database, view)
+        elapsed_ms = (time.perf_counter() - t0) * 1e3
+        check_identification(result, len(view), catalog.hip)
+        hip = result.hip.astype("int64")
+        control.emit((hip, elapsed_ms))     # drawn even when explain then overruns
+        control.phase("explain")
+        ex, why = explain(algorithm, database, view)
+    except Exception as exc:  # shown in the panel's title, not raised: the other panels still draw
+        error, ex, why = f"{type(exc).__name__}: {exc}", None, ""
+    return hip, error, elapsed_ms, ex, why
+
+
 def draw_trial(sim: Simulator, trial: int):
     """Trial ``trial`` exactly as the engine scores it: the simulator's projection, or for the
     ``image`` pipeline the render -> extract detections (:func:`starid.render.image_trials`)."""
@@ -63,13 +99,18 @@ def draw_trial(sim: Simulator, trial: int):
 
 def show(algorithms, trial: int, seed: int = 0, world: dict | None = None, camera: Camera | None = None,
          catalog: Catalog | None = None, label_stars: bool = True, databases: dict | None = None,
-         recorded: dict | None = None, heading: str = "") -> Shown:
+         recorded: dict | None = None, heading: str = "", limits: Limits | None = None) -> Shown:
     """Trial ``trial`` of ``seed`` in the world ``world`` (SimConfig fields, or ``sky``), one panel per
     algorithm (names or variants such as ``"ptp[n_slaves=3]"``).
 
     ``databases`` (label -> database built for the same catalog and camera) skips the builds, e.g.
     when a notebook draws several images. ``recorded`` (label -> the row a results folder holds for
     this trial) puts the folder's status beside the redrawn one in each caption (:func:`show_folder`).
+
+    ``limits`` (:class:`~starid.experiment.executors.Limits`; the command always gives them) runs each
+    algorithm's calls in a supervised process: a build or warm-up past ``build_time_limit_s``, an identify or
+    explain past ``time_limit_s`` or memory past ``memory_limit_gb`` is that panel's ``timeout`` /
+    ``crashed``, the other panels drawn as usual. Without, they run in this process.
     """
     if not algorithms:
         raise ConfigError("show needs at least one algorithm")
@@ -89,30 +130,35 @@ def show(algorithms, trial: int, seed: int = 0, world: dict | None = None, camer
     id_rows, results, explanations, titles = [], [], {}, {}
     for variant in variants:
         algorithm = variant.make().resolved(config)
-        hip, error, elapsed_ms = None, "", float("nan")
-        try:
-            database = (databases or {}).get(variant.label)
-            if database is None:
-                database = algorithm.build(catalog, camera)
-            algorithm.identify(database, view)          # warm the JIT up, as the harness does
-            t0 = time.perf_counter()
-            result = algorithm.identify(database, view)
-            elapsed_ms = (time.perf_counter() - t0) * 1e3
-            check_identification(result, len(obs), catalog.hip)
-            hip = result.hip.astype("int64")
-            ex, why = explain(algorithm, database, view)
-        except Exception as exc:  # shown in the panel's title, not raised: the other panels still draw
-            error, ex, why = f"{type(exc).__name__}: {exc}", None, ""
+        database = (databases or {}).get(variant.label)
+
+        def panel(control, algorithm=algorithm, database=database):
+            return _panel(algorithm, database, catalog, camera, view, control)
+
+        status = ""
+        if limits is None:
+            hip, error, elapsed_ms, ex, why = panel(_InProcess())
+        else:                   # every plugin call in a supervised process, under the limits
+            outcome = call_supervised(panel, limits)
+            if outcome.status:
+                hip, elapsed_ms = outcome.emitted[-1] if outcome.emitted else (None, float("nan"))
+                ex, why, status, error = None, outcome.error, outcome.status, outcome.error
+            else:
+                hip, error, elapsed_ms, ex, why = outcome.value
+                memory = memory_error(error, limits.memory_limit_gb)
+                if memory:
+                    status, error = CRASHED, memory
+                why = memory_error(why, limits.memory_limit_gb) or why
         if hip is None:
             hip = pd.Series(-1, index=range(len(obs))).to_numpy()
         scored = score_trial(hip, obs.truth_hip)
-        status = "error" if error else scored["status"]
+        status = status or ("error" if error else scored["status"])
         results.append({"label": variant.label, "status": status, "time_ms": elapsed_ms, "error": error,
                         "explain": "yes" if ex is not None else why, **{k: v for k, v in scored.items()
                                                                          if k != "status"}})
         id_rows.append(pd.DataFrame({"label": variant.label, "star": range(len(obs)), "hip": hip}))
         explanations[variant.label] = ex
-        titles[variant.label] = (f"{status}, {elapsed_ms:.2f} ms" if not error else f"error: {error[:60]}")
+        titles[variant.label] = (f"{status}, {elapsed_ms:.2f} ms" if not error else f"{status}: {error[:70]}")
         if recorded and variant.label in recorded:
             row = recorded[variant.label]
             titles[variant.label] = (f"folder: {row['status']} ({int(row['n_correct'])} correct, "
@@ -131,13 +177,15 @@ def show(algorithms, trial: int, seed: int = 0, world: dict | None = None, camer
 
 
 def show_folder(folder, trial: int, labels=None, study: str | None = None, point: int | None = None,
-                catalog: Catalog | None = None, label_stars: bool = True) -> tuple[Shown, pd.DataFrame]:
+                catalog: Catalog | None = None, label_stars: bool = True,
+                limits: Limits | None = None) -> tuple[Shown, pd.DataFrame]:
     """Redraw trial ``trial`` of a results folder: the very image it scored (the manifest's camera,
     seed and the point's world settings; the same draw), one panel per label (default: every label
     at that point) with the folder's status beside the redrawn one. Returns the figure and the
     folder's rows for that trial.
 
-    With several studies or points, ``study`` / ``point`` choose one (default: the first).
+    With several studies or points, ``study`` / ``point`` choose one (default: the first); ``limits`` as
+    :func:`show`'s.
     :class:`ConfigError` for a trial, label, study or point the folder does not hold.
     """
     from pathlib import Path
@@ -172,7 +220,7 @@ def show_folder(folder, trial: int, labels=None, study: str | None = None, point
     where = ", ".join(f"{k} = {v}" for k, v in points[p].items())
     heading = (f"{folder.name}: study {chosen.name}" + (f", point {p} ({where})" if where else "") + "; ")
     shown = show([variants[x] for x in labels], int(trial), exp.seed, world, exp.make_camera(), catalog,
-                 label_stars=label_stars, recorded=recorded, heading=heading)
+                 label_stars=label_stars, recorded=recorded, heading=heading, limits=limits)
     return shown, rows.reset_index(drop=True)
 
 

@@ -13,7 +13,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from starid.plugin import Algorithm, Database, Identification
+from starid.plugin import Algorithm, Database, Explanation, Identification
 from starid.registry import register, unregister
 
 
@@ -55,6 +55,13 @@ class Misbehaving(Algorithm):
         if self.mode == "cheat":
             return Identification(observation.truth_hip.copy())
         return Identification.none(n)
+
+    def explain(self, database, observation):
+        if self.mode == "explain_hang":
+            time.sleep(3600)
+        if self.mode == "explain_alloc":
+            np.ones(8 * 10**9)
+        return Explanation(caption="nothing identified")
 
 
 NAMES = ("misbehaving",)
