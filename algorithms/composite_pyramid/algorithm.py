@@ -89,7 +89,8 @@ class CompositePyramid(Algorithm):
         None, help="fixed moment query sigma; None = from the centroid noise (paper: 1e-9)")
     max_stars: int = param(8, help="brightest usable detections the trios are formed from")
     max_trios: int = param(1000, help="iteration cutoff: most trios tried (hoku's nu_max: 50,000)")
-    max_hits: int = param(50000, help="an area window holding more triangles is skipped (work bound)")
+    max_hits: int | None = param(None, help="an area window holding more triangles is skipped (work bound); "
+                                 "None = 4 % of the stored triangles, at least 50,000")
     truncate_hits: bool = param(False, help="over max_hits, search the smallest-area max_hits (hoku's SQL LIMIT)")
     max_candidates: int = param(64, help="a trio with more (area, moment) candidates is skipped")
     unique_candidate: bool = param(False, help="only a trio with |R| = 1 goes on (paper)")

@@ -24,6 +24,14 @@ from .kernels import SphTol, spherical_kernel
 #: centroid-noise floor of the windows (px): a noise-free world still gets a window
 SIGMA_FLOOR_PX = 1.0
 
+#: ``max_hits`` left None: this fraction of the stored triangles, at least ``MAX_HITS_FLOOR``. A window
+#: scaled with the field (sigma in rad ~ fov / px) holds a fixed fraction of the database (triangle count
+#: ~ fov^4, area density ~ fov^2, window width ~ fov^2), so a fixed count skips every window on a wider
+#: camera: 50,000 is 4.4 % of Table 6's 1.14 M triangles but 0.5 % of the 17.7 deg camera's 10.1 M,
+#: where it left spherical_triangle 0.33 and composite_pyramid 0.01 (docs/algorithms/spherical_triangle.md).
+MAX_HITS_FRACTION = 0.04
+MAX_HITS_FLOOR = 50000
+
 #: Galvizo & Lim's reading (hoku at commit 0cb340e): fixed query sigmas 1e-9 on area and moment (their
 #: section V-B), SQL LIMIT 500 on the area query, Cole's pivot, |R| = 1, the direct-match test without
 #: side check or confirmation, nu_max = 50,000 trios, every image star, hoku's moment depth 3, triangles
@@ -94,7 +102,8 @@ def check_triangle_params(algo, min_stars: int, flags: tuple[str, ...]) -> None:
             check_number(key, getattr(algo, key), lo=0, lo_open=True)
     check_whole("max_stars", algo.max_stars, min_stars)
     check_whole("max_trios", algo.max_trios, 1)
-    check_whole("max_hits", algo.max_hits, 1)
+    if algo.max_hits is not None:
+        check_whole("max_hits", algo.max_hits, 1)
     check_whole("max_candidates", algo.max_candidates, 1)
     for key in ("truncate_hits", "unique_candidate", "match_sides", *flags):
         check_flag(key, getattr(algo, key))
@@ -123,6 +132,14 @@ def build_triangle_database(algo, catalog: Catalog, camera: Camera, kind: int, d
                             d_min_deg=float(d.d_min_deg))
 
 
+def max_hits_for(algo, database) -> int:
+    """``max_hits``, or when None ``MAX_HITS_FRACTION`` of ``database``'s triangles (at least
+    ``MAX_HITS_FLOOR``): the work bound follows the database as the windows do."""
+    if algo.max_hits is not None:
+        return int(algo.max_hits)
+    return max(MAX_HITS_FLOOR, int(math.ceil(MAX_HITS_FRACTION * database.index.area.shape[0])))
+
+
 def common_tolerances(algo, camera: Camera, database) -> dict:
     """The tolerance fields both plugins' kernels read: the windows from the centroid noise (floor
     ``SIGMA_FLOOR_PX``) or fixed (``sigma_area`` / ``sigma_moment``; one pinned leaves the other open),
@@ -136,7 +153,7 @@ def common_tolerances(algo, camera: Camera, database) -> dict:
     if fixed_m > 0.0 and fixed_a <= 0.0:
         fixed_a = math.inf
     return dict(sigma_rad=sigma, beta=float(algo.beta), fixed_area=float(fixed_a), fixed_moment=float(fixed_m),
-                chord_max=rad_to_chord(math.radians(database.fov_db_deg)), max_hits=int(algo.max_hits),
+                chord_max=rad_to_chord(math.radians(database.fov_db_deg)), max_hits=max_hits_for(algo, database),
                 truncate=bool(algo.truncate_hits), max_candidates=int(algo.max_candidates), eps=eps,
                 match_sides=bool(algo.match_sides), eps_side=eps if algo.match_sides else 0.0,
                 c_fov=rad_to_chord(camera.half_diagonal_rad), min_extra=int(algo.min_extra),
@@ -202,7 +219,8 @@ class SphericalTriangle(Algorithm):
         None, help="fixed moment query sigma (sr rad^2); None = from the centroid noise (paper: 1e-9)")
     max_stars: int = param(8, help="brightest usable detections the trios are formed from")
     max_trios: int = param(1000, help="iteration cutoff: most trios tried (hoku's nu_max: 50,000)")
-    max_hits: int = param(50000, help="an area window holding more triangles is skipped (work bound)")
+    max_hits: int | None = param(None, help="an area window holding more triangles is skipped (work bound); "
+                                 "None = 4 % of the stored triangles, at least 50,000")
     truncate_hits: bool = param(False, help="over max_hits, search the smallest-area max_hits (hoku's SQL LIMIT)")
     max_candidates: int = param(64, help="a trio with more (area, moment) candidates is skipped")
     pivot: bool = param(False, help="Cole's pivot when |R| != 1 (paper)")

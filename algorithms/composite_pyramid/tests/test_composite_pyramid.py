@@ -88,3 +88,24 @@ def test_invalid_parameters(kwargs):
 def test_shares_the_planar_features(db):
     r = db.guide_unit[db.index.stars[7].astype(np.int64)]
     assert T.tri_features(r[0], r[1], r[2], T.PLANAR, 1) == pytest.approx((db.index.area[7], db.index.moment[7]))
+
+
+def test_default_on_the_galvizo2018_camera(catalog):
+    """Regression: on the 17.7 deg, V <= 6 camera of ``starid reproduce galvizo2018`` (10.2 M stored
+    triangles) the fixed max_hits = 50,000 skipped nearly every area window (0.01 identified); the
+    default bound now follows the database size."""
+    from starid import Camera
+    from starid.experiments.galvizo2018 import CAMERA, SIM
+
+    cam = Camera.from_fov(**CAMERA)
+    config = SimConfig(**SIM)
+    algo = CompositePyramid().resolved(config)
+    db = algo.build(catalog, cam)
+    trials = Simulator(catalog.brighter_than(SIM["sky_mag_limit"]), cam, config, seed=31).generate(40)
+    ok = 0
+    for t in range(40):
+        obs = trials.observation(t)
+        hip = algo.identify(db, obs).hip
+        assert np.all(hip[hip >= 0] == obs.truth_hip[hip >= 0])
+        ok += int((hip >= 0).any())
+    assert ok >= 38

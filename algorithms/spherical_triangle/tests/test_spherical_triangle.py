@@ -127,3 +127,18 @@ def test_follows_the_simulator(camera, db):
     assert algo.sigma_px == 2.0
     assert algo.tolerances(camera, db).sigma_rad == pytest.approx(2.0 / camera.f_px)
     assert SphericalTriangle(sigma_px=0.1).tolerances(camera, db).sigma_rad == pytest.approx(1.0 / camera.f_px)
+
+
+def test_max_hits_follows_the_database(algo, db, camera):
+    """The area-window bound is a fraction of the stored triangles (the windows hold a fixed fraction of
+    the database whatever the field): on the 17.7 deg galvizo2018 camera (10.1 M triangles) a fixed
+    50,000 skipped nearly every window (default 0.33 noise-free); Table 6's camera keeps 50,000."""
+    from types import SimpleNamespace
+
+    from starid_algorithms.spherical_triangle.algorithm import MAX_HITS_FLOOR, max_hits_for
+
+    assert algo.tolerances(camera, db).max_hits == MAX_HITS_FLOOR          # Table 6 unchanged
+    wide = SimpleNamespace(index=SimpleNamespace(area=np.empty(10_102_663)), fov_db_deg=17.7, d_min_deg=0.1)
+    assert max_hits_for(algo, wide) >= 400_000
+    assert algo.tolerances(camera, wide).max_hits == max_hits_for(algo, wide)
+    assert max_hits_for(SphericalTriangle(max_hits=500), wide) == 500
