@@ -106,6 +106,10 @@ class PTPDatabase(Database):
 
     def tables(self) -> Tables:
         """The arrays identify reads, as one kernel argument."""
+        return self._tables
+
+    @cached_property
+    def _tables(self) -> Tables:     # built once: saves about 1 us per image
         return Tables(self.kv, self.ids, self.sides, self.mean, self.axis, self.guide_unit, self.guide_hip,
                       self.deep, self.extra_unit)
 
