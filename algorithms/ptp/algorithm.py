@@ -14,12 +14,31 @@ from scipy.spatial import cKDTree
 from starid.camera import Camera
 from starid.catalog import Catalog
 from starid.errors import ConfigError
-from starid.kernels import DeepSky, KVector, camera_frame, check_stars, deep_sky, kvector_make, rad_to_chord
+from starid.kernels import (
+    DeepSky,
+    KVector,
+    assign_all,
+    camera_frame,
+    check_stars,
+    deep_sky,
+    kvector_make,
+    rad_to_chord,
+    wahba_rows,
+)
 from starid.observation import Observation
 from starid.params import check_flag, check_number, check_whole, param
 from starid.plugin import Algorithm, Database, Explanation, Identification
 
-from .kernels import Tables, Tolerances, View, build_triangles, identify_kernel, nearest_slaves, select_stars
+from .kernels import (
+    WORK_NAMES,
+    Tables,
+    Tolerances,
+    View,
+    build_triangles,
+    identify_kernel,
+    nearest_slaves,
+    select_stars,
+)
 
 #: Sides and D_ms are chords of unit vectors times this (section 2.1: 5 deg -> 872.8).
 CHORD_SCALE = 10000.0
@@ -87,6 +106,10 @@ class PTPDatabase(Database):
 
     def tables(self) -> Tables:
         """The arrays identify reads, as one kernel argument."""
+        return self._tables
+
+    @cached_property
+    def _tables(self) -> Tables:     # built once: saves about 1 us per image
         return Tables(self.kv, self.ids, self.sides, self.mean, self.axis, self.guide_unit, self.guide_hip,
                       self.deep, self.extra_unit)
 
@@ -415,9 +438,17 @@ class PTP(Algorithm):
                            d_min_deg=d_min_deg, sigma_floor_px=sigma_floor_px)
 
     def identify(self, database: PTPDatabase, observation: Observation) -> Identification:
-        hip = identify_kernel(observation.x_px, observation.y_px, observation.mag, _view(observation.camera),
-                              database.tables(), self.tolerances(database))
-        return Identification(hip)
+        """:func:`~starid_algorithms.ptp.kernels.identify_kernel`, then (``assign_all``) the attitude of the
+        identified stars (Wahba) assigns every detection to the deep catalog star predicted within the
+        tolerance (``starid.kernels.assign_all``, one-to-one only). Counters: :data:`WORK_NAMES`."""
+        view, tol = _view(observation.camera), self.tolerances(database)
+        hip, unit, rows, work = identify_kernel(observation.x_px, observation.y_px, observation.mag, view,
+                                                database.tables(), tol)
+        if tol.assign_all and database.deep.unit.shape[0] > 0 and np.count_nonzero(rows >= 0) >= 3:
+            attitude = wahba_rows(unit, rows, database.guide_unit)
+            assign_all(attitude, observation.x_px, observation.y_px, view.frame, database.deep,
+                       tol.side_beta * math.sqrt(2.0) * tol.sigma_px / view.frame.f_px, hip)
+        return Identification(hip, counters=dict(zip(WORK_NAMES, work.tolist(), strict=True)))
 
     def explain(self, database: PTPDatabase, observation: Observation) -> Explanation:
         """The image triangles PTP formed (every master with its nearest slaves) as segments; bold:

@@ -12,7 +12,16 @@ from scipy.spatial import cKDTree
 from starid.camera import REFERENCE_CAMERA, Camera
 from starid.catalog import Catalog
 from starid.errors import ConfigError
-from starid.kernels import DeepSky, KVector, camera_frame, check_stars, deep_sky, kvector_make, rad_to_chord
+from starid.kernels import (
+    DeepSky,
+    KVector,
+    assign_all,
+    camera_frame,
+    check_stars,
+    deep_sky,
+    kvector_make,
+    rad_to_chord,
+)
 from starid.observation import Observation
 from starid.params import check_choice, check_flag, check_number, check_whole, param
 from starid.plugin import Algorithm, Database, Explanation, Identification
@@ -418,15 +427,23 @@ class PVector(Algorithm):
 
     # --------------------------------------------------------------- identify
     def _run(self, database: PVectorDatabase, observation: Observation):
-        return K.identify_rows(observation.x_px, observation.y_px, observation.mag, camera_frame(observation.camera),
-                               database.tables(), self._tol)
+        """:func:`kernels.identify_rows`, then (``assign_all``) the attitude assigns every detection to the deep
+        catalog star predicted within the tolerance (``starid.kernels.assign_all``, one-to-one only)."""
+        frame, tol = camera_frame(observation.camera), self._tol
+        hip, attitude, ok, tri, work = K.identify_rows(observation.x_px, observation.y_px, observation.mag, frame,
+                                                       database.tables(), tol)
+        if ok and tol.assign_all and database.deep.unit.shape[0] > 0:
+            eps = tol.beta * math.sqrt(2.0) * tol.sigma_px / frame.f_px
+            assign_all(attitude, observation.x_px, observation.y_px, frame, database.deep, eps, hip)
+        return hip, attitude, ok, tri, work
 
     def identify(self, database: PVectorDatabase, observation: Observation) -> Identification:
         n = observation.x_px.shape[0]
         if n < 3:
-            return Identification.none(n)
-        hip, attitude, ok, _ = self._run(database, observation)
-        return Identification(hip, attitude if ok else None)
+            return Identification(np.full(n, -1, dtype=np.int64), counters=dict.fromkeys(K.WORK_NAMES, 0))
+        hip, attitude, ok, _, work = self._run(database, observation)
+        return Identification(hip, attitude if ok else None, counters=dict(zip(K.WORK_NAMES, work.tolist(),
+                                                                               strict=True)))
 
     def explain(self, database: PVectorDatabase, observation: Observation) -> Explanation:
         """The accepted main (guide) star and the two neighbours of its triangle, as three bold segments."""
@@ -435,7 +452,7 @@ class PVector(Algorithm):
         points = np.stack([x, y], axis=1) if n else np.zeros((0, 2))
         if n < 3:
             return Explanation(points=points, labels=("",) * n, caption=f"P-vector: {n} stars, no triangle.")
-        hip, _, ok, tri = self._run(database, observation)
+        hip, _, ok, tri, _ = self._run(database, observation)
         labels = tuple(str(h) if h >= 0 else "" for h in hip)
         if not ok:
             return Explanation(points=points, labels=labels,

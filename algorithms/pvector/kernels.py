@@ -18,7 +18,6 @@ from numba import njit
 from starid.kernels import (
     DeepSky,
     KVector,
-    assign_all,
     backproject_px,
     chord_rows,
     chord_to_rad,
@@ -214,12 +213,34 @@ def linear_range(values, lo, hi):
 def triangle_feature(s_len01, s_len02, s_len12, sorted_sides):
     """Feature vector of a triangle from its role-ordered sides (S-N1, S-N2, N1-N2)."""
     d = np.empty(3)
-    d[0] = s_len01
-    d[1] = s_len02
-    d[2] = s_len12
-    if sorted_sides:
-        d.sort()
+    a, b, c = s_len01, s_len02, s_len12
+    if sorted_sides:    # a three-element sorting network, not np.sort (whose quicksort costs 1.6 s to compile)
+        if b < a:
+            a, b = b, a
+        if c < b:
+            b, c = c, b
+        if b < a:
+            a, b = b, a
+    d[0] = a
+    d[1] = b
+    d[2] = c
     return d
+
+
+@njit(cache=True)
+def _argsort_stable(values):
+    """Stable ascending order of ``values`` (insertion sort: images are small; the same order as
+    ``np.argsort(kind="mergesort")`` without compiling a mergesort)."""
+    n = values.shape[0]
+    order = np.arange(n)
+    for i in range(1, n):
+        j = i
+        while j > 0 and values[order[j]] < values[order[j - 1]]:
+            t = order[j]
+            order[j] = order[j - 1]
+            order[j - 1] = t
+            j -= 1
+    return order
 
 
 @njit(cache=True)
@@ -301,11 +322,18 @@ def chance_k_min(n_obs, n_guide, eps, tail):
     return k
 
 
+#: Slots of the work counters :func:`identify_rows` returns (``Identification.counters``).
+WORK_NAMES = ("searches", "window_triangles", "candidates", "correspondences", "hypotheses")
+
+
 @njit(cache=True)
 def identify_rows(x_px, y_px, mag, frame, db, tol):
-    """``(hip, attitude, ok, triangle)``: catalog id per observed star (-1 = unidentified, input
-    order), the ICRS -> camera attitude, whether the image was identified, and the input indices of
-    the accepted triangle (main star, N1, N2; -1 when none).
+    """``(hip, attitude, ok, triangle, work)``: catalog id per observed star (-1 = unidentified, input
+    order), the ICRS -> camera attitude, whether the image was identified, the input indices of
+    the accepted triangle (main star, N1, N2; -1 when none) and the work counters (:data:`WORK_NAMES`:
+    k-vector searches, database triangles in their windows, those passing the three-side check, vertex
+    correspondences confirmed against the other stars, whole-image hypotheses tried).
+    ``tol.assign_all`` is left to the caller (``PVector._run``), so the default never compiles it.
 
     Steps (the docstring of :class:`starid_algorithms.pvector.PVector` maps them to the paper):
     canonical star order; main stars in preference order; per main star its triangle, the
@@ -319,8 +347,9 @@ def identify_rows(x_px, y_px, mag, frame, db, tol):
     step = db.side_step
     out = np.full(x_px.shape[0], -1, dtype=np.int64)
     tri_found = np.full(3, -1, dtype=np.int64)
+    work = np.zeros(len(WORK_NAMES), dtype=np.int64)
     if x_px.shape[0] < 3:
-        return out, np.eye(3), False, tri_found
+        return out, np.eye(3), False, tri_found, work
     # only the max_stars brightest detections take part (ties by position)
     sel = _sort_by(mag, x_px, y_px)[:min(x_px.shape[0], tol.max_stars)]
     n = sel.shape[0]
@@ -404,6 +433,7 @@ def identify_rows(x_px, y_px, mag, frame, db, tol):
                     # the untrimmed slice: every candidate's three sides are checked below anyway
                     start, stop = kvector_slice(db.kv.k, db.kv.m, db.kv.q, tri_sides.shape[0], p_obs - eps_key,
                                                 p_obs + eps_key)
+                work[0] += 1
                 if stop <= start:
                     continue
                 n_side = 0
@@ -411,6 +441,8 @@ def identify_rows(x_px, y_px, mag, frame, db, tol):
                     if (abs(step * tri_sides[t, 0] - d_obs[0]) <= eps and abs(step * tri_sides[t, 1] - d_obs[1]) <= eps
                             and abs(step * tri_sides[t, 2] - d_obs[2]) <= eps):
                         n_side += 1
+                work[1] += stop - start
+                work[2] += n_side
                 if n_side > max_candidates:
                     continue    # an uninformative triangle: its window is far wider than the catalog's spacing
                 if n_side == 0:
@@ -424,7 +456,7 @@ def identify_rows(x_px, y_px, mag, frame, db, tol):
                 for i in range(n):
                     c_band = max(c_band, oc[i, 0])
                 c_band += eps
-                by_c0 = np.argsort(oc[:, 0], kind="mergesort")
+                by_c0 = _argsort_stable(oc[:, 0])
                 c0_sorted = oc[by_c0, 0]
                 n_found = 0
                 ambiguous = False
@@ -452,6 +484,7 @@ def identify_rows(x_px, y_px, mag, frame, db, tol):
                                 hyp_obs[n_hyp, j] = tri_obs[j]
                                 hyp_cat[n_hyp, j] = cat_rows[j]
                             n_hyp += 1
+                        work[3] += 1
                         confirmed = match_extras(oc, by_c0, c0_sorted, tri_obs, cat_rows, unit, eps, c_band, rows_try)
                         if confirmed < k_min:
                             continue
@@ -493,25 +526,22 @@ def identify_rows(x_px, y_px, mag, frame, db, tol):
                     if rows_best[i] >= 0:
                         out[canon[i]] = hip[rows_best[i]]
                 attitude = wahba_rows(v, rows_best, unit)
-                if tol.assign_all and db.deep.unit.shape[0] > 0:
-                    assign_all(attitude, x_px, y_px, frame, db.deep, eps, out)
                 for j in range(3):
                     tri_found[j] = canon[tri_obs[j]]
-                return out, attitude, True, tri_found
+                return out, attitude, True, tri_found, work
     if n_hyp > 0:
         h = whole_image_pass(v, db, c_fov, eps, frame, hyp_obs, hyp_cat, n_hyp, need, tol.confirm_fraction,
                              rows_best)
+        work[4] += n_hyp if h < 0 else h + 1
         if h >= 0:
             for i in range(n):
                 if rows_best[i] >= 0:
                     out[canon[i]] = hip[rows_best[i]]
             attitude = wahba_rows(v, rows_best, unit)
-            if tol.assign_all and db.deep.unit.shape[0] > 0:
-                assign_all(attitude, x_px, y_px, frame, db.deep, eps, out)
             for j in range(3):
                 tri_found[j] = canon[hyp_obs[h, j]]
-            return out, attitude, True, tri_found
-    return out, np.eye(3), False, tri_found
+            return out, attitude, True, tri_found, work
+    return out, np.eye(3), False, tri_found, work
 
 
 @njit(cache=True)

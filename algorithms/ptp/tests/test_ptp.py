@@ -268,3 +268,20 @@ def test_no_misidentification_on_a_coarse_camera_at_2_px(catalog):
         assert not np.any((hip >= 0) & (hip != o.truth_hip)), t
         n_identified += np.sum(hip == o.truth_hip) >= 3
     assert n_identified >= 19
+
+
+def test_work_counters(db, catalog, camera):
+    """Identification.counters: k-vector searches, database triangles in their windows, candidates passing
+    the three-side check (at most the window's), hypotheses; 4 image slaves search fewer triangles than 6."""
+    from starid_algorithms.ptp.kernels import WORK_NAMES
+    sim = Simulator(catalog, camera, SimConfig(sigma_px=1.0, sigma_mag=0.5), seed=23)
+    for t in range(4):
+        o = sim.observation(t)
+        c = PTP().identify(db, o).counters
+        assert tuple(c) == WORK_NAMES and all(isinstance(v, int) for v in c.values())
+        assert c["searches"] >= len(o) and c["candidates"] <= c["window_triangles"]
+        assert PTP(image_slaves=4).identify(db, o).counters["searches"] < c["searches"]
+        assert PTP(hypotheses=0).identify(db, o).counters["hypotheses"] == 0
+    two = Observation(np.array([10.0, 20.0]), np.array([10.0, 20.0]), np.array([3.0, 3.0]), camera)
+    assert set(PTP().identify(db, two).counters.values()) == {0}
+

@@ -14,6 +14,7 @@ import time
 import numpy as np
 import pytest
 from starid_algorithms.pvector import PVector, PVectorDatabase
+from starid_algorithms.pvector import kernels as K
 
 from starid import Camera, Catalog, ConfigError, Observation, SimConfig, Simulator, run, summarize
 from starid.kernels import assign_all, camera_frame, deep_sky, kvector_slice
@@ -355,3 +356,18 @@ def test_wide_pixels_at_2px_noise(catalog):
     s = summarize(run([PVector()], sim.generate(20), catalog, sim)).iloc[0]
     assert s.id_rate >= 0.75      # measured 0.95 (before: 0.10)
     assert s.misid_rate == 0.0
+
+
+def test_work_counters(algo, db, catalog, camera):
+    """Identification.counters: k-vector searches, database triangles in the windows, those passing the
+    side check (at most the window's), correspondences confirmed, hypotheses; zeros below three stars."""
+    sim = Simulator(catalog, camera, SimConfig(sigma_px=1.0, sigma_mag=0.5), seed=23)
+    for t in range(4):
+        r = algo.identify(db, sim.observation(t))
+        c = r.counters
+        assert tuple(c) == K.WORK_NAMES and all(isinstance(v, int) for v in c.values())
+        assert c["searches"] >= 1 and c["candidates"] <= c["window_triangles"]
+        if r.attitude is not None and c["hypotheses"] == 0:
+            assert c["correspondences"] >= 1
+    two = Observation(np.array([10.0, 20.0]), np.array([10.0, 20.0]), np.array([3.0, 3.0]), camera)
+    assert set(algo.identify(db, two).counters.values()) == {0}
