@@ -102,23 +102,27 @@ LABEL_OFFSETS_PT = ((7, -7), (7, 7), (-7, -7), (-7, 7), (9, 0), (-9, 0), (0, 10)
 
 
 def _renderer(fig):
-    """A renderer with the figure's layout settled (constrained layout runs at draw time)."""
+    """A renderer with the figure's layout settled (constrained layout runs at draw time): the draw
+    computes every artist's extent without rasterizing (a full Agg draw per call made a 14-panel
+    ``starid show`` spend a minute in drawing alone)."""
     if not hasattr(fig.canvas, "get_renderer"):
         from matplotlib.backends.backend_agg import FigureCanvasAgg
         FigureCanvasAgg(fig)
-    fig.canvas.draw()
+    fig.draw_without_rendering()
     return fig.canvas.get_renderer()
 
 
 def place_labels(ax, x, y, texts, obstacles_xy=None, obstacle_pt: float = 6.0, required: bool = False,
-                 taken: list | None = None, pad_pt: float = 1.5, **text_kw) -> list:
+                 taken: list | None = None, pad_pt: float = 1.5, renderer=None, **text_kw) -> list:
     """Annotate point i with ``texts[i]`` at the first of :data:`LABEL_OFFSETS_PT` where its box
     overlaps no label placed before it (``taken`` carries boxes between calls), no obstacle point
     (a square of ``obstacle_pt`` around each of ``obstacles_xy``, e.g. the other stars) and stays
     inside the axes. A label that fits nowhere is left out, unless ``required``: then it goes to
     the offset with the least overlap, joined to its point by a thin line. Greedy and deterministic,
-    in the order given (put the labels a caption refers to first). Returns the annotations."""
-    renderer = _renderer(ax.figure)
+    in the order given (put the labels a caption refers to first). Returns the annotations.
+    ``renderer``: one from :func:`_renderer` after the layout is settled, for several calls on one figure
+    (labels are outside the layout, so placing some moves nothing; otherwise each call draws the figure)."""
+    renderer = renderer if renderer is not None else _renderer(ax.figure)
     taken = [] if taken is None else taken
     to_px = ax.figure.dpi / 72.0
     pad = pad_pt * to_px
@@ -574,11 +578,12 @@ def show_figure(stars: pd.DataFrame, ids: pd.DataFrame, explanations: dict | Non
     # labels last, once the layout is settled: the explanation's (its caption refers to them) placed
     # first and always, then the HIP numbers where they fit beside their star without covering another
     stars_xy = np.column_stack([x, y])
+    renderer = _renderer(fig)     # one draw settles the layout for every panel's labels
     for ax, jobs in placements:
         taken = []
         for jx, jy, texts, required, kw in jobs:
             place_labels(ax, jx, jy, texts, obstacles_xy=stars_xy, obstacle_pt=14.0, required=required, taken=taken,
-                         **kw)
+                         renderer=renderer, **kw)
     return fig
 
 
