@@ -84,7 +84,10 @@ def keep_integers(frame, columns):
     """``frame`` with ``columns`` as nullable integers (``Int64``): concatenating the rows of algorithms
     that lack a parameter fills it with NaN and turns its integers into floats (``param_n_bright = 8.0``);
     here they stay ``8`` in the frame, the CSV and the Parquet files, blank where the algorithm has none."""
-    for col in columns:
-        if col in frame.columns and frame[col].dtype.kind == "f":
-            frame[col] = frame[col].astype("Int64")
-    return frame
+    cast = [c for c in columns if c in frame.columns and frame[c].dtype.kind == "f"]
+    if not cast:
+        return frame
+    import pandas as pd
+
+    # one new frame, not a column at a time: hundreds of in-place casts fragment it (pandas warns)
+    return pd.concat([frame.drop(columns=cast), frame[cast].astype("Int64")], axis=1)[frame.columns]

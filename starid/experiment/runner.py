@@ -208,16 +208,17 @@ def assemble(placements: list[Placement], experiment: Experiment, read) -> pd.Da
                 **(camera if pl.chunk.camera is None else pl.chunk.camera).columns()}
         frames.append(pd.concat([constant_columns(lead, df.index), df, constant_columns(tail, df.index)], axis=1))
     out = keep_integers(pd.concat(frames, ignore_index=True), integer_columns(frames))   # 8, not 8.0 (#27)
-    return _uniform_types(out)
+    # one block per dtype: the chunks' column-wise joins leave ~175 blocks, and an experiment's tables adding a
+    # column to such a frame made pandas warn that it is highly fragmented
+    return _uniform_types(out).copy()
 
 
 def _uniform_types(df: pd.DataFrame) -> pd.DataFrame:
     """Columns mixing types across algorithms (a parameter that is a bool here, a float there) as text,
     so the frame can be written to Parquet."""
-    for col in df.columns:
-        if df[col].dtype == object:
-            kinds = {type(v) for v in df[col].dropna()}
-            if len(kinds) > 1:
-                df[col] = df[col].map(lambda v: None if v is None or (isinstance(v, float) and np.isnan(v))
-                                      else str(v))
-    return df
+    mixed = [col for col in df.columns if df[col].dtype == object and len({type(v) for v in df[col].dropna()}) > 1]
+    if not mixed:
+        return df
+    text = {col: df[col].map(lambda v: None if v is None or (isinstance(v, float) and np.isnan(v)) else str(v))
+            for col in mixed}
+    return pd.concat([df.drop(columns=mixed), pd.DataFrame(text, index=df.index)], axis=1)[df.columns]
