@@ -148,14 +148,16 @@ class LPT(PlanarAlgorithm):
         return LPTDatabase(*sparse_strings(strings), guides.unit, guides.hip, radius, float(camera.f_px), double_px,
                            db.r_min_px, self.n_sectors)
 
-    def _run(self, db: LPTDatabase, observation: Observation):
-        cam = observation.camera
-        search = self._search(db)
+    def _make_kernel_args(self, db: LPTDatabase, cam: Camera) -> tuple:
         eps0_extra = math.pi / self.n_sectors * (1 + self.sector_tol) * math.tan(math.radians(db.radius_deg))
         acc = acceptance(cam, self.sigma_px, self.beta, self.min_matches, self.confirm_fraction, eps0_extra)
+        return camera_frame(cam), db.chars, self._search(db), acc
+
+    def _run(self, db: LPTDatabase, observation: Observation):
+        sensor, chars, search, acc = self._kernel_args(db, observation.camera)
         trace = new_trace()
-        rows, attitude, ok = identify_kernel(observation.x_px, observation.y_px, camera_frame(cam), db.chars,
-                                             db.guide_unit, search, acc, trace)
+        rows, attitude, ok = identify_kernel(observation.x_px, observation.y_px, sensor, chars, db.guide_unit, search,
+                                             acc, trace)
         return rows, attitude, ok, trace
 
     def explain(self, database: LPTDatabase, observation: Observation) -> Explanation:

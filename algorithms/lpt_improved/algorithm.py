@@ -193,13 +193,16 @@ class ImprovedLPT(PlanarAlgorithm):
                       self.max_refs, self.image_alignments, self.n_candidates, float(db.double_px),
                       bool(self.pair_filter))
 
-    def _run(self, db: ImprovedLPTDatabase, observation: Observation):
-        cam = observation.camera
+    def _make_kernel_args(self, db: ImprovedLPTDatabase, cam: Camera) -> tuple:
         sensor = camera_frame(cam)._replace(f_px=float(cam.f_px))
         acc = acceptance(cam, self.sigma_px, self.beta, self.min_matches, self.confirm_fraction)
+        return sensor, db.table, self._search(db), acc
+
+    def _run(self, db: ImprovedLPTDatabase, observation: Observation):
+        sensor, table, search, acc = self._kernel_args(db, observation.camera)
         trace = new_trace()
-        rows, attitude, ok = identify_kernel(observation.x_px, observation.y_px, sensor, db.table, db.guide_unit,
-                                             self._search(db), acc, trace)
+        rows, attitude, ok = identify_kernel(observation.x_px, observation.y_px, sensor, table, db.guide_unit,
+                                             search, acc, trace)
         return rows, attitude, ok, trace
 
     def explain(self, database: ImprovedLPTDatabase, observation: Observation) -> Explanation:
