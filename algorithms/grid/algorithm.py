@@ -22,6 +22,7 @@ from ..lpt_improved.planar import (
     explain_pattern,
     neighbour_lists,
     new_trace,
+    pack_params,
     prepare_image,
     select_guides,
 )
@@ -158,13 +159,12 @@ class Grid(PlanarAlgorithm):
 
     def _make_kernel_args(self, db: GridDatabase, cam: Camera) -> tuple:
         acc = acceptance(cam, self.sigma_px, self.beta, self.min_matches, self.confirm_fraction)
-        return camera_frame(cam), db.table, self._spec_for(db), acc
+        return (pack_params(camera_frame(cam), acc, self._spec_for(db)), *db.table, db.guide_unit)
 
     def _run(self, db: GridDatabase, observation: Observation):
-        sensor, table, spec, acc = self._kernel_args(db, observation.camera)
         trace = new_trace()
-        rows, attitude, ok = identify_kernel(observation.x_px, observation.y_px, sensor, table, db.guide_unit, spec,
-                                             acc, trace)
+        rows, attitude, ok = identify_kernel(observation.x_px, observation.y_px,
+                                             *self._kernel_args(db, observation.camera), trace)
         return rows, attitude, ok, trace
 
     def explain(self, database: GridDatabase, observation: Observation) -> Explanation:

@@ -13,9 +13,11 @@ import numpy as np
 from numba import njit
 
 from ..lpt_improved.planar import (
+    acceptance_at,
     begin_identify,
     confirm_pair,
     count_work,
+    frame_at,
     guide_pattern,
     keep_best,
     no_match,
@@ -192,8 +194,19 @@ def image_weights(cells, nc, spec, weight, touched):
 
 
 @njit(cache=True)
-def identify_kernel(x_px, y_px, sensor, table, guides_unit, spec, acc, trace):
+def spec_at(p, i):
+    """The :class:`GridSpec` packed at ``p[i:i+12]`` by ``planar.pack_params``."""
+    return GridSpec(int(p[i]), p[i + 1], p[i + 2], p[i + 3], p[i + 4], p[i + 5], p[i + 6] != 0.0, p[i + 7],
+                    int(p[i + 8]), int(p[i + 9]), int(p[i + 10]), p[i + 11])
+
+
+@njit(cache=True)
+def identify_kernel(x_px, y_px, params, patterns, cell_start, start, guide, orient, guides_unit, trace):
     """Grid identification of one image; returns ``(rows, attitude, accepted)``.
+
+    ``params``: the sensor :class:`Frame`, the :class:`Acceptance` and the :class:`GridSpec`,
+    packed by ``planar.pack_params``; the next five arrays are the :class:`GridTable`'s fields
+    (separate arguments: numba types arrays at a call in C, NamedTuples field by field in Python).
 
     For reference stars from the image centre outwards (at most ``max_refs``) and each of its
     ``image_orientations`` nearest neighbours beyond the buffer as orientation star: the image
@@ -204,6 +217,10 @@ def identify_kernel(x_px, y_px, sensor, table, guides_unit, spec, acc, trace):
     (reference and orientation star to their guide stars, Wahba) that :func:`confirm` must
     accept. ``trace`` (int64, 4): reference star, orientation star, pattern, 1000 x score.
     """
+    sensor = frame_at(params, np.int64(0))
+    acc = acceptance_at(params, np.int64(5))
+    spec = spec_at(params, np.int64(10))
+    table = GridTable(patterns, cell_start, start, guide, orient)
     n = x_px.shape[0]
     rows, unit, usable, order = begin_identify(x_px, y_px, sensor, spec.double_px, trace)
     nbrs = np.empty(n, dtype=np.int64)

@@ -23,6 +23,7 @@ from ..lpt_improved.planar import (
     image_neighbours,
     neighbour_lists,
     new_trace,
+    pack_params,
     plane_polar,
     prepare_image,
     select_guides,
@@ -151,13 +152,12 @@ class LPT(PlanarAlgorithm):
     def _make_kernel_args(self, db: LPTDatabase, cam: Camera) -> tuple:
         eps0_extra = math.pi / self.n_sectors * (1 + self.sector_tol) * math.tan(math.radians(db.radius_deg))
         acc = acceptance(cam, self.sigma_px, self.beta, self.min_matches, self.confirm_fraction, eps0_extra)
-        return camera_frame(cam), db.chars, self._search(db), acc
+        return (pack_params(camera_frame(cam), acc, self._search(db)), *db.chars, db.guide_unit)
 
     def _run(self, db: LPTDatabase, observation: Observation):
-        sensor, chars, search, acc = self._kernel_args(db, observation.camera)
         trace = new_trace()
-        rows, attitude, ok = identify_kernel(observation.x_px, observation.y_px, sensor, chars, db.guide_unit, search,
-                                             acc, trace)
+        rows, attitude, ok = identify_kernel(observation.x_px, observation.y_px,
+                                             *self._kernel_args(db, observation.camera), trace)
         return rows, attitude, ok, trace
 
     def explain(self, database: LPTDatabase, observation: Observation) -> Explanation:

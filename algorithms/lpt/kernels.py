@@ -13,9 +13,11 @@ import numpy as np
 from numba import njit
 
 from ..lpt_improved.planar import (
+    acceptance_at,
     begin_identify,
     confirm,
     count_work,
+    frame_at,
     guide_pattern,
     keep_best,
     no_match,
@@ -360,8 +362,19 @@ def refined_roll(row, img_sector, img_level, img_phi, nz, shift, search):
 
 
 @njit(cache=True)
-def identify_kernel(x_px, y_px, sensor, chars, guides_unit, search, acc, trace):
+def search_at(p, i):
+    """The :class:`StringSearch` packed at ``p[i:i+11]`` by ``planar.pack_params``."""
+    return StringSearch(int(p[i]), int(p[i + 1]), p[i + 2], p[i + 3], p[i + 4], int(p[i + 5]), int(p[i + 6]),
+                        int(p[i + 7]), int(p[i + 8]), int(p[i + 9]), p[i + 10])
+
+
+@njit(cache=True)
+def identify_kernel(x_px, y_px, params, char_sector, char_level, char_start, guides_unit, trace):
     """LPT identification of one image; returns ``(rows, attitude, accepted)``.
+
+    ``params``: the sensor :class:`Frame`, the :class:`Acceptance` and the :class:`StringSearch`,
+    packed by ``planar.pack_params``; the next three arrays are the :class:`Strings`' fields
+    (separate arguments: numba types arrays at a call in C, NamedTuples field by field in Python).
 
     For reference stars from the image centre outwards (at most ``max_refs``): its LPT string;
     every database string is compared under every circular shift (:func:`shift_scores`, the
@@ -373,6 +386,10 @@ def identify_kernel(x_px, y_px, sensor, chars, guides_unit, search, acc, trace):
     the candidates are exactly those of the full scan.
     ``trace`` (int64, 4): reference star, -1, guide row, score.
     """
+    sensor = frame_at(params, np.int64(0))
+    acc = acceptance_at(params, np.int64(5))
+    search = search_at(params, np.int64(10))
+    chars = Strings(char_sector, char_level, char_start)
     n = x_px.shape[0]
     rows, unit, usable, order = begin_identify(x_px, y_px, sensor, search.double_px, trace)
     m = search.n_sectors

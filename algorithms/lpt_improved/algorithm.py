@@ -24,6 +24,7 @@ from .planar import (
     image_neighbours,
     neighbour_lists,
     new_trace,
+    pack_params,
     plane_polar,
     prepare_image,
     select_guides,
@@ -196,13 +197,12 @@ class ImprovedLPT(PlanarAlgorithm):
     def _make_kernel_args(self, db: ImprovedLPTDatabase, cam: Camera) -> tuple:
         sensor = camera_frame(cam)._replace(f_px=float(cam.f_px))
         acc = acceptance(cam, self.sigma_px, self.beta, self.min_matches, self.confirm_fraction)
-        return sensor, db.table, self._search(db), acc
+        return (pack_params(sensor, acc, self._search(db)), *db.table, db.guide_unit)
 
     def _run(self, db: ImprovedLPTDatabase, observation: Observation):
-        sensor, table, search, acc = self._kernel_args(db, observation.camera)
         trace = new_trace()
-        rows, attitude, ok = identify_kernel(observation.x_px, observation.y_px, sensor, table, db.guide_unit,
-                                             search, acc, trace)
+        rows, attitude, ok = identify_kernel(observation.x_px, observation.y_px,
+                                             *self._kernel_args(db, observation.camera), trace)
         return rows, attitude, ok, trace
 
     def explain(self, database: ImprovedLPTDatabase, observation: Observation) -> Explanation:

@@ -37,6 +37,7 @@ from starid.camera import Camera
 from starid.catalog import Catalog
 from starid.errors import ConfigError
 from starid.kernels import (
+    Frame,
     backproject_px,
     camera_frame,
     chord_rows,
@@ -154,6 +155,28 @@ def neighbour_lists(unit: np.ndarray, radius_rad: float) -> tuple[np.ndarray, np
         offsets.append(offsets[-1] + js.size)
     flat = np.concatenate(rows) if rows else np.zeros(0, dtype=np.int64)
     return flat.astype(np.int32), np.asarray(offsets, dtype=np.int64)
+
+
+def pack_params(*bundles) -> np.ndarray:
+    """The scalar bundles of a kernel call (:class:`Frame`, :class:`Acceptance`, search parameters) as one
+    float64 array, fields in order (ints and bools exactly: all are far below 2**53).
+
+    numba types a NamedTuple argument field by field in Python at every call (2-4 us each); a
+    float64 array is typed in C. The kernel rebuilds the bundles (:func:`frame_at`, :func:`acceptance_at`).
+    """
+    return np.array([v for b in bundles for v in b], dtype=np.float64)
+
+
+@njit(cache=True)
+def frame_at(p, i):
+    """The :class:`starid.kernels.Frame` packed at ``p[i:i+5]`` by :func:`pack_params`."""
+    return Frame(p[i], p[i + 1], p[i + 2], p[i + 3], p[i + 4])
+
+
+@njit(cache=True)
+def acceptance_at(p, i):
+    """The :class:`Acceptance` packed at ``p[i:i+5]`` by :func:`pack_params`."""
+    return Acceptance(p[i], p[i + 1], p[i + 2], int(p[i + 3]), p[i + 4])
 
 
 @njit(cache=True)
