@@ -99,10 +99,11 @@ class LPT(PlanarAlgorithm):
        and ``sector_tol`` sectors (tolerant matching is not an equality, so KMP cannot be used
        as such; all shifts are scored at once with bit-parallel shift sets over the strings'
        non-zero characters, which gives exactly the brute-force circular comparison's scores,
-       and strings that provably cannot enter the candidate list are skipped, which leaves the
-       list exactly as a full scan makes it). Among equal scores the database string with fewer
-       unmatched characters ranks first, then the lower guide row (a sparse pattern otherwise
-       ties with every string that contains it). Reconstructed.
+       and strings that provably cannot enter the candidate list are skipped, visited by length
+       from the image string's own, which leaves the list exactly as a full scan makes it).
+       Among equal scores the database string with fewer unmatched characters ranks first, then
+       the lower guide row (a sparse pattern otherwise ties with every string that contains
+       it). Reconstructed.
     5. The ``n_candidates`` best guide stars with at least ``min_score`` matched characters
        seed an attitude (the reference star and the roll the shift gives, refined by the
        matched characters) that must be confirmed by reprojection exactly as in

@@ -381,9 +381,10 @@ def identify_kernel(x_px, y_px, params, char_sector, char_level, char_start, gui
     whole database, as in the paper); the ``n_candidates`` best guide stars scoring at least
     ``min_score`` (ties: the string with fewer unmatched characters first, then guide order)
     seed an attitude (reference star to guide star, roll from the shift) that :func:`confirm`
-    must accept. A string whose :func:`match_bound` cannot reach ``min_score``, or, once the
-    candidate list is full, cannot rank above its last, is skipped without trying its shifts:
-    the candidates are exactly those of the full scan.
+    must accept. Strings are visited by length (see the comment in the scan); a string whose
+    :func:`match_bound` cannot reach ``min_score``, or, once the candidate list is full, cannot
+    rank above its last, is skipped without trying its shifts: the candidates are exactly those
+    of the full scan.
     ``trace`` (int64, 4): reference star, -1, guide row, score.
     """
     sensor = frame_at(params, np.int64(0))
