@@ -232,6 +232,7 @@ def identify_kernel(x_px, y_px, params, patterns, cell_start, start, guide, orie
     touched = np.empty(spec.g * spec.g, dtype=np.int64)
     n_pat = table.guide.shape[0]
     raw = np.zeros(n_pat)
+    hot = np.empty(n_pat, dtype=np.int64)
     n_best = spec.n_candidates
     best_p = np.empty(n_best, dtype=np.int64)
     best_sc = np.empty(n_best)
@@ -250,23 +251,41 @@ def identify_kernel(x_px, y_px, params, patterns, cell_start, start, guide, orie
             # credit of every pattern: each credited cell adds its weight to the patterns holding it,
             # cells in ascending order (each pattern's sum is then added up in the same order as
             # over its own sorted cells, so it is the same float)
+            # (every credit is positive, so a pattern's sum reaches min_score at most once: the patterns
+            # that reach it are listed as they do, ``hot``, and only they are ranked, in pattern order)
             touched[:nt] = np.sort(touched[:nt])
+            nh = 0
             for i in range(nt):
                 c = touched[i]
                 w = weight[c]
                 for q in range(np.uint64(table.cell_start[c]), np.uint64(table.cell_start[c + 1])):
-                    raw[table.patterns[q]] += w
+                    p = table.patterns[q]
+                    before = raw[p]
+                    raw[p] = before + w
+                    if before < spec.min_score <= raw[p]:
+                        hot[nh] = p
+                        nh += 1
                 count_work(trace, 1, table.cell_start[c + 1] - table.cell_start[c])
             found = np.int64(0)   # not a literal: one signature of keep_best
-            for p in range(n_pat):
-                score = raw[p]
-                raw[p] = 0.0
-                if score < spec.min_score:
-                    continue
-                sc = score / math.sqrt(nc * (table.start[p + 1] - table.start[p])) if spec.normalise else score
-                if found == n_best and sc <= best_sc[n_best - 1]:
-                    continue   # keep_best would drop it
-                found = keep_best(best_sc, best_p, found, n_best, sc, p)
+            if spec.min_score > 0.0:
+                if nh > 1:
+                    hot[:nh] = np.sort(hot[:nh])
+                for i in range(nh):
+                    p = hot[i]
+                    score = raw[p]
+                    sc = score / math.sqrt(nc * (table.start[p + 1] - table.start[p])) if spec.normalise else score
+                    if found == n_best and sc <= best_sc[n_best - 1]:
+                        continue   # keep_best would drop it
+                    found = keep_best(best_sc, best_p, found, n_best, sc, p)
+                raw[:] = 0.0
+            else:   # every pattern is a candidate, the untouched ones too
+                for p in range(n_pat):
+                    score = raw[p]
+                    raw[p] = 0.0
+                    sc = score / math.sqrt(nc * (table.start[p + 1] - table.start[p])) if spec.normalise else score
+                    if found == n_best and sc <= best_sc[n_best - 1]:
+                        continue   # keep_best would drop it
+                    found = keep_best(best_sc, best_p, found, n_best, sc, p)
             for i in range(nt):
                 weight[touched[i]] = 0.0
             for c in range(found):
