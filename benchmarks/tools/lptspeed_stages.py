@@ -8,8 +8,9 @@ Table 6's skies at 1 px / 0.5 Mv, seed 0, N images, the run of R with the smalle
 image; prints per sky and plugin the median (and mean) over images of: the kernel call from Python
 (perf_counter, dispatch included), then begin (back-projection, double mask, reference order),
 patterns (neighbours and image pattern), search (database comparison), verify (confirm of every
-candidate), select (grid: the pass over all pattern scores). Call minus the stages is numba's
-argument handling and the kernel's allocations. The copies must follow the kernels when those change.
+candidate), select (grid: ranking the patterns whose credit reached min_score, and the reset;
+the copy assumes min_score > 0). Call minus the stages is numba's argument handling and the
+kernel's allocations. The copies must follow the kernels when those change.
 """
 
 import math
@@ -132,6 +133,7 @@ def grid_kernel(x_px, y_px, params, patterns, cell_start, start, guide, orient, 
     touched = np.empty(spec.g * spec.g, dtype=np.int64)
     n_pat = table.guide.shape[0]
     raw = np.zeros(n_pat)
+    hot = np.empty(n_pat, dtype=np.int64)
     n_best = spec.n_candidates
     best_p = np.empty(n_best, dtype=np.int64)
     best_sc = np.empty(n_best)
@@ -155,23 +157,30 @@ def grid_kernel(x_px, y_px, params, patterns, cell_start, start, guide, orient, 
             touched[:nt] = np.sort(touched[:nt])
             t2 = cycles()
             st[1] += t2 - t1
+            nh = 0
             for i in range(nt):
                 c = touched[i]
                 w = weight[c]
                 for q in range(np.uint64(table.cell_start[c]), np.uint64(table.cell_start[c + 1])):
-                    raw[table.patterns[q]] += w
+                    p = table.patterns[q]
+                    before = raw[p]
+                    raw[p] = before + w
+                    if before < spec.min_score <= raw[p]:
+                        hot[nh] = p
+                        nh += 1
             t3 = cycles()
             st[2] += t3 - t2
             found = np.int64(0)
-            for p in range(n_pat):
+            if nh > 1:
+                hot[:nh] = np.sort(hot[:nh])
+            for i in range(nh):
+                p = hot[i]
                 score = raw[p]
-                raw[p] = 0.0
-                if score < spec.min_score:
-                    continue
                 sc = score / math.sqrt(nc * (table.start[p + 1] - table.start[p])) if spec.normalise else score
                 if found == n_best and sc <= best_sc[n_best - 1]:
                     continue
                 found = keep_best(best_sc, best_p, found, n_best, sc, p)
+            raw[:] = 0.0
             for i in range(nt):
                 weight[touched[i]] = 0.0
             t4 = cycles()
