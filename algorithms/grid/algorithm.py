@@ -22,6 +22,7 @@ from ..lpt_improved.planar import (
     explain_pattern,
     neighbour_lists,
     new_trace,
+    pack_params,
     prepare_image,
     select_guides,
 )
@@ -156,12 +157,14 @@ class Grid(PlanarAlgorithm):
         return GridDatabase(patterns, cell_start, start.astype(np.int32), guide.astype(rd), orient.astype(rd),
                             guides.unit, guides.hip, radius, float(camera.f_px), double_px)
 
-    def _run(self, db: GridDatabase, observation: Observation):
-        cam = observation.camera
+    def _make_kernel_args(self, db: GridDatabase, cam: Camera) -> tuple:
         acc = acceptance(cam, self.sigma_px, self.beta, self.min_matches, self.confirm_fraction)
+        return (pack_params(camera_frame(cam), acc, self._spec_for(db)), *db.table, db.guide_unit)
+
+    def _run(self, db: GridDatabase, observation: Observation):
         trace = new_trace()
-        rows, attitude, ok = identify_kernel(observation.x_px, observation.y_px, camera_frame(cam), db.table,
-                                             db.guide_unit, self._spec_for(db), acc, trace)
+        rows, attitude, ok = identify_kernel(observation.x_px, observation.y_px,
+                                             *self._kernel_args(db, observation.camera), trace)
         return rows, attitude, ok, trace
 
     def explain(self, database: GridDatabase, observation: Observation) -> Explanation:

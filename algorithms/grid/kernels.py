@@ -13,9 +13,11 @@ import numpy as np
 from numba import njit
 
 from ..lpt_improved.planar import (
+    acceptance_at,
     begin_identify,
     confirm_pair,
     count_work,
+    frame_at,
     guide_pattern,
     keep_best,
     no_match,
@@ -192,8 +194,19 @@ def image_weights(cells, nc, spec, weight, touched):
 
 
 @njit(cache=True)
-def identify_kernel(x_px, y_px, sensor, table, guides_unit, spec, acc, trace):
+def spec_at(p, i):
+    """The :class:`GridSpec` packed at ``p[i:i+12]`` by ``planar.pack_params``."""
+    return GridSpec(int(p[i]), p[i + 1], p[i + 2], p[i + 3], p[i + 4], p[i + 5], p[i + 6] != 0.0, p[i + 7],
+                    int(p[i + 8]), int(p[i + 9]), int(p[i + 10]), p[i + 11])
+
+
+@njit(cache=True)
+def identify_kernel(x_px, y_px, params, patterns, cell_start, start, guide, orient, guides_unit, trace):
     """Grid identification of one image; returns ``(rows, attitude, accepted)``.
+
+    ``params``: the sensor :class:`Frame`, the :class:`Acceptance` and the :class:`GridSpec`,
+    packed by ``planar.pack_params``; the next five arrays are the :class:`GridTable`'s fields
+    (separate arguments: numba types arrays at a call in C, NamedTuples field by field in Python).
 
     For reference stars from the image centre outwards (at most ``max_refs``) and each of its
     ``image_orientations`` nearest neighbours beyond the buffer as orientation star: the image
@@ -204,6 +217,10 @@ def identify_kernel(x_px, y_px, sensor, table, guides_unit, spec, acc, trace):
     (reference and orientation star to their guide stars, Wahba) that :func:`confirm` must
     accept. ``trace`` (int64, 4): reference star, orientation star, pattern, 1000 x score.
     """
+    sensor = frame_at(params, np.int64(0))
+    acc = acceptance_at(params, np.int64(5))
+    spec = spec_at(params, np.int64(10))
+    table = GridTable(patterns, cell_start, start, guide, orient)
     n = x_px.shape[0]
     rows, unit, usable, order = begin_identify(x_px, y_px, sensor, spec.double_px, trace)
     nbrs = np.empty(n, dtype=np.int64)
@@ -215,6 +232,7 @@ def identify_kernel(x_px, y_px, sensor, table, guides_unit, spec, acc, trace):
     touched = np.empty(spec.g * spec.g, dtype=np.int64)
     n_pat = table.guide.shape[0]
     raw = np.zeros(n_pat)
+    hot = np.empty(n_pat, dtype=np.int64)
     n_best = spec.n_candidates
     best_p = np.empty(n_best, dtype=np.int64)
     best_sc = np.empty(n_best)
@@ -233,23 +251,41 @@ def identify_kernel(x_px, y_px, sensor, table, guides_unit, spec, acc, trace):
             # credit of every pattern: each credited cell adds its weight to the patterns holding it,
             # cells in ascending order (each pattern's sum is then added up in the same order as
             # over its own sorted cells, so it is the same float)
+            # (every credit is positive, so a pattern's sum reaches min_score at most once: the patterns
+            # that reach it are listed as they do, ``hot``, and only they are ranked, in pattern order)
             touched[:nt] = np.sort(touched[:nt])
+            nh = 0
             for i in range(nt):
                 c = touched[i]
                 w = weight[c]
                 for q in range(np.uint64(table.cell_start[c]), np.uint64(table.cell_start[c + 1])):
-                    raw[table.patterns[q]] += w
+                    p = table.patterns[q]
+                    before = raw[p]
+                    raw[p] = before + w
+                    if before < spec.min_score <= raw[p]:
+                        hot[nh] = p
+                        nh += 1
                 count_work(trace, 1, table.cell_start[c + 1] - table.cell_start[c])
             found = np.int64(0)   # not a literal: one signature of keep_best
-            for p in range(n_pat):
-                score = raw[p]
-                raw[p] = 0.0
-                if score < spec.min_score:
-                    continue
-                sc = score / math.sqrt(nc * (table.start[p + 1] - table.start[p])) if spec.normalise else score
-                if found == n_best and sc <= best_sc[n_best - 1]:
-                    continue   # keep_best would drop it
-                found = keep_best(best_sc, best_p, found, n_best, sc, p)
+            if spec.min_score > 0.0:
+                if nh > 1:
+                    hot[:nh] = np.sort(hot[:nh])
+                for i in range(nh):
+                    p = hot[i]
+                    score = raw[p]
+                    sc = score / math.sqrt(nc * (table.start[p + 1] - table.start[p])) if spec.normalise else score
+                    if found == n_best and sc <= best_sc[n_best - 1]:
+                        continue   # keep_best would drop it
+                    found = keep_best(best_sc, best_p, found, n_best, sc, p)
+                raw[:] = 0.0
+            else:   # every pattern is a candidate, the untouched ones too
+                for p in range(n_pat):
+                    score = raw[p]
+                    raw[p] = 0.0
+                    sc = score / math.sqrt(nc * (table.start[p + 1] - table.start[p])) if spec.normalise else score
+                    if found == n_best and sc <= best_sc[n_best - 1]:
+                        continue   # keep_best would drop it
+                    found = keep_best(best_sc, best_p, found, n_best, sc, p)
             for i in range(nt):
                 weight[touched[i]] = 0.0
             for c in range(found):

@@ -23,6 +23,7 @@ from ..lpt_improved.planar import (
     image_neighbours,
     neighbour_lists,
     new_trace,
+    pack_params,
     plane_polar,
     prepare_image,
     select_guides,
@@ -98,10 +99,11 @@ class LPT(PlanarAlgorithm):
        and ``sector_tol`` sectors (tolerant matching is not an equality, so KMP cannot be used
        as such; all shifts are scored at once with bit-parallel shift sets over the strings'
        non-zero characters, which gives exactly the brute-force circular comparison's scores,
-       and strings that provably cannot enter the candidate list are skipped, which leaves the
-       list exactly as a full scan makes it). Among equal scores the database string with fewer
-       unmatched characters ranks first, then the lower guide row (a sparse pattern otherwise
-       ties with every string that contains it). Reconstructed.
+       and strings that provably cannot enter the candidate list are skipped, visited by length
+       from the image string's own, which leaves the list exactly as a full scan makes it).
+       Among equal scores the database string with fewer unmatched characters ranks first, then
+       the lower guide row (a sparse pattern otherwise ties with every string that contains
+       it). Reconstructed.
     5. The ``n_candidates`` best guide stars with at least ``min_score`` matched characters
        seed an attitude (the reference star and the roll the shift gives, refined by the
        matched characters) that must be confirmed by reprojection exactly as in
@@ -148,14 +150,15 @@ class LPT(PlanarAlgorithm):
         return LPTDatabase(*sparse_strings(strings), guides.unit, guides.hip, radius, float(camera.f_px), double_px,
                            db.r_min_px, self.n_sectors)
 
-    def _run(self, db: LPTDatabase, observation: Observation):
-        cam = observation.camera
-        search = self._search(db)
+    def _make_kernel_args(self, db: LPTDatabase, cam: Camera) -> tuple:
         eps0_extra = math.pi / self.n_sectors * (1 + self.sector_tol) * math.tan(math.radians(db.radius_deg))
         acc = acceptance(cam, self.sigma_px, self.beta, self.min_matches, self.confirm_fraction, eps0_extra)
+        return (pack_params(camera_frame(cam), acc, self._search(db)), *db.chars, db.guide_unit)
+
+    def _run(self, db: LPTDatabase, observation: Observation):
         trace = new_trace()
-        rows, attitude, ok = identify_kernel(observation.x_px, observation.y_px, camera_frame(cam), db.chars,
-                                             db.guide_unit, search, acc, trace)
+        rows, attitude, ok = identify_kernel(observation.x_px, observation.y_px,
+                                             *self._kernel_args(db, observation.camera), trace)
         return rows, attitude, ok, trace
 
     def explain(self, database: LPTDatabase, observation: Observation) -> Explanation:

@@ -13,9 +13,11 @@ import numpy as np
 from numba import njit
 
 from ..lpt_improved.planar import (
+    acceptance_at,
     begin_identify,
     confirm,
     count_work,
+    frame_at,
     guide_pattern,
     keep_best,
     no_match,
@@ -309,6 +311,29 @@ def shift_scores(chars, g, img, search, sets, planes):
 
 
 @njit(cache=True)
+def order_by_count(chars, count_start, by_count):
+    """Guide rows ordered by their strings' character count, guide order within a count (counting sort).
+
+    Strings of ``c`` characters are ``by_count[count_start[c]:count_start[c+1]]``; ``count_start``
+    (int64, m + 2) is overwritten.
+    """
+    n_guide = chars.start.shape[0] - 1
+    for c in range(count_start.shape[0]):
+        count_start[c] = 0
+    for g in range(n_guide):
+        count_start[chars.start[g + 1] - chars.start[g] + 1] += 1
+    for c in range(1, count_start.shape[0]):
+        count_start[c] += count_start[c - 1]
+    for g in range(n_guide):
+        c = chars.start[g + 1] - chars.start[g]
+        by_count[count_start[c]] = g
+        count_start[c] += 1
+    for c in range(count_start.shape[0] - 1, 0, -1):
+        count_start[c] = count_start[c - 1]
+    count_start[0] = 0
+
+
+@njit(cache=True)
 def refined_roll(row, img_sector, img_level, img_phi, nz, shift, search):
     """Roll (``phi_catalog - phi_image``) of a match: the shift refined by the matched characters.
 
@@ -337,19 +362,35 @@ def refined_roll(row, img_sector, img_level, img_phi, nz, shift, search):
 
 
 @njit(cache=True)
-def identify_kernel(x_px, y_px, sensor, chars, guides_unit, search, acc, trace):
+def search_at(p, i):
+    """The :class:`StringSearch` packed at ``p[i:i+11]`` by ``planar.pack_params``."""
+    return StringSearch(int(p[i]), int(p[i + 1]), p[i + 2], p[i + 3], p[i + 4], int(p[i + 5]), int(p[i + 6]),
+                        int(p[i + 7]), int(p[i + 8]), int(p[i + 9]), p[i + 10])
+
+
+@njit(cache=True)
+def identify_kernel(x_px, y_px, params, char_sector, char_level, char_start, guides_unit, trace):
     """LPT identification of one image; returns ``(rows, attitude, accepted)``.
+
+    ``params``: the sensor :class:`Frame`, the :class:`Acceptance` and the :class:`StringSearch`,
+    packed by ``planar.pack_params``; the next three arrays are the :class:`Strings`' fields
+    (separate arguments: numba types arrays at a call in C, NamedTuples field by field in Python).
 
     For reference stars from the image centre outwards (at most ``max_refs``): its LPT string;
     every database string is compared under every circular shift (:func:`shift_scores`, the
     whole database, as in the paper); the ``n_candidates`` best guide stars scoring at least
     ``min_score`` (ties: the string with fewer unmatched characters first, then guide order)
     seed an attitude (reference star to guide star, roll from the shift) that :func:`confirm`
-    must accept. A string whose :func:`match_bound` cannot reach ``min_score``, or, once the
-    candidate list is full, cannot rank above its last, is skipped without trying its shifts:
-    the candidates are exactly those of the full scan.
+    must accept. Strings are visited by length (see the comment in the scan); a string whose
+    :func:`match_bound` cannot reach ``min_score``, or, once the candidate list is full, cannot
+    rank above its last, is skipped without trying its shifts: the candidates are exactly those
+    of the full scan.
     ``trace`` (int64, 4): reference star, -1, guide row, score.
     """
+    sensor = frame_at(params, np.int64(0))
+    acc = acceptance_at(params, np.int64(5))
+    search = search_at(params, np.int64(10))
+    chars = Strings(char_sector, char_level, char_start)
     n = x_px.shape[0]
     rows, unit, usable, order = begin_identify(x_px, y_px, sensor, search.double_px, trace)
     m = search.n_sectors
@@ -376,6 +417,9 @@ def identify_kernel(x_px, y_px, sensor, chars, guides_unit, search, acc, trace):
     n_best = search.n_candidates
     best_item = np.empty(n_best, dtype=np.int64)   # guide row * m + shift
     best_sc = np.empty(n_best, dtype=np.int64)
+    count_start = np.zeros(m + 2, dtype=np.int64)
+    by_count = np.empty(n_guide, dtype=np.int64)
+    ordered = False
     for t in range(min(search.max_refs, order.shape[0])):
         s = order[t]
         k = reference_pattern(unit, usable, x_px, y_px, s, search.cos_radius, sensor.f_px, nbrs, r_px, phi)
@@ -394,19 +438,44 @@ def identify_kernel(x_px, y_px, sensor, chars, guides_unit, search, acc, trace):
                 q += 1
         index_image(img_sector, img_level, nz, search, level_start, by_level, mask)
         image = ImageString(img_sector, img_level, nz, level_start, by_level, mask)
+        if not ordered:
+            order_by_count(chars, count_start, by_count)
+            ordered = True
+        # Strings by length (character count), lengths from nz up, then from nz - 1 down: the image's own
+        # pattern is most likely among strings of about its length, and finding it first raises the
+        # bar for the rest. A database character matches at most 2 sector_tol + 1 image characters
+        # (one per sector), so a string of length c scores at most cap(c) = min(nz, (2 sector_tol + 1) c),
+        # and a whole length whose cap cannot reach the list is skipped. The order changes no result:
+        # equal ranks come only from strings of one length, which are scanned in guide order, so the
+        # list is the full scan's, ties included.
+        spread = 2 * search.sector_tol + 1
+        first = min(nz, m)
         found = np.int64(0)   # not a literal: one signature of keep_best
-        need = search.min_score
-        for g in range(n_guide):
-            n_chars = chars.start[g + 1] - chars.start[g]
+        for step in range(m):
+            length = first + step if first + step <= m else m - step
+            lo = count_start[length]
+            hi = count_start[length + 1]
+            if lo == hi:
+                continue
+            cap = min(nz, spread * length)
+            need = search.min_score
             if found == n_best:
-                need = least_needed(best_sc[n_best - 1], n_chars, search.min_score)
-            if need > nz or match_bound(chars, g, image) < need:
+                need = least_needed(best_sc[n_best - 1], length, search.min_score)
+            if need > cap:
                 continue
-            matched, sh = shift_scores(chars, g, image, search, sets, planes)
-            count_work(trace, 1, 1)
-            if matched < need:
-                continue
-            found = keep_best(best_sc, best_item, found, n_best, rank_key(matched, n_chars), g * m + sh)
+            for i in range(lo, hi):
+                g = by_count[i]
+                if found == n_best:
+                    need = least_needed(best_sc[n_best - 1], length, search.min_score)
+                    if need > cap:
+                        break
+                if match_bound(chars, g, image) < need:
+                    continue
+                matched, sh = shift_scores(chars, g, image, search, sets, planes)
+                count_work(trace, 1, 1)
+                if matched < need:
+                    continue
+                found = keep_best(best_sc, best_item, found, n_best, rank_key(matched, length), g * m + sh)
         for c in range(found):
             g = best_item[c] // m
             dense_string(chars, g, row)

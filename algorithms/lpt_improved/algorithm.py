@@ -24,6 +24,7 @@ from .planar import (
     image_neighbours,
     neighbour_lists,
     new_trace,
+    pack_params,
     plane_polar,
     prepare_image,
     select_guides,
@@ -193,13 +194,15 @@ class ImprovedLPT(PlanarAlgorithm):
                       self.max_refs, self.image_alignments, self.n_candidates, float(db.double_px),
                       bool(self.pair_filter))
 
-    def _run(self, db: ImprovedLPTDatabase, observation: Observation):
-        cam = observation.camera
+    def _make_kernel_args(self, db: ImprovedLPTDatabase, cam: Camera) -> tuple:
         sensor = camera_frame(cam)._replace(f_px=float(cam.f_px))
         acc = acceptance(cam, self.sigma_px, self.beta, self.min_matches, self.confirm_fraction)
+        return (pack_params(sensor, acc, self._search(db)), *db.table, db.guide_unit)
+
+    def _run(self, db: ImprovedLPTDatabase, observation: Observation):
         trace = new_trace()
-        rows, attitude, ok = identify_kernel(observation.x_px, observation.y_px, sensor, db.table, db.guide_unit,
-                                             self._search(db), acc, trace)
+        rows, attitude, ok = identify_kernel(observation.x_px, observation.y_px,
+                                             *self._kernel_args(db, observation.camera), trace)
         return rows, attitude, ok, trace
 
     def explain(self, database: ImprovedLPTDatabase, observation: Observation) -> Explanation:

@@ -16,9 +16,11 @@ from starid.kernels import chord_rows
 
 from .planar import (
     SEPARATION_TOL,
+    acceptance_at,
     begin_identify,
     confirm_pair,
     count_work,
+    frame_at,
     guide_pattern,
     keep_best,
     no_match,
@@ -162,8 +164,19 @@ def sad_search(table, vec, nz_idx, nz, count_tol, n_best, best_row, best_sad, co
 
 
 @njit(cache=True)
-def identify_kernel(x_px, y_px, sensor, table, guides_unit, search, acc, trace):
+def search_at(p, i):
+    """The :class:`Search` packed at ``p[i:i+10]`` by ``planar.pack_params``."""
+    return Search(int(p[i]), p[i + 1], p[i + 2], int(p[i + 3]), int(p[i + 4]), int(p[i + 5]), int(p[i + 6]),
+                  int(p[i + 7]), p[i + 8], p[i + 9] != 0.0)
+
+
+@njit(cache=True)
+def identify_kernel(x_px, y_px, params, columns, total, count_start, guide, align, align_chord, guides_unit, trace):
     """Improved-LPT identification of one image; returns ``(rows, attitude, accepted)``.
+
+    ``params``: the sensor :class:`Frame`, the :class:`Acceptance` and the :class:`Search`, packed
+    by ``planar.pack_params``; the next six arrays are the :class:`FeatureTable`'s fields (separate
+    arguments: numba types arrays at a call in C, NamedTuples field by field in Python).
 
     For reference stars taken from the image centre outwards (at most ``search.max_refs``):
     the neighbours within R, nearest first; for each of the ``search.image_alignments`` nearest
@@ -174,6 +187,10 @@ def identify_kernel(x_px, y_px, sensor, table, guides_unit, search, acc, trace):
     ``trace`` (int64, 4) receives the reference star, its alignment star, the feature row and the
     difference of the accepted match (-1 when none), for ``explain``.
     """
+    sensor = frame_at(params, np.int64(0))
+    acc = acceptance_at(params, np.int64(5))
+    search = search_at(params, np.int64(10))
+    table = FeatureTable(columns, total, count_start, guide, align, align_chord)
     n = x_px.shape[0]
     rows, unit, usable, order = begin_identify(x_px, y_px, sensor, search.double_px, trace)
     m = search.n_sectors

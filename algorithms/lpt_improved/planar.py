@@ -37,6 +37,7 @@ from starid.camera import Camera
 from starid.catalog import Catalog
 from starid.errors import ConfigError
 from starid.kernels import (
+    Frame,
     backproject_px,
     camera_frame,
     chord_rows,
@@ -154,6 +155,28 @@ def neighbour_lists(unit: np.ndarray, radius_rad: float) -> tuple[np.ndarray, np
         offsets.append(offsets[-1] + js.size)
     flat = np.concatenate(rows) if rows else np.zeros(0, dtype=np.int64)
     return flat.astype(np.int32), np.asarray(offsets, dtype=np.int64)
+
+
+def pack_params(*bundles) -> np.ndarray:
+    """The scalar bundles of a kernel call (:class:`Frame`, :class:`Acceptance`, search parameters) as one
+    float64 array, fields in order (ints and bools exactly: all are far below 2**53).
+
+    numba types a NamedTuple argument field by field in Python at every call (2-4 us each); a
+    float64 array is typed in C. The kernel rebuilds the bundles (:func:`frame_at`, :func:`acceptance_at`).
+    """
+    return np.array([v for b in bundles for v in b], dtype=np.float64)
+
+
+@njit(cache=True)
+def frame_at(p, i):
+    """The :class:`starid.kernels.Frame` packed at ``p[i:i+5]`` by :func:`pack_params`."""
+    return Frame(p[i], p[i + 1], p[i + 2], p[i + 3], p[i + 4])
+
+
+@njit(cache=True)
+def acceptance_at(p, i):
+    """The :class:`Acceptance` packed at ``p[i:i+5]`` by :func:`pack_params`."""
+    return Acceptance(p[i], p[i + 1], p[i + 2], int(p[i + 3]), p[i + 4])
 
 
 @njit(cache=True)
@@ -458,11 +481,12 @@ def count_work(trace, k, n):
         trace[TRACE_WORK + k] += n
 
 
+_TRACE = np.array([-1] * TRACE_WORK + [0] * len(WORK_COUNTERS), dtype=np.int64)
+
+
 def new_trace() -> np.ndarray:
     """The ``trace`` of a kernel call: 4 explain slots (-1) and the :data:`WORK_COUNTERS` (0)."""
-    trace = np.full(TRACE_WORK + len(WORK_COUNTERS), -1, dtype=np.int64)
-    trace[TRACE_WORK:] = 0
-    return trace
+    return _TRACE.copy()
 
 
 def trace_counters(trace: np.ndarray, skip=()) -> dict | None:
@@ -470,7 +494,10 @@ def trace_counters(trace: np.ndarray, skip=()) -> dict | None:
     left out: a kernel that does not count them)."""
     if not isinstance(trace, np.ndarray) or trace.shape[0] < TRACE_WORK + len(WORK_COUNTERS):
         return None
-    return {k: int(v) for k, v in zip(WORK_COUNTERS, trace[TRACE_WORK:], strict=False) if k not in skip}
+    values = trace[TRACE_WORK:].tolist()
+    if not skip:
+        return dict(zip(WORK_COUNTERS, values, strict=False))
+    return {k: v for k, v in zip(WORK_COUNTERS, values, strict=False) if k not in skip}
 
 
 @njit(cache=True)
@@ -543,10 +570,31 @@ class PlanarAlgorithm(Algorithm):
             return self
         return dataclasses.replace(self, mag_limit=mag_limit, radius_deg=radius_deg)
 
+    _uncounted: ClassVar[tuple] = ()
+
+    def _kernel_args(self, database, camera: Camera) -> tuple:
+        """The subclass's :meth:`_make_kernel_args` for this database and camera, kept from the last call.
+
+        The bundles (tolerances, search parameters, database tables) depend only on the parameters,
+        the database and the camera, all frozen, so the last ones are reused while both are the same
+        objects (every image of a run): building them in Python cost a few microseconds per image.
+        """
+        kept = self.__dict__.get("_kept_args")
+        if kept is not None and kept[0] is database and kept[1] is camera:
+            return kept[2]
+        args = self._make_kernel_args(database, camera)
+        object.__setattr__(self, "_kept_args", (database, camera, args))
+        return args
+
+    def __getstate__(self):
+        state = self.__dict__.copy()
+        state.pop("_kept_args", None)   # a database and camera: not part of the algorithm
+        return state
+
     def identify(self, database, observation: Observation) -> Identification:
         rows, attitude, ok, trace = self._run(database, observation)
         return Identification(rows_to_hip(rows, database.guide_hip), attitude if ok else None,
-                              counters=trace_counters(trace, getattr(self, "_uncounted", ())))
+                              counters=trace_counters(trace, self._uncounted))
 
 
 def explain_pattern(observation: Observation, rows: np.ndarray, guide_hip: np.ndarray, ref: int, align: int,

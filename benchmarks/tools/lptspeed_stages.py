@@ -1,0 +1,368 @@
+"""Stage times inside the kernels of lpt_improved, grid and lpt (issue #25 profile tables).
+
+    python benchmarks/tools/lptspeed_stages.py 40 5
+
+Copies of the three ``identify_kernel`` bodies (same callees, same arguments) with the CPU cycle
+counter read between stages (``llvm.readcyclecounter``, converted to us against ``perf_counter``);
+Table 6's skies at 1 px / 0.5 Mv, seed 0, N images, the run of R with the smallest total kept per
+image; prints per sky and plugin the median (and mean) over images of: the kernel call from Python
+(perf_counter, dispatch included), then begin (back-projection, double mask, reference order),
+patterns (neighbours and image pattern), search (database comparison), verify (confirm of every
+candidate), select (grid: ranking the patterns whose credit reached min_score, and the reset;
+the copy assumes min_score > 0). Call minus the stages is numba's argument handling and the
+kernel's allocations. The copies must follow the kernels when those change.
+"""
+
+import math
+import sys
+import time
+
+import numpy as np
+from llvmlite import ir
+from numba import njit, types
+from numba.extending import intrinsic
+from starid_algorithms.grid import kernels as GK
+from starid_algorithms.lpt import kernels as LK
+from starid_algorithms.lpt_improved import kernels as LI
+from starid_algorithms.lpt_improved.planar import (
+    acceptance_at,
+    begin_identify,
+    confirm_pair,
+    frame_at,
+    keep_best,
+    no_match,
+    reference_pattern,
+)
+
+from starid import SKIES, Camera, SimConfig, Simulator, load_hipparcos
+from starid.registry import get_algorithm
+
+
+@intrinsic
+def cycles(typingctx):
+    def codegen(context, builder, sig, args):
+        fnty = ir.FunctionType(ir.IntType(64), [])
+        fn = builder.module.declare_intrinsic("llvm.readcyclecounter", fnty=fnty)
+        return builder.call(fn, [])
+
+    return types.int64(), codegen
+
+
+@njit
+def li_kernel(x_px, y_px, params, columns, total, count_start, guide, align, align_chord, guides_unit, trace, st):
+    t0 = cycles()
+    sensor = frame_at(params, np.int64(0))
+    acc = acceptance_at(params, np.int64(5))
+    search = LI.search_at(params, np.int64(10))
+    table = LI.FeatureTable(columns, total, count_start, guide, align, align_chord)
+    n = x_px.shape[0]
+    rows, unit, usable, order = begin_identify(x_px, y_px, sensor, search.double_px, trace)
+    m = search.n_sectors
+    nbrs = np.empty(n, dtype=np.int64)
+    r_px = np.empty(n)
+    phi = np.empty(n)
+    vec = np.zeros(m, dtype=np.int64)
+    nz_idx = np.empty(m, dtype=np.int64)
+    best_row = np.empty(search.n_candidates, dtype=np.int64)
+    best_sad = np.empty(search.n_candidates, dtype=np.int64)
+    seed = np.full(n, -1, dtype=np.int64)
+    sums = np.empty(table.total.shape[0], dtype=np.int32)
+    chord_tol = 2.0 * acc.eps0 if search.pair_filter else -1.0
+    t1 = cycles()
+    st[0] += t1 - t0
+    for t in range(min(search.max_refs, order.shape[0])):
+        t1 = cycles()
+        s = order[t]
+        k = reference_pattern(unit, usable, x_px, y_px, s, search.cos_radius, sensor.f_px, nbrs, r_px, phi)
+        t2 = cycles()
+        st[1] += t2 - t1
+        for a in range(min(search.image_alignments, k)):
+            t1 = cycles()
+            nz = LI.feature_vector(r_px, phi, k, a, m, search.log_scale, vec)
+            q = 0
+            for i in range(m):
+                if vec[i] != 0:
+                    nz_idx[q] = i
+                    q += 1
+            t2 = cycles()
+            st[1] += t2 - t1
+            found = LI.sad_search(
+                table,
+                vec,
+                nz_idx,
+                nz,
+                search.count_tol,
+                search.n_candidates,
+                best_row,
+                best_sad,
+                search.count_tol_above,
+                sums,
+                LI.chord_rows(unit, s, unit, nbrs[a]),
+                chord_tol,
+            )
+            t3 = cycles()
+            st[2] += t3 - t2
+            for c in range(found):
+                r = best_row[c]
+                t3 = cycles()
+                ok, A = confirm_pair(
+                    unit, rows, seed, s, nbrs[a], table.guide[r], table.align[r], guides_unit, sensor, acc
+                )
+                t4 = cycles()
+                st[3] += t4 - t3
+                if ok:
+                    return rows, A, True
+    return no_match(rows)
+
+
+@njit
+def grid_kernel(x_px, y_px, params, patterns, cell_start, start, guide, orient, guides_unit, trace, st):
+    t0 = cycles()
+    sensor = frame_at(params, np.int64(0))
+    acc = acceptance_at(params, np.int64(5))
+    spec = GK.spec_at(params, np.int64(10))
+    table = GK.GridTable(patterns, cell_start, start, guide, orient)
+    n = x_px.shape[0]
+    rows, unit, usable, order = begin_identify(x_px, y_px, sensor, spec.double_px, trace)
+    nbrs = np.empty(n, dtype=np.int64)
+    r_px = np.empty(n)
+    phi = np.empty(n)
+    cand = np.empty(n, dtype=np.int64)
+    cells = np.empty(n, dtype=np.int64)
+    weight = np.zeros(spec.g * spec.g)
+    touched = np.empty(spec.g * spec.g, dtype=np.int64)
+    n_pat = table.guide.shape[0]
+    raw = np.zeros(n_pat)
+    hot = np.empty(n_pat, dtype=np.int64)
+    n_best = spec.n_candidates
+    best_p = np.empty(n_best, dtype=np.int64)
+    best_sc = np.empty(n_best)
+    seed = np.full(n, -1, dtype=np.int64)
+    t1 = cycles()
+    st[0] += t1 - t0
+    for t in range(min(spec.max_refs, order.shape[0])):
+        t1 = cycles()
+        s = order[t]
+        k = reference_pattern(unit, usable, x_px, y_px, s, spec.cos_radius, sensor.f_px, nbrs, r_px, phi)
+        if k < 1:
+            continue
+        n_or = GK.orientation_candidates(r_px, k, spec.buffer_px, spec.half_px, cand)
+        t2 = cycles()
+        st[1] += t2 - t1
+        for a in range(min(spec.image_orientations, n_or)):
+            t1 = cycles()
+            o = cand[a]
+            nc = GK.grid_cells(r_px, phi, k, o, spec, cells)
+            nt = GK.image_weights(cells, nc, spec, weight, touched)
+            touched[:nt] = np.sort(touched[:nt])
+            t2 = cycles()
+            st[1] += t2 - t1
+            nh = 0
+            for i in range(nt):
+                c = touched[i]
+                w = weight[c]
+                for q in range(np.uint64(table.cell_start[c]), np.uint64(table.cell_start[c + 1])):
+                    p = table.patterns[q]
+                    before = raw[p]
+                    raw[p] = before + w
+                    if before < spec.min_score <= raw[p]:
+                        hot[nh] = p
+                        nh += 1
+            t3 = cycles()
+            st[2] += t3 - t2
+            found = np.int64(0)
+            if nh > 1:
+                hot[:nh] = np.sort(hot[:nh])
+            for i in range(nh):
+                p = hot[i]
+                score = raw[p]
+                sc = score / math.sqrt(nc * (table.start[p + 1] - table.start[p])) if spec.normalise else score
+                if found == n_best and sc <= best_sc[n_best - 1]:
+                    continue
+                found = keep_best(best_sc, best_p, found, n_best, sc, p)
+            raw[:] = 0.0
+            for i in range(nt):
+                weight[touched[i]] = 0.0
+            t4 = cycles()
+            st[4] += t4 - t3
+            for c in range(found):
+                p = best_p[c]
+                t4 = cycles()
+                ok, A = confirm_pair(
+                    unit, rows, seed, s, nbrs[o], table.guide[p], table.orient[p], guides_unit, sensor, acc
+                )
+                t5 = cycles()
+                st[3] += t5 - t4
+                if ok:
+                    return rows, A, True
+    return no_match(rows)
+
+
+@njit
+def lpt_kernel(x_px, y_px, params, char_sector, char_level, char_start, guides_unit, trace, st):
+    t0 = cycles()
+    sensor = LK.frame_at(params, np.int64(0))
+    acc = LK.acceptance_at(params, np.int64(5))
+    search = LK.search_at(params, np.int64(10))
+    chars = LK.Strings(char_sector, char_level, char_start)
+    n = x_px.shape[0]
+    rows, unit, usable, order = LK.begin_identify(x_px, y_px, sensor, search.double_px, trace)
+    m = search.n_sectors
+    n_guide = chars.start.shape[0] - 1
+    nbrs = np.empty(n, dtype=np.int64)
+    r_px = np.empty(n)
+    phi = np.empty(n)
+    unsolved = np.full(n, -2, dtype=np.int64)  # the roll-seeded attitudes come from no assignment
+    img = np.zeros(m, dtype=np.int64)
+    img_sector = np.empty(m, dtype=np.int64)
+    img_level = np.empty(m, dtype=np.int64)
+    img_phi = np.empty(m)
+    owner = np.empty(m, dtype=np.int64)
+    level_start = np.zeros(search.n_levels + 2, dtype=np.int64)
+    by_level = np.empty(m * (2 * search.level_tol + 1), dtype=np.int64)
+    mask = np.zeros(search.n_levels + 1, dtype=np.int64)
+    n_words = (m + 63) // 64
+    n_bits = 1
+    while (1 << n_bits) <= m:
+        n_bits += 1
+    sets = np.zeros((m + 1, n_words), dtype=np.int64)
+    planes = np.zeros((n_bits + 1, n_words), dtype=np.int64)
+    row = np.zeros(m, dtype=np.uint8)
+    n_best = search.n_candidates
+    best_item = np.empty(n_best, dtype=np.int64)  # guide row * m + shift
+    best_sc = np.empty(n_best, dtype=np.int64)
+    count_start = np.zeros(m + 2, dtype=np.int64)
+    by_count = np.empty(n_guide, dtype=np.int64)
+    ordered = False
+    t1 = cycles()
+    st[0] += t1 - t0
+    for t in range(min(search.max_refs, order.shape[0])):
+        t1 = cycles()
+        s = order[t]
+        k = LK.reference_pattern(unit, usable, x_px, y_px, s, search.cos_radius, sensor.f_px, nbrs, r_px, phi)
+        if k < 1:
+            continue
+        nz = LK.lpt_string(r_px, phi, k, search, img, owner)
+        if nz < 1:
+            continue
+        LK.count_work(trace, 0, 1)
+        q = 0
+        for j in range(m):
+            if img[j] != 0:
+                img_sector[q] = j
+                img_level[q] = img[j]
+                img_phi[q] = phi[owner[j]]
+                q += 1
+        LK.index_image(img_sector, img_level, nz, search, level_start, by_level, mask)
+        image = LK.ImageString(img_sector, img_level, nz, level_start, by_level, mask)
+        if not ordered:
+            LK.order_by_count(chars, count_start, by_count)
+            ordered = True
+        # Strings by length (character count), lengths from nz up, then from nz - 1 down: the image's own
+        # pattern is most likely among strings of about its length, and finding it first raises the
+        # bar for the rest. A database character matches at most 2 sector_tol + 1 image characters
+        # (one per sector), so a string of length c scores at most cap(c) = min(nz, (2 sector_tol + 1) c),
+        # and a whole length whose cap cannot reach the list is skipped. The order changes no result:
+        # equal ranks come only from strings of one length, which are scanned in guide order, so the
+        # list is the full scan's, ties included.
+        t2 = cycles()
+        st[1] += t2 - t1
+        spread = 2 * search.sector_tol + 1
+        first = min(nz, m)
+        found = np.int64(0)  # not a literal: one signature of keep_best
+        for step in range(m):
+            length = first + step if first + step <= m else m - step
+            lo = count_start[length]
+            hi = count_start[length + 1]
+            if lo == hi:
+                continue
+            cap = min(nz, spread * length)
+            need = search.min_score
+            if found == n_best:
+                need = LK.least_needed(best_sc[n_best - 1], length, search.min_score)
+            if need > cap:
+                continue
+            for i in range(lo, hi):
+                g = by_count[i]
+                if found == n_best:
+                    need = LK.least_needed(best_sc[n_best - 1], length, search.min_score)
+                    if need > cap:
+                        break
+                if LK.match_bound(chars, g, image) < need:
+                    continue
+                matched, sh = LK.shift_scores(chars, g, image, search, sets, planes)
+                LK.count_work(trace, 1, 1)
+                if matched < need:
+                    continue
+                found = LK.keep_best(best_sc, best_item, found, n_best, LK.rank_key(matched, length), g * m + sh)
+        t3 = cycles()
+        st[2] += t3 - t2
+        for c in range(found):
+            t3 = cycles()
+            g = best_item[c] // m
+            LK.dense_string(chars, g, row)
+            roll = LK.refined_roll(row, img_sector, img_level, img_phi, nz, best_item[c] % m, search)
+            A = LK.seed_attitude_roll(unit, s, guides_unit, g, roll)
+            ok, A = LK.confirm(unit, rows, A, guides_unit, sensor, acc, unsolved)
+            LK.count_work(trace, 2, 1)
+            st[3] += cycles() - t3
+            if ok:
+                trace[0] = s
+                trace[2] = g
+                trace[3] = (best_sc[c] + 1023) // 1024
+                return rows, A, True
+    return LK.no_match(rows)
+
+
+def calib():
+    cyc()
+    t0 = time.perf_counter()
+    c0 = cyc()
+    time.sleep(0.2)
+    c1 = cyc()
+    t1 = time.perf_counter()
+    return (c1 - c0) / (t1 - t0) / 1e6  # cycles per us
+
+
+@njit
+def cyc():
+    return cycles()
+
+
+def main(n, R):
+    cat, cam = load_hipparcos(), Camera()
+    mhz = calib()
+    for sky in ("paper", "real"):
+        sim = Simulator(
+            cat, cam, SimConfig(sigma_px=1.0, sigma_mag=0.5, mag_limit=6.0, min_stars=6, **SKIES[sky]), seed=0
+        )
+        tr = sim.generate(n)
+        obs = [tr.observation(i, truth=False) for i in range(n)]
+        for name, kern in (("lpt_improved", li_kernel), ("grid", grid_kernel), ("lpt", lpt_kernel)):
+            alg = get_algorithm(name)()
+            db = alg.build(cat, cam)
+            per = []
+            for o in obs:
+                args = alg._kernel_args(db, o.camera)
+                best = None
+                for _ in range(R):
+                    st = np.zeros(5, dtype=np.int64)
+                    tr_ = alg._run(db, o)[3]
+                    t0 = time.perf_counter_ns()
+                    kern(o.x_px, o.y_px, *args, tr_, st)
+                    tot = (time.perf_counter_ns() - t0) / 1e3 * mhz
+                    if best is None or tot < best[0]:
+                        best = (tot, st.copy())
+                per.append(np.concatenate([[best[0]], best[1]]) / mhz)
+            per = np.array(per)
+            print(
+                sky,
+                name,
+                "median us: call (perf_counter), begin, patterns, search, verify, select",
+                *(f"{v:.1f}" for v in np.median(per, axis=0)),
+                "| mean",
+                *(f"{v:.1f}" for v in per.mean(axis=0)),
+            )
+
+
+main(int(sys.argv[1]), int(sys.argv[2]))
