@@ -17,6 +17,7 @@ from numba import njit
 
 from starid.kernels import (
     DeepSky,
+    Frame,
     KVector,
     backproject_px,
     chord_rows,
@@ -94,6 +95,11 @@ class Tolerances(NamedTuple):
     chance_tail: float
     eps_ref: float
     max_candidates_wide: int
+
+
+def plain(t):
+    """A named tuple as a plain tuple, its named-tuple fields likewise (for :func:`identify_rows`)."""
+    return tuple(plain(v) if hasattr(v, "_fields") else v for v in t)
 
 
 @njit(cache=True)
@@ -341,13 +347,15 @@ WORK_NAMES = ("searches", "window_triangles", "candidates", "correspondences", "
 
 
 @njit(cache=True)
-def identify_rows(x_in, y_in, mag_in, frame, db, tol):
+def identify_rows(x_in, y_in, mag_in, frame_t, db_t, tol_t):
     """``(hip, attitude, ok, triangle, work)``: catalog id per observed star (-1 = unidentified, input
     order), the ICRS -> camera attitude, whether the image was identified, the input indices of
     the accepted triangle (main star, N1, N2; -1 when none) and the work counters (:data:`WORK_NAMES`:
     k-vector searches, database triangles in their windows, those passing the three-side check, vertex
     correspondences confirmed against the other stars, whole-image hypotheses tried).
     ``tol.assign_all`` is left to the caller (``PVector._run``), so the default never compiles it.
+    ``frame_t``, ``db_t``, ``tol_t``: a :class:`starid.kernels.Frame`, :class:`Tables` and :class:`Tolerances`
+    as plain tuples, nested the same way (:func:`plain`).
 
     Steps (the docstring of :class:`starid_algorithms.pvector.PVector` maps them to the paper):
     canonical star order; main stars in preference order; per main star its triangle, the
@@ -356,6 +364,12 @@ def identify_rows(x_in, y_in, mag_in, frame, db, tol):
     correspondence is verified (mutual consistency, attitude, re-identification from the
     attitude) and reported.
     """
+    # plain tuples in, named tuples here: numba's dispatch types a plain tuple in C, a named one in Python
+    # (about 4 us of every image for these three arguments)
+    frame = Frame(*frame_t)
+    db = Tables(db_t[0], KVector(*db_t[1]), db_t[2], db_t[3], db_t[4], db_t[5], db_t[6], DeepSky(*db_t[7]),
+                db_t[8])
+    tol = Tolerances(*tol_t)
     # writable copies: the harness's arrays are read-only, a different numba type, and _sort_by would be
     # compiled for both (0.3 s of a cold compile)
     x_px = np.empty(x_in.shape[0])
