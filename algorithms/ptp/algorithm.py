@@ -37,6 +37,7 @@ from .kernels import (
     build_triangles,
     identify_kernel,
     nearest_slaves,
+    plain,
     select_stars,
 )
 
@@ -109,16 +110,37 @@ class PTPDatabase(Database):
         return self._tables
 
     @cached_property
+    def plain_tables(self) -> tuple:
+        """:meth:`tables` as plain tuples (:func:`~starid_algorithms.ptp.kernels.plain`), as
+        :func:`~starid_algorithms.ptp.kernels.identify_kernel` takes it."""
+        return plain(self._tables)
+
+    @cached_property
     def _tables(self) -> Tables:     # built once: saves about 1 us per image
         return Tables(self.kv, self.ids, self.sides, self.mean, self.axis, self.guide_unit, self.guide_hip,
-                      self.deep, self.extra_unit)
+                      self.extra_unit)
 
 
 @lru_cache(maxsize=16)
-def _view(camera: Camera) -> View:
-    """The camera as the kernel needs it: the core frame and ``c_fov``, the chord from the boresight to
-    the farthest corner."""
+def _view_of(camera: Camera) -> View:
     return View(camera_frame(camera), rad_to_chord(camera.half_diagonal_rad))
+
+
+_last_view: tuple = (None, None, None)
+
+
+def _view(camera: Camera) -> tuple[View, tuple]:
+    """The camera as the kernel needs it: the core frame and ``c_fov``, the chord from the boresight to
+    the farthest corner, as a :class:`View` and as plain tuples (the kernel's argument). The last camera's
+    is kept by identity: hashing a ``Camera`` for the lru_cache costs about a microsecond per image, and a
+    run identifies every image with one camera object."""
+    global _last_view
+    cam, view, view_t = _last_view
+    if cam is not camera:
+        view = _view_of(camera)
+        view_t = plain(view)
+        _last_view = (camera, view, view_t)    # one assignment: threads see a consistent triple
+    return view, view_t
 
 
 def _chord(deg: float) -> float:
@@ -374,6 +396,10 @@ class PTP(Algorithm):
         return self._tol(self.d_min_deg, self.sigma_floor_px)
 
     @cached_property
+    def _derived_tol_t(self) -> tuple:
+        return plain(self._derived_tol)
+
+    @cached_property
     def _d_max(self) -> float:
         """d_max as a scaled chord (872.8 for 5 deg)."""
         return CHORD_SCALE * rad_to_chord(math.radians(self.d_max_deg))
@@ -441,9 +467,10 @@ class PTP(Algorithm):
         """:func:`~starid_algorithms.ptp.kernels.identify_kernel`, then (``assign_all``) the attitude of the
         identified stars (Wahba) assigns every detection to the deep catalog star predicted within the
         tolerance (``starid.kernels.assign_all``, one-to-one only). Counters: :data:`WORK_NAMES`."""
-        view, tol = _view(observation.camera), self.tolerances(database)
-        hip, unit, rows, work = identify_kernel(observation.x_px, observation.y_px, observation.mag, view,
-                                                database.tables(), tol)
+        (view, view_t), tol = _view(observation.camera), self.tolerances(database)
+        tol_t = plain(tol) if self.d_min_deg is None or self.sigma_floor_px is None else self._derived_tol_t
+        hip, unit, rows, work = identify_kernel(observation.x_px, observation.y_px, observation.mag, view_t,
+                                                database.plain_tables, tol_t)
         if tol.assign_all and database.deep.unit.shape[0] > 0 and np.count_nonzero(rows >= 0) >= 3:
             attitude = wahba_rows(unit, rows, database.guide_unit)
             assign_all(attitude, observation.x_px, observation.y_px, view.frame, database.deep,

@@ -9,7 +9,6 @@ import numpy as np
 from numba import njit
 
 from starid.kernels import (
-    DeepSky,
     Frame,
     KVector,
     backproject_px,
@@ -39,7 +38,8 @@ class Tables(NamedTuple):
     ids : (t, 3) guide rows of (r1, r2, r3); sides : float32 (3, t) scaled sides a, b, c (eq. 1).
     mean : (3,) mean side vector; axis : (3,) projection axis u_max.
     guide_unit : float32 (g, 3) guide unit vectors (ICRS, z-sorted); guide_hip : int64 (g,) their ids.
-    deep : :class:`starid.kernels.DeepSky`, the deeper catalog stars for ``assign_all`` (may be empty).
+    (Not the database's ``deep`` stars: ``assign_all`` runs in ``PTP.identify``, and every array passed
+    costs numba's dispatch time on every image.)
     extra_unit : float32 (e, 3) ICRS unit vectors, z-sorted, of the catalog stars that are not guide
         stars, to V <= ``check_mag_limit`` (the whole-image check; may be empty).
     """
@@ -51,7 +51,6 @@ class Tables(NamedTuple):
     axis: np.ndarray
     guide_unit: np.ndarray
     guide_hip: np.ndarray
-    deep: DeepSky
     extra_unit: np.ndarray
 
 
@@ -90,6 +89,11 @@ class Tolerances(NamedTuple):
     lone_triangles: bool
 
 
+def plain(t):
+    """A named tuple as a plain tuple, its named-tuple fields likewise (for :func:`identify_kernel`)."""
+    return tuple(plain(v) if hasattr(v, "_fields") else v for v in t)
+
+
 @njit(cache=True)
 def _before(dist, unit, i, j):
     """Strict order of candidate slaves: by distance, exact ties by the unit vector (input-order free)."""
@@ -107,27 +111,23 @@ def nearest_slaves(dist_row, unit, usable, master, d_min, d_max, n_slaves, out):
     A star at distance 0 (a coincident detection) is never a slave, whatever ``d_min``.
 
     ``dist_row[j]`` is the scaled chord ``D_ms`` from the master to star ``j``. Writes them to
-    ``out`` and returns how many there are.
+    ``out`` and returns how many there are. One pass with a stable insertion (equal stars keep index
+    order): the same list as selecting the nearest ``n_slaves`` times over, in O(n) instead of O(n k^2).
     """
     n = dist_row.shape[0]
     m = 0
-    while m < n_slaves:
-        pick = np.int64(-1)   # not a literal: one signature of _before
-        for j in range(n):
-            if j == master or not usable[j] or not (d_min <= dist_row[j] <= d_max) or dist_row[j] <= 0.0:
-                continue
-            taken = False
-            for t in range(m):
-                if out[t] == j:
-                    taken = True
-            if taken:
-                continue
-            if pick < 0 or _before(dist_row, unit, j, pick):
-                pick = j
-        if pick < 0:
-            break
-        out[m] = pick
-        m += 1
+    for j in range(n):      # one pass, an insertion into the sorted list of the best so far
+        if j == master or not usable[j] or not (d_min <= dist_row[j] <= d_max) or dist_row[j] <= 0.0:
+            continue
+        pos = m
+        while pos > 0 and _before(dist_row, unit, j, out[pos - 1]):
+            pos -= 1
+        if pos >= n_slaves:
+            continue
+        for t in range(min(m, n_slaves - 1), pos, -1):
+            out[t] = out[t - 1]
+        out[pos] = j
+        m = min(m + 1, n_slaves)
     return m
 
 
@@ -324,47 +324,42 @@ def select_stars(x_px, y_px, mag, max_stars):
     return order[:min(n, max_stars)].copy()
 
 
+@njit(cache=True)
+def guide_rows_f64(rows, guide_unit, idx, cat):
+    """Fill ``idx`` (row i or -1) and ``cat`` (float64 guide vectors) so that ``wahba_rows(unit, idx, cat)``
+    is ``wahba_rows(unit, rows, guide_unit)``: the signature ``starid.kernels.refine_explained`` compiles,
+    so numba compiles ``wahba_rows`` (and its SVD) once, not also for float32 ``guide_unit``. The same sums
+    in the same order (float32 -> float64 is exact): the same attitude to the last bit. Callers call
+    ``wahba_rows`` themselves (a helper that called it would be one more level to re-optimise it in)."""
+    for i in range(rows.shape[0]):
+        idx[i] = -1
+        if rows[i] >= 0:
+            idx[i] = i
+            for a in range(3):
+                cat[i, a] = guide_unit[rows[i], a]
+
+
 #: Slots of the work counters :func:`identify_kernel` returns (``Identification.counters``).
 WORK_NAMES = ("searches", "window_triangles", "candidates", "hypotheses")
 
 
 @njit(cache=True)
-def identify_kernel(x_px, y_px, mag, view, db, tol):
+def identify_kernel(x_px, y_px, mag, view_t, db_t, tol_t):
     """``(hip, unit, rows, work)``: the catalog id of each detection (-1 = none), the camera-frame unit
     vectors of the detections that took part, their guide rows (-1 = none) and the work counters
     (:data:`WORK_NAMES`: k-vector searches, database triangles in their windows, candidates that passed
     the three-side check, single-triangle hypotheses tried).
 
-    :func:`match_rows` runs on the ``tol.max_stars`` brightest detections whose measured magnitude
+    ``view_t``, ``db_t`` and ``tol_t`` are a :class:`View`, :class:`Tables` and :class:`Tolerances` as plain
+    tuples (nested the same way: :func:`plain`), rebuilt into the named tuples here: numba's dispatch types
+    a plain tuple in C but a named tuple in Python, about 4 us of every image for these three.
+
+    The identification runs on the ``tol.max_stars`` brightest detections whose measured magnitude
     is at most ``tol.star_mag_max`` (the flight precaution: a star that cannot be in the database
     makes no pattern). ``tol.assign_all`` (the attitude of ``rows`` assigning every detection to the
     deep catalog) is left to the caller (``PTP.identify``), so the default command never compiles it.
-    """
-    n = x_px.shape[0]
-    hip = np.full(n, -1, dtype=np.int64)
-    work = np.zeros(len(WORK_NAMES), dtype=np.int64)
-    if n < 3:
-        return hip, np.empty((0, 3)), np.empty(0, dtype=np.int64), work
-    sel = select_stars(x_px, y_px, mag, tol.max_stars)
-    k = 0
-    while k < sel.shape[0] and mag[sel[k]] <= tol.star_mag_max:
-        k += 1
-    sel = sel[:k]
-    if k < 3:
-        return hip, np.empty((0, 3)), np.empty(0, dtype=np.int64), work
-    frame = view.frame
-    unit = backproject_px(x_px[sel], y_px[sel], frame.f_px, frame.cx_px, frame.cy_px)
-    rows = match_rows(unit, view, db, tol, work)
-    for s in range(sel.shape[0]):
-        if rows[s] >= 0:
-            hip[sel[s]] = db.guide_hip[rows[s]]
-    return hip, unit, rows, work
 
-
-@njit(cache=True)
-def match_rows(unit, view, db, tol, work):
-    """PTP identification of one image (sections 2.2-2.3) from the detections' camera-frame unit
-    vectors ``unit``: the guide row of each (-1 = none).
+    PTP identification (sections 2.2-2.3), on the detections' camera-frame unit vectors ``unit``:
 
     1. Every star is a master; its slaves are the ``n_slaves`` nearest stars in
        ``[d_min, d_max]`` (same rule as the database); triangles (m, s_i, s_j), i < j. With
@@ -391,10 +386,26 @@ def match_rows(unit, view, db, tol, work):
     6. (``hypotheses``, starid's extension) if fewer than three stars remain, each matched triangle alone
        is a hypothesis checked against the whole image (:func:`try_hypotheses`).
 
-    ``work`` (int64, :data:`WORK_NAMES`) accumulates the work counters. (Not ``inline="always"`` into
-    :func:`identify_kernel`: that made every image about 15 % slower and the cold compile no shorter.)
+    One function, not a wrapper around a ``match_rows`` kernel: numba re-optimises every callee inside
+    each caller it is linked into, so a level less in the call tree is a cold compile about 2 s shorter.
     """
+    view = View(Frame(*view_t[0]), view_t[1])
+    db = Tables(KVector(*db_t[0]), db_t[1], db_t[2], db_t[3], db_t[4], db_t[5], db_t[6], db_t[7])
+    tol = Tolerances(*tol_t)
+    n = x_px.shape[0]
+    hip = np.full(n, -1, dtype=np.int64)
+    work = np.zeros(len(WORK_NAMES), dtype=np.int64)
+    if n < 3:
+        return hip, np.empty((0, 3)), np.empty(0, dtype=np.int64), work
+    sel = select_stars(x_px, y_px, mag, tol.max_stars)
+    k = 0
+    while k < sel.shape[0] and mag[sel[k]] <= tol.star_mag_max:
+        k += 1
+    sel = sel[:k]
+    if k < 3:
+        return hip, np.empty((0, 3)), np.empty(0, dtype=np.int64), work
     frame = view.frame
+    unit = backproject_px(x_px[sel], y_px[sel], frame.f_px, frame.cx_px, frame.cy_px)
     f_px, cx_px, cy_px = frame.f_px, frame.cx_px, frame.cy_px
     guide_unit = db.guide_unit
     sigma = tol.sigma_px / f_px
@@ -403,8 +414,6 @@ def match_rows(unit, view, db, tol, work):
     n_guide = guide_unit.shape[0]
     n = unit.shape[0]
     result = np.full(n, -1, dtype=np.int64)
-    if n < 3:
-        return result   # all -1
     dist = np.empty((n, n))
     usable = np.ones(n, dtype=np.bool_)
     for i in range(n):
@@ -484,42 +493,47 @@ def match_rows(unit, view, db, tol, work):
             if found >= 3:
                 break
             result[:] = -1
-    if n_match == 0:
-        return result   # all -1
-    support = validate(n, n_guide, n_match, m_tri, m_img, m_cat, tol, tol.min_shared, tol.conflict_fails, result)
-    if tol.lone_triangles:
+    if n_match > 0:
+        support = validate(n, n_guide, n_match, m_tri, m_img, m_cat, tol, tol.min_shared, tol.conflict_fails, result)
+        if tol.lone_triangles:
+            n_found = 0
+            for s in range(n):
+                if result[s] >= 0:
+                    n_found += 1
+            if n_found < 3:
+                # reading: nothing to validate against, so unvalidated matches stand if none conflicts with another
+                validate(n, n_guide, n_match, m_tri, m_img, m_cat, tol, np.int64(0), np.bool_(True), result)
+        tol_chord = side_beta * math.sqrt(2.0) * sigma
+        w_idx = np.empty(n, dtype=np.int64)   # Wahba's rows and float64 guide vectors (guide_rows_f64)
+        w_cat = np.empty((n, 3))
+        if tol.verify:
+            keep = verify_pairwise(unit, result, guide_unit, tol_chord, np.int64(2), tol.verify_min_fraction)
+            for s in range(n):
+                if not keep[s]:
+                    result[s] = -1
         n_found = 0
         for s in range(n):
             if result[s] >= 0:
                 n_found += 1
-        if n_found < 3:
-            # reading: nothing to validate against, so unvalidated matches stand if none conflicts with another
-            validate(n, n_guide, n_match, m_tri, m_img, m_cat, tol, np.int64(0), np.bool_(True), result)
-    tol_chord = side_beta * math.sqrt(2.0) * sigma
-    if tol.verify:
-        keep = verify_pairwise(unit, result, guide_unit, tol_chord, np.int64(2), tol.verify_min_fraction)
-        for s in range(n):
-            if not keep[s]:
-                result[s] = -1
-    n_found = 0
+        if tol.confirm_fraction > 0 and n_found >= 2:
+            guide_rows_f64(result, guide_unit, w_idx, w_cat)
+            attitude = wahba_rows(unit, w_idx, w_cat)
+            seen = np.empty(n, dtype=np.int64)
+            n_seen, n_predicted = reproject_assign(attitude, unit, guide_unit, view.c_fov + tol_chord, tol_chord, seen,
+                                                   f_px, cx_px, cy_px, frame.width_px, frame.height_px)
+            if n_seen < tol.confirm_fraction * n_predicted:
+                result[:] = -1
+                n_found = 0
+        if tol.nearest_check and n_found >= 3:
+            guide_rows_f64(result, guide_unit, w_idx, w_cat)
+            n_found = drop_displaced(unit, result, guide_unit, tol_chord, wahba_rows(unit, w_idx, w_cat))
+        if n_found < 3 and tol.hypotheses > 0:
+            if not try_hypotheses(unit, view, db, tol, n_match, m_img, m_cat, support, tol_chord, result, work):
+                result[:] = -1
     for s in range(n):
         if result[s] >= 0:
-            n_found += 1
-    if tol.confirm_fraction > 0 and n_found >= 2:
-        attitude = wahba_rows(unit, result, guide_unit)
-        seen = np.empty(n, dtype=np.int64)
-        n_seen, n_predicted = reproject_assign(attitude, unit, guide_unit, view.c_fov + tol_chord, tol_chord, seen,
-                                               f_px, cx_px, cy_px, frame.width_px, frame.height_px)
-        if n_seen < tol.confirm_fraction * n_predicted:
-            result[:] = -1
-            n_found = 0
-    if tol.nearest_check and n_found >= 3:
-        n_found = drop_displaced(unit, result, guide_unit, tol_chord)
-    if n_found < 3 and tol.hypotheses > 0:
-        if try_hypotheses(unit, view, db, tol, n_match, m_img, m_cat, support, tol_chord, result, work):
-            return result
-        result[:] = -1
-    return result
+            hip[sel[s]] = db.guide_hip[result[s]]
+    return hip, unit, result, work
 
 
 @njit(cache=True)
@@ -547,7 +561,41 @@ def validate(n, n_guide, n_match, m_tri, m_img, m_cat, tol, min_shared, conflict
     combined = np.empty(n_pair, dtype=np.int64)
     for t in range(n_pair):
         combined[t] = key[t] * n_tri + tri[t]
-    order = argsort_int(combined)
+    # The order of a stable sort of ``combined``: pairings grouped by image star (a counting sort), each
+    # group by insertion; the merge sort only when a group is large. Both give the same order; the groups
+    # are some 20 pairings, where the insertion costs a fraction of the merge sort (11 us per image).
+    start = np.zeros(n + 1, dtype=np.int64)
+    for mi in range(n_match):
+        for v in range(3):
+            start[m_img[mi, v] + 1] += 1
+    largest = 0
+    for s in range(n):
+        largest = max(largest, start[s + 1])
+        start[s + 1] += start[s]
+    if largest > 64:
+        order = argsort_int(combined)
+    else:
+        order = np.empty(n_pair, dtype=np.int64)
+        val = np.empty(n_pair, dtype=np.int64)
+        fill = np.empty(n, dtype=np.int64)
+        for s in range(n):
+            fill[s] = start[s]
+        for t in range(n_pair):
+            s = m_img[t // 3, t % 3]
+            order[fill[s]] = t
+            val[fill[s]] = combined[t]
+            fill[s] += 1
+        for s in range(n):
+            for i in range(start[s] + 1, start[s + 1]):
+                cv = val[i]
+                co = order[i]
+                j = i
+                while j > start[s] and val[j - 1] > cv:
+                    val[j] = val[j - 1]
+                    order[j] = order[j - 1]
+                    j -= 1
+                val[j] = cv
+                order[j] = co
     support = np.zeros(n_pair, dtype=np.int64)
     i = 0
     while i < n_pair:
@@ -606,13 +654,12 @@ def validate(n, n_guide, n_match, m_tri, m_img, m_cat, tol, min_shared, conflict
 
 
 @njit(cache=True)
-def drop_displaced(unit, result, guide_unit, eps_chord):
-    """Extension (``nearest_check``): the attitude of all pairings in ``result`` (Wahba) predicts each
+def drop_displaced(unit, result, guide_unit, eps_chord, attitude):
+    """Extension (``nearest_check``): ``attitude``, of all pairings in ``result`` (Wahba), predicts each
     paired guide star; a pairing is dropped when its detection lies farther than ``eps_chord`` (the pair
     tolerance) from that prediction and another detection lies nearer it. Returns the number of pairings
     left."""
     n = unit.shape[0]
-    attitude = wahba_rows(unit, result, guide_unit)
     pred = np.empty((1, 3))
     drop = np.zeros(n, dtype=np.bool_)
     for s in range(n):
@@ -661,6 +708,8 @@ def try_hypotheses(unit, view, db, tol, n_match, m_img, m_cat, support, eps_chor
     rows = np.empty(n, dtype=np.int64)
     rows_g = np.empty(n, dtype=np.int64)
     rows_x = np.empty(n, dtype=np.int64)
+    w_idx = np.empty(n, dtype=np.int64)
+    w_cat = np.empty((n, 3))
     c_fov = view.c_fov + eps_chord
     tried_img = np.empty((tol.hypotheses, 3), dtype=np.int64)
     tried_cat = np.empty((tol.hypotheses, 3), dtype=np.int64)
@@ -688,7 +737,8 @@ def try_hypotheses(unit, view, db, tol, n_match, m_img, m_cat, support, eps_chor
         rows[:] = -1
         for v in range(3):
             rows[m_img[mi, v]] = m_cat[mi, v]
-        attitude = wahba_rows(unit, rows, db.guide_unit)
+        guide_rows_f64(rows, db.guide_unit, w_idx, w_cat)
+        attitude = wahba_rows(unit, w_idx, w_cat)
         count, _, _ = explained(attitude, unit, db.guide_unit, db.extra_unit, view.frame, c_fov, eps_chord, rows_g,
                                 rows_x)
         own = True

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 from typing import ClassVar
 
 import numpy as np
@@ -34,6 +35,22 @@ SIDE_ORDERS = ("sorted", "role")
 NEIGHBOUR_RULES = ("brightest", "nearest")
 MAIN_ORDERS = ("centre", "brightness")
 SEARCHES = ("kvector", "linear")
+
+
+_last_frame: tuple = (None, None, None)
+
+
+def _frame(camera: Camera) -> tuple:
+    """``camera_frame(camera)`` and the same as a plain tuple (the kernel's argument); the last camera's kept
+    by identity (a run identifies every image with one camera object; building the frame costs about a
+    microsecond per image)."""
+    global _last_frame
+    cam, frame, frame_t = _last_frame
+    if cam is not camera:
+        frame = camera_frame(camera)
+        frame_t = tuple(frame)
+        _last_frame = (camera, frame, frame_t)    # one assignment: threads see a consistent triple
+    return frame, frame_t
 
 
 @dataclass(frozen=True, eq=False)
@@ -79,6 +96,12 @@ class PVectorDatabase(Database):
         """The arrays identify reads, as one kernel argument."""
         return K.Tables(self.p_axis, self.kv, self.tri_sides, float(self.side_step_rad), self.tri_rows,
                         self.unit_icrs, self.hip, self.deep, self.extra_unit)
+
+    @cached_property
+    def plain_tables(self) -> tuple:
+        """:meth:`tables` as plain tuples (:func:`kernels.plain`), as :func:`kernels.identify_rows` takes it
+        (built once, not per image)."""
+        return K.plain(self.tables())
 
 
 def _unique_triangles(rows: np.ndarray) -> np.ndarray:
@@ -354,6 +377,7 @@ class PVector(Algorithm):
             eps_ref=float(self.beta) * math.sqrt(2.0) * SIGMA_FLOOR_PX / REFERENCE_CAMERA.f_px,
             max_candidates_wide=int(self.max_candidates_wide))
         object.__setattr__(self, "_tol", tol)
+        object.__setattr__(self, "_tol_t", tuple(tol))
 
     # ------------------------------------------------------------------ build
     def _triangles(self, unit, v_mag, hip):
@@ -429,9 +453,9 @@ class PVector(Algorithm):
     def _run(self, database: PVectorDatabase, observation: Observation):
         """:func:`kernels.identify_rows`, then (``assign_all``) the attitude assigns every detection to the deep
         catalog star predicted within the tolerance (``starid.kernels.assign_all``, one-to-one only)."""
-        frame, tol = camera_frame(observation.camera), self._tol
-        hip, attitude, ok, tri, work = K.identify_rows(observation.x_px, observation.y_px, observation.mag, frame,
-                                                       database.tables(), tol)
+        (frame, frame_t), tol = _frame(observation.camera), self._tol
+        hip, attitude, ok, tri, work = K.identify_rows(observation.x_px, observation.y_px, observation.mag, frame_t,
+                                                       database.plain_tables, self._tol_t)
         if ok and tol.assign_all and database.deep.unit.shape[0] > 0:
             eps = tol.beta * math.sqrt(2.0) * tol.sigma_px / frame.f_px
             assign_all(attitude, observation.x_px, observation.y_px, frame, database.deep, eps, hip)

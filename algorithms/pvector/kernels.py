@@ -17,6 +17,7 @@ from numba import njit
 
 from starid.kernels import (
     DeepSky,
+    Frame,
     KVector,
     backproject_px,
     chord_rows,
@@ -94,6 +95,11 @@ class Tolerances(NamedTuple):
     chance_tail: float
     eps_ref: float
     max_candidates_wide: int
+
+
+def plain(t):
+    """A named tuple as a plain tuple, its named-tuple fields likewise (for :func:`identify_rows`)."""
+    return tuple(plain(v) if hasattr(v, "_fields") else v for v in t)
 
 
 @njit(cache=True)
@@ -322,18 +328,34 @@ def chance_k_min(n_obs, n_guide, eps, tail):
     return k
 
 
+@njit(cache=True)
+def guide_rows_f64(rows, guide_unit, idx, cat):
+    """Fill ``idx`` (row i or -1) and ``cat`` (float64 guide vectors) so that ``wahba_rows(v, idx, cat)``
+    is ``wahba_rows(v, rows, guide_unit)``: the signature ``starid.kernels.refine_explained`` compiles,
+    so numba compiles ``wahba_rows`` (and its SVD) once, not also for float32 ``guide_unit``. The same sums
+    in the same order (float32 -> float64 is exact): the same attitude to the last bit."""
+    for i in range(rows.shape[0]):
+        idx[i] = -1
+        if rows[i] >= 0:
+            idx[i] = i
+            for a in range(3):
+                cat[i, a] = guide_unit[rows[i], a]
+
+
 #: Slots of the work counters :func:`identify_rows` returns (``Identification.counters``).
 WORK_NAMES = ("searches", "window_triangles", "candidates", "correspondences", "hypotheses")
 
 
 @njit(cache=True)
-def identify_rows(x_px, y_px, mag, frame, db, tol):
+def identify_rows(x_in, y_in, mag_in, frame_t, db_t, tol_t):
     """``(hip, attitude, ok, triangle, work)``: catalog id per observed star (-1 = unidentified, input
     order), the ICRS -> camera attitude, whether the image was identified, the input indices of
     the accepted triangle (main star, N1, N2; -1 when none) and the work counters (:data:`WORK_NAMES`:
     k-vector searches, database triangles in their windows, those passing the three-side check, vertex
     correspondences confirmed against the other stars, whole-image hypotheses tried).
     ``tol.assign_all`` is left to the caller (``PVector._run``), so the default never compiles it.
+    ``frame_t``, ``db_t``, ``tol_t``: a :class:`starid.kernels.Frame`, :class:`Tables` and :class:`Tolerances`
+    as plain tuples, nested the same way (:func:`plain`).
 
     Steps (the docstring of :class:`starid_algorithms.pvector.PVector` maps them to the paper):
     canonical star order; main stars in preference order; per main star its triangle, the
@@ -342,6 +364,21 @@ def identify_rows(x_px, y_px, mag, frame, db, tol):
     correspondence is verified (mutual consistency, attitude, re-identification from the
     attitude) and reported.
     """
+    # plain tuples in, named tuples here: numba's dispatch types a plain tuple in C, a named one in Python
+    # (about 4 us of every image for these three arguments)
+    frame = Frame(*frame_t)
+    db = Tables(db_t[0], KVector(*db_t[1]), db_t[2], db_t[3], db_t[4], db_t[5], db_t[6], DeepSky(*db_t[7]),
+                db_t[8])
+    tol = Tolerances(*tol_t)
+    # writable copies: the harness's arrays are read-only, a different numba type, and _sort_by would be
+    # compiled for both (0.3 s of a cold compile)
+    x_px = np.empty(x_in.shape[0])
+    y_px = np.empty(x_in.shape[0])
+    mag = np.empty(x_in.shape[0])
+    for i in range(x_in.shape[0]):
+        x_px[i] = x_in[i]
+        y_px[i] = y_in[i]
+        mag[i] = mag_in[i]
     f_px, cx_px, cy_px, width_px, height_px = frame.f_px, frame.cx_px, frame.cy_px, frame.width_px, frame.height_px
     p_axis, tri_sides, tri_rows, unit, hip = db.p_axis, db.tri_sides, db.tri_rows, db.unit, db.hip
     step = db.side_step
@@ -394,6 +431,8 @@ def identify_rows(x_px, y_px, mag, frame, db, tol):
     cat_rows = np.empty(3, dtype=np.int64)
     rows_try = np.empty(n, dtype=np.int64)
     rows_best = np.empty(n, dtype=np.int64)
+    w_idx = np.empty(n, dtype=np.int64)   # Wahba's rows and float64 guide vectors (guide_rows_f64)
+    w_cat = np.empty((n, 3))
     best_map = np.empty(3, dtype=np.int64)
     nbs = np.empty(max(2, max(tol.triangles_per_star, tol.image_neighbours)), dtype=np.int64)
     n_perm = 6 if sorted_sides else 1
@@ -401,7 +440,7 @@ def identify_rows(x_px, y_px, mag, frame, db, tol):
     hyp_cap = tol.hypotheses if n >= need else 0
     hyp_obs = np.empty((hyp_cap, 3), dtype=np.int64)
     hyp_cat = np.empty((hyp_cap, 3), dtype=np.int64)
-    n_hyp = np.int64(0)   # not a literal: one signature of whole_image_pass
+    n_hyp = 0
 
     for oi in range(n):
         s = order[oi]
@@ -514,7 +553,8 @@ def identify_rows(x_px, y_px, mag, frame, db, tol):
                 n_assigned = 0
                 n_predicted = 0
                 for _ in range(2):
-                    attitude = wahba_rows(v, rows_best, unit)
+                    guide_rows_f64(rows_best, unit, w_idx, w_cat)
+                    attitude = wahba_rows(v, w_idx, w_cat)
                     n_assigned, n_predicted = reproject_assign(attitude, v, unit, c_fov, eps, rows_try, f_px, cx_px,
                                                                cy_px,
                                                                width_px, height_px)
@@ -525,54 +565,51 @@ def identify_rows(x_px, y_px, mag, frame, db, tol):
                 for i in range(n):
                     if rows_best[i] >= 0:
                         out[canon[i]] = hip[rows_best[i]]
-                attitude = wahba_rows(v, rows_best, unit)
+                guide_rows_f64(rows_best, unit, w_idx, w_cat)
+                attitude = wahba_rows(v, w_idx, w_cat)
                 for j in range(3):
                     tri_found[j] = canon[tri_obs[j]]
                 return out, attitude, True, tri_found, work
     if n_hyp > 0:
-        h = whole_image_pass(v, db, c_fov, eps, frame, hyp_obs, hyp_cat, n_hyp, need, tol.confirm_fraction,
-                             rows_best)
+        # Extension (``hypotheses``), the whole-image pass: when no triangle was confirmed, each correspondence
+        # that passed the side and handedness checks (in the order they were met: main-star preference,
+        # brightest pair first) is a hypothesis. Its attitude (Wahba on the three stars) must explain its own
+        # three stars and ``need`` detections (:func:`starid.kernels.explained`); the attitude is then refined
+        # twice on every explained detection and must still explain ``need`` detections, at least 3 of them
+        # guide stars, and ``confirm_fraction`` of the guide stars it predicts. ``h``: the first hypothesis
+        # that passes (its guide rows in ``rows_best``), or -1. (Here, not a kernel of its own: one level
+        # less of the call tree for numba to re-optimise explained, refine_explained and Wahba in.)
+        h = -1
+        rows_x = np.empty(n, dtype=np.int64)
+        for hh in range(n_hyp):
+            rows_try[:] = -1
+            for j in range(3):
+                rows_try[hyp_obs[hh, j]] = hyp_cat[hh, j]
+            guide_rows_f64(rows_try, unit, w_idx, w_cat)
+            attitude = wahba_rows(v, w_idx, w_cat)
+            count, _, _ = explained(attitude, v, unit, db.extra_unit, frame, c_fov, eps, rows_best, rows_x)
+            own = True
+            for j in range(3):
+                if rows_best[hyp_obs[hh, j]] != hyp_cat[hh, j]:
+                    own = False
+            if not own or count < need:
+                continue
+            n_seen = 0
+            n_predicted = 0
+            for _ in range(2):
+                attitude, count, n_seen, n_predicted = refine_explained(v, unit, db.extra_unit, frame, c_fov, eps,
+                                                                        rows_best, rows_x)
+            if count >= need and n_seen >= 3 and n_seen >= tol.confirm_fraction * n_predicted:
+                h = hh
+                break
         work[4] += n_hyp if h < 0 else h + 1
         if h >= 0:
             for i in range(n):
                 if rows_best[i] >= 0:
                     out[canon[i]] = hip[rows_best[i]]
-            attitude = wahba_rows(v, rows_best, unit)
+            guide_rows_f64(rows_best, unit, w_idx, w_cat)
+            attitude = wahba_rows(v, w_idx, w_cat)
             for j in range(3):
                 tri_found[j] = canon[hyp_obs[h, j]]
             return out, attitude, True, tri_found, work
     return out, np.eye(3), False, tri_found, work
-
-
-@njit(cache=True)
-def whole_image_pass(v, db, c_fov, eps, frame, hyp_obs, hyp_cat, n_hyp, need, confirm_fraction, rows_guide):
-    """Extension (``hypotheses``): when no triangle was confirmed, each correspondence that passed the side and
-    handedness checks (in the order they were met: main-star preference, brightest pair first) is a hypothesis.
-    Its attitude (Wahba on the three stars) must explain its own three stars and ``need`` detections
-    (:func:`starid.kernels.explained`); the attitude is then refined twice on every explained detection and
-    must still explain
-    ``need`` detections, at least 3 of them guide stars, and ``confirm_fraction`` of the guide stars it predicts.
-    Returns the index of the first hypothesis that passes (its guide rows in ``rows_guide``), or -1."""
-    n = v.shape[0]
-    rows = np.empty(n, dtype=np.int64)
-    rows_x = np.empty(n, dtype=np.int64)
-    for h in range(n_hyp):
-        rows[:] = -1
-        for j in range(3):
-            rows[hyp_obs[h, j]] = hyp_cat[h, j]
-        attitude = wahba_rows(v, rows, db.unit)
-        count, _, _ = explained(attitude, v, db.unit, db.extra_unit, frame, c_fov, eps, rows_guide, rows_x)
-        own = True
-        for j in range(3):
-            if rows_guide[hyp_obs[h, j]] != hyp_cat[h, j]:
-                own = False
-        if not own or count < need:
-            continue
-        n_seen = 0
-        n_predicted = 0
-        for _ in range(2):
-            attitude, count, n_seen, n_predicted = refine_explained(v, db.unit, db.extra_unit, frame, c_fov, eps,
-                                                                    rows_guide, rows_x)
-        if count >= need and n_seen >= 3 and n_seen >= confirm_fraction * n_predicted:
-            return h
-    return -1
