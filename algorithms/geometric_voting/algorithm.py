@@ -347,16 +347,16 @@ class GeometricVoting(Algorithm):
                              tally_like(rule))
 
     def identify(self, database: PairDatabase, observation: Observation) -> Identification:
-        rows, _, hip, attitude, work = self._run(database, observation)
+        _, _, hip, attitude, found, work = self._run(database, observation)
         counters = dict(zip(WORK_COUNTERS, work.tolist(), strict=True))
-        return Identification(hip, attitude if rows.max(initial=-1) >= 0 else None, counters=counters)
+        return Identification(hip, attitude if found else None, counters=counters)
 
     def explain(self, database: PairDatabase, observation: Observation) -> Explanation:
         """Every star of the deciding round labelled with the votes of its chosen catalog star (and
         the id if it survived verification); stars identified only by the confirming reprojection
         (``report_all``) labelled as such; segments join the identified voters whose pair angle
         matches their catalog stars' within eps (the verification votes)."""
-        rows, votes, hip, _, _ = self._run(database, observation)
+        rows, votes, hip, _, _, _ = self._run(database, observation)
         xy = np.stack([observation.x_px, observation.y_px], axis=1)
         voters = np.flatnonzero(votes >= 0)
         extra = np.flatnonzero((rows >= 0) & (votes < 0))

@@ -403,12 +403,13 @@ def tally_like(rule):
 
 @njit(cache=True)
 def voting_kernel(x_px, y_px, mag, kv, pairs, degree, guide_unit, guide_hip, tol, cam, rule, vtol, tally_like):
-    """Geometric voting on one image. Returns ``(rows, votes, hip, attitude, work)``.
+    """Geometric voting on one image. Returns ``(rows, votes, hip, attitude, found, work)``.
 
     ``rows[s]``: guide row of detection ``s`` (-1 = unidentified); ``votes[s]``: the votes its
     chosen catalog star received (-1 for detections that did not vote); ``hip[s]``: the catalog id
     of its row (``guide_hip[rows[s]]``, -1 = unidentified); ``attitude``: Wahba's
-    ICRS -> camera rotation of the identified stars (zeros when none); ``work``: int64 counters
+    ICRS -> camera rotation of the identified stars (zeros when none); ``found``: some star
+    identified; ``work``: int64 counters
     of :data:`WORK_COUNTERS` (all zero when nothing voted).
 
     1. detections with a neighbour closer than ``tol.d_min`` are set aside, the rest sorted
@@ -444,14 +445,16 @@ def voting_kernel(x_px, y_px, mag, kv, pairs, degree, guide_unit, guide_hip, tol
     work = np.zeros(len(WORK_COUNTERS), dtype=np.int64)
     hip = np.full(n, -1, dtype=np.int64)
     if n < 3:
-        return np.full(n, -1, dtype=np.int64), np.full(n, -1, dtype=np.int64), hip, np.zeros((3, 3)), work
+        return np.full(n, -1, dtype=np.int64), np.full(n, -1, dtype=np.int64), hip, np.zeros((3, 3)), False, work
     v_cam = backproject_px(x_px, y_px, cam.f_px, cam.cx_px, cam.cy_px)
     sel = select_stars(x_px, y_px, mag, v_cam, tol.d_min, tol.max_stars)
     if sel.shape[0] < 3:
-        return np.full(n, -1, dtype=np.int64), np.full(n, -1, dtype=np.int64), hip, np.zeros((3, 3)), work
+        return np.full(n, -1, dtype=np.int64), np.full(n, -1, dtype=np.int64), hip, np.zeros((3, 3)), False, work
     tally = np.zeros((sel.shape[0], degree.shape[0]), dtype=tally_like.dtype)
     rows, votes, attitude = vote_rounds(v_cam, sel, kv, pairs, degree, guide_unit, tol, cam, rule, tally, vtol, work)
+    found = False
     for s in range(n):
         if rows[s] >= 0:
             hip[s] = guide_hip[rows[s]]
-    return rows, votes, hip, attitude, work
+            found = True
+    return rows, votes, hip, attitude, found, work
