@@ -1,7 +1,8 @@
 """numba kernels of geometric voting (Kolomenkin, Pollak, Shimshoni & Lindenbaum 2008).
 
-The star selection and the k-vector windows of the image pairs are the Pyramid plugin's
-(:mod:`starid_algorithms.pyramid.kernels`), over the same star-pair database.
+The star selection is the Pyramid plugin's (:mod:`starid_algorithms.pyramid.kernels`), and the
+k-vector windows of the image pairs are its ``pair_windows`` searched round by round
+(:func:`extend_windows`), over the same star-pair database.
 
 Bundles (``typing.NamedTuple``, passed to numba as tuples): ``kv`` (:class:`starid.kernels.KVector`),
 :class:`~starid_algorithms.pyramid.kernels.PairTol` (tolerances and work limits),
