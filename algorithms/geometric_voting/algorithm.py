@@ -14,7 +14,6 @@ from starid_algorithms.pyramid.algorithm import (
     build_pair_database,
     check_pair_params,
     d_min_for,
-    hip_of,
     pair_limit_rad,
     window_eps,
 )
@@ -28,7 +27,7 @@ from starid.observation import Observation
 from starid.params import check_flag, check_number, check_whole, param
 from starid.plugin import Algorithm, Explanation, Identification
 
-from .kernels import WORK_COUNTERS, VoteRule, identify_kernel, tally_like, voting_kernel
+from .kernels import WORK_COUNTERS, VoteRule, tally_like, voting_kernel
 
 #: the guide limit chosen on :data:`starid.camera.REFERENCE_CAMERA` (Table 4: 10 x 10 deg, 1024 x 1024 px)
 REF_MAG_LIMIT = 6.0
@@ -344,15 +343,11 @@ class GeometricVoting(Algorithm):
         tol, sensor, rule, vtol = _bundles(self, observation.camera, database.c_max, database.d_min_deg,
                                              _saturates(database), _vote_window(database))
         return voting_kernel(observation.x_px, observation.y_px, observation.mag, database.kv, database.pairs,
-                             database.degree, database.guide_unit, tol, sensor, rule, vtol, tally_like(rule))
+                             database.degree, database.guide_unit, database.guide_hip, tol, sensor, rule, vtol,
+                             tally_like(rule))
 
     def identify(self, database: PairDatabase, observation: Observation) -> Identification:
-        tol, sensor, rule, vtol = _bundles(self, observation.camera, database.c_max, database.d_min_deg,
-                                             _saturates(database), _vote_window(database))
-        hip, attitude, found, work = identify_kernel(observation.x_px, observation.y_px, observation.mag,
-                                                     database.kv, database.pairs, database.degree,
-                                                     database.guide_unit, database.guide_hip, tol, sensor, rule,
-                                                     vtol, tally_like(rule))
+        _, _, hip, attitude, found, work = self._run(database, observation)
         counters = dict(zip(WORK_COUNTERS, work.tolist(), strict=True))
         return Identification(hip, attitude if found else None, counters=counters)
 
@@ -361,8 +356,7 @@ class GeometricVoting(Algorithm):
         the id if it survived verification); stars identified only by the confirming reprojection
         (``report_all``) labelled as such; segments join the identified voters whose pair angle
         matches their catalog stars' within eps (the verification votes)."""
-        rows, votes, _, _ = self._run(database, observation)
-        hip = hip_of(database, rows)
+        rows, votes, hip, _, _, _ = self._run(database, observation)
         xy = np.stack([observation.x_px, observation.y_px], axis=1)
         voters = np.flatnonzero(votes >= 0)
         extra = np.flatnonzero((rows >= 0) & (votes < 0))

@@ -1,7 +1,8 @@
 """numba kernels of geometric voting (Kolomenkin, Pollak, Shimshoni & Lindenbaum 2008).
 
-The star selection and the k-vector windows of the image pairs are the Pyramid plugin's
-(:mod:`starid_algorithms.pyramid.kernels`), over the same star-pair database.
+The star selection is the Pyramid plugin's (:mod:`starid_algorithms.pyramid.kernels`), and the
+k-vector windows of the image pairs are its ``pair_windows`` searched round by round
+(:func:`extend_windows`), over the same star-pair database.
 
 Bundles (``typing.NamedTuple``, passed to numba as tuples): ``kv`` (:class:`starid.kernels.KVector`),
 :class:`~starid_algorithms.pyramid.kernels.PairTol` (tolerances and work limits),
@@ -20,9 +21,9 @@ from typing import NamedTuple
 
 import numpy as np
 from numba import njit
-from starid_algorithms.pyramid.kernels import pair_windows, select_stars
+from starid_algorithms.pyramid.kernels import select_stars
 
-from starid.kernels import backproject_px, chord_rows, reproject_assign, verify_pairwise, wahba_rows
+from starid.kernels import backproject_px, chord_rows, kvector_query, reproject_assign, verify_pairwise, wahba_rows
 
 #: ``starid.kernels.chord_rows`` itself, inlined into the innermost loop of :func:`pick_candidates`
 #: (a numba call there costs more than the arithmetic)
@@ -323,12 +324,33 @@ def decide(v_cam, sel, n_voters, start, stop, tally, degree, guide_unit, tol, ca
 
 
 @njit(cache=True)
+def extend_windows(v_cam, sel, kv, tol, start, stop, b_lo, b_hi):
+    """The k-vector windows of the image pairs (a, b), a < b, ``b_lo <= b < b_hi``, written into the
+    symmetric (m, m) arrays ``start``, ``stop`` as ``starid_algorithms.pyramid.kernels.pair_windows``
+    computes them (empty beyond ``tol.c_max`` or above ``tol.max_window`` pairs): each round of
+    :func:`vote_rounds` searches only the pairs its new stars form, not again those of the earlier ones."""
+    for b in range(b_lo, b_hi):
+        for a in range(b):
+            c = chord_rows(v_cam, sel[a], v_cam, sel[b])
+            if c - tol.eps > tol.c_max:
+                continue
+            lo, hi = kvector_query(kv, c - tol.eps, c + tol.eps)
+            if hi - lo > tol.max_window:
+                continue
+            start[a, b] = lo
+            start[b, a] = lo
+            stop[a, b] = hi
+            stop[b, a] = hi
+
+
+@njit(cache=True)
 def vote_rounds(v_cam, sel, kv, pairs, degree, guide_unit, tol, cam, rule, tally, vtol, work):
     """Voting in rounds: the ``rule.round_voters`` brightest selected stars vote, their choice is
     verified and confirmed (:func:`decide`); if that fails, the next ``rule.round_step`` stars
     join, their pairs with every earlier star add votes to the same counters, and the choice is
     made again -- until a round succeeds or every selected star has voted (that last round has
-    exactly the votes of one round of all). The windows that vote are ``vtol``'s (see
+    exactly the votes of one round of all). Each round searches the windows of its new pairs only
+    (:func:`extend_windows`). The windows that vote are ``vtol``'s (see
     :func:`voting_kernel`). Returns ``(rows, votes, attitude)``; counts into ``work``
     (:data:`WORK_COUNTERS`)."""
     n = v_cam.shape[0]
@@ -339,12 +361,14 @@ def vote_rounds(v_cam, sel, kv, pairs, degree, guide_unit, tol, cam, rule, tally
     stamp = np.zeros(n_guide, dtype=np.uint16)
     listed = np.empty((m, n_guide), dtype=pairs.dtype)
     n_listed = np.zeros(m, dtype=np.int64)
+    start = np.zeros((m, m), dtype=np.int64)
+    stop = np.zeros((m, m), dtype=np.int64)
     step = rule.round_voters if rule.round_voters >= 3 else m
     done = np.int64(0)   # not a literal: one signature of cast_votes
     last_level = 0
     while True:
         upto = min(m, done + (step if done == 0 else rule.round_step))
-        start, stop = pair_windows(v_cam, sel[:upto], kv, vtol)
+        extend_windows(v_cam, sel, kv, vtol, start, stop, done, upto)
         work[0] += 1
         for b in range(done, upto):     # the new image pairs (a, b), a < b, of this round
             for a in range(b):
@@ -379,12 +403,14 @@ def tally_like(rule):
 
 
 @njit(cache=True)
-def voting_kernel(x_px, y_px, mag, kv, pairs, degree, guide_unit, tol, cam, rule, vtol, tally_like):
-    """Geometric voting on one image. Returns ``(rows, votes, attitude, work)``.
+def voting_kernel(x_px, y_px, mag, kv, pairs, degree, guide_unit, guide_hip, tol, cam, rule, vtol, tally_like):
+    """Geometric voting on one image. Returns ``(rows, votes, hip, attitude, found, work)``.
 
     ``rows[s]``: guide row of detection ``s`` (-1 = unidentified); ``votes[s]``: the votes its
-    chosen catalog star received (-1 for detections that did not vote); ``attitude``: Wahba's
-    ICRS -> camera rotation of the identified stars (zeros when none); ``work``: int64 counters
+    chosen catalog star received (-1 for detections that did not vote); ``hip[s]``: the catalog id
+    of its row (``guide_hip[rows[s]]``, -1 = unidentified); ``attitude``: Wahba's
+    ICRS -> camera rotation of the identified stars (zeros when none); ``found``: some star
+    identified; ``work``: int64 counters
     of :data:`WORK_COUNTERS` (all zero when nothing voted).
 
     1. detections with a neighbour closer than ``tol.d_min`` are set aside, the rest sorted
@@ -412,29 +438,24 @@ def voting_kernel(x_px, y_px, mag, kv, pairs, degree, guide_unit, tol, cam, rule
     ``tally_like`` (:func:`tally_like`: an empty uint8 array when ``rule.once_per_pair``, whose
     votes stay below 255, else int32) gives the vote counters' dtype, so the kernels below are
     compiled for the one dtype the rule uses instead of both.
+
+    The catalog ids are mapped here rather than in a wrapper kernel: numba re-optimises every callee
+    linked into each kernel above it, and a ten-line wrapper cost 1.4 CPU s of cold compile.
     """
     n = x_px.shape[0]
     work = np.zeros(len(WORK_COUNTERS), dtype=np.int64)
+    hip = np.full(n, -1, dtype=np.int64)
     if n < 3:
-        return np.full(n, -1, dtype=np.int64), np.full(n, -1, dtype=np.int64), np.zeros((3, 3)), work
+        return np.full(n, -1, dtype=np.int64), np.full(n, -1, dtype=np.int64), hip, np.zeros((3, 3)), False, work
     v_cam = backproject_px(x_px, y_px, cam.f_px, cam.cx_px, cam.cy_px)
     sel = select_stars(x_px, y_px, mag, v_cam, tol.d_min, tol.max_stars)
     if sel.shape[0] < 3:
-        return np.full(n, -1, dtype=np.int64), np.full(n, -1, dtype=np.int64), np.zeros((3, 3)), work
+        return np.full(n, -1, dtype=np.int64), np.full(n, -1, dtype=np.int64), hip, np.zeros((3, 3)), False, work
     tally = np.zeros((sel.shape[0], degree.shape[0]), dtype=tally_like.dtype)
     rows, votes, attitude = vote_rounds(v_cam, sel, kv, pairs, degree, guide_unit, tol, cam, rule, tally, vtol, work)
-    return rows, votes, attitude, work
-
-
-@njit(cache=True)
-def identify_kernel(x_px, y_px, mag, kv, pairs, degree, guide_unit, guide_hip, tol, cam, rule, vtol, tally_like):
-    """:func:`voting_kernel` with catalog ids: ``(hip, attitude, found, work)``, hip -1 = unidentified."""
-    rows, _, attitude, work = voting_kernel(x_px, y_px, mag, kv, pairs, degree, guide_unit, tol, cam, rule, vtol,
-                                            tally_like)
-    hip = np.full(rows.shape[0], -1, dtype=np.int64)
     found = False
-    for s in range(rows.shape[0]):
+    for s in range(n):
         if rows[s] >= 0:
             hip[s] = guide_hip[rows[s]]
             found = True
-    return hip, attitude, found, work
+    return rows, votes, hip, attitude, found, work

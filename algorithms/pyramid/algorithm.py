@@ -9,6 +9,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import ClassVar
 
 import numpy as np
@@ -22,7 +23,7 @@ from starid.observation import Observation
 from starid.params import check_flag, check_number, check_whole, param
 from starid.plugin import Algorithm, Database, Explanation, Identification
 
-from .kernels import TRIANGLE_CAP, PairTol, pyramid_kernel
+from .kernels import TRIANGLE_CAP, WORK_COUNTERS, PairTol, pyramid_kernel
 
 #: centroid-noise floor of every window: a noise-free world still gets a 1 px tolerance
 SIGMA_FLOOR_PX = 1.0
@@ -308,23 +309,22 @@ class Pyramid(Algorithm):
         return build_pair_database(catalog, camera, self.mag_limit, d_min_deg, self.max_pair_deg, self.name)
 
     def _run(self, database: PairDatabase, observation: Observation):
-        cam = observation.camera
         db = database
+        tol, frame, max_triangles = _bundles(self, observation.camera, db.c_max, db.d_min_deg)
         return pyramid_kernel(observation.x_px, observation.y_px, observation.mag, db.kv, db.pairs, db.nbr,
-                              db.nbr_chord, db.nbr_start, db.guide_unit, self.tolerances(cam, database),
-                              camera_frame(cam), self.unique_triangle, self.accept_triangle,
-                              self.max_triangles or max_triangles_for(cam, self.sigma_px, self.beta, self.max_window))
+                              db.nbr_chord, db.nbr_start, db.guide_unit, db.guide_hip, tol, frame,
+                              self.unique_triangle, self.accept_triangle, max_triangles)
 
     def identify(self, database: PairDatabase, observation: Observation) -> Identification:
-        rows, attitude, _, _ = self._run(database, observation)
-        found = rows.max(initial=-1) >= 0
-        return Identification(hip_of(database, rows), attitude if found else None)
+        _, hip, attitude, pyramid, work = self._run(database, observation)
+        counters = dict(zip(WORK_COUNTERS, work.tolist(), strict=True))
+        return Identification(hip, attitude if pyramid[0] >= 0 else None, counters=counters)
 
     def explain(self, database: PairDatabase, observation: Observation) -> Explanation:
         """The pyramid found: its six edges (the three to the confirming fourth star in bold),
         the triad's triangle as a polygon, and each identified star labelled with its id."""
-        rows, _, pyramid, n_triads = self._run(database, observation)
-        hip = hip_of(database, rows)
+        _, hip, _, pyramid, work = self._run(database, observation)
+        n_triads = int(work[0])
         xy = np.stack([observation.x_px, observation.y_px], axis=1)
         found = np.flatnonzero(hip >= 0)
         role = {int(s): name for s, name in zip(pyramid, ("i", "j", "k", "r (4th)"), strict=True) if s >= 0}
@@ -347,3 +347,21 @@ class Pyramid(Algorithm):
             caption = f"No confirmed pyramid after {n_triads} triad(s): nothing identified."
         return Explanation(segments=np.asarray(segments, dtype=np.float64).reshape(-1, 2, 2), polygons=polygons,
                            points=points, labels=labels, caption=caption, highlight=np.asarray(highlight))
+
+
+@lru_cache(maxsize=64)
+def _bundles(algorithm: Pyramid, camera: Camera, c_max: float, d_min_deg: float) -> tuple[PairTol, tuple, int]:
+    """The kernel's tolerances, camera frame and triangle cap for one (algorithm, camera, database
+    chord limit and double-star distance), built once rather than per image (immutable tuples)."""
+    database = _Limits(c_max, d_min_deg)
+    max_triangles = algorithm.max_triangles or max_triangles_for(camera, algorithm.sigma_px, algorithm.beta,
+                                                                 algorithm.max_window)
+    return algorithm.tolerances(camera, database), camera_frame(camera), max_triangles
+
+
+@dataclass(frozen=True)
+class _Limits:
+    """The two fields of a :class:`PairDatabase` that :meth:`Pyramid.tolerances` reads."""
+
+    c_max: float
+    d_min_deg: float

@@ -253,7 +253,8 @@ def _confirm(v_cam, pyr_star, pyr_row, guide_unit, tol, cam, rows):
     all stars found. The pyramid stands when every pyramid star keeps its row, at least
     ``tol.min_extra`` stars besides the pyramid's four are identified, and at least a fraction
     ``tol.confirm_fraction`` of the guide stars the attitude puts on the sensor are seen.
-    Fills ``rows`` and returns True, or returns False (``rows`` then undefined).
+    Fills ``rows`` and returns ``(True, attitude)`` (the attitude of every star found, the one the
+    kernel reports), or ``(False, _)`` (``rows`` then undefined).
     """
     sub = np.empty((4, 3))
     for a in range(4):
@@ -265,26 +266,57 @@ def _confirm(v_cam, pyr_star, pyr_row, guide_unit, tol, cam, rows):
                                                cam.f_px, cam.cx_px, cam.cy_px, cam.width_px, cam.height_px)
         for a in range(4):
             if rows[pyr_star[a]] != pyr_row[a]:
-                return False
+                return False, attitude
         if n_seen - 4 < tol.min_extra or n_seen < tol.confirm_fraction * n_predicted:
-            return False
+            return False, attitude
         attitude = wahba_rows(v_cam, rows, guide_unit)
-    return True
+    return True, attitude
+
+
+#: names of the per-image work counters :func:`pyramid_kernel` returns (``Identification.counters``):
+#: triads examined, k-vector range queries (pair windows searched, each at most once per image),
+#: catalog pairs read from the windows of the triangle searches (sides ij and ik of each triad
+#: whose three windows are non-empty), catalog triangles matched (passing the third side and the
+#: chirality test; a triad over the cap counts cap + 1), and candidate pyramids confirmed by
+#: reprojection (a fourth star found, :func:`_confirm` run)
+WORK_COUNTERS = ("triads", "pair_searches", "pairs_read", "triangles", "confirmations")
 
 
 @njit(cache=True)
-def pyramid_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_unit, tol, cam, unique_triangle,
-                   accept_triangle, max_triangles):
-    """Pyramid identification of one image. Returns ``(rows, attitude, pyramid, n_triads)``.
+def _window(v_cam, sel, a, b, kv, tol, start, stop, work):
+    """True when the k-vector window of selected stars ``a < b`` holds catalog pairs; computed on
+    first use (``start[a, b] < 0`` = not yet) exactly as :func:`pair_windows` does (empty when the
+    chord is beyond ``tol.c_max`` or the window holds more than ``tol.max_window`` pairs), so that
+    an image whose first triad is accepted searches three windows instead of all m (m - 1) / 2."""
+    if start[a, b] < 0:
+        start[a, b] = 0
+        stop[a, b] = 0
+        c = chord_rows(v_cam, sel[a], v_cam, sel[b])
+        if c - tol.eps <= tol.c_max:
+            work[1] += 1
+            lo, hi = kvector_query(kv, c - tol.eps, c + tol.eps)
+            if hi - lo <= tol.max_window:
+                start[a, b] = lo
+                stop[a, b] = hi
+    return stop[a, b] > start[a, b]
 
-    ``rows[s]`` is the guide row of detection ``s`` (-1 = unidentified); ``attitude`` the ICRS ->
-    camera rotation of the identified stars (Wahba; all zeros when none); ``pyramid`` the four
+
+@njit(cache=True)
+def pyramid_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_unit, guide_hip, tol, cam,
+                   unique_triangle, accept_triangle, max_triangles):
+    """Pyramid identification of one image. Returns ``(rows, hip, attitude, pyramid, work)``.
+
+    ``rows[s]`` is the guide row of detection ``s`` (-1 = unidentified), ``hip[s]`` its catalog
+    id (``guide_hip[rows[s]]``, -1 = unidentified); ``attitude`` the ICRS -> camera rotation of the
+    identified stars (Wahba; all zeros when none); ``pyramid`` the four
     detections of the accepted pyramid (i, j, k, r; -1 when none; with ``accept_triangle`` and
-    three stars, r = -1); ``n_triads`` how many triads were examined.
+    three stars, r = -1); ``work`` the int64 counters of :data:`WORK_COUNTERS` (``work[0]``: how
+    many triads were examined).
 
     1. detections with a neighbour closer than ``tol.d_min`` are set aside; the others are
        sorted brightest first and the first ``tol.max_stars`` kept;
-    2. every pair gets its k-vector window of catalog pairs (chord +- ``tol.eps``);
+    2. every pair a triad uses gets its k-vector window of catalog pairs (chord +- ``tol.eps``;
+       searched on first use, :func:`_window`: the same windows as :func:`pair_windows`);
     3. triads in Mortari's order: ``for dj: for dk: for i: j = i + dj, k = j + dk``, so that
        consecutive triads share few stars and a spurious star does not spoil a whole run;
        at most ``tol.max_triads`` of them;
@@ -300,37 +332,46 @@ def pyramid_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_
     n = x_px.shape[0]
     rows = np.full(n, -1, dtype=np.int64)
     pyramid = np.full(4, -1, dtype=np.int64)
+    work = np.zeros(len(WORK_COUNTERS), dtype=np.int64)
     if n < 3:
-        return rows, np.zeros((3, 3)), pyramid, 0
+        return rows, _hip(rows, guide_hip), np.zeros((3, 3)), pyramid, work
     v_cam = backproject_px(x_px, y_px, cam.f_px, cam.cx_px, cam.cy_px)
     sel = select_stars(x_px, y_px, mag, v_cam, tol.d_min, tol.max_stars)
     m = sel.shape[0]
     if m < 3:
-        return rows, np.zeros((3, 3)), pyramid, 0
-    start, stop = pair_windows(v_cam, sel, kv, tol)
+        return rows, _hip(rows, guide_hip), np.zeros((3, 3)), pyramid, work
+    start = np.full((m, m), -1, dtype=np.int64)
+    stop = np.zeros((m, m), dtype=np.int64)
     n_guide = guide_unit.shape[0]
     cap = 2 * max(tol.max_window, 1)
-    work = (np.full(n_guide, -1, dtype=np.int32), np.zeros(n_guide, dtype=np.int32),
-            np.empty(cap, dtype=np.int32), np.empty(cap, dtype=np.int32))
+    work_lists = (np.full(n_guide, -1, dtype=np.int32), np.zeros(n_guide, dtype=np.int32),
+                  np.empty(cap, dtype=np.int32), np.empty(cap, dtype=np.int32))
     tri = np.empty((max(max_triangles, 1), 3), dtype=np.int64)
     tri_pos = np.empty(3, dtype=np.int64)
     pyr_star = np.empty(4, dtype=np.int64)
     cand_star = np.empty(4, dtype=np.int64)
     cand_row = np.empty(4, dtype=np.int64)
     trial_rows = np.empty(n, dtype=np.int64)
+    attitude = np.zeros((3, 3))
     n_triads = 0
     for dj in range(1, m - 1):
         for dk in range(1, m - dj):
             for i in range(0, m - dj - dk):
                 if n_triads >= tol.max_triads:
-                    return rows, np.zeros((3, 3)), pyramid, n_triads
+                    return rows, _hip(rows, guide_hip), np.zeros((3, 3)), pyramid, work
                 j = i + dj
                 k = j + dk
                 n_triads += 1
-                if stop[i, j] == start[i, j] or stop[j, k] == start[j, k] or stop[i, k] == start[i, k]:
+                work[0] = n_triads
+                if not (_window(v_cam, sel, i, j, kv, tol, start, stop, work)
+                        and _window(v_cam, sel, j, k, kv, tol, start, stop, work)
+                        and _window(v_cam, sel, i, k, kv, tol, start, stop, work)):
                     continue
+                work[2] += stop[i, j] - start[i, j] + stop[i, k] - start[i, k]
                 n_tri = triad_triangles(v_cam, sel[i], sel[j], sel[k], (start[i, j], stop[i, j]),
-                                        (start[i, k], stop[i, k]), pairs, guide_unit, tol.eps, work, n_triads, tri)
+                                        (start[i, k], stop[i, k]), pairs, guide_unit, tol.eps, work_lists, n_triads,
+                                        tri)
+                work[3] += n_tri
                 if n_tri == 0 or n_tri > max_triangles or (unique_triangle and n_tri != 1):
                     continue
                 tri_pos[0] = i
@@ -342,8 +383,8 @@ def pyramid_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_
                             rows[sel[tri_pos[a]]] = tri[0, a]
                             pyramid[a] = sel[tri_pos[a]]
                     if rows.max() < 0:
-                        return rows, np.zeros((3, 3)), pyramid, n_triads
-                    return rows, wahba_rows(v_cam, rows, guide_unit), pyramid, n_triads
+                        return rows, _hip(rows, guide_hip), np.zeros((3, 3)), pyramid, work
+                    return rows, _hip(rows, guide_hip), wahba_rows(v_cam, rows, guide_unit), pyramid, work
                 n_ok = 0
                 for t in range(n_tri):
                     r, big_r = fourth_star(v_cam, sel, tri_pos, tri[t], nbr, nbr_chord, nbr_start, guide_unit,
@@ -355,15 +396,28 @@ def pyramid_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_
                         cand_row[a] = tri[t, a]
                     cand_star[3] = sel[r]
                     cand_row[3] = big_r
-                    if not _confirm(v_cam, cand_star, cand_row, guide_unit, tol, cam, trial_rows):
+                    work[4] += 1
+                    ok, cand_attitude = _confirm(v_cam, cand_star, cand_row, guide_unit, tol, cam, trial_rows)
+                    if not ok:
                         continue
                     n_ok += 1
                     if n_ok > 1:
                         break
                     pyr_star[:] = cand_star
                     rows[:] = trial_rows
+                    attitude = cand_attitude
                 if n_ok == 1:
                     pyramid[:] = pyr_star
-                    return rows, wahba_rows(v_cam, rows, guide_unit), pyramid, n_triads
+                    return rows, _hip(rows, guide_hip), attitude, pyramid, work
                 rows[:] = -1
-    return rows, np.zeros((3, 3)), pyramid, n_triads
+    return rows, _hip(rows, guide_hip), np.zeros((3, 3)), pyramid, work
+
+
+@njit(cache=True)
+def _hip(rows, guide_hip):
+    """Catalog id of each detection's guide row (-1 stays -1)."""
+    hip = np.full(rows.shape[0], -1, dtype=np.int64)
+    for s in range(rows.shape[0]):
+        if rows[s] >= 0:
+            hip[s] = guide_hip[rows[s]]
+    return hip

@@ -229,3 +229,53 @@ def test_luo_camera_two_pixel_noise(catalog, luo_camera):
         found = hip >= 0
         assert found.sum() >= 10, trial
         assert np.array_equal(hip[found], obs.truth_hip[found]), trial
+
+
+def _fourth_star_exists(db, v, sel, tri_pos, tri_rows, eps):
+    """The oracle of ``fourth_star``: some selected star r with exactly one catalog star at the right
+    distance from all three triangle stars (brute force over every guide star)."""
+    unit = db.guide_unit.astype(np.float64)
+    for r in range(sel.size):
+        if r in tri_pos:
+            continue
+        ok = np.ones(unit.shape[0], dtype=bool)
+        ok[list(tri_rows)] = False
+        for p, big in zip(tri_pos, tri_rows, strict=True):
+            c = np.linalg.norm(v[sel[p]] - v[sel[r]])
+            ok &= np.abs(np.linalg.norm(unit - unit[big], axis=1) - c) <= eps
+        ok &= np.linalg.norm(unit - unit[tri_rows[0]], axis=1) <= db.c_max       # I's stored pairs
+        if ok.sum() == 1:
+            return True
+    return False
+
+
+def test_work_counters_match_an_independent_count(algo, db, catalog, camera):
+    """Images decided by their first triad: 1 triad, its 3 windows searched, the catalog pairs of
+    sides ij and ik read, the numpy oracle's triangles, one confirmation per triangle with a fourth
+    star; a random field: every triad of its stars (Mortari's order exhausts them)."""
+    tol = algo.tolerances(camera, db)
+    chords = db.kv.values.astype(np.float64)
+    checked = 0
+    for obs, result, _ in noisy_results(algo, db, catalog, camera, 8, seed=21):
+        work = result.counters
+        assert set(work) == {"triads", "pair_searches", "pairs_read", "triangles", "confirmations"}
+        if work["triads"] != 1 or not np.any(result.hip >= 0):
+            continue
+        v = camera.backproject(obs.x_px, obs.y_px)
+        sel = select_stars(obs.x_px, obs.y_px, obs.mag, v, tol.d_min, tol.max_stars)
+        side = [np.linalg.norm(v[sel[0]] - v[sel[q]]) for q in (1, 2)]       # sides ij and ik
+        pairs_read = sum(np.searchsorted(chords, c + tol.eps, "right") - np.searchsorted(chords, c - tol.eps, "left")
+                         for c in side)
+        triangles = _triangles_oracle(db, v, sel[0], sel[1], sel[2], tol.eps)
+        fourth = sum(_fourth_star_exists(db, v, sel, (0, 1, 2), t, tol.eps) for t in triangles)
+        assert work == {"triads": 1, "pair_searches": 3, "pairs_read": pairs_read,
+                        "triangles": len(triangles), "confirmations": fourth}
+        checked += 1
+    assert checked >= 5
+    rng = np.random.default_rng(9)
+    obs = Observation(rng.uniform(0, 1024, 9), rng.uniform(0, 1024, 9), rng.uniform(0, 6, 9), camera)
+    work = algo.identify(db, obs).counters
+    v = camera.backproject(obs.x_px, obs.y_px)
+    m = select_stars(obs.x_px, obs.y_px, obs.mag, v, tol.d_min, tol.max_stars).size
+    assert work["triads"] == m * (m - 1) * (m - 2) // 6
+    assert work["pair_searches"] <= m * (m - 1) // 2 and work["triangles"] >= work["confirmations"]
