@@ -4,12 +4,13 @@
 
 Plans ``EXPERIMENT`` (``table6``, ``zhou2015``, ...) at ``TRIALS`` images per point, keeps the chunks
 of the plugins ``NAME ...`` (all when none is given) and computes each one in this process exactly as
-a worker does (:func:`starid.experiment.executors.execute_task`, a warm numba cache assumed: run the
-command once before). Prints per plugin: chunks, images, the sum of ``time_us`` (identify alone), the
-CPU seconds of simulating the chunks' images, of preparing (database, warm-up) and of the rest of the
-chunk (the handing over of each image, scoring, row assembly: the harness' overhead), and the same per
-image; then per study. ``--profile FILE`` writes a cProfile of the scoring part (``pstats`` file) and
-prints its top functions by ``--sort`` (default ``tottime``).
+a worker does (:func:`starid.experiment.executors.execute_task`; a warm numba cache assumed: run the
+command once before). Prints per plugin, then per study: chunks, images, the sum of ``time_us``
+(identify alone) and the wall seconds (``time_us`` is wall time too, so on a loaded machine both grow
+alike) of simulating the chunks' images, of preparing (database, warm-up) and of the rest of the chunk
+(handing each image over, scoring, row assembly: the harness' overhead), and both per image.
+``--profile FILE`` writes a cProfile of the chunks (``pstats`` file) and prints its top functions by
+``--sort`` (default ``tottime``).
 """
 
 from __future__ import annotations
@@ -32,13 +33,13 @@ def main(argv=None) -> int:
     p.add_argument("--top", type=int, default=35)
     args = p.parse_args(argv)
 
-    t_import = time.process_time()
+    t_import = time.perf_counter()
     from starid import experiments
     from starid.catalog import load_hipparcos
     from starid.experiment import executors
     from starid.experiment.runner import plan
     from starid.scoring import SuccessRule
-    t_import = time.process_time() - t_import
+    t_import = time.perf_counter() - t_import
 
     exp = experiments.get(args.experiment).experiment(args.trials, 0)
     catalog = load_hipparcos()
@@ -52,34 +53,34 @@ def main(argv=None) -> int:
         seen.add(c.key)
         cam = camera if c.camera is None else c.camera
         tasks.append((pl.study, executors.Task(len(tasks), c, "", cam, exp.seed, 3)))
-    print(f"{len(tasks)} chunks; imports {t_import:.2f} CPU s", file=sys.stderr)
+    print(f"{len(tasks)} chunks; imports {t_import:.2f} s", file=sys.stderr)
 
     prep_cpu = [0.0]
     real_prepare = executors.prepare
 
-    def timed_prepare(*a, **k):         # CPU s of preparing (database, warm-up), not the wall the rows say
-        t = time.process_time()
+    def timed_prepare(*a, **k):         # s of preparing (database, warm-up)
+        t = time.perf_counter()
         try:
             return real_prepare(*a, **k)
         finally:
-            prep_cpu[0] += time.process_time() - t
+            prep_cpu[0] += time.perf_counter() - t
 
     executors.prepare = timed_prepare
     per = defaultdict(lambda: defaultdict(float))
     per_study = defaultdict(lambda: defaultdict(float))
     profiler = cProfile.Profile() if args.profile else None
     for study, task in tasks:
-        t0 = time.process_time()
+        t0 = time.perf_counter()
         executors._trials(task, executors._catalog(""))       # simulate (cached per block, as a worker)
-        sim_s = time.process_time() - t0
-        t0 = time.process_time()
+        sim_s = time.perf_counter() - t0
+        t0 = time.perf_counter()
         prep_cpu[0] = 0.0
         if profiler is not None:
             profiler.enable()
         frame = executors.execute_task(task)
         if profiler is not None:
             profiler.disable()
-        total_s = time.process_time() - t0
+        total_s = time.perf_counter() - t0
         ident_s = float(frame["time_us"].sum()) / 1e6
         prep_s = prep_cpu[0]
         for d in (per[task.chunk.variant.label], per_study[study]):
