@@ -88,8 +88,19 @@ class Observation:
             x, y = self.camera.undistort(self.x_px, self.y_px)
             x, y, m = (_read_only(a) for a in (x, y, self.mag))
             return Observation(x, y, m, self.camera.pinhole_frame)
-        x, y, m = (_read_only(a) for a in (self.x_px, self.y_px, self.mag))
-        return Observation(x, y, m, self.camera)
+        # this observation's arrays were checked when it was made (and are read-only): not again per image
+        return Observation._checked(_read_only(self.x_px), _read_only(self.y_px), _read_only(self.mag), self.camera)
+
+    @classmethod
+    def _checked(cls, x_px, y_px, mag, camera, truth_hip=None) -> Observation:
+        """An observation of arrays already known to pass :meth:`__post_init__`'s checks (read-only float64
+        1-D arrays of one length, finite, on the sensor; ``truth_hip`` int64 of that length or ``None``),
+        made without checking them again: the harness makes two per image."""
+        obs = object.__new__(cls)
+        for name, value in (("x_px", x_px), ("y_px", y_px), ("mag", mag), ("camera", camera),
+                            ("truth_hip", truth_hip)):
+            object.__setattr__(obs, name, value)
+        return obs
 
     def to_frame(self):
         """The detections as a pandas DataFrame (``star, x_px, y_px, mag[, truth_hip]``)."""
@@ -160,8 +171,34 @@ class TrialSet:
         ``truth=False`` leaves the truth out, as handed to an algorithm.
         """
         a, b = self.offsets[i], self.offsets[i + 1]
+        if self._all_valid():     # the checks Observation makes, made once for the whole set
+            return Observation._checked(self.x_px[a:b].view(), self.y_px[a:b].view(), self.mag[a:b].view(),
+                                        self.camera, self.truth_hip[a:b] if truth else None)
         return Observation(self.x_px[a:b], self.y_px[a:b], self.mag[a:b], self.camera,
                            self.truth_hip[a:b] if truth else None)
+
+    def _all_valid(self) -> bool:
+        """True when every image passes :class:`Observation`'s checks as it is: float64 1-D star arrays of
+        one length (read-only, C-contiguous), finite, on the sensor, int64 truth, offsets within the
+        arrays. Computed once per set; an image of a set that does not pass is checked (and refused) on
+        its own, as before."""
+        valid = self.__dict__.get("_valid")
+        if valid is None:
+            arrays = (self.x_px, self.y_px, self.mag)
+            n = self.x_px.shape[0] if self.x_px.ndim == 1 else -1
+            offsets = self.offsets
+            valid = bool(
+                all(a.dtype == np.float64 and a.ndim == 1 and a.shape[0] == n and a.flags.c_contiguous
+                    and not a.flags.writeable for a in arrays)
+                and self.truth_hip.dtype == np.int64 and self.truth_hip.ndim == 1 and self.truth_hip.shape[0] == n
+                and self.truth_hip.flags.c_contiguous
+                and offsets.ndim == 1 and offsets.size == self.trial.size + 1 and offsets.size >= 1
+                and np.issubdtype(offsets.dtype, np.integer) and offsets[0] == 0 and offsets[-1] == n
+                and bool(np.all(np.diff(offsets) >= 0))
+                and all(bool(np.isfinite(a).all()) for a in arrays)
+                and bool(self.camera.in_image(self.x_px, self.y_px).all()))
+            object.__setattr__(self, "_valid", valid)
+        return valid
 
     def to_frame(self):
         """Every detection as a tidy DataFrame (``trial, star, x_px, y_px, mag, truth_hip``)."""

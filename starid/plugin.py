@@ -207,9 +207,10 @@ def check_identification(result, n_stars: int, catalog_hip: np.ndarray) -> Ident
         bad = reported[catalog_hip[pos] != reported]
         if bad.size:
             raise PluginError(f"identify returned id {int(bad[0])}, which is neither -1 nor in the catalog")
-        uniq, counts = np.unique(reported, return_counts=True)
-        if np.any(counts > 1):
-            raise PluginError(f"identify gave id {int(uniq[counts > 1][0])} to more than one star")
+        ordered = np.sort(reported)
+        twice = ordered[1:][ordered[1:] == ordered[:-1]]   # the smallest id given twice comes first
+        if twice.size:
+            raise PluginError(f"identify gave id {int(twice[0])} to more than one star")
     if result.attitude is not None and np.asarray(result.attitude).shape != (3, 3):
         raise PluginError(f"identify returned an attitude of shape {np.asarray(result.attitude).shape}")
     if result.counters is not None:

@@ -48,3 +48,75 @@ def test_later_chunks_run_block_by_block_so_workers_reuse_simulated_images():
                        ("ptp", "real", 0), ("tetra", "real", 0), ("ptp", "real", 1), ("tetra", "real", 1),
                        ("ptp", "real", 2), ("tetra", "real", 2)]
     assert sorted(out) == sorted(t.k for t in plan)
+
+
+def _dispatch_task(name, block, sky="paper"):
+    """A task as the Dispatcher sees it: variant (made from the registry), settings, block, camera."""
+    from starid.experiment import Variant
+
+    chunk = SimpleNamespace(variant=Variant(name), settings={"sigma_px": 1.0}, settings_key=sky, start=block * 10,
+                            stop=block * 10 + 10)
+    return SimpleNamespace(chunk=chunk, catalog_path="", camera=Camera(), seed=0, k=(name, sky, block))
+
+
+def test_dispatcher_gives_first_chunks_first_then_keeps_each_worker_to_its_algorithms():
+    from starid.experiment.warmup import Dispatcher
+
+    names = ("ptp", "tetra", "pvector", "grid")
+    plan = [_dispatch_task(n, b, sky) for sky in ("paper", "real") for n in names for b in range(3)]
+    d = Dispatcher(plan)
+    w1, w2 = SimpleNamespace(), SimpleNamespace()
+    got = {id(w1): [], id(w2): []}
+    # the first chunks alternate between the workers as they come free: one compile per plugin
+    for w in (w1, w2, w1, w2):
+        got[id(w)].append(d.take(w).k)
+    assert [k[0] for k in got[id(w1)] + got[id(w2)]] == ["ptp", "pvector", "tetra", "grid"]
+    while d:
+        for w in (w1, w2):
+            if d:
+                got[id(w)].append(d.take(w).k)
+    mine = {id(w1): {"ptp", "pvector"}, id(w2): {"tetra", "grid"}}
+    for w, keys in got.items():
+        assert {k[0] for k in keys} == mine[w]        # no worker built another's databases
+    taken = sorted(got[id(w1)] + got[id(w2)])
+    assert taken == sorted(t.k for t in plan)         # every task exactly once
+
+
+def test_dispatcher_lets_a_free_worker_take_what_is_left_and_puts_a_redo_first():
+    from starid.experiment.warmup import Dispatcher
+
+    plan = [_dispatch_task(n, b) for n in ("ptp", "tetra") for b in range(3)]
+    d = Dispatcher(plan)
+    w1, w2 = SimpleNamespace(), SimpleNamespace()
+    assert d.take(w1).k == ("ptp", "paper", 0) and d.take(w2).k == ("tetra", "paper", 0)
+    assert [d.take(w1).k for _ in range(2)] == [("ptp", "paper", 1), ("ptp", "paper", 2)]
+    assert d.take(w1).k == ("tetra", "paper", 1)      # nothing of its own left: the first pending task
+    redo = plan[0]
+    d.put_back(redo)
+    assert d.take(w2) is redo and len(d) == 1
+
+
+def test_trial_set_images_are_the_checked_observations(catalog):
+    """The harness's images (checked once per set) equal Observation's own checked ones; a set that fails the
+    checks still refuses its bad image."""
+    from starid.errors import ObservationError
+    from starid.observation import Observation, TrialSet
+
+    trials = Simulator(catalog, Camera.from_fov(12.0), SimConfig(sigma_px=0.5), seed=3).generate(5)
+    for i in range(len(trials)):
+        fast = trials.observation(i)
+        a, b = trials.offsets[i], trials.offsets[i + 1]
+        slow = Observation(trials.x_px[a:b], trials.y_px[a:b], trials.mag[a:b], trials.camera, trials.truth_hip[a:b])
+        for o in (fast, fast.for_plugin()):
+            assert not o.x_px.flags.writeable and not o.mag.flags.writeable
+        assert fast.for_plugin().truth_hip is None and trials.observation(i, truth=False).truth_hip is None
+        for name in ("x_px", "y_px", "mag", "truth_hip"):
+            x, y = getattr(fast, name), getattr(slow, name)
+            assert x.dtype == y.dtype and x.flags.c_contiguous and np.array_equal(x, y)
+    x = np.array(trials.x_px)
+    x[trials.offsets[2]] = np.nan
+    bad = TrialSet(trials.trial, trials.offsets, x, trials.y_px, trials.mag, trials.truth_hip, trials.attitude,
+                   trials.n_redraws, trials.camera)
+    bad.observation(1)
+    with pytest.raises(ObservationError, match="non-finite"):
+        bad.observation(2)

@@ -44,7 +44,7 @@ from ..registry import algorithm_info
 from ..scoring import CRASHED, TIMEOUT, SuccessRule
 from ..simulate import SimConfig, Simulator
 from .store import release_in_child
-from .warmup import schedule
+from .warmup import TRIALS_KEPT, Dispatcher, schedule
 
 DEFAULT_TIME_LIMIT_S = 10.0
 #: ``--build-time-limit``: seconds a worker may spend preparing a chunk (simulating its trials,
@@ -130,7 +130,7 @@ class Task:
 
 # ---- what a worker process computes (also called by Dask workers) -------------------------------
 
-_CACHE: dict = {"catalog": {}, "trials": OrderedDict(), "prepared": {}}
+_CACHE: dict = {"catalog": {}, "trials": OrderedDict(), "sims": OrderedDict(), "prepared": {}}
 _CACHE["info"] = {}     # (plugin name, class) -> AlgorithmInfo: 24 ms of entry-point metadata per call
 
 
@@ -145,8 +145,18 @@ def _trials(task: Task, catalog: Catalog):
     chunk = task.chunk
     key = (task.catalog_path, task.camera, task.seed, chunk.settings_key, chunk.start, chunk.stop)
     cache = _CACHE["trials"]
-    if key not in cache:
-        sim = Simulator(catalog, task.camera, SimConfig(**chunk.settings), seed=task.seed)
+    if key in cache:
+        cache.move_to_end(key)
+    else:
+        sims = _CACHE["sims"]      # one simulator per grid point (its catalog subset and k-d tree), not per block
+        sim_key = key[:4]
+        sim = sims.get(sim_key)
+        if sim is None:
+            sim = sims[sim_key] = Simulator(catalog, task.camera, SimConfig(**chunk.settings), seed=task.seed)
+            while len(sims) > 4:
+                sims.popitem(last=False)
+        else:
+            sims.move_to_end(sim_key)
         if sim.config.pipeline == "image":
             from ..render import image_trials
 
@@ -154,7 +164,7 @@ def _trials(task: Task, catalog: Catalog):
             cache[key] = (sim, trials, stats.add_prefix("img_").rename(columns={"img_trial": "trial"}))
         else:
             cache[key] = (sim, sim.generate(chunk.stop - chunk.start, chunk.start), None)
-        while len(cache) > 4:
+        while len(cache) > TRIALS_KEPT:
             cache.popitem(last=False)
     return cache[key]
 
@@ -373,7 +383,7 @@ class LocalExecutor:
 
     def run(self, tasks: list[Task], on_result) -> None:
         ctx = mp.get_context("fork" if "fork" in mp.get_all_start_methods() else "spawn")
-        pending = deque(schedule(tasks))   # each plugin's first chunk first: one compile per plugin
+        pending = Dispatcher(tasks)   # each plugin's first chunk first (one compile each), then each worker its own
         workers = self._workers
         while len(workers) < min(self.jobs, len(tasks)):
             workers.append(_Worker(ctx, self.memory_limit_gb))
@@ -382,7 +392,7 @@ class LocalExecutor:
             while pending or any(w.task is not None for w in workers):
                 for w in workers:
                     if w.task is None and pending:
-                        w.task = self._known_failure(pending.popleft())
+                        w.task = self._known_failure(pending.take(w))
                         w.conn.send(w.task)
                 busy = [w for w in workers if w.task is not None]
                 ready = wait([w.conn for w in busy], timeout=0.1)
@@ -403,7 +413,7 @@ class LocalExecutor:
                     if replacement is not None:
                         w.stop(kill=True)
                         workers[k] = _Worker(ctx, self.memory_limit_gb)
-                        pending.appendleft(replacement)
+                        pending.put_back(replacement)
             finished = True
         finally:
             if not (self.keep_workers and finished):
