@@ -107,7 +107,7 @@ def main(n: int, repeats: int) -> None:
             rows = []
             for o in obs:
                 if steps is None:
-                    rows.append({"identify": _best(lambda o=o: alg.identify(db, o), repeats)})
+                    rows.append({"identify": _best(lambda o=o, a=alg, d=db: a.identify(d, o), repeats)})
                 else:
                     rows.append(steps(alg, db, o, repeats))
             keys = sorted({k for r in rows for k in r})
