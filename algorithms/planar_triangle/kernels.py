@@ -612,8 +612,10 @@ def _pivot(first, img, db, tol, pivot_limit, cache, work):
         if node_parent.shape[0] < node_cat.shape[0]:
             node_parent = _grow(node_parent, node_cat.shape[0])
         while True:
-            n_new, grew, fits = _pivot_layer(layer_lo, layer_hi, n_nodes, node_cat, node_parent, hkeys, hcand,
-                                             tri_stars, img_sig, step, abort_if_grow, consistent_chain, work)
+            # np.int64: not compiled again for the literal first layer (0) and step (1)
+            n_new, grew, fits = _pivot_layer(np.int64(layer_lo), np.int64(layer_hi), np.int64(n_nodes), node_cat,
+                                             node_parent, hkeys, hcand, tri_stars, img_sig, np.int64(step),
+                                             abort_if_grow, consistent_chain, work)
             if fits:
                 break
             work[2] = work_before
