@@ -87,7 +87,7 @@ def _tv_steps(alg, db, o, repeats):
         rules = ptk.Finish(tol.eps_chord, float(alg.mag_margin), float(alg.mag_limit),
                            float(alg.coverage_mag_margin), float(alg.max_missed_fraction), bool(alg.assign_all))
         frame = camera_frame(cam)
-        unit = getattr(db, "unit_f64", db.unit_icrs)
+        unit = getattr(tva, "_unit_f64", lambda d: d.unit_icrs)(db)
         out["finish"] = _best(lambda: ptk.finish(x, y, mag, all_rows, unit, db.hip, db.deep, db.deep_v_mag,
                                                  frame, rules), repeats)
     return out
