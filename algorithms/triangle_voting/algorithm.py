@@ -86,6 +86,19 @@ def _scratch(db: TriangleVotingDatabase, n: int) -> tuple[np.ndarray, np.ndarray
     return votes, mark
 
 
+_UNIT_F64: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _unit_f64(db: TriangleVotingDatabase) -> np.ndarray:
+    """The guide unit vectors as float64, made once per database: ``finish`` (shared with planar_triangle)
+    is then compiled for planar_triangle's float64 catalogue only, not again for float32 (1.3 CPU s on a
+    cold cache). The same numbers: the attitude solver reads each component as a float64 anyway."""
+    unit = _UNIT_F64.get(db)
+    if unit is None:
+        unit = _UNIT_F64[db] = np.ascontiguousarray(db.unit_icrs, dtype=np.float64)
+    return unit
+
+
 @dataclass(frozen=True)
 class TriangleVoting(Algorithm):
     """Triangle voting with double (base, height) feature constraints (Fan & Zhong, Adv. Space Res. 2018).
@@ -328,7 +341,7 @@ class TriangleVoting(Algorithm):
         all_rows[order] = rows
         rules = Finish(tol.eps_chord, float(self.mag_margin), float(self.mag_limit), float(self.coverage_mag_margin),
                        float(self.max_missed_fraction), bool(self.assign_all))
-        hip, attitude, accepted = finish(x, y, mag, all_rows, db.unit_icrs, db.hip, db.deep, db.deep_v_mag,
+        hip, attitude, accepted = finish(x, y, mag, all_rows, _unit_f64(db), db.hip, db.deep, db.deep_v_mag,
                                          camera_frame(cam), rules)
         if accepted and not self._photometry_agrees(db, hip, mag):
             return Identification(np.full(n, -1, dtype=np.int64), counters=counters)

@@ -14,6 +14,7 @@ from typing import NamedTuple
 
 import numpy as np
 from numba import njit
+from starid_algorithms.planar_triangle.kernels import argsort_desc
 
 from starid.kernels import chord, chord_rows, verify_pairwise, wahba_rows
 
@@ -481,7 +482,7 @@ def best_hypothesis(v_cam, hyp, score, db, tol, min_stars):
     every result that assigns differently; otherwise nothing is reported.
     """
     n = v_cam.shape[0]
-    order = np.argsort(-score, kind="mergesort")
+    order = argsort_desc(score)
     best = np.full(n, -1, dtype=np.int64)
     best_size = 0
     rival_size = 0
