@@ -270,7 +270,7 @@ def query_table(frame: pd.DataFrame) -> Table:
     """The query step's printed figures (no noise) beside ours on the same images."""
     part = frame[(frame["study"] == "false_stars") & (frame["grid_false_stars"] == 0)]
     counters = [c for c in part.columns if c.startswith("n_") and c not in
-                ("n_identified", "n_correct", "n_wrong", "n_true_stars", "n_stars", "n_false", "n_lost")
+                ("n_identified", "n_correct", "n_wrong", "n_true_stars", "n_stars", "n_false", "n_lost", "n_redraws")
                 and c not in FIRST_QUERY]
     rows = []
     for label, g in part.groupby("label", sort=False):
