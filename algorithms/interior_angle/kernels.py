@@ -180,7 +180,7 @@ def interior_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide
     if m < 3:
         return rows, trio, work
     out = np.empty((max(tol.max_candidates, 1), 3), dtype=np.int64)
-    first = np.empty((max(tol.max_candidates, 1), 3), dtype=np.int64)
+    first = np.empty_like(out)
     first_star = np.full(3, -1, dtype=np.int64)
     pat_star = np.empty(3, dtype=np.int64)
     pat_row = np.empty(3, dtype=np.int64)
@@ -200,7 +200,8 @@ def interior_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide
         if c == 0:
             work[4] = max(count, 0)
             first_star[:] = pat_star
-            first[:] = out
+            kept = min(max(count, 0), first.shape[0])
+            first[:kept] = out[:kept]
         if count <= 0 or count > tol.max_candidates or (tol.unique and count != 1):
             continue
         for t in range(count):
