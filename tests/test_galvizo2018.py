@@ -111,3 +111,15 @@ def test_tables_put_the_printed_values_beside_ours(monkeypatch):
     assert "(paper 0.995)" in tables["galvizo_false_acc"].markdown
     assert "1501" in tables["galvizo_query"].markdown
     assert "1 of the paper's 1 methods run as published (pyramid:galvizo2018)" in tables["galvizo_setup"].markdown
+
+
+def test_our_f_and_s_from_the_first_query_counters():
+    """f: among images identified with no wrong id that name the first queried subset, the share whose
+    first R held it; S: the share with |R| = 1, scaled to the paper's 2,000 runs."""
+    import pandas as pd
+    rows = pd.DataFrame({"n_wrong": [0, 0, 0, 1, 0], "n_correct": [5, 4, 6, 3, 0],
+                         "n_first_R": [1, 3, 1, 1, 0], "n_first_named": [1, 1, 0, 1, 0],
+                         "n_first_in_R": [1, 0, 0, 1, 0]})
+    f, s, n_f, n_s = g.first_query(rows)
+    assert (f, s, n_f, n_s) == (0.5, 1200.0, 2, 5)
+    assert np.isnan(g.first_query(rows.drop(columns="n_first_R"))[0])

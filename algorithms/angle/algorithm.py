@@ -27,7 +27,7 @@ from starid.observation import Observation
 from starid.params import check_flag, check_number, check_whole, param
 from starid.plugin import Algorithm, Explanation, Identification
 
-from .kernels import AngleTol, angle_kernel
+from .kernels import WORK_NAMES, AngleTol, angle_kernel
 
 #: the reading of Galvizo & Lim 2018 (arXiv 1808.08686, LaTeX at glennga/hoku commit
 #: 0cb340eca0e9af891acfa8a069776530b111c863): query sigma_theta = 1e-4 deg with the 3 sigma window,
@@ -166,17 +166,19 @@ class Angle(Algorithm):
                             camera_frame(observation.camera))
 
     def identify(self, database: PairDatabase, observation: Observation) -> Identification:
-        rows, _, _ = self._run(database, observation)
+        rows, _, work = self._run(database, observation)
         hip = hip_of(database, rows)
+        counters = dict(zip(WORK_NAMES, work.tolist(), strict=True))
         if not (rows >= 0).any():
-            return Identification(hip, None)
+            return Identification(hip, None, counters=counters)
         cam = observation.camera
         v = backproject_px(observation.x_px, observation.y_px, cam.f_px, cam.cx_px, cam.cy_px)
-        return Identification(hip, wahba_rows(v, rows, database.guide_unit))
+        return Identification(hip, wahba_rows(v, rows, database.guide_unit), counters=counters)
 
     def explain(self, database: PairDatabase, observation: Observation) -> Explanation:
         """The matched pair as a bold segment, and every identified star labelled with its id."""
-        rows, pair, n_pairs = self._run(database, observation)
+        rows, pair, work = self._run(database, observation)
+        n_pairs = int(work[0])
         hip = hip_of(database, rows)
         xy = np.stack([observation.x_px, observation.y_px], axis=1)
         found = np.flatnonzero(hip >= 0)

@@ -138,12 +138,20 @@ def confirm_pattern(v_cam, pat_star, pat_row, guide_unit, c_fov, eps, widen, cam
     return True
 
 
+#: the work counters of :func:`angle_kernel`, in the order of its ``work`` array
+WORK_NAMES = ("pairs", "windows", "candidates", "tests", "confirms", "first_R", "first_named", "first_in_R")
+
+
 @njit(cache=True)
 def angle_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_unit, tol, cam):
-    """The angle method on one image. Returns ``(rows, pair, n_pairs)``.
+    """The angle method on one image. Returns ``(rows, pair, work)``.
 
     ``rows[s]`` is the guide row of detection ``s`` (-1 = none); ``pair`` the two detections of the
-    accepted pairing (-1 when none); ``n_pairs`` how many image pairs were examined.
+    accepted pairing (-1 when none); ``work`` the counters :data:`WORK_NAMES`: image pairs examined,
+    pair windows computed (one k-vector search each, at most), catalog pairs (or, with ``compare``
+    off, catalog triangles) taken from the windows, direct-match tests, attitude confirmations, and
+    the first query step's (the two brightest selected stars'): |R|, whether the identification
+    names both stars, and whether R holds the catalog pair it names them as.
 
     1. isolated detections, brightest first, at most ``tol.max_stars``;
     2. image pairs in hoku's order ``for i: for j > i``, at most ``tol.max_pairs``;
@@ -155,29 +163,50 @@ def angle_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_un
        :func:`confirm_pattern`; the first that stands is the answer.
     """
     n = x_px.shape[0]
-    rows = np.full(n, -1, dtype=np.int64)
-    pair = np.full(2, -1, dtype=np.int64)
+    work = np.zeros(len(WORK_NAMES), dtype=np.int64)
     if n < 2:
-        return rows, pair, 0
+        return np.full(n, -1, dtype=np.int64), np.full(2, -1, dtype=np.int64), work
     v_cam = backproject_px(x_px, y_px, cam.f_px, cam.cx_px, cam.cy_px)
     sel = select_stars(x_px, y_px, mag, v_cam, tol.d_min, tol.max_stars)
     m = sel.shape[0]
+    start, stop = pair_windows(v_cam, sel, kv, tol)
+    work[1] = m * (m - 1) // 2
+    rows, pair = _search(v_cam, sel, start, stop, pairs, nbr, nbr_chord, nbr_start, guide_unit, tol, cam, work)
+    if m >= 2:
+        lo, hi = start[0, 1], stop[0, 1]
+        work[5] = hi - lo
+        r0 = rows[sel[0]]
+        r1 = rows[sel[1]]
+        if r0 >= 0 and r1 >= 0:
+            work[6] = 1
+            for p in range(lo, hi):
+                if (pairs[p, 0] == r0 and pairs[p, 1] == r1) or (pairs[p, 0] == r1 and pairs[p, 1] == r0):
+                    work[7] = 1
+                    break
+    return rows, pair, work
+
+
+@njit(cache=True)
+def _search(v_cam, sel, start, stop, pairs, nbr, nbr_chord, nbr_start, guide_unit, tol, cam, work):
+    """Steps 2-5 of :func:`angle_kernel`; returns ``(rows, pair)`` and adds to ``work``."""
+    n = v_cam.shape[0]
+    rows = np.full(n, -1, dtype=np.int64)
+    pair = np.full(2, -1, dtype=np.int64)
+    m = sel.shape[0]
     pat_star = np.empty(2, dtype=np.int64)
     pat_row = np.empty(2, dtype=np.int64)
-    start, stop = pair_windows(v_cam, sel, kv, tol)
     n_guide = guide_unit.shape[0]
     cap = 2 * max(tol.max_window, 1)
-    work = (np.full(n_guide, -1, dtype=np.int32), np.zeros(n_guide, dtype=np.int32),
-            np.empty(cap, dtype=np.int32), np.empty(cap, dtype=np.int32))
+    scratch = (np.full(n_guide, -1, dtype=np.int32), np.zeros(n_guide, dtype=np.int32),
+               np.empty(cap, dtype=np.int32), np.empty(cap, dtype=np.int32))
     tri = np.empty((max(tol.max_triangles, 1), 3), dtype=np.int64)
     tick = 0
-    n_pairs = 0
     for a in range(m - 1):
         for b in range(a + 1, m):
-            if n_pairs >= tol.max_pairs:
+            if work[0] >= tol.max_pairs:
                 rows[:] = -1
-                return rows, pair, n_pairs
-            n_pairs += 1
+                return rows, pair
+            work[0] += 1
             lo, hi = start[a, b], stop[a, b]
             if hi == lo or (tol.unique_window and hi - lo != 1):
                 continue
@@ -185,9 +214,11 @@ def angle_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_un
             pat_star[1] = sel[b]
             if tol.compare:                         # hoku's test: every candidate, the better orientation
                 for p in range(lo, hi):
+                    work[2] += 1
                     best = -1
                     s_best = -1
                     for o in range(2):
+                        work[3] += 1
                         s = support(v_cam, sel, a, b, np.int64(pairs[p, o]), np.int64(pairs[p, 1 - o]), nbr,
                                     nbr_chord, nbr_start, guide_unit, tol.eps_match, tol.n_check, np.int64(-1),
                                     tol.chirality)
@@ -198,10 +229,11 @@ def angle_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_un
                         continue
                     pat_row[0] = pairs[p, best]
                     pat_row[1] = pairs[p, 1 - best]
+                    work[4] += 1
                     if confirm_pattern(v_cam, pat_star, pat_row, guide_unit, tol.c_fov, tol.eps_match, tol.widen, cam,
                                        tol.min_extra, tol.confirm_fraction, rows):
                         pair[:] = pat_star
-                        return rows, pair, n_pairs
+                        return rows, pair
                 continue
             # starid's test: each of the first n_check other stars k in turn anchors the test; the
             # pairings it supports are the catalog triangles of (a, b, k) (pyramid's join of the
@@ -217,20 +249,23 @@ def angle_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_un
                     continue
                 tick += 1
                 n_tri = triad_triangles(v_cam, sel[a], sel[b], sel[k], (lo, hi), (start[a, k], stop[a, k]), pairs,
-                                        guide_unit, tol.eps_match, work, tick, tri)
+                                        guide_unit, tol.eps_match, scratch, tick, tri)
                 if n_tri > tri.shape[0]:
                     continue
+                work[2] += n_tri
                 for t in range(n_tri):
                     big_i = tri[t, 0]
                     big_j = tri[t, 1]
+                    work[3] += 1
                     if support(v_cam, sel, a, b, big_i, big_j, nbr, nbr_chord, nbr_start, guide_unit, tol.eps_match,
                                tol.n_check, tol.min_support, tol.chirality) < tol.min_support:
                         continue
                     pat_row[0] = big_i
                     pat_row[1] = big_j
+                    work[4] += 1
                     if confirm_pattern(v_cam, pat_star, pat_row, guide_unit, tol.c_fov, tol.eps_match, tol.widen, cam,
                                        tol.min_extra, tol.confirm_fraction, rows):
                         pair[:] = pat_star
-                        return rows, pair, n_pairs
+                        return rows, pair
     rows[:] = -1
-    return rows, pair, n_pairs
+    return rows, pair

@@ -15,6 +15,7 @@ from starid_algorithms.spherical_triangle.algorithm import (
     hip_of,
     triangle_explanation,
 )
+from starid_algorithms.spherical_triangle.kernels import WORK_NAMES
 
 from starid.camera import Camera
 from starid.catalog import Catalog
@@ -123,12 +124,13 @@ class CompositePyramid(Algorithm):
                                 database.guide_unit, self.tolerances(cam, database), camera_frame(cam))
 
     def identify(self, database: TriangleDatabase, observation: Observation) -> Identification:
-        rows, attitude, _, n_trios = self._run(database, observation)
+        rows, attitude, _, work = self._run(database, observation)
         found = rows.max(initial=-1) >= 0
-        return Identification(hip_of(database, rows), attitude if found else None, counters={"trios": int(n_trios)})
+        return Identification(hip_of(database, rows), attitude if found else None,
+                              counters=dict(zip(WORK_NAMES, work.tolist(), strict=True)))
 
     def explain(self, database: TriangleDatabase, observation: Observation) -> Explanation:
         """The matched trio's triangle, the identified stars (the fourth star labelled)."""
-        rows, _, four, n_trios = self._run(database, observation)
-        return triangle_explanation(database, observation, rows, four[:3], n_trios, "Composite pyramid",
+        rows, _, four, work = self._run(database, observation)
+        return triangle_explanation(database, observation, rows, four[:3], int(work[0]), "Composite pyramid",
                                     int(four[3]))

@@ -12,6 +12,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 from starid_algorithms.pyramid.kernels import select_stars
+from starid_algorithms.spherical_triangle.kernels import WORK_NAMES, first_query_check
 
 from starid.kernels import backproject_px, wahba_rows
 from starid.kernels.triangles import trio_confirm, trio_query
@@ -86,8 +87,11 @@ def fourth_star(stars, hits, counts, cat, buf):
 
 @njit(cache=True)
 def composite_kernel(x_px, y_px, mag, index, guide_unit, tol, cam):
-    """Identify one image. Returns ``(rows, attitude, stars4, n_trios)`` (``stars4``: the trio and the
-    fourth star of the accepted identification, -1 when none).
+    """Identify one image. Returns ``(rows, attitude, stars4, work)`` (``stars4``: the trio and the
+    fourth star of the accepted identification, -1 when none; ``work``: the spherical triangle's
+    counters ``WORK_NAMES`` -- trios tried, (area, moment) queries made (fourth-star queries included),
+    and the first query step's (the three brightest selected stars') |R|, whether the identification
+    names them, and whether R holds the catalog triangle it names them as).
 
     1. usable detections (isolated by ``d_min``), the ``max_stars`` brightest, brightest first;
     2. trios in Mortari's order ``for dj, for dk, for i: j = i + dj, k = j + dk``, at most ``max_trios``;
@@ -102,8 +106,9 @@ def composite_kernel(x_px, y_px, mag, index, guide_unit, tol, cam):
     n = x_px.shape[0]
     rows = np.full(n, -1, dtype=np.int64)
     out4 = np.full(4, -1, dtype=np.int64)
+    work = np.zeros(len(WORK_NAMES), dtype=np.int64)
     if n < 3:
-        return rows, np.zeros((3, 3)), out4, 0
+        return rows, np.zeros((3, 3)), out4, work
     v_cam = backproject_px(x_px, y_px, cam.f_px, cam.cx_px, cam.cy_px)
     sel = select_stars(x_px, y_px, mag, v_cam, tol.d_min, tol.max_stars)
     m = sel.shape[0]
@@ -117,21 +122,27 @@ def composite_kernel(x_px, y_px, mag, index, guide_unit, tol, cam):
     try_rows = np.empty(n, dtype=np.int64)
     trial = np.empty(n, dtype=np.int64)
     stars = index.stars
-    n_trios = 0
+    first_trio = np.full(3, -1, dtype=np.int64)
+    first_cand = np.empty(nc_max, dtype=np.int64)
     for dj in range(1, m - 1):
         for dk in range(1, m - dj):
             for i in range(0, m - dj - dk):
-                if n_trios >= tol.max_trios:
-                    return np.full(n, -1, dtype=np.int64), np.zeros((3, 3)), np.full(4, -1, dtype=np.int64), n_trios
+                if work[0] >= tol.max_trios:
+                    return np.full(n, -1, dtype=np.int64), np.zeros((3, 3)), np.full(4, -1, dtype=np.int64), work
                 j = i + dj
                 k = j + dk
-                n_trios += 1
+                work[0] += 1
                 trio[0] = sel[i]
                 trio[1] = sel[j]
                 trio[2] = sel[k]
                 nc = trio_query(v_cam, trio[0], trio[1], trio[2], index, tol.kind, tol.depth, tol.sigma_rad,
                                 tol.beta, tol.fixed_area, tol.fixed_moment, tol.chord_max, tol.max_hits,
                                 tol.truncate, guide_unit, tol.eps_side, cand)
+                work[1] += 1
+                if work[0] == 1:
+                    work[2] = max(nc, 0)
+                    first_trio[:] = trio
+                    first_cand[:min(max(nc, 0), nc_max)] = cand[:min(max(nc, 0), nc_max)]
                 if nc <= 0 or (tol.unique and nc != 1):
                     continue
                 n_ok = 0
@@ -160,6 +171,7 @@ def composite_kernel(x_px, y_px, mag, index, guide_unit, tol, cam):
                                                    tol.sigma_rad, tol.beta, tol.fixed_area, tol.fixed_moment,
                                                    tol.chord_max, tol.max_hits, tol.truncate, guide_unit,
                                                    tol.eps_side, hits[q])
+                            work[1] += 1
                             # no hit completes a pair of the candidate: this beta fails, skip its other queries
                             if counts[q] <= 0 or _third_stars(stars, hits[q], counts[q], cat, buf).shape[0] == 0:
                                 break
@@ -175,7 +187,8 @@ def composite_kernel(x_px, y_px, mag, index, guide_unit, tol, cam):
                     out4[:3] = trio
                     out4[3] = beta
                 if n_ok == 1:
-                    return rows, wahba_rows(v_cam, rows, guide_unit), out4, n_trios
+                    first_query_check(work, rows, first_trio, first_cand, stars)
+                    return rows, wahba_rows(v_cam, rows, guide_unit), out4, work
                 rows[:] = -1
                 out4[:] = -1
-    return rows, np.zeros((3, 3)), out4, n_trios
+    return rows, np.zeros((3, 3)), out4, work

@@ -148,9 +148,19 @@ def trio_query(v_cam, sc, s1, s2, kv, pairs, nbr, nbr_chord, nbr_start, guide_un
     return count
 
 
+#: the work counters of :func:`interior_kernel`, in the order of its ``work`` array
+WORK_NAMES = ("centres", "queries", "candidates", "confirms", "first_R", "first_named", "first_in_R")
+
+
 @njit(cache=True)
 def interior_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_unit, tol, cam):
-    """The interior-angle method on one image. Returns ``(rows, trio, n_centres)``.
+    """The interior-angle method on one image. Returns ``(rows, trio, work)``.
+
+    ``work`` holds the counters :data:`WORK_NAMES`: central stars tried, trio queries made (one per
+    central star), catalog trios the queries returned (a query over ``tol.max_candidates`` counts
+    ``max_candidates + 1``, an unusable window 0), attitude confirmations, and the first query
+    step's (the brightest star as the centre): |R| (same caps), whether the identification names its
+    three stars, and whether R holds the catalog trio it names them as.
 
     1. isolated detections, brightest first, at most ``tol.max_stars``;
     2. each in turn is the central star (at most ``tol.max_centres``), with its two nearest
@@ -161,35 +171,58 @@ def interior_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide
     n = x_px.shape[0]
     rows = np.full(n, -1, dtype=np.int64)
     trio = np.full(3, -1, dtype=np.int64)
+    work = np.zeros(len(WORK_NAMES), dtype=np.int64)
     if n < 3:
-        return rows, trio, 0
+        return rows, trio, work
     v_cam = backproject_px(x_px, y_px, cam.f_px, cam.cx_px, cam.cy_px)
     sel = select_stars(x_px, y_px, mag, v_cam, tol.d_min, tol.max_stars)
     m = sel.shape[0]
     if m < 3:
-        return rows, trio, 0
+        return rows, trio, work
     out = np.empty((max(tol.max_candidates, 1), 3), dtype=np.int64)
+    first = np.empty_like(out)
+    first_star = np.full(3, -1, dtype=np.int64)
     pat_star = np.empty(3, dtype=np.int64)
     pat_row = np.empty(3, dtype=np.int64)
-    n_centres = 0
+    found = False
     for c in range(m):
-        if n_centres >= tol.max_centres:
+        if work[0] >= tol.max_centres:
             break
-        n_centres += 1
+        work[0] += 1
         k1, k2 = nearest_two(v_cam, sel, c)
         pat_star[0] = sel[c]
         pat_star[1] = sel[k1]
         pat_star[2] = sel[k2]
         count = trio_query(v_cam, sel[c], sel[k1], sel[k2], kv, pairs, nbr, nbr_chord, nbr_start, guide_unit, tol,
                            out)
+        work[1] += 1
+        work[2] += max(count, 0)
+        if c == 0:
+            work[4] = max(count, 0)
+            first_star[:] = pat_star
+            kept = min(max(count, 0), first.shape[0])
+            first[:kept] = out[:kept]
         if count <= 0 or count > tol.max_candidates or (tol.unique and count != 1):
             continue
         for t in range(count):
             for a in range(3):
                 pat_row[a] = out[t, a]
+            work[3] += 1
             if confirm_pattern(v_cam, pat_star, pat_row, guide_unit, tol.c_fov, tol.eps, tol.widen, cam, tol.min_extra,
                                tol.confirm_fraction, rows):
                 trio[:] = pat_star
-                return rows, trio, n_centres
-    rows[:] = -1
-    return rows, trio, n_centres
+                found = True
+                break
+        if found:
+            break
+    if not found:
+        rows[:] = -1
+        return rows, trio, work
+    if first_star[0] >= 0 and rows[first_star[0]] >= 0 and rows[first_star[1]] >= 0 and rows[first_star[2]] >= 0:
+        work[5] = 1
+        for t in range(min(work[4], first.shape[0])):
+            if first[t, 0] == rows[first_star[0]] and first[t, 1] == rows[first_star[1]] \
+                    and first[t, 2] == rows[first_star[2]]:
+                work[6] = 1
+                break
+    return rows, trio, work

@@ -19,7 +19,7 @@ from starid.observation import Observation
 from starid.params import check_flag, check_number, check_whole, param
 from starid.plugin import Algorithm, Database, Explanation, Identification
 
-from .kernels import SphTol, spherical_kernel
+from .kernels import WORK_NAMES, SphTol, spherical_kernel
 
 #: centroid-noise floor of the windows (px): a noise-free world still gets a window
 SIGMA_FLOOR_PX = 1.0
@@ -253,11 +253,12 @@ class SphericalTriangle(Algorithm):
                                 database.guide_unit, self.tolerances(cam, database), camera_frame(cam))
 
     def identify(self, database: TriangleDatabase, observation: Observation) -> Identification:
-        rows, attitude, _, n_trios = self._run(database, observation)
+        rows, attitude, _, work = self._run(database, observation)
         found = rows.max(initial=-1) >= 0
-        return Identification(hip_of(database, rows), attitude if found else None, counters={"trios": int(n_trios)})
+        return Identification(hip_of(database, rows), attitude if found else None,
+                              counters=dict(zip(WORK_NAMES, work.tolist(), strict=True)))
 
     def explain(self, database: TriangleDatabase, observation: Observation) -> Explanation:
         """The matched trio's triangle and the identified stars."""
-        rows, _, trio, n_trios = self._run(database, observation)
-        return triangle_explanation(database, observation, rows, trio, n_trios, "Spherical triangle")
+        rows, _, trio, work = self._run(database, observation)
+        return triangle_explanation(database, observation, rows, trio, int(work[0]), "Spherical triangle")

@@ -53,9 +53,40 @@ def _share_two(stars, p, q):
     return n >= 2
 
 
+#: the work counters of :func:`spherical_kernel` and the composite pyramid's kernel (``work``)
+WORK_NAMES = ("trios", "queries", "first_R", "first_named", "first_in_R")
+
+
+@njit(cache=True)
+def first_query_check(work, rows, first_trio, first_cand, stars):
+    """``work[3]`` / ``work[4]``: whether ``rows`` names the three stars of the first queried trio, and
+    whether its first R (``first_cand[:work[2]]``, triangles as rows of ``stars``) holds their set."""
+    if first_trio[0] < 0:
+        return
+    r0 = rows[first_trio[0]]
+    r1 = rows[first_trio[1]]
+    r2 = rows[first_trio[2]]
+    if r0 < 0 or r1 < 0 or r2 < 0:
+        return
+    work[3] = 1
+    for c in range(min(work[2], first_cand.shape[0])):
+        t = first_cand[c]
+        hit = 0
+        for a in range(3):
+            s = np.int64(stars[t, a])
+            if s == r0 or s == r1 or s == r2:
+                hit += 1
+        if hit == 3:
+            work[4] = 1
+            return
+
+
 @njit(cache=True)
 def spherical_kernel(x_px, y_px, mag, index, guide_unit, tol, cam):
-    """Identify one image. Returns ``(rows, attitude, trio, n_trios)``.
+    """Identify one image. Returns ``(rows, attitude, trio, work)``; ``work``: the counters
+    :data:`WORK_NAMES` -- image trios tried, (area, moment) queries made (pivots included), and the
+    first query step's (the three brightest selected stars'): |R| (0 when the window was skipped),
+    whether the identification names its stars, whether R holds the catalog triangle it names them as.
 
     1. usable detections (isolated by ``d_min``), the ``max_stars`` brightest, brightest first;
     2. trios (i, j, k) in the naive order i < j < k (Galvizo & Lim's C(n, 3) loop), at most ``max_trios``;
@@ -69,8 +100,9 @@ def spherical_kernel(x_px, y_px, mag, index, guide_unit, tol, cam):
     n = x_px.shape[0]
     rows = np.full(n, -1, dtype=np.int64)
     trio_out = np.full(3, -1, dtype=np.int64)
+    work = np.zeros(len(WORK_NAMES), dtype=np.int64)
     if n < 3:
-        return rows, np.zeros((3, 3)), trio_out, 0
+        return rows, np.zeros((3, 3)), trio_out, work
     v_cam = backproject_px(x_px, y_px, cam.f_px, cam.cx_px, cam.cy_px)
     sel = select_stars(x_px, y_px, mag, v_cam, tol.d_min, tol.max_stars)
     m = sel.shape[0]
@@ -81,16 +113,24 @@ def spherical_kernel(x_px, y_px, mag, index, guide_unit, tol, cam):
     try_rows = np.empty(n, dtype=np.int64)
     trial = np.empty(n, dtype=np.int64)
     stars = index.stars
-    n_trios = 0
+    first_trio = np.full(3, -1, dtype=np.int64)
+    first_cand = np.empty(tol.max_candidates, dtype=np.int64)
     for i in range(m):
         for j in range(i + 1, m):
             for k in range(j + 1, m):
-                if n_trios >= tol.max_trios:
-                    return np.full(n, -1, dtype=np.int64), np.zeros((3, 3)), trio_out, n_trios
-                n_trios += 1
+                if work[0] >= tol.max_trios:
+                    return np.full(n, -1, dtype=np.int64), np.zeros((3, 3)), trio_out, work
+                work[0] += 1
                 nc = trio_query(v_cam, sel[i], sel[j], sel[k], index, tol.kind, tol.depth, tol.sigma_rad,
                                 tol.beta, tol.fixed_area, tol.fixed_moment, tol.chord_max, tol.max_hits,
                                 tol.truncate, guide_unit, tol.eps_side, cand)
+                work[1] += 1
+                if work[0] == 1:
+                    work[2] = max(nc, 0)
+                    first_trio[0] = sel[i]
+                    first_trio[1] = sel[j]
+                    first_trio[2] = sel[k]
+                    first_cand[:min(max(nc, 0), first_cand.shape[0])] = cand[:min(max(nc, 0), first_cand.shape[0])]
                 if nc <= 0:
                     continue
                 trio[0] = sel[i]
@@ -103,6 +143,7 @@ def spherical_kernel(x_px, y_px, mag, index, guide_unit, tol, cam):
                         n2 = trio_query(v_cam, sel[i], sel[j], sel[b], index, tol.kind, tol.depth,
                                         tol.sigma_rad, tol.beta, tol.fixed_area, tol.fixed_moment, tol.chord_max,
                                         tol.max_hits, tol.truncate, guide_unit, tol.eps_side, cand2)
+                        work[1] += 1
                         kept = 0
                         for c2 in range(max(n2, 0)):
                             for c in range(nc):
@@ -129,7 +170,8 @@ def spherical_kernel(x_px, y_px, mag, index, guide_unit, tol, cam):
                     rows[:] = try_rows
                     trio_out[:] = trio
                 if n_ok == 1:
-                    return rows, wahba_rows(v_cam, rows, guide_unit), trio_out, n_trios
+                    first_query_check(work, rows, first_trio, first_cand, stars)
+                    return rows, wahba_rows(v_cam, rows, guide_unit), trio_out, work
                 rows[:] = -1
                 trio_out[:] = -1
-    return rows, np.zeros((3, 3)), trio_out, n_trios
+    return rows, np.zeros((3, 3)), trio_out, work

@@ -226,7 +226,13 @@ def _sorted3(x, y, z):
 
 @njit(cache=True)
 def _sides_agree(unit, g0, g1, g2, sides, eps):
-    """True when the ascending chords of catalog triangle (g0, g1, g2) are within ``eps`` of ``sides``."""
+    """True when the ascending chords of catalog triangle (g0, g1, g2) are within ``eps`` of ``sides``.
+
+    The ids (the index's uint16/int32 rows) are cast to int64, so ``_chord`` keeps the one signature
+    the database build gives it."""
+    g0 = np.int64(g0)
+    g1 = np.int64(g1)
+    g2 = np.int64(g2)
     x, y, z = _sorted3(_chord(unit, g0, unit, g1), _chord(unit, g0, unit, g2), _chord(unit, g1, unit, g2))
     return abs(x - sides[0]) <= eps and abs(y - sides[1]) <= eps and abs(z - sides[2]) <= eps
 

@@ -14,7 +14,7 @@ from starid_algorithms.pyramid.kernels import select_stars
 from starid_algorithms.pyramid.testing import noisy_results
 
 from starid import ConfigError, SimConfig, Simulator
-from starid.kernels import backproject_px
+from starid.kernels import backproject_px, kvector_query
 
 
 @pytest.fixture(scope="module")
@@ -94,6 +94,53 @@ def test_galvizo_reading_works_noise_free_only(catalog, camera):
             ok += bool(found.any()) and np.all(hip[found] == obs.truth_hip[found])
         rates.append(ok)
     assert rates[0] >= 9 and rates[1] <= 2
+
+
+def test_work_counters(algo, db, catalog, camera):
+    """Identification.counters against a recount in Python of the same image (the pair windows by
+    k-vector), for hoku's test (compare, |R| = 1: one candidate per usable pair, two orientations each)
+    and starid's; the first query's |R|, and whether its R holds the pair the image is named as."""
+    trials = Simulator(catalog.brighter_than(6.0), camera, SimConfig(), seed=8).generate(4)
+    hoku = dataclasses.replace(algo, **{k: GALVIZO2018[k] for k in (
+        "sigma_query_deg", "sigma_overlay_deg", "unique_window", "compare", "n_check", "min_support", "chirality",
+        "max_pairs", "confirm_fraction", "min_extra")})
+    for reading in (hoku, algo):
+        tol = reading.tolerances(camera, db)
+        for t in range(4):
+            obs = trials.observation(t)
+            c = reading.identify(db, obs).counters
+            rows, pair, work = reading._run(db, obs)
+            assert list(c.values()) == work.tolist()
+            v = backproject_px(obs.x_px, obs.y_px, camera.f_px, camera.cx_px, camera.cy_px)
+            sel = select_stars(obs.x_px, obs.y_px, obs.mag, v, tol.d_min, tol.max_stars)
+            m = len(sel)
+            order = [(a, b) for a in range(m - 1) for b in range(a + 1, m)]
+
+            def size(a, b, v=v, sel=sel, tol=tol):
+                ch = np.linalg.norm(v[sel[a]] - v[sel[b]])
+                if ch - tol.eps > tol.c_max:
+                    return 0
+                lo, hi = kvector_query(db.kv, ch - tol.eps, ch + tol.eps)
+                return 0 if hi - lo > tol.max_window else hi - lo
+
+            assert c["windows"] == m * (m - 1) // 2 and c["first_R"] == size(0, 1)
+            if pair[0] >= 0:
+                a, b = (int(np.flatnonzero(sel == s)[0]) for s in pair)
+                assert c["pairs"] == order.index((a, b)) + 1 and 1 <= c["confirms"] <= c["tests"]
+            else:
+                assert c["pairs"] == min(len(order), tol.max_pairs)
+            if reading is hoku:
+                assert c["candidates"] == sum(size(*ab) == 1 for ab in order[:c["pairs"]])
+                assert c["tests"] == 2 * c["candidates"]
+            true_rows = _rows(db, obs)
+            assert np.array_equal(rows[rows >= 0], true_rows[rows >= 0])
+            assert c["first_named"] == int(rows[sel[0]] >= 0 and rows[sel[1]] >= 0)
+            assert c["first_in_R"] == int(c["first_named"] == 1 and c["first_R"] >= 1)
+    one = dataclasses.replace(algo, max_pairs=1).identify(db, trials.observation(0)).counters
+    assert one["pairs"] == 1
+    empty = Angle().identify(db, dataclasses.replace(trials.observation(0), x_px=np.zeros(1), y_px=np.zeros(1),
+                                                     mag=np.zeros(1), truth_hip=None)).counters
+    assert set(empty.values()) == {0}
 
 
 @pytest.mark.parametrize("bad", [{"beta": 0.0}, {"max_pairs": 0}, {"min_support": -1}, {"confirm_fraction": 2.0},

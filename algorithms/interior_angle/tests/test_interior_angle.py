@@ -77,6 +77,43 @@ def test_trio_query_matches_brute_force(algo, db, catalog, camera):
         assert -1 in truth or truth in got
 
 
+def test_work_counters(algo, db, catalog, camera):
+    """Identification.counters against a recount in Python: the central stars tried up to the one
+    accepted, one query each, the trios the queries return (re-run one by one), and the first query's
+    |R| and whether its R holds the trio the image is named as."""
+    trials = Simulator(catalog.brighter_than(6.0), camera, SimConfig(), seed=9).generate(4)
+    tol = algo.tolerances(camera, db)
+    out = np.empty((max(tol.max_candidates, 1), 3), dtype=np.int64)
+    where = {int(h): r for r, h in enumerate(db.guide_hip)}
+    for t in range(4):
+        obs = trials.observation(t)
+        c = algo.identify(db, obs).counters
+        rows, trio, work = algo._run(db, obs)
+        assert list(c.values()) == work.tolist()
+        v = backproject_px(obs.x_px, obs.y_px, camera.f_px, camera.cx_px, camera.cy_px)
+        sel = select_stars(obs.x_px, obs.y_px, obs.mag, v, tol.d_min, tol.max_stars)
+        assert trio[0] >= 0                                       # noise-free: identified
+        centre = int(np.flatnonzero(sel == trio[0])[0])
+        assert c["centres"] == c["queries"] == centre + 1
+        counts = []
+        for k in range(centre + 1):
+            k1, k2 = nearest_two(v, sel, k)
+            counts.append(max(trio_query(v, sel[k], sel[k1], sel[k2], db.kv, db.pairs, db.nbr, db.nbr_chord,
+                                         db.nbr_start, db.guide_unit, tol, out), 0))
+        assert c["candidates"] == sum(counts) and c["first_R"] == counts[0]
+        assert 1 <= c["confirms"] <= c["candidates"]
+        k1, k2 = nearest_two(v, sel, 0)
+        first = (sel[0], sel[k1], sel[k2])
+        named = all(rows[s] >= 0 for s in first)
+        assert c["first_named"] == int(named)
+        truth = tuple(where.get(int(obs.truth_hip[s]), -1) for s in first)
+        if named:
+            n = trio_query(v, *first, db.kv, db.pairs, db.nbr, db.nbr_chord, db.nbr_start, db.guide_unit, tol, out)
+            assert c["first_in_R"] == int(truth in {tuple(r) for r in out[:max(n, 0)]})
+    strict = dataclasses.replace(algo, max_centres=1)
+    assert strict.identify(db, trials.observation(0)).counters["centres"] == 1
+
+
 def test_noisy_paper_sky_identified_without_misidentification(algo, db, catalog, camera):
     results = noisy_results(algo, db, catalog, camera, 30, seed=21)      # asserts: no star misidentified
     assert sum(bool((r.hip >= 0).any()) for _, r, _ in results) >= 27
