@@ -14,6 +14,7 @@ from starid.kernels import (
     backproject_px,
     chord_rows,
     explained,
+    guide_rows_f64,
     kvector_query,
     refine_explained,
     reproject_assign,
@@ -322,21 +323,6 @@ def select_stars(x_px, y_px, mag, max_stars):
             else:
                 break
     return order[:min(n, max_stars)].copy()
-
-
-@njit(cache=True)
-def guide_rows_f64(rows, guide_unit, idx, cat):
-    """Fill ``idx`` (row i or -1) and ``cat`` (float64 guide vectors) so that ``wahba_rows(unit, idx, cat)``
-    is ``wahba_rows(unit, rows, guide_unit)``: the signature ``starid.kernels.refine_explained`` compiles,
-    so numba compiles ``wahba_rows`` (and its SVD) once, not also for float32 ``guide_unit``. The same sums
-    in the same order (float32 -> float64 is exact): the same attitude to the last bit. Callers call
-    ``wahba_rows`` themselves (a helper that called it would be one more level to re-optimise it in)."""
-    for i in range(rows.shape[0]):
-        idx[i] = -1
-        if rows[i] >= 0:
-            idx[i] = i
-            for a in range(3):
-                cat[i, a] = guide_unit[rows[i], a]
 
 
 #: Slots of the work counters :func:`identify_kernel` returns (``Identification.counters``).

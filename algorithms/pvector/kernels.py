@@ -24,6 +24,7 @@ from starid.kernels import (
     chord_to_rad,
     explained,
     field_chord,
+    guide_rows_f64,
     keep_unique,
     kvector_slice,
     refine_explained,
@@ -326,20 +327,6 @@ def chance_k_min(n_obs, n_guide, eps, tail):
         k += 1
         term *= lam / k
     return k
-
-
-@njit(cache=True)
-def guide_rows_f64(rows, guide_unit, idx, cat):
-    """Fill ``idx`` (row i or -1) and ``cat`` (float64 guide vectors) so that ``wahba_rows(v, idx, cat)``
-    is ``wahba_rows(v, rows, guide_unit)``: the signature ``starid.kernels.refine_explained`` compiles,
-    so numba compiles ``wahba_rows`` (and its SVD) once, not also for float32 ``guide_unit``. The same sums
-    in the same order (float32 -> float64 is exact): the same attitude to the last bit."""
-    for i in range(rows.shape[0]):
-        idx[i] = -1
-        if rows[i] >= 0:
-            idx[i] = i
-            for a in range(3):
-                cat[i, a] = guide_unit[rows[i], a]
 
 
 #: Slots of the work counters :func:`identify_rows` returns (``Identification.counters``).

@@ -63,3 +63,17 @@ def wahba_rows(v, rows, unit):
         if change < 1e-14:
             break
     return X
+
+
+@njit(cache=True)
+def guide_rows_f64(rows, guide_unit, idx, cat):
+    """Fill ``idx`` (row i or -1) and ``cat`` (float64 guide vectors) so that ``wahba_rows(v, idx, cat)``
+    is ``wahba_rows(v, rows, guide_unit)``: the signature :func:`starid.kernels.refine_explained` compiles,
+    so numba compiles ``wahba_rows`` (and its SVD) once, not also for float32 ``guide_unit``. The same sums
+    in the same order (float32 -> float64 is exact): the same attitude to the last bit."""
+    for i in range(rows.shape[0]):
+        idx[i] = -1
+        if rows[i] >= 0:
+            idx[i] = i
+            for a in range(3):
+                cat[i, a] = guide_unit[rows[i], a]
