@@ -110,6 +110,8 @@ def test_tables_put_the_printed_values_beside_ours(monkeypatch):
     assert noise[noise["rho_deg"] == 1e-2]["printed_accuracy"].tolist() == [0.0, 0.0]
     assert "(paper 0.995)" in tables["galvizo_false_acc"].markdown
     assert "1501" in tables["galvizo_query"].markdown
+    query = tables["galvizo_query"].frame.set_index("label")
+    assert query.loc["pyramid:galvizo2018", "S_ours_of_2000"] >= 0  # pyramid reports its first query
     assert "1 of the paper's 1 methods run as published (pyramid:galvizo2018)" in tables["galvizo_setup"].markdown
 
 

@@ -35,8 +35,13 @@ EMPTY = np.uint32(0xFFFFFFFF)  # an empty hash slot (no star pair lo < hi < 6553
 #: names of the per-image work counters the identify kernels return (``Identification.counters``):
 #: star subsets pivoted, pivots made (triangles appended to a chain), catalog candidates examined
 #: (start-triangle hits plus star-pair hash hits at each pivot), unique finalists verified, and
-#: image triangles kept after the area k-vector search (one k-vector search each)
-WORK_COUNTERS = ("subsets", "pivots", "candidates", "verifications", "image_triangles")
+#: image triangles kept after the area k-vector search (one k-vector search each); then the first query
+#: step's (the start triangle of the first chain: the largest-area image triangle of the first subset
+#: tried): |R| = its catalog candidates (area and moment windows), whether the identification names its
+#: three stars, and whether R holds the catalog triangle it names them as (``first_R``,
+#: ``first_named``, ``first_in_R``: Galvizo & Lim's f and S, docs/experiments.md)
+WORK_COUNTERS = ("subsets", "pivots", "candidates", "verifications", "image_triangles", "first_R", "first_named",
+                 "first_in_R")
 N_WORK = len(WORK_COUNTERS)
 CACHE_PER_TRIANGLE = 2048  # room for moment candidates per image triangle (on average) in the cache
 MEMO_DIM = 64  # first pivots (start triangle g0, second g1) with g0, g1 < MEMO_DIM are memoised per image
@@ -371,6 +376,33 @@ def new_cache(img):
                        np.empty(MEMO_DIM * MEMO_DIM, dtype=np.int64), np.empty(MEMO_DIM * MEMO_DIM, dtype=np.int64),
                        np.empty(MEMO_DIM * MEMO_DIM, dtype=np.bool_), np.empty(MEMO_NODES, dtype=np.int64),
                        np.empty(MEMO_NODES, dtype=np.int64), np.zeros(2, dtype=np.int64))
+
+
+@njit(cache=True)
+def first_query(img, db, tol, cache, rows, first, work):
+    """``work[5:8]`` (the first-query counters) of the image triangle ``first`` (a row of ``img``, the
+    whole image's triangles; -1: none was queried) given the identification's ``rows`` (guide row per
+    star of ``img.v``): its number of candidates, whether ``rows`` names its three stars, and whether a
+    candidate is the triangle of the rows they are named as. The candidates come from ``cache``."""
+    if first < 0:
+        return
+    cand = _moment_candidates(first, img, db, tol, cache)[0]
+    work[5] = cand.shape[0]
+    r0 = rows[img.tri[first, 0]]
+    r1 = rows[img.tri[first, 1]]
+    r2 = rows[img.tri[first, 2]]
+    if r0 < 0 or r1 < 0 or r2 < 0:
+        return
+    work[6] = 1
+    for c in range(cand.shape[0]):
+        hit = 0
+        for a in range(3):
+            g = np.int64(db.stars[cand[c], a])
+            if g == r0 or g == r1 or g == r2:
+                hit += 1
+        if hit == 3:
+            work[7] = 1
+            return
 
 
 @njit(cache=True)
@@ -937,7 +969,13 @@ def identify_rows(img_v, db, tol):
     img = image_triangles(img_v, db, tol)
     work[0] = 1
     work[4] = img.tri.shape[0]
-    rows, chain = _identify_img(img, db, tol, new_cache(img), work)
+    cache = new_cache(img)
+    rows, chain = _identify_img(img, db, tol, cache, work)
+    # the first start triangle: the largest area, the first of equal ones (argsort_desc's order)
+    first = np.int64(-1)  # np.int64: not compiled again for a literal
+    if img.tri.shape[0] > 0:
+        first = np.int64(np.argmax(img.area))
+    first_query(img, db, tol, cache, rows, first, work)
     return rows, chain, work
 
 
@@ -991,6 +1029,7 @@ def identify_subsets(img_v, bright, db, tol, stages):
     img = image_triangles(img_v, db, tol)
     work[4] = img.tri.shape[0]
     cache = new_cache(img)
+    first = np.int64(-1)  # the first subset's start triangle (a row of img; np.int64: not a literal)
     for st in range(stages.shape[0]):
         pool = min(stages[st, 1], k)
         size = min(stages[st, 0], pool)
@@ -1011,7 +1050,10 @@ def identify_subsets(img_v, bright, db, tol, stages):
                 sub = np.empty((size, 3))
                 for a in range(size):
                     sub[a] = img_v[idx[a]]
-                rows, sub_chain = _identify_img(_sub_triangles(img, idx, size, sub), db, tol, cache, work)
+                sub_img = _sub_triangles(img, idx, size, sub)
+                if first < 0 and sub_img.tri.shape[0] > 0:  # its start triangle, as in identify_rows
+                    first = sub_img.gid[np.argmax(sub_img.area)]
+                rows, sub_chain = _identify_img(sub_img, db, tol, cache, work)
                 chain = np.empty_like(sub_chain)
                 for li in range(sub_chain.shape[0]):
                     for x in range(3):
@@ -1019,6 +1061,7 @@ def identify_subsets(img_v, bright, db, tol, stages):
                 if rows.max() >= 0:
                     for a in range(size):
                         out[idx[a]] = rows[a]
+                    first_query(img, db, tol, cache, out, first, work)
                     return out, chain, st, work
             # next combination of ``size`` out of ``pool`` in lexicographic order
             p = size - 1
@@ -1029,6 +1072,7 @@ def identify_subsets(img_v, bright, db, tol, stages):
             comb[p] += 1
             for q in range(p + 1, size):
                 comb[q] = comb[q - 1] + 1
+    first_query(img, db, tol, cache, out, first, work)
     return out, chain, -1, work
 
 

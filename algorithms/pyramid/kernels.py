@@ -278,8 +278,37 @@ def _confirm(v_cam, pyr_star, pyr_row, guide_unit, tol, cam, rows):
 #: catalog pairs read from the windows of the triangle searches (sides ij and ik of each triad
 #: whose three windows are non-empty), catalog triangles matched (passing the third side and the
 #: chirality test; a triad over the cap counts cap + 1), and candidate pyramids confirmed by
-#: reprojection (a fourth star found, :func:`_confirm` run)
-WORK_COUNTERS = ("triads", "pair_searches", "pairs_read", "triangles", "confirmations")
+#: reprojection (a fourth star found, :func:`_confirm` run); then the first query step's (the first
+#: triad, the three brightest selected stars): |R| = its catalog triangles (0 when a window is empty
+#: or skipped; over ``max_triangles``: ``max_triangles + 1``), whether the identification names its
+#: three stars, and whether R holds the catalog set it names them as (``first_R``, ``first_named``,
+#: ``first_in_R``: Galvizo & Lim's f and S, docs/experiments.md)
+WORK_COUNTERS = ("triads", "pair_searches", "pairs_read", "triangles", "confirmations", "first_R", "first_named",
+                 "first_in_R")
+
+
+@njit(cache=True)
+def first_query_check(work, rows, first_trio, first_tri):
+    """``work[6]`` / ``work[7]``: whether ``rows`` names the three stars of the first triad
+    (``first_trio``), and whether its R (the first ``min(work[5], len(first_tri))`` rows of
+    ``first_tri``, catalog triangles) holds the set of guide rows they are named as."""
+    if first_trio[0] < 0:
+        return
+    r0 = rows[first_trio[0]]
+    r1 = rows[first_trio[1]]
+    r2 = rows[first_trio[2]]
+    if r0 < 0 or r1 < 0 or r2 < 0:
+        return
+    work[6] = 1
+    for c in range(min(work[5], first_tri.shape[0])):
+        hit = 0
+        for a in range(3):
+            s = first_tri[c, a]
+            if s == r0 or s == r1 or s == r2:
+                hit += 1
+        if hit == 3:
+            work[7] = 1
+            return
 
 
 @njit(cache=True)
@@ -353,6 +382,8 @@ def pyramid_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_
     cand_row = np.empty(4, dtype=np.int64)
     trial_rows = np.empty(n, dtype=np.int64)
     attitude = np.zeros((3, 3))
+    first_trio = np.full(3, -1, dtype=np.int64)  # the first triad's stars and R (the work counters only)
+    first_tri = np.empty((0, 3), dtype=np.int64)
     n_triads = 0
     for dj in range(1, m - 1):
         for dk in range(1, m - dj):
@@ -363,6 +394,10 @@ def pyramid_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_
                 k = j + dk
                 n_triads += 1
                 work[0] = n_triads
+                if n_triads == 1:
+                    first_trio[0] = sel[i]
+                    first_trio[1] = sel[j]
+                    first_trio[2] = sel[k]
                 if not (_window(v_cam, sel, i, j, kv, tol, start, stop, work)
                         and _window(v_cam, sel, j, k, kv, tol, start, stop, work)
                         and _window(v_cam, sel, i, k, kv, tol, start, stop, work)):
@@ -372,6 +407,9 @@ def pyramid_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_
                                         (start[i, k], stop[i, k]), pairs, guide_unit, tol.eps, work_lists, n_triads,
                                         tri)
                 work[3] += n_tri
+                if n_triads == 1:
+                    work[5] = n_tri
+                    first_tri = tri[:min(n_tri, tri.shape[0])].copy()
                 if n_tri == 0 or n_tri > max_triangles or (unique_triangle and n_tri != 1):
                     continue
                 tri_pos[0] = i
@@ -384,6 +422,7 @@ def pyramid_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_
                             pyramid[a] = sel[tri_pos[a]]
                     if rows.max() < 0:
                         return rows, _hip(rows, guide_hip), np.zeros((3, 3)), pyramid, work
+                    first_query_check(work, rows, first_trio, first_tri)
                     return rows, _hip(rows, guide_hip), wahba_rows(v_cam, rows, guide_unit), pyramid, work
                 n_ok = 0
                 for t in range(n_tri):
@@ -408,6 +447,7 @@ def pyramid_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_
                     attitude = cand_attitude
                 if n_ok == 1:
                     pyramid[:] = pyr_star
+                    first_query_check(work, rows, first_trio, first_tri)
                     return rows, _hip(rows, guide_hip), attitude, pyramid, work
                 rows[:] = -1
     return rows, _hip(rows, guide_hip), np.zeros((3, 3)), pyramid, work

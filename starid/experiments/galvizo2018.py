@@ -291,12 +291,12 @@ def query_table(frame: pd.DataFrame) -> Table:
     accesses = "; ".join(f"{k}: " + ", ".join(f"{a} {v:g}" for a, v in d.items()) for k, d in PAPER_ACCESSES.items())
     notes = ("The paper's f is the share of its 2,000 query steps whose candidates R hold the right catalog set, "
              "S the number whose R has exactly one member, each on one random subset of an image's stars. Ours "
-             "(f_ours, S_ours) are measured on each image's first query step, its brightest pair or trio, by the "
+             "(f_ours, S_ours) are measured on each image's first query step, its brightest pair or trio (PLN: "
+             "the start triangle of its first chain, the largest-area triangle of the first star set it tries), by the "
              "plugins' first-query counters: S_ours = share with |R| = 1, times 2,000; f_ours = of the images "
              "identified with no wrong id that name that subset (f_images), the share whose first R held the "
-             "set they were named as. Blank: the plugin reports no first-query counters (pyramid and "
-             "planar_triangle, and every algorithm that is not one of the paper's). The paper's time is per "
-             "query step; starid's is per identification.",
+             "set they were named as. Blank: the plugin reports no first-query counters (every algorithm that "
+             "is not one of the paper's). The paper's time is per query step; starid's is per identification.",
              f"Catalog accesses the text prints: {accesses}.")
     return Table("galvizo_query", "Query step (no noise, no false stars): printed figures beside ours", df,
                  markdown(shown), notes)

@@ -209,6 +209,58 @@ def test_subsets_share_work_but_not_results(db, camera, catalog):
                 assert stage == 0 and np.array_equal(got, want)
 
 
+def _first_query_recount(v, idx, tables, tol, rows):
+    """The first-query counters recounted with numpy: the image triangles of the stars ``idx`` (every
+    trio within the database's rules and ``climit``), the one of largest area, its area hits (k-vector)
+    whose moment (un-permuted from the block index) is in its window, and ``rows`` against them."""
+    rules = tables.rules
+    best, best_area = None, -1.0
+    for tri in itertools.combinations(sorted(idx.tolist()), 3):
+        b = [v[q] for q in tri]
+        if max(np.linalg.norm(b[x] - b[y]) for x, y in ((0, 1), (0, 2), (1, 2))) > rules.chord_max:
+            continue
+        area, moment, diam = triangle_features(*b)
+        if diam > rules.fov_rad or area < rules.min_area:
+            continue
+        var_a, var_j = triangle_variances(*b, tol.sigma_rad)
+        start, stop = kvector_query(tables.area, area - tol.beta * math.sqrt(var_a), area + tol.beta * math.sqrt(var_a))
+        if stop - start <= tol.climit and area > best_area:
+            best, best_area, window = tri, area, (start, stop, moment, tol.beta * math.sqrt(var_j))
+    if best is None:
+        return 0, 0, 0
+    n = tables.moment.size
+    moment = np.empty(n, dtype=np.float32)
+    for base in range(0, n, MOMENT_BLOCK):
+        block = tables.moment_perm[base:base + MOMENT_BLOCK].astype(np.int64)
+        moment[base + block] = tables.moment[base:base + block.size]
+    start, stop, mo, half = window
+    hits = start + np.flatnonzero((moment[start:stop] >= mo - half) & (moment[start:stop] <= mo + half))
+    named = all(rows[q] >= 0 for q in best)
+    in_r = named and {int(rows[q]) for q in best} in [set(tables.stars[h].tolist()) for h in hits]
+    return len(hits), int(named), int(in_r)
+
+
+def test_first_query_counters_match_a_recount(db, camera, catalog):
+    # first_R / first_named / first_in_R of the whole-image kernel and of the subset kernel (first
+    # subset: the 4 brightest stars) against the numpy recount, images with and without false stars
+    tol = PlanarTriangle()._tolerance(camera)
+    tables = db.tables()
+    seen = set()
+    for false_stars in (0, 3):
+        sim = Simulator(catalog, camera, SimConfig(sigma_px=1.0, sigma_mag=0.5, false_stars=false_stars), seed=12)
+        for t in range(5):
+            obs = sim.observation(t)
+            keep = np.argsort(obs.mag, kind="stable")[:7]
+            v = camera.backproject(obs.x_px[keep], obs.y_px[keep])
+            rank = np.argsort(obs.mag[keep], kind="stable")
+            rows, _, work = identify_rows(v, tables, tol)
+            assert tuple(work[5:]) == _first_query_recount(v, np.arange(keep.size), tables, tol, rows)
+            rows, _, _, work = identify_subsets(v, rank, tables, tol, np.array([[4, keep.size, 20]]))
+            assert tuple(work[5:]) == _first_query_recount(v, np.sort(rank[:4]), tables, tol, rows)
+            seen.add(tuple(work[5:] > 0))
+    assert (True, True, True) in seen and len(seen) > 1
+
+
 def test_float32_area_resolution_is_far_below_the_search_window(db, camera):
     # the smallest area window (beta * sigma_A at 1 px) must dwarf the float32 spacing
     sigma = 1.0 / camera.f_px

@@ -256,13 +256,22 @@ def test_work_counters_match_an_independent_count(algo, db, catalog, camera):
     tol = algo.tolerances(camera, db)
     chords = db.kv.values.astype(np.float64)
     checked = 0
+    first_query = {}
     for obs, result, _ in noisy_results(algo, db, catalog, camera, 8, seed=21):
         work = result.counters
-        assert set(work) == {"triads", "pair_searches", "pairs_read", "triangles", "confirmations"}
-        if work["triads"] != 1 or not np.any(result.hip >= 0):
-            continue
+        assert set(work) == {"triads", "pair_searches", "pairs_read", "triangles", "confirmations", "first_R",
+                             "first_named", "first_in_R"}
         v = camera.backproject(obs.x_px, obs.y_px)
         sel = select_stars(obs.x_px, obs.y_px, obs.mag, v, tol.d_min, tol.max_stars)
+        # the first query (triad 0, 1, 2): its catalog triangles, and the catalog set it is named as
+        first = _triangles_oracle(db, v, sel[0], sel[1], sel[2], tol.eps)
+        named = bool(np.all(result.hip[sel[:3]] >= 0))
+        in_r = named and set(result.hip[sel[:3]].tolist()) in [set(db.guide_hip[list(t)].tolist()) for t in first]
+        assert (work["first_R"], work["first_named"], work["first_in_R"]) == (len(first), int(named), int(in_r))
+        first_query[(work["first_R"] == 1, named, in_r)] = True
+        work = {k: c for k, c in work.items() if not k.startswith("first_")}
+        if work["triads"] != 1 or not np.any(result.hip >= 0):
+            continue
         side = [np.linalg.norm(v[sel[0]] - v[sel[q]]) for q in (1, 2)]       # sides ij and ik
         pairs_read = sum(np.searchsorted(chords, c + tol.eps, "right") - np.searchsorted(chords, c - tol.eps, "left")
                          for c in side)
@@ -271,7 +280,7 @@ def test_work_counters_match_an_independent_count(algo, db, catalog, camera):
         assert work == {"triads": 1, "pair_searches": 3, "pairs_read": pairs_read,
                         "triangles": len(triangles), "confirmations": fourth}
         checked += 1
-    assert checked >= 5
+    assert checked >= 5 and first_query.get((True, True, True))
     rng = np.random.default_rng(9)
     obs = Observation(rng.uniform(0, 1024, 9), rng.uniform(0, 1024, 9), rng.uniform(0, 6, 9), camera)
     work = algo.identify(db, obs).counters
