@@ -167,7 +167,12 @@ def test_interrupt_stops_workers_and_exits_cleanly(tmp_path, sig, code):
     while time.time() < deadline and not list(chunks.glob("*.parquet")):
         time.sleep(0.2)
     children = subprocess.run(["pgrep", "-P", str(proc.pid)], capture_output=True, text=True).stdout.split()
-    assert children, "no worker processes"
+    if not children:    # say why: the run's exit code (None: still running) and what it printed
+        code_then = proc.poll()
+        proc.kill()
+        out, err = proc.communicate(timeout=60)
+        pytest.fail(f"no worker processes: run exit code {code_then}, "
+                    f"{len(list(chunks.glob('*.parquet')))} chunks written; stderr: {err[-3000:]!r}")
     proc.send_signal(sig)
     out, err = proc.communicate(timeout=60)
     assert proc.returncode == code
