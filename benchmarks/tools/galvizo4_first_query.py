@@ -26,7 +26,7 @@ def main() -> None:
     if args[:1] == ["--out"]:
         out, args = Path(args[1]), args[2:]
     trials, points, names = int(args[0]), [int(x) for x in args[1].split(",")], args[2:]
-    variants = tuple(Variant.as_reading(*n.split(":")) if ":" in n else n for n in names)
+    variants = tuple(Variant.parse(n) for n in names)   # NAME, NAME:SOURCE, NAME:SOURCE[KEY=VALUE,...]
     base = g.experiment(trials=trials, seed=0)
     study = Study("false_stars", variants, Grid({"false_stars": points, "sigma_px": [0.0]}))
     exp = Experiment(base.name, (study,), trials=trials, seed=0, camera=base.camera, sim=base.sim)

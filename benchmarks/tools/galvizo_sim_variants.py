@@ -17,7 +17,8 @@
                       direction (the paper's SLERP noise); in the cone, a move leaving it is redrawn
 
 FIELD=square ORDER=mag NOISE=axis is the experiment's own images (its first N trials). Prints one line
-per label: mean a(h) +- 95 %, starid's id rate, mean stars named.
+per label: mean a(h) +- 95 %, starid's id rate, mean stars named, and S (the share of images whose first
+query's R has one member, times 2,000: the query table's S) where the reading counts its first query.
 """
 
 from __future__ import annotations
@@ -129,9 +130,11 @@ def main(n, settings, labels):
 
 
 def score(p, label, camera, obs, setting):
-    n_corr, n_id, ok = [], [], []
+    n_corr, n_id, ok, first_r = [], [], [], []
     for o in obs:
-        hip = np.asarray(p.algorithm.identify(p.database, Observation(o.x_px, o.y_px, o.mag, camera)).hip)
+        ident = p.algorithm.identify(p.database, Observation(o.x_px, o.y_px, o.mag, camera))
+        hip = np.asarray(ident.hip)
+        first_r.append((ident.counters or {}).get("first_R", -1))
         named = hip >= 0
         right = int((named & (hip == o.truth_hip)).sum())
         n_corr.append(right)
@@ -140,7 +143,8 @@ def score(p, label, camera, obs, setting):
     acc = bijection_accuracy(n_corr, n_id)
     half = 1.96 * acc.std(ddof=1) / math.sqrt(acc.size)
     print(f"{label:34s} {setting:24s} n={len(obs)}: "
-          f"a(h) {acc.mean():.3f} +-{half:.3f}  starid {np.mean(ok):.3f}  named {np.mean(n_id):.2f}", flush=True)
+          f"a(h) {acc.mean():.3f} +-{half:.3f}  starid {np.mean(ok):.3f}  named {np.mean(n_id):.2f}"
+          + (f"  S {np.mean(np.equal(first_r, 1)) * 2000:.0f} of 2000" if min(first_r) >= 0 else ""), flush=True)
 
 
 if __name__ == "__main__":
