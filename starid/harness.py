@@ -26,10 +26,11 @@ import pandas as pd
 
 from .catalog import Catalog
 from .jitcache import describe
+from .kernels.score import attitude_error_rad
 from .observation import Observation, TrialSet
 from .plugin import Algorithm, check_identification
 from .provenance import versions
-from .scoring import ERROR, SuccessRule, attitude_error_arcsec, attitude_from_ids, score_trial
+from .scoring import ERROR, RAD_TO_ARCSEC, SuccessRule, score_trial
 
 #: The success rule when none is given (frozen, so one instance serves every call).
 DEFAULT_RULE = SuccessRule()
@@ -120,7 +121,7 @@ def timed_identify(prepared: Prepared, obs: Observation, catalog_hip: np.ndarray
         return np.full(len(obs), -1, dtype=np.int64), time.perf_counter_ns() - t0, _describe(exc)
     if counters is not None and result.counters:
         counters.update(result.counters)
-    return np.asarray(result.hip, dtype=np.int64), elapsed_ns, ""
+    return np.array(result.hip, dtype=np.int64), elapsed_ns, ""   # a writable copy: one kernel signature
 
 
 def _image_fields(trials: TrialSet, i: int, obs: Observation) -> dict:
@@ -162,8 +163,10 @@ def trial_row(prepared: Prepared, trials: TrialSet, i: int, catalog: Catalog, ru
         row["status"] = ERROR
         row["attitude_err_arcsec"] = float("nan")
     else:
-        attitude = attitude_from_ids(hip, obs.unit_cam(), catalog)
-        row["attitude_err_arcsec"] = attitude_error_arcsec(attitude, trials.attitude[i])
+        # attitude_error_arcsec(attitude_from_ids(...)) in one compiled call, to the last bit
+        row["attitude_err_arcsec"] = float(attitude_error_rad(hip, obs.unit_cam(), catalog.hip, catalog.unit_icrs,
+                                                              np.ascontiguousarray(trials.attitude[i]))) \
+            * RAD_TO_ARCSEC
     if keep_ids:
         row["ids"] = hip.tolist()
         row["truth_ids"] = obs.truth_hip.tolist()

@@ -49,6 +49,7 @@ import numpy as np
 from .camera import Camera
 from .catalog import Catalog
 from .errors import PluginError
+from .kernels.score import ID_NOT_IN_CATALOG, ID_TWICE, check_ids
 from .observation import Observation
 
 
@@ -200,17 +201,14 @@ def check_identification(result, n_stars: int, catalog_hip: np.ndarray) -> Ident
         raise PluginError(f"identify returned {hip.shape} ids for {n_stars} stars")
     if not np.issubdtype(hip.dtype, np.integer):
         raise PluginError(f"identify returned ids of dtype {hip.dtype}, expected integers")
-    reported = hip[hip != -1]
-    if reported.size:
-        pos = np.searchsorted(catalog_hip, reported)
-        pos = np.minimum(pos, catalog_hip.size - 1)
-        bad = reported[catalog_hip[pos] != reported]
-        if bad.size:
-            raise PluginError(f"identify returned id {int(bad[0])}, which is neither -1 nor in the catalog")
-        ordered = np.sort(reported)
-        twice = ordered[1:][ordered[1:] == ordered[:-1]]   # the smallest id given twice comes first
-        if twice.size:
-            raise PluginError(f"identify gave id {int(twice[0])} to more than one star")
+    if hip.dtype.kind == "u" and hip.size and hip.max() > np.iinfo(np.int64).max:
+        raise PluginError(f"identify returned id {int(hip.max())}, which is neither -1 nor in the catalog")
+    # one compiled call (starid.kernels.score); a writable int64 copy, so numba compiles one signature
+    code, bad = check_ids(np.array(hip, dtype=np.int64), np.ascontiguousarray(catalog_hip, dtype=np.int64))
+    if code == ID_NOT_IN_CATALOG:
+        raise PluginError(f"identify returned id {int(bad)}, which is neither -1 nor in the catalog")
+    if code == ID_TWICE:    # the smallest id given twice
+        raise PluginError(f"identify gave id {int(bad)} to more than one star")
     if result.attitude is not None and np.asarray(result.attitude).shape != (3, 3):
         raise PluginError(f"identify returned an attitude of shape {np.asarray(result.attitude).shape}")
     if result.counters is not None:

@@ -1,0 +1,95 @@
+"""The harness's per-image checks and scoring in numba: one compiled call each instead of ~15 numpy calls.
+
+Twins of :func:`starid.plugin.check_identification` (its array part),
+:func:`starid.scoring.attitude_from_ids` and :func:`starid.scoring.attitude_error_arcsec`, written
+to give the same numbers to the last bit: the same LAPACK SVD and determinants, the same matrix
+products (numba and numpy both call BLAS for ``@``), the same atan2 form of the angle, numpy's
+``arctan2`` (``tests/test_score_kernels.py`` compares them on random and degenerate inputs). They exist for
+speed alone: at ~50 us of numpy overhead per image they were a third of the harness's time
+around ``identify`` (docs/performance.md, "Stop 38").
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+#: :func:`check_ids` codes
+IDS_OK, ID_NOT_IN_CATALOG, ID_TWICE = 0, 1, 2
+
+
+@njit(cache=True)
+def check_ids(hip, catalog_hip):
+    """``(code, id)``: ``(IDS_OK, 0)`` when every id is -1 or in the sorted ``catalog_hip`` and no id
+    is given twice; ``(ID_NOT_IN_CATALOG, id)`` for the first (in star order) id that is neither;
+    ``(ID_TWICE, id)`` for the smallest id given to more than one star."""
+    n_cat = catalog_hip.shape[0]
+    k = 0
+    for i in range(hip.shape[0]):
+        h = hip[i]
+        if h == -1:
+            continue
+        k += 1
+        pos = np.searchsorted(catalog_hip, h)
+        if pos >= n_cat:
+            pos = n_cat - 1
+        if n_cat == 0 or catalog_hip[pos] != h:
+            return ID_NOT_IN_CATALOG, h
+    if k < 2:
+        return IDS_OK, 0
+    reported = np.empty(k, dtype=np.int64)
+    k = 0
+    for i in range(hip.shape[0]):
+        if hip[i] != -1:
+            reported[k] = hip[i]
+            k += 1
+    reported.sort()
+    for i in range(1, k):
+        if reported[i] == reported[i - 1]:
+            return ID_TWICE, reported[i]
+    return IDS_OK, 0
+
+
+@njit(cache=True)
+def attitude_error_terms(hip, v_cam, catalog_hip, unit_icrs, attitude_true):
+    """``(y, x)`` whose ``numpy.arctan2`` is the angle (rad) between the Wahba attitude of the identified
+    stars (``hip != -1``, every id in the sorted ``catalog_hip``; rows of ``unit_icrs``) and
+    ``attitude_true``; NaNs with fewer than two (:func:`attitude_error_rad`).
+
+    :func:`starid.attitude.solve_wahba` (``B = b^T r``, ``A = U diag(1, 1, det U det V) V^T``) and
+    :func:`starid.attitude.rotation_angle_rad` (atan2 of the skew part's norm and ``(tr R - 1) / 2``)."""
+    k = 0
+    for i in range(hip.shape[0]):
+        if hip[i] != -1:
+            k += 1
+    if k < 2:
+        return np.nan, np.nan
+    b = np.empty((k, 3))
+    r = np.empty((k, 3))
+    k = 0
+    for i in range(hip.shape[0]):
+        if hip[i] != -1:
+            row = np.searchsorted(catalog_hip, hip[i])
+            for a in range(3):
+                b[k, a] = v_cam[i, a]
+                r[k, a] = unit_icrs[row, a]
+            k += 1
+    B = b.T @ r
+    U, _, Vt = np.linalg.svd(B)
+    d = np.linalg.det(U) * np.linalg.det(Vt)
+    D = np.zeros((3, 3))
+    D[0, 0] = 1.0
+    D[1, 1] = 1.0
+    D[2, 2] = d
+    A = U @ D @ Vt
+    R = A @ np.ascontiguousarray(attitude_true.T)
+    skew = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
+    # numpy's norm of a vector is sqrt(x . x) (BLAS ddot); numba's np.linalg.norm is not, to the last bit
+    return 0.5 * np.sqrt(np.dot(skew, skew)), 0.5 * (np.trace(R) - 1.0)
+
+
+def attitude_error_rad(hip, v_cam, catalog_hip, unit_icrs, attitude_true) -> float:
+    """:func:`attitude_error_terms`' angle: numpy's ``arctan2`` (numba's, libm's, differs from numpy's
+    in the last bit for some angles), so the angle is :func:`starid.attitude.rotation_angle_rad`'s."""
+    y, x = attitude_error_terms(hip, v_cam, catalog_hip, unit_icrs, attitude_true)
+    return float(np.arctan2(y, x))
