@@ -58,14 +58,27 @@ class Prepared:
     error: str = ""
 
 
+def build_key(algorithm: Algorithm) -> tuple:
+    """What an algorithm's database depends on: its class and every parameter but its
+    :attr:`~starid.plugin.Algorithm.query_only` ones (two algorithms with equal keys build the same
+    database on the same catalog and camera; the conformance check ``query_only`` holds plugins to it)."""
+    skip = set(getattr(type(algorithm), "query_only", ()) or ())
+    return type(algorithm), repr(sorted((k, v) for k, v in algorithm.params().items() if k not in skip))
+
+
 def _describe(exc: BaseException) -> str:
     return describe(exc)
 
 
 def prepare(algorithm: Algorithm, catalog: Catalog, camera, warmup: Observation | None,
-            label: str | None = None, on_phase: Callable[[str], None] | None = None) -> Prepared:
+            label: str | None = None, on_phase: Callable[[str], None] | None = None,
+            built: Prepared | None = None) -> Prepared:
     """Derive the sensor-dependent parameters, build the database once and warm the JIT up on
     ``warmup`` (never scored). The prepared algorithm is the derived one (:meth:`Algorithm.derived`).
+
+    ``built``: the same algorithm prepared on the same catalog and camera with parameters that differ
+    only in its :attr:`~starid.plugin.Algorithm.query_only` ones (:func:`build_key`): its database is
+    the one this would build, so it is used as it is and ``build_s`` is its build's.
 
     ``on_phase`` hears ``"build"`` before ``derived``/``build`` and ``"warmup"`` before the warm-up
     ``identify``: the supervising executor holds each phase to its limit (``--build-time-limit``,
@@ -77,10 +90,10 @@ def prepare(algorithm: Algorithm, catalog: Catalog, camera, warmup: Observation 
     t0 = time.perf_counter()
     try:
         algorithm = algorithm.derived(catalog, camera)
-        database = algorithm.build(catalog, camera)
+        database = algorithm.build(catalog, camera) if built is None else built.database
     except (Exception, SystemExit) as exc:
         return Prepared(algorithm, label, None, time.perf_counter() - t0, 0.0, f"build failed: {_describe(exc)}")
-    build_s = time.perf_counter() - t0
+    build_s = time.perf_counter() - t0 if built is None else built.build_s
     t0 = time.perf_counter()
     if warmup is not None:
         if on_phase is not None:

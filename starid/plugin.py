@@ -140,6 +140,11 @@ class Algorithm(abc.ABC):
     name: ClassVar[str] = ""
     #: parameter name -> :class:`starid.simulate.SimConfig` field it follows when left ``None``
     follows: ClassVar[dict] = {}
+    #: the ``follows`` parameters that only ``identify`` reads (``derived`` and ``build`` never do), so a
+    #: database built with other values of them is the same database: an experiment sweeping the noise
+    #: builds it once per worker, not once per noise level. The conformance check ``query_only`` builds
+    #: with two values of each and compares the databases array by array.
+    query_only: ClassVar[tuple[str, ...]] = ()
     #: parameter overrides giving the method as published (the ``NAME:paper`` variant); empty when
     #: the defaults are the paper's
     published: ClassVar[dict] = {}

@@ -16,13 +16,16 @@ registers). Checks: the class is default-constructible and documented; identify 
 never one id for two stars; the order of the input stars does not change the answer; noise-free
 trials are identified; 200 fields of 10 to 40 random points (no real star) give no id at all; the
 observation is not written to; ``explain``, when present, returns valid drawable data;
-``derived`` keeps pinned parameters, returns the same class and is idempotent. The
+``derived`` keeps pinned parameters, returns the same class and is idempotent; every
+``query_only`` parameter, moved alone (its world setting 0 -> 3, x -> 0.75 x), leaves ``derived``
+and the database unchanged (compared array by array). The
 checks raise :class:`ConformanceError` (not ``assert``, so ``python -O`` cannot skip them).
 Databases are built once per (class, catalog, camera) and cached.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import re
 from functools import lru_cache
 
@@ -37,7 +40,7 @@ from .scoring import CORRECT, MISIDENTIFIED, SuccessRule, score_trial
 from .simulate import SimConfig, Simulator
 
 CHECKS = ("default_constructible", "deterministic", "few_stars", "coincident_stars", "valid_ids", "order_invariant",
-          "noise_free_identified", "random_fields", "read_only_input", "large_ids", "explain", "derived")
+          "noise_free_identified", "random_fields", "read_only_input", "large_ids", "explain", "derived", "query_only")
 
 #: Trials the checks use (fixed, so a failure can be reproduced with ``Simulator(..., seed=SEED)``).
 SEED = 20151
@@ -226,6 +229,63 @@ def _check_derived(cls, algorithm, db, catalog, camera):
                              f"{sorted(k for k in after if again[k] != after[k])}")
 
 
+def same_database(a, b, where: str = "database") -> str:
+    """Where two databases differ (their fields compared recursively: arrays by dtype, shape and
+    value, NaN equal to NaN), or ``""`` when they are the same."""
+    if type(a) is not type(b):
+        return f"{where}: {type(a).__name__} against {type(b).__name__}"
+    if isinstance(a, np.ndarray):
+        if a.dtype != b.dtype or a.shape != b.shape:
+            return f"{where}: {a.dtype}{a.shape} against {b.dtype}{b.shape}"
+        same = np.array_equal(a, b, equal_nan=a.dtype.kind in "fc")
+        return "" if same else f"{where}: values differ"
+    if dataclasses.is_dataclass(a):
+        items = [(f.name, getattr(a, f.name), getattr(b, f.name)) for f in dataclasses.fields(a)]
+    elif isinstance(a, tuple) and hasattr(a, "_fields"):
+        items = [(k, x, y) for k, x, y in zip(a._fields, a, b, strict=True)]
+    elif isinstance(a, (tuple, list)):
+        if len(a) != len(b):
+            return f"{where}: {len(a)} against {len(b)} items"
+        items = [(str(k), x, y) for k, (x, y) in enumerate(zip(a, b, strict=True))]
+    elif isinstance(a, dict):
+        if a.keys() != b.keys():
+            return f"{where}: keys {sorted(a)} against {sorted(b)}"
+        items = [(str(k), a[k], b[k]) for k in a]
+    else:
+        same = a == b or (isinstance(a, float) and a != a and b != b)
+        return "" if same else f"{where}: {a!r} against {b!r}"
+    for name, x, y in items:
+        found = same_database(x, y, f"{where}.{name}")
+        if found:
+            return found
+    return ""
+
+
+def _other_world(world: SimConfig, key: str) -> SimConfig:
+    """``world`` with its setting ``key`` moved well away: 0 -> 3, any other value x -> 0.75 x."""
+    value = getattr(world, key)
+    return dataclasses.replace(world, **{key: type(value)(value * 0.75 if value else 3)})
+
+
+def _check_query_only(cls, algorithm, db, catalog, camera):
+    names = tuple(getattr(cls, "query_only", ()) or ())
+    unknown = sorted(set(names) - set(cls.follows))
+    _require(not unknown, f"query_only names {unknown}, which are not 'follows' parameters {sorted(cls.follows)}")
+    if not names:
+        return
+    base = algorithm.resolved(NOISE_FREE).derived(catalog, camera)
+    base_db = base.build(catalog, camera)
+    for name in names:        # one at a time: each moved alone must leave derived() and the database as they are
+        moved = algorithm.resolved(_other_world(NOISE_FREE, cls.follows[name])).derived(catalog, camera)
+        p0, p1 = base.params(), moved.params()
+        _require(p0[name] != p1[name], f"query_only {name!r}: resolved() did not move it (does it follow "
+                                       f"{cls.follows[name]!r}?)")
+        changed = sorted(k for k in p0 if k != name and p0[k] != p1[k])
+        _require(not changed, f"query_only {name!r}: derived() reads it (it set {changed} differently)")
+        differ = same_database(base_db, moved.build(catalog, camera))
+        _require(not differ, f"query_only {name!r}: build() reads it (the databases differ at {differ})")
+
+
 _FUNCTIONS = {name: globals()[f"_check_{name}"] for name in CHECKS}
 
 
@@ -262,4 +322,4 @@ def run_checks(algorithm: type[Algorithm], catalog: Catalog | None = None, camer
             yield name, "FAILED", str(exc)
 
 
-__all__ = ["CHECKS", "ConformanceError", "check_algorithm", "random_fields", "run_checks"]
+__all__ = ["CHECKS", "ConformanceError", "check_algorithm", "random_fields", "run_checks", "same_database"]

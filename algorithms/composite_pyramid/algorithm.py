@@ -75,6 +75,7 @@ class CompositePyramid(Algorithm):
 
     name: ClassVar[str] = "composite_pyramid"
     follows: ClassVar[dict] = {"sigma_px": "sigma_px"}
+    query_only: ClassVar[tuple[str, ...]] = ('sigma_px',)   # only identify reads them (conformance 'query_only')
     published: ClassVar[dict] = GALVIZO2018
     published_readings: ClassVar[dict] = {"galvizo2018": GALVIZO2018}
 

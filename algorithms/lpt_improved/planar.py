@@ -527,6 +527,7 @@ class PlanarAlgorithm(Algorithm):
     """
 
     follows: ClassVar[dict] = {"sigma_px": "sigma_px", "mag_limit": "mag_limit"}
+    query_only: ClassVar[tuple[str, ...]] = ('sigma_px',)   # only identify reads them (conformance 'query_only')
 
     mag_limit: float | None = param(
         None, help="guide stars have V <= this; None follows the simulator's detection limit (6.0 outside)", unit="mag")

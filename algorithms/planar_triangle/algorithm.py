@@ -272,6 +272,7 @@ class PlanarTriangle(Algorithm):
     """
 
     follows: ClassVar[dict] = {"sigma_px": "sigma_px"}
+    query_only: ClassVar[tuple[str, ...]] = ('sigma_px',)   # only identify reads them (conformance 'query_only')
     name: ClassVar[str] = "planar_triangle"
     #: the paper's method: V <= 6 catalog, pivoting over every image star, no subsets, no coverage
     #: check, only the pivot's stars reported; after a failure it starts again from the next-largest

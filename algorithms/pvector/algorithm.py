@@ -219,6 +219,7 @@ class PVector(Algorithm):
     published: ClassVar[dict] = {"triangles_per_star": 3, "pattern_radius_deg": 4.0, "image_neighbours": 3,
                                  "hypotheses": 0, "search": "linear", "unique_triangles": False, "sigma_px": 1.0}
     follows: ClassVar[dict] = {"sigma_px": "sigma_px"}
+    query_only: ClassVar[tuple[str, ...]] = ('sigma_px',)   # only identify reads them (conformance 'query_only')
 
     mag_limit: float = param(6.0, unit="mag",
                              help="guide-star limit, applied to the catalog and to the measured magnitudes")

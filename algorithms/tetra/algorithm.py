@@ -129,6 +129,8 @@ class Tetra(Algorithm):
 
     name: ClassVar[str] = "tetra"
     follows: ClassVar[dict] = {"sigma_px": "sigma_px", "sigma_mag": "sigma_mag"}
+    #: only identify reads them (conformance check 'query_only')
+    query_only: ClassVar[tuple[str, ...]] = ('sigma_px', 'sigma_mag')
 
     mag_limit: float = param(
         6.5, unit="mag",

@@ -38,7 +38,7 @@ import pandas as pd
 
 from ..catalog import Catalog, load_csv, load_hipparcos
 from ..errors import ConfigError
-from ..harness import constant_columns, failed_row, param_columns, prepare, rows_to_frame, trial_row
+from ..harness import build_key, constant_columns, failed_row, param_columns, prepare, rows_to_frame, trial_row
 from ..provenance import versions
 from ..registry import algorithm_info
 from ..scoring import CRASHED, TIMEOUT, SuccessRule
@@ -130,7 +130,7 @@ class Task:
 
 # ---- what a worker process computes (also called by Dask workers) -------------------------------
 
-_CACHE: dict = {"catalog": {}, "trials": OrderedDict(), "sims": OrderedDict(), "prepared": {}}
+_CACHE: dict = {"catalog": {}, "trials": OrderedDict(), "sims": OrderedDict(), "prepared": {}, "databases": {}}
 _CACHE["info"] = {}     # (plugin name, class) -> AlgorithmInfo: 24 ms of entry-point metadata per call
 
 
@@ -193,8 +193,13 @@ def execute_task(task: Task, beat=None) -> pd.DataFrame:
                 if beat is not None:
                     beat[2], beat[1] = time.monotonic(), _WARMUP if phase == "warmup" else _BUILD
 
-            prepared = prepare(algorithm, catalog, trials.camera, trials.warmup, chunk.variant.label, on_phase)
+            # a database built at another noise level serves when only query_only parameters differ
+            same_db = (build_key(algorithm), task.catalog_path, trials.camera)
+            prepared = prepare(algorithm, catalog, trials.camera, trials.warmup, chunk.variant.label, on_phase,
+                               built=_CACHE["databases"].get(same_db))
             _CACHE["prepared"][key] = prepared
+            if prepared.database is not None:
+                _CACHE["databases"].setdefault(same_db, prepared)
         elif prepared.label != chunk.variant.label:
             prepared = type(prepared)(prepared.algorithm, chunk.variant.label, prepared.database, prepared.build_s,
                                       prepared.compile_s, prepared.error)
