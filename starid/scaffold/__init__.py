@@ -149,6 +149,8 @@ class $cls(starid.Algorithm):
 
     name: ClassVar[str] = "$name"
     follows: ClassVar[dict] = {"sigma_px": "sigma_px"}
+    #: only identify reads sigma_px (build does not): one database serves every noise level
+    query_only: ClassVar[tuple] = ("sigma_px",)
     #: the paper's plain vote: every star takes its best-voted catalog star, however few votes
     published: ClassVar[dict] = {"min_votes": 1}
 
