@@ -64,16 +64,18 @@ LOOK_AHEAD = 400
 
 
 def _prepared_key(task) -> tuple:
-    """What a worker keys the algorithm it prepared (database, warm-up) by (``executors.execute_task``): the
-    plugin, its parameters once the grid point's settings fill its ``follows`` ones, the catalog and the
-    camera the algorithm assumes. Chunks with one key share one database on a worker."""
+    """What a worker keys the database it built by (``executors.execute_task``): the plugin, its parameters
+    once the grid point's settings fill its ``follows`` ones, its ``query_only`` ones left out
+    (:func:`starid.harness.build_key`), the catalog and the camera the algorithm assumes. Chunks with one
+    key share one database on a worker."""
+    from ..harness import build_key
     from ..simulate import SimConfig, assumed_camera
 
     chunk = task.chunk
     try:
         config = SimConfig(**chunk.settings)
         algorithm = chunk.variant.make().resolved(config)
-        return (chunk.variant.name, repr(sorted(algorithm.params().items())), getattr(task, "catalog_path", ""),
+        return (chunk.variant.name, build_key(algorithm)[1], getattr(task, "catalog_path", ""),
                 assumed_camera(task.camera, config))
     except Exception:  # noqa: BLE001 -- an algorithm that cannot be made: its chunk's own key
         return ("unmade", chunk.variant, getattr(chunk, "settings_key", None), getattr(task, "catalog_path", ""))
@@ -89,7 +91,8 @@ class Dispatcher:
     prepared at the grid point the run is at (the first pending task's settings); else the first pending
     chunk. So each worker keeps to the algorithms it built: with the plain order both workers took every
     algorithm's chunks in turn and built every database twice (Table 6: 14 databases, 0.2-10 s each;
-    zhou2015: one per algorithm and grid point its ``follows`` parameters change, ~100), while the blocks
+    zhou2015: one per algorithm and grid point its ``follows`` parameters change, ~100, fewer where those are
+    ``query_only``), while the blocks
     they simulate stay those of the point at hand. Only the order changes; every row but the times is the
     same.
 
