@@ -91,6 +91,8 @@ def test_missing_methods_are_named_and_registered_readings_run(monkeypatch, regi
 
 def test_tables_put_the_printed_values_beside_ours(monkeypatch):
     monkeypatch.setattr(g, "PAPER_METHODS", {"PYR": "pyramid"})
+    monkeypatch.setattr(g, "HOKU_QUERIES", 30)
+    monkeypatch.setattr(g, "HOKU_STARS", 600)
     full = g.experiment(trials=2, seed=2)
     assert [v.label for v in full.studies[0].variants][:1] == ["pyramid:galvizo2018"]
     assert g.FOV_DEG == 17.7 and g.sigma_px_of(1e-2) == pytest.approx(0.4058, abs=1e-4)
@@ -112,6 +114,12 @@ def test_tables_put_the_printed_values_beside_ours(monkeypatch):
     assert "1501" in tables["galvizo_query"].markdown
     query = tables["galvizo_query"].frame.set_index("label")
     assert query.loc["pyramid:galvizo2018", "S_ours_of_2000"] >= 0  # pyramid reports its first query
+    hoku = g.hoku_step(2).set_index("method")     # hoku's step at the experiment's seed, on both pyramid rows
+    for label in ("pyramid:galvizo2018", "pyramid"):
+        assert query.loc[label, "hoku_S_of_2000"] == hoku.loc["PYR", "S_rows"]
+        assert query.loc[label, "hoku_f"] == hoku.loc["PYR", "f"]
+    assert f"{hoku.loc['PYR', 'S_rows']:.0f} +-" in tables["galvizo_query"].markdown
+    assert "30 queries per method on the brightest 600 stars" in tables["galvizo_query"].notes[0]
     assert "1 of the paper's 1 methods run as published (pyramid:galvizo2018)" in tables["galvizo_setup"].markdown
 
 

@@ -5,7 +5,8 @@ set R has one member, no noise); the reading's first query (the brightest star a
 its two nearest stars) gets S = 1,880 on ``starid reproduce galvizo2018``'s images. This script
 searches the paper's table K3-bar (every ordered trio (i, j, c) of catalog stars within 20 deg of
 each other with theta(c, i) < theta(c, j), i.e. each set three times, once per central star c) by
-brute force on starid's catalog, with hoku's features and windows:
+brute force on starid's catalog, with hoku's features and windows (the table and the query are
+``starid.experiments.hoku_query``'s ``TrioTable`` and ``int_query``):
 
 * theta_1 = theta(c, i), theta_2 = theta(c, j) (deg), swapped when theta_1 > theta_2;
 * phi = the angle at c between the chords i - c and j - c (deg; hoku's ``Trio::dot_angle`` takes
@@ -57,87 +58,16 @@ from starid.catalog import load_hipparcos
 from starid.experiment import Variant
 from starid.experiment.spec import sim_settings
 from starid.experiments import galvizo2018 as g
-
-FOV_DEG = 20.0       # K3-bar: every pair of a trio within 20 deg (hoku's fov)
-EPS_DEG = 3 * 1e-2   # 3 sigma_theta = 3 sigma_phi
-
-
-def angle_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Angle between rows of unit vectors (deg), atan2 form."""
-    return np.degrees(np.arctan2(np.linalg.norm(np.cross(a, b), axis=-1), (a * b).sum(-1)))
+from starid.experiments.hoku_query import FOV_DEG, TrioTable
+from starid.experiments.hoku_query import WINDOW_INT_DEG as EPS_DEG  # 3 sigma_theta = 3 sigma_phi
+from starid.experiments.hoku_query import int_query as count
 
 
-def chord_angle_deg(c: np.ndarray, i: np.ndarray, j: np.ndarray) -> np.ndarray:
-    """hoku's phi: the angle between the normalised chords i - c and j - c (deg)."""
-    u = i - c
-    w = j - c
-    u = u / np.linalg.norm(u, axis=-1, keepdims=True)
-    w = w / np.linalg.norm(w, axis=-1, keepdims=True)
-    return angle_deg(u, w)
-
-
-class TrioTable:
-    """K3-bar on unit vectors ``u`` (n, 3), searched through the sorted ordered-pair list."""
-
-    def __init__(self, u: np.ndarray):
-        self.u = u
-        cmin = np.cos(np.radians(FOV_DEG))
-        a_all, b_all = [], []
-        for lo in range(0, len(u), 512):
-            d = u[lo:lo + 512] @ u.T
-            a, b = np.nonzero(d >= cmin - 1e-12)
-            keep = (a + lo) != b
-            a_all.append(a[keep] + lo)
-            b_all.append(b[keep])
-        a = np.concatenate(a_all)
-        b = np.concatenate(b_all)
-        t = angle_deg(u[a], u[b])
-        keep = t <= FOV_DEG
-        order = np.argsort(t[keep], kind="stable")
-        self.a, self.b, self.t = a[keep][order], b[keep][order], t[keep][order]
-
-    def n_sets(self) -> int:
-        """Unordered trios with every pair within 20 deg (K3; K3-bar holds three rows for each)."""
-        n = len(self.u)
-        adj = sp.csr_matrix((np.ones(self.a.size), (self.a, self.b)), shape=(n, n))
-        return int(round(adj.multiply(adj @ adj).sum() / 6))
-
-    def window(self, theta: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        lo = np.searchsorted(self.t, theta - EPS_DEG, side="left")
-        hi = np.searchsorted(self.t, theta + EPS_DEG, side="right")
-        return self.a[lo:hi], self.b[lo:hi], self.t[lo:hi]
-
-    def query(self, t1: float, t2: float, phi: float) -> np.ndarray:
-        """Rows (i, j, c) of K3-bar within the windows, as hoku's ``Dot::query`` returns them."""
-        if t1 > t2:
-            t1, t2 = t2, t1
-        c1, i1, th1 = self.window(t1)
-        c2, j2, th2 = self.window(t2)
-        if c1.size == 0 or c2.size == 0:
-            return np.empty((0, 3), dtype=np.int64)
-        o = np.argsort(c2, kind="stable")
-        c2, j2, th2 = c2[o], j2[o], th2[o]
-        lo = np.searchsorted(c2, c1, side="left")
-        hi = np.searchsorted(c2, c1, side="right")
-        k = hi - lo
-        rep = np.repeat(np.arange(c1.size), k)
-        if rep.size == 0:
-            return np.empty((0, 3), dtype=np.int64)
-        pos = np.concatenate([np.arange(a, b) for a, b in zip(lo[k > 0], hi[k > 0], strict=True)])
-        c, i, j = c1[rep], i1[rep], j2[pos]
-        ti, tj = th1[rep], th2[pos]
-        u = self.u
-        keep = (i != j) & (ti < tj) & (angle_deg(u[i], u[j]) <= FOV_DEG)
-        c, i, j = c[keep], i[keep], j[keep]
-        p = chord_angle_deg(u[c], u[i], u[j])
-        keep = np.abs(p - phi) <= EPS_DEG
-        return np.stack([i[keep], j[keep], c[keep]], axis=1)
-
-
-def trio_features(u: np.ndarray, c: int, i: int, j: int) -> tuple[float, float, float]:
-    t1 = float(angle_deg(u[c], u[i]))
-    t2 = float(angle_deg(u[c], u[j]))
-    return t1, t2, float(chord_angle_deg(u[c], u[i], u[j]))
+def n_sets(table: TrioTable) -> int:
+    """Unordered trios with every pair within 20 deg (K3; K3-bar holds three rows for each)."""
+    n = len(table.u)
+    adj = sp.csr_matrix((np.ones(table.a.size), (table.a, table.b)), shape=(n, n))
+    return int(round(adj.multiply(adj @ adj).sum() / 6))
 
 
 def nearest_two(u: np.ndarray, field: np.ndarray, c: int) -> tuple[int, int]:
@@ -145,14 +75,6 @@ def nearest_two(u: np.ndarray, field: np.ndarray, c: int) -> tuple[int, int]:
     d = u[others] @ u[c]
     o = np.argsort(-d, kind="stable")
     return int(others[o[0]]), int(others[o[1]])
-
-
-def count(table: TrioTable, c: int, i: int, j: int) -> tuple[int, int, int, float]:
-    """|R| as rows, |R| as distinct sets, whether R holds the set, and the longer side (deg)."""
-    t1, t2, phi = trio_features(table.u, c, i, j)
-    rows = table.query(t1, t2, phi)
-    sets = {tuple(sorted(r)) for r in rows.tolist()}
-    return len(rows), len(sets), int(tuple(sorted((c, i, j))) in sets), max(t1, t2)
 
 
 def summarise(name: str, res: list[tuple[int, int, int, float]]) -> None:
@@ -189,9 +111,9 @@ def main() -> None:
     u = np.asarray(catalog.unit_icrs, dtype=np.float64)[bright]
     u /= np.linalg.norm(u, axis=1, keepdims=True)
     table = TrioTable(u)
-    n_sets = table.n_sets()
-    print(f"table: {len(bright)} stars, {table.t.size // 2} pairs within {FOV_DEG:g} deg, {n_sets} trios "
-          f"({3 * n_sets} rows of K3-bar); windows +-{EPS_DEG} deg")
+    n_sets_ = n_sets(table)
+    print(f"table: {len(bright)} stars, {table.t.size // 2} pairs within {FOV_DEG:g} deg, {n_sets_} trios "
+          f"({3 * n_sets_} rows of K3-bar); windows +-{EPS_DEG} deg")
     rng = np.random.default_rng([seed, 0])
 
     if n_exp:

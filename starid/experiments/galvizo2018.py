@@ -266,8 +266,28 @@ def first_query(g: pd.DataFrame) -> tuple[float, float, int, int]:
     return f, s, int(good.sum()), int(known.sum())
 
 
-def query_table(frame: pd.DataFrame) -> Table:
-    """The query step's printed figures (no noise) beside ours on the same images."""
+#: hoku's query step as :func:`query_table` runs it: queries per method and catalog stars (the paper's).
+HOKU_QUERIES = 2000
+HOKU_STARS = 4560
+
+
+def hoku_step(seed: int = 0) -> pd.DataFrame:
+    """hoku's query step (:func:`starid.experiments.hoku_query.query_step`) at ``seed``: one row per method."""
+    from ..catalog import load_hipparcos
+    from .hoku_query import query_step
+
+    return query_step(load_hipparcos(), HOKU_QUERIES, seed, HOKU_STARS)
+
+
+def _pm(v: float, ci: float, digits: int) -> str:
+    return "" if np.isnan(v) else f"{v:.{digits}f} +-{ci:.{digits}f}"
+
+
+def query_table(frame: pd.DataFrame, seed: int = 0, hoku: pd.DataFrame | None = None) -> Table:
+    """The query step's printed figures (no noise) beside hoku's step redone here (:func:`hoku_step` at
+    ``seed``, or ``hoku`` when given) and our first query on the same images."""
+    hoku = hoku_step(seed) if hoku is None else hoku
+    by_name = {PAPER_METHODS[m]: r for m, r in hoku.set_index("method").iterrows() if m in PAPER_METHODS}
     part = frame[(frame["study"] == "false_stars") & (frame["grid_false_stars"] == 0)]
     counters = [c for c in part.columns if c.startswith("n_") and c not in
                 ("n_identified", "n_correct", "n_wrong", "n_true_stars", "n_stars", "n_false", "n_lost", "n_redraws")
@@ -276,27 +296,38 @@ def query_table(frame: pd.DataFrame) -> Table:
     for label, g in part.groupby("label", sort=False):
         name = g["algorithm"].iloc[0]
         f, s, t = PAPER_QUERY.get(name, (np.nan, np.nan, np.nan))
+        h = by_name.get(name)
         our_f, our_s, n_f, n_s = first_query(g)
         work = {c[2:]: float(g[c].mean()) for c in counters if g[c].notna().any()}
         rows.append({"label": label, "algorithm": name, "trials": len(g), "paper_f_correct_in_R": f,
-                     "f_ours": our_f, "f_images": n_f, "paper_S_of_2000": s, "S_ours_of_2000": our_s,
+                     "hoku_f": np.nan if h is None else h["f"], "hoku_f_ci95": np.nan if h is None else h["f_ci95"],
+                     "f_ours": our_f, "f_images": n_f, "paper_S_of_2000": s,
+                     "hoku_S_of_2000": np.nan if h is None else h["S_rows"],
+                     "hoku_S_ci95": np.nan if h is None else h["S_rows_ci95"], "S_ours_of_2000": our_s,
                      "paper_query_ms": t, "time_mean_ms": float(g["time_us"].mean() / 1e3),
                      "work_counters": ", ".join(f"{k} {v:.1f}" for k, v in work.items())})
     df = pd.DataFrame(rows)
     shown = df.assign(**{c: df[c].map(lambda v: "" if np.isnan(v) else f"{v:g}")
                          for c in ("paper_f_correct_in_R", "paper_S_of_2000", "paper_query_ms")},
+                      hoku_f=[_pm(v, c, 3) for v, c in zip(df["hoku_f"], df["hoku_f_ci95"], strict=True)],
+                      hoku_S_of_2000=[_pm(v, c, 0) for v, c in zip(df["hoku_S_of_2000"], df["hoku_S_ci95"],
+                                                                   strict=True)],
                       f_ours=df["f_ours"].map(lambda v: "" if np.isnan(v) else f"{v:.3f}"),
                       S_ours_of_2000=df["S_ours_of_2000"].map(lambda v: "" if np.isnan(v) else f"{v:.0f}"),
-                      time_mean_ms=df["time_mean_ms"].map(lambda v: f"{v:.2f}"))
+                      time_mean_ms=df["time_mean_ms"].map(lambda v: f"{v:.2f}")).drop(columns=["hoku_f_ci95",
+                                                                                               "hoku_S_ci95"])
+    n_q = int(hoku["n_queries"].iloc[0]) if len(hoku) else 0
     accesses = "; ".join(f"{k}: " + ", ".join(f"{a} {v:g}" for a, v in d.items()) for k, d in PAPER_ACCESSES.items())
-    notes = ("The paper's f is the share of its 2,000 query steps whose candidates R hold the right catalog set, "
-             "S the number whose R has exactly one member, each on one random subset of an image's stars. Ours "
-             "(f_ours, S_ours) are measured on each image's first query step, its brightest pair or trio (PLN: "
-             "the start triangle of its first chain, the largest-area triangle of the first star set it tries), by the "
-             "plugins' first-query counters: S_ours = share with |R| = 1, times 2,000; f_ours = of the images "
-             "identified with no wrong id that name that subset (f_images), the share whose first R held the "
-             "set they were named as. Blank: the plugin reports no first-query counters (every algorithm that "
-             "is not one of the paper's). The paper's time is per query step; starid's is per identification.",
+    notes = ("f: the share of query steps whose candidates R hold the right catalog set; S: the number with "
+             "|R| = 1, of 2,000. paper_*: printed (hoku's query experiment: a random 2 or 3 stars of a 10 deg "
+             "cone field, the method's own query and table, the paper's fixed windows). hoku_*: that step redone "
+             f"here ({n_q:,} queries per method on the brightest {HOKU_STARS:,} stars with V < 6, seed {seed}, "
+             "+- 95 %; starid.experiments.hoku_query), the paper's method whatever the row's reading. f_ours / "
+             "S_ours: each image's first query step (its brightest pair or trio; PLN the start triangle of its "
+             "first chain) from the plugins' first-query counters; f_ours among the images identified with no "
+             "wrong id that name that subset (f_images); blank when the plugin reports no such counters. The "
+             "paper's time is per query step, starid's per identification. See docs/experiments.md, "
+             "\"The query table\".",
              f"Catalog accesses the text prints: {accesses}.")
     return Table("galvizo_query", "Query step (no noise, no false stars): printed figures beside ours", df,
                  markdown(shown), notes)
@@ -312,4 +343,5 @@ def paper_points() -> pd.DataFrame:
 
 
 def tables(frame: pd.DataFrame, experiment: Experiment) -> list[Table]:
-    return [setup_table(experiment), *false_table(frame), *noise_table(frame), query_table(frame)]
+    return [setup_table(experiment), *false_table(frame), *noise_table(frame),
+            query_table(frame, experiment.seed)]
