@@ -75,33 +75,62 @@ def cast_votes(start, stop, pairs, b_lo, b_hi, once_per_pair, stamp, tally, leve
     the votes of guide row g for selected star a. With ``once_per_pair`` one image pair gives a
     catalog star at most one vote, however many pairs of its window contain it: ``stamp[g]``
     holds the last image pair (``256 a + b + 1``, unique per pair: at most 255 stars) that voted for g. A window is
-    read once for both of its stars, and the calls over ``[0, m1)`` then ``[m1, m)`` add up to
+    read once for both of its stars: first reduced to its distinct catalog stars (the stamp test as
+    a 0/1 step of the write position, no branch), then their votes counted, which is 1.7x faster
+    than testing, stamping and counting each pair's stars in one loop
+    (``benchmarks/tools/gvspeed_cast.py``). The calls over ``[0, m1)`` then ``[m1, m)`` add up to
     the votes of all pairs of the first ``m`` stars.
 
     A catalog star whose votes for star a reach ``level`` (> 0) is appended to
     ``listed[a, :n_listed[a]]`` (votes grow by one, so once), so that :func:`rank_votes` need not
     scan every catalog star; ``level`` = 0 lists nothing.
     """
+    one = tally.dtype.type(1)       # counts stay in the counters' dtype
+    lvl = tally.dtype.type(level)
+    ends = pairs.reshape(-1)        # the window [lo, hi) of pairs is the run [2 lo, 2 hi) of their stars
+    # + 1: the distinct-star pass writes one place past the last distinct star
+    uniq = np.empty(tally.shape[1] + 1 if once_per_pair else 0, dtype=pairs.dtype)
     for b in range(b_lo, b_hi):
+        tb = tally[b]
         for a in range(b):
-            lo = start[a, b]
-            hi = stop[a, b]
+            lo = 2 * start[a, b]
+            hi = 2 * stop[a, b]
             if hi <= lo:
                 continue
-            pair_id = np.uint16(a * 256 + b + 1)
-            for p in range(lo, hi):
-                for o in range(2):
-                    g = pairs[p, o]
-                    if once_per_pair:
-                        if stamp[g] == pair_id:
-                            continue
-                        stamp[g] = pair_id
-                    tally[a, g] += 1
-                    tally[b, g] += 1
-                    if tally[a, g] == level:
+            ta = tally[a]
+            if once_per_pair:
+                # first the window's distinct catalog stars, then their votes: two short loops run
+                # faster than one that tests, stamps and counts each star in turn
+                pair_id = np.uint16(a * 256 + b + 1)
+                n_uniq = 0
+                for p in range(lo, hi):
+                    g = ends[p]
+                    uniq[n_uniq] = g
+                    n_uniq += stamp[g] != pair_id
+                    stamp[g] = pair_id
+                for i in range(n_uniq):
+                    g = uniq[i]
+                    x = ta[g] + one
+                    y = tb[g] + one
+                    ta[g] = x
+                    tb[g] = y
+                    if x == lvl:
                         listed[a, n_listed[a]] = g
                         n_listed[a] += 1
-                    if tally[b, g] == level:
+                    if y == lvl:
+                        listed[b, n_listed[b]] = g
+                        n_listed[b] += 1
+            else:
+                for p in range(lo, hi):
+                    g = ends[p]
+                    x = ta[g] + one
+                    y = tb[g] + one
+                    ta[g] = x
+                    tb[g] = y
+                    if x == lvl:
+                        listed[a, n_listed[a]] = g
+                        n_listed[a] += 1
+                    if y == lvl:
                         listed[b, n_listed[b]] = g
                         n_listed[b] += 1
 
