@@ -17,6 +17,7 @@ catalog star. Everything is allocated per call, nothing is kept between calls.
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import numpy as np
@@ -24,11 +25,6 @@ from numba import njit
 from starid_algorithms.pyramid.kernels import select_stars
 
 from starid.kernels import backproject_px, chord_rows, kvector_query, reproject_assign, verify_pairwise, wahba_rows
-
-#: ``starid.kernels.chord_rows`` itself, inlined into the innermost loop of :func:`pick_candidates`
-#: (a numba call there costs more than the arithmetic)
-chord_rows_inline = njit(cache=True, inline="always")(chord_rows.py_func)
-
 
 #: names of the per-image work counters :func:`voting_kernel` returns (``Identification.counters``):
 #: voting rounds (each one choice, verification and confirmation), image pairs with a non-empty
@@ -267,32 +263,50 @@ def pick_candidates(v_cam, sel, cand_row, cand_votes, guide_unit, eps):
     votes, then the earlier (lower) shortlist slot. Returns ``(row, votes)`` per star of ``cand_row``.
     """
     m, k = cand_row.shape
-    row = np.full(m, -1, dtype=np.int64)
-    got = np.zeros(m, dtype=np.int64)
-    c_img = np.empty(m)
+    # the shortlists' unit vectors, float64 in one block (rows of a shortlist are read m - 1 times)
+    n_c = np.zeros(m, dtype=np.int64)
+    u = np.empty((m, 3, k))
     for a in range(m):
-        for b in range(m):
-            c_img[b] = chord_rows(v_cam, sel[a], v_cam, sel[b])
-        best_support = -1
         for s in range(k):
             big_i = cand_row[a, s]
             if big_i < 0:
                 break
-            support = 0
-            for b in range(m):
-                if b == a:
-                    continue
-                for t in range(k):
-                    big_j = cand_row[b, t]
-                    if big_j < 0:
-                        break
-                    c_cat = chord_rows_inline(guide_unit, big_i, guide_unit, big_j)
-                    if big_j != big_i and abs(c_cat - c_img[b]) <= eps:
-                        support += 1
-                        break
-            if support > best_support or (support == best_support and cand_votes[a, s] > got[a]):
-                best_support = support
-                row[a] = big_i
+            for d in range(3):
+                u[a, d, s] = float(guide_unit[big_i, d])
+            n_c[a] += 1
+    # the match of (a -> I, b -> J) is that of (b -> J, a -> I): each unordered pair of stars is
+    # tested once, every shortlist pair without stopping at the first match, which numba vectorises
+    support = np.zeros((m, k), dtype=np.int64)
+    col = np.empty(k, dtype=np.bool_)
+    for a in range(m):
+        for b in range(a + 1, m):
+            c_ab = chord_rows(v_cam, sel[a], v_cam, sel[b])
+            n_b = n_c[b]
+            col[:n_b] = False
+            for s in range(n_c[a]):
+                big_i = cand_row[a, s]
+                xi = u[a, 0, s]
+                yi = u[a, 1, s]
+                zi = u[a, 2, s]
+                hit_any = False
+                for t in range(n_b):
+                    dx = xi - u[b, 0, t]
+                    dy = yi - u[b, 1, t]
+                    dz = zi - u[b, 2, t]
+                    hit = (cand_row[b, t] != big_i) & (abs(math.sqrt(dx * dx + dy * dy + dz * dz) - c_ab) <= eps)
+                    hit_any |= hit
+                    col[t] |= hit
+                support[a, s] += hit_any
+            for t in range(n_b):
+                support[b, t] += col[t]
+    row = np.full(m, -1, dtype=np.int64)
+    got = np.zeros(m, dtype=np.int64)
+    for a in range(m):
+        best_support = -1
+        for s in range(n_c[a]):
+            if support[a, s] > best_support or (support[a, s] == best_support and cand_votes[a, s] > got[a]):
+                best_support = support[a, s]
+                row[a] = cand_row[a, s]
                 got[a] = cand_votes[a, s]
     return row, got
 
