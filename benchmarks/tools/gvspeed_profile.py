@@ -45,8 +45,9 @@ def image_stages(alg, db, o, bundles, repeats):
     like = gk.tally_like(rule)
     t = dict.fromkeys(STAGES, 0.0)
     t["identify"], _ = _best(lambda: alg.identify(db, o), repeats)
-    t["voting_kernel"], _ = _best(lambda: gk.voting_kernel(o.x_px, o.y_px, o.mag, db.kv, db.pairs, db.degree,
-                                                           db.guide_unit, db.guide_hip, tol, fr, rule, vtol, like),
+    kv, ptol, pfr, prule, pvtol = tuple(db.kv), tuple(tol), tuple(fr), tuple(rule), tuple(vtol)   # as identify
+    t["voting_kernel"], _ = _best(lambda: gk.voting_kernel(o.x_px, o.y_px, o.mag, kv, db.pairs, db.degree,
+                                                           db.guide_unit, db.guide_hip, ptol, pfr, prule, pvtol, like),
                                   repeats)
     t["wrapper"] = t["identify"] - t["voting_kernel"]
     v = backproject_px(o.x_px, o.y_px, fr.f_px, fr.cx_px, fr.cy_px)
@@ -64,8 +65,8 @@ def image_stages(alg, db, o, bundles, repeats):
     while True:
         upto = min(m, done + (step if done == 0 else rule.round_step))
         t["rounds"] += 1
-        dt, _ = _best(lambda: gk.extend_windows(v, sel, db.kv, vtol, start.copy(), stop.copy(), np.int64(done),
-                                                 np.int64(upto)), repeats)
+        dt, _ = _best(lambda: gk.extend_windows(v, sel, db.kv, vtol, start.copy(), stop.copy(),  # noqa: B023
+                                                 np.int64(done), np.int64(upto)), repeats)  # noqa: B023
         t["searches"] += dt
         gk.extend_windows(v, sel, db.kv, vtol, start, stop, np.int64(done), np.int64(upto))
         level = min(3, upto - 1)
@@ -80,8 +81,8 @@ def image_stages(alg, db, o, bundles, repeats):
             ta, st, li, nl = (tally.copy(), stamp.copy(), listed.copy(), n_listed.copy()) if copy else \
                 (tally, stamp, listed, n_listed)
             t0 = time.perf_counter_ns()
-            gk.cast_votes(start, stop, db.pairs, np.int64(done), np.int64(upto), rule.once_per_pair, st, ta,
-                          np.int64(level), li, nl)
+            gk.cast_votes(start, stop, db.pairs, np.int64(done), np.int64(upto),  # noqa: B023
+                          rule.once_per_pair, st, ta, np.int64(level), li, nl)  # noqa: B023
             return time.perf_counter_ns() - t0
         t["casting"] += min(cast() for _ in range(repeats)) / 1e3
         cast(copy=False)
@@ -102,10 +103,10 @@ def image_stages(alg, db, o, bundles, repeats):
                                               rule.min_fraction), repeats)
         t["verification"] += dt
         dt, (ok, _) = _best(lambda: gk.decide(v, sel, np.int64(upto), start, stop, tally, db.degree,  # noqa: B023
-                                               db.guide_unit, tol, fr, rule, np.int64(level), listed, n_listed,
+                                               db.guide_unit, tol, fr, rule, np.int64(level),  # noqa: B023
+                                               listed, n_listed,
                                                rows, votes, vtol), repeats)
-        t["confirmation"] += dt - t["ranking"] * 0   # decide's total for now; its parts subtracted below
-        t["_decide_parts"] = t.get("_decide_parts", 0.0)
+        t["confirmation"] += dt      # decide's whole time; main() subtracts its ranking, choice and verification
         if ok or upto == m:
             break
         done = upto
@@ -125,7 +126,6 @@ def main(n: int, repeats: int) -> None:
         rows = [image_stages(alg, db, trials.observation(i, truth=False), bundles, repeats) for i in range(n)]
         for r in rows:
             r["confirmation"] -= r["ranking"] + r["choice"] + r["verification"]
-            r.pop("_decide_parts", None)
         many = [r for r in rows if r["rounds"] > 1]
         print(f"{sky} sky, {n} images ({len(many)} need more than one round): median / mean µs "
               f"(all images) | median / mean (more than one round)")
