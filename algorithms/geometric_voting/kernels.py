@@ -174,7 +174,11 @@ def rank_votes(v_cam, sel, n_voters, start, stop, tally, degree, tol, expected, 
 
     With ``level`` > 0 only the stars :func:`cast_votes` listed (votes >= ``level``) are ranked
     first; as a score never exceeds the votes, that is the exact answer when the list fills all
-    ``n_keep`` places with scores above ``level - 1``. Otherwise every catalog star is scanned.
+    ``n_keep`` places with scores above ``level - 1`` -- or, with linear chance votes, above
+    ``level - 1 - w_a min(degree)``, the most an unlisted star can score. Otherwise the unlisted
+    voted stars are offered to the same shortlist (one scan of the counters; ``level`` = 0: every
+    voted star, in row order). The shortlist is a top-``n_keep`` under (score, then lowest row), so
+    the order the stars are offered in does not change it.
     """
     n_guide = tally.shape[1]
     cand_row = np.full((n_voters, n_keep), -1, dtype=np.int64)
@@ -184,6 +188,7 @@ def rank_votes(v_cam, sel, n_voters, start, stop, tally, degree, tol, expected, 
     saturate = expected and saturate
     p_b = np.empty(n_voters)
     chance = np.empty(np.int64(np.max(degree)) + 1 if saturate and n_guide > 0 else 1)
+    deg_min = -1                    # the catalog's smallest degree, found when first needed
     for a in range(n_voters):
         w_a = 0.0
         n_b = 0
@@ -216,10 +221,33 @@ def rank_votes(v_cam, sel, n_voters, start, stop, tally, degree, tol, expected, 
                 cand_row[a, t] = g
             if cand_row[a, last] >= 0 and score[a, last] > level - 1:
                 continue
-            for t in range(n_keep):
-                score[a, t] = -np.inf
-                cand_row[a, t] = -1
-                cand_votes[a, t] = 0
+            # a tighter bound, linear chance votes only: an unlisted star has at most level - 1
+            # votes and at least the catalog's smallest degree, so it scores at most
+            # (level - 1) - w_a * min(degree) (IEEE products and differences are monotone)
+            if cand_row[a, last] >= 0 and not saturate:
+                if deg_min < 0:
+                    deg_min = np.int64(np.min(degree))
+                if score[a, last] > (level - 1) - w_a * deg_min:
+                    continue
+            # the unlisted stars (0 < votes < level) offered to the same shortlist, which already
+            # holds the best listed ones: the same shortlist as a scan of every voted star
+            for g in range(n_guide):
+                c = np.int64(tally[a, g])
+                if c == 0 or c >= level or c < score[a, last]:     # the score is at most the votes
+                    continue
+                x = c - (chance_votes(chance, p_b, n_b, degree[g]) if saturate else w_a * degree[g])
+                if x < score[a, last] or (x == score[a, last] and g > cand_row[a, last]):
+                    continue
+                t = last
+                while t > 0 and (score[a, t - 1] < x or (score[a, t - 1] == x and cand_row[a, t - 1] > g)):
+                    score[a, t] = score[a, t - 1]
+                    cand_votes[a, t] = cand_votes[a, t - 1]
+                    cand_row[a, t] = cand_row[a, t - 1]
+                    t -= 1
+                score[a, t] = x
+                cand_votes[a, t] = c
+                cand_row[a, t] = g
+            continue
         for g in range(n_guide):          # rows ascend, so ties keep the lowest
             c = np.int64(tally[a, g])
             if c == 0 or c <= score[a, last]:     # the score is at most the votes
