@@ -226,37 +226,23 @@ def rank_votes(v_cam, sel, n_voters, start, stop, tally, degree, tol, expected, 
             # (level - 1) - w_a * min(degree) (IEEE products and differences are monotone)
             if cand_row[a, last] >= 0 and not saturate:
                 if deg_min < 0:
-                    deg_min = np.int64(np.min(degree))
+                    deg_min = np.int64(degree[0])
+                    for g in range(1, n_guide):
+                        deg_min = min(deg_min, np.int64(degree[g]))
                 if score[a, last] > (level - 1) - w_a * deg_min:
                     continue
-            # the unlisted stars (0 < votes < level) offered to the same shortlist, which already
-            # holds the best listed ones: the same shortlist as a scan of every voted star
-            for g in range(n_guide):
-                c = np.int64(tally[a, g])
-                if c == 0 or c >= level or c < score[a, last]:     # the score is at most the votes
-                    continue
-                x = c - (chance_votes(chance, p_b, n_b, degree[g]) if saturate else w_a * degree[g])
-                if x < score[a, last] or (x == score[a, last] and g > cand_row[a, last]):
-                    continue
-                t = last
-                while t > 0 and (score[a, t - 1] < x or (score[a, t - 1] == x and cand_row[a, t - 1] > g)):
-                    score[a, t] = score[a, t - 1]
-                    cand_votes[a, t] = cand_votes[a, t - 1]
-                    cand_row[a, t] = cand_row[a, t - 1]
-                    t -= 1
-                score[a, t] = x
-                cand_votes[a, t] = c
-                cand_row[a, t] = g
-            continue
-        for g in range(n_guide):          # rows ascend, so ties keep the lowest
+        # the voted stars not offered yet -- the unlisted ones (0 < votes < level), or with
+        # ``level`` = 0 every voted star -- offered to the same shortlist, which holds the best
+        # listed ones: the shortlist of every voted star
+        for g in range(n_guide):
             c = np.int64(tally[a, g])
-            if c == 0 or c <= score[a, last]:     # the score is at most the votes
+            if c == 0 or (level > 0 and c >= level) or c < score[a, last]:     # the score is at most the votes
                 continue
             x = c - (chance_votes(chance, p_b, n_b, degree[g]) if saturate else w_a * degree[g])
-            if x <= score[a, last]:
+            if x < score[a, last] or (x == score[a, last] and g > cand_row[a, last]):
                 continue
             t = last
-            while t > 0 and score[a, t - 1] < x:
+            while t > 0 and (score[a, t - 1] < x or (score[a, t - 1] == x and cand_row[a, t - 1] > g)):
                 score[a, t] = score[a, t - 1]
                 cand_votes[a, t] = cand_votes[a, t - 1]
                 cand_row[a, t] = cand_row[a, t - 1]
@@ -319,7 +305,8 @@ def pick_candidates(v_cam, sel, cand_row, cand_votes, guide_unit, eps):
         for b in range(a + 1, m):
             c_ab = chord_rows(v_cam, sel[a], v_cam, sel[b])
             n_b = n_c[b]
-            col[:n_b] = False
+            for t in range(n_b):
+                col[t] = False
             for s in range(n_c[a]):
                 big_i = cand_row[a, s]
                 xi = u[a, 0, s]
