@@ -88,10 +88,14 @@ def cast_votes(start, stop, pairs, b_lo, b_hi, once_per_pair, stamp, tally, leve
 
     A catalog star whose votes for star a reach ``level`` (> 0) is appended to
     ``listed[a, :n_listed[a]]`` (votes grow by one, so once), so that :func:`rank_votes` need not
-    scan every catalog star; ``level`` = 0 lists nothing.
+    scan every catalog star; ``level`` = 0 lists nothing. ``listed`` with one column more than
+    ``tally`` lets the pairs of a star that has voted with ``level`` others or more list without a
+    branch (a store to the next free place, always, and a 0/1 step).
     """
     one = tally.dtype.type(1)       # counts stay in the counters' dtype
     lvl = tally.dtype.type(level)
+    # the store-and-step listing writes one place past the last listed star: only with a spare column
+    spare = level > 0 and listed.shape[1] > tally.shape[1]
     ends = pairs.reshape(-1)        # the window [lo, hi) of pairs is the run [2 lo, 2 hi) of their stars
     # + 1: the distinct-star pass writes one place past the last distinct star
     uniq = np.empty(tally.shape[1] + 1 if once_per_pair else 0, dtype=pairs.dtype)
@@ -113,6 +117,27 @@ def cast_votes(start, stop, pairs, b_lo, b_hi, once_per_pair, stamp, tally, leve
                     uniq[n_uniq] = g
                     n_uniq += stamp[g] != pair_id
                     stamp[g] = pair_id
+                if b > level and spare:
+                    # b has voted with ``level`` stars or more, so a count often reaches the level
+                    # here: the listing is a store to the next free place and a 0/1 step
+                    # (a branch taken this often is mispredicted: 2x slower over all rounds)
+                    la = listed[a]
+                    lb = listed[b]
+                    na = n_listed[a]
+                    nb = n_listed[b]
+                    for i in range(n_uniq):
+                        g = uniq[i]
+                        x = ta[g] + one
+                        y = tb[g] + one
+                        ta[g] = x
+                        tb[g] = y
+                        la[na] = g
+                        na += x == lvl
+                        lb[nb] = g
+                        nb += y == lvl
+                    n_listed[a] = na
+                    n_listed[b] = nb
+                    continue
                 for i in range(n_uniq):
                     g = uniq[i]
                     x = ta[g] + one
@@ -263,7 +288,7 @@ def vote(v_cam, sel, start, stop, pairs, degree, tol, once_per_pair, expected, n
     m = sel.shape[0]
     n_guide = degree.shape[0]
     stamp = np.zeros(n_guide, dtype=np.uint16)
-    listed = np.empty((m, n_guide), dtype=pairs.dtype)
+    listed = np.empty((m, n_guide + 1), dtype=pairs.dtype)   # + 1: cast_votes' spare slot
     n_listed = np.zeros(m, dtype=np.int64)
     if once_per_pair:
         tally8 = np.zeros((m, n_guide), dtype=np.uint8)
@@ -427,7 +452,7 @@ def vote_rounds(v_cam, sel, kv, pairs, degree, guide_unit, tol, cam, rule, tally
     votes = np.full(n, -1, dtype=np.int64)
     n_guide = degree.shape[0]
     stamp = np.zeros(n_guide, dtype=np.uint16)
-    listed = np.empty((m, n_guide), dtype=pairs.dtype)
+    listed = np.empty((m, n_guide + 1), dtype=pairs.dtype)   # + 1: cast_votes' spare slot
     n_listed = np.zeros(m, dtype=np.int64)
     start = np.zeros((m, m), dtype=np.int64)
     stop = np.zeros((m, m), dtype=np.int64)

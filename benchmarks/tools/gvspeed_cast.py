@@ -182,6 +182,106 @@ def v_unique_flat(start, stop, pairs, k, n_guide):
 
 
 @njit(cache=True)
+def v_unique_nobranch(start, stop, pairs, k, n_guide):
+    """``unique flat`` with the listing as a store and a 0/1 step instead of a branch."""
+    m = start.shape[0]
+    stamp = np.zeros(n_guide, dtype=np.uint16)
+    tally = np.zeros((m, n_guide), dtype=np.uint8)
+    listed = np.empty((m, n_guide + 1), dtype=pairs.dtype)
+    n_listed = np.zeros(m, dtype=np.int64)
+    level = np.uint8(min(3, k - 1))
+    uniq = np.empty(n_guide + 1, dtype=pairs.dtype)
+    ends = pairs.reshape(-1)
+    for b in range(k):
+        for a in range(b):
+            lo = 2 * start[a, b]
+            hi = 2 * stop[a, b]
+            pair_id = np.uint16(a * 256 + b + 1)
+            n = 0
+            for p in range(lo, hi):
+                g = ends[p]
+                uniq[n] = g
+                n += stamp[g] != pair_id
+                stamp[g] = pair_id
+            ta = tally[a]
+            tb = tally[b]
+            la = listed[a]
+            lb = listed[b]
+            na = n_listed[a]
+            nb = n_listed[b]
+            for i in range(n):
+                g = uniq[i]
+                x = ta[g] + np.uint8(1)
+                y = tb[g] + np.uint8(1)
+                ta[g] = x
+                tb[g] = y
+                la[na] = g
+                na += x == level
+                lb[nb] = g
+                nb += y == level
+            n_listed[a] = na
+            n_listed[b] = nb
+    return tally[:, :], n_listed
+
+
+@njit(cache=True)
+def v_hybrid(start, stop, pairs, k, n_guide, first_branchless):
+    """``no-branch listing`` for the pairs whose fainter star is ``first_branchless`` or later."""
+    m = start.shape[0]
+    stamp = np.zeros(n_guide, dtype=np.uint16)
+    tally = np.zeros((m, n_guide), dtype=np.uint8)
+    listed = np.empty((m, n_guide + 1), dtype=pairs.dtype)
+    n_listed = np.zeros(m, dtype=np.int64)
+    level = np.uint8(min(3, k - 1))
+    uniq = np.empty(n_guide + 1, dtype=pairs.dtype)
+    ends = pairs.reshape(-1)
+    for b in range(k):
+        for a in range(b):
+            lo = 2 * start[a, b]
+            hi = 2 * stop[a, b]
+            pair_id = np.uint16(a * 256 + b + 1)
+            n = 0
+            for p in range(lo, hi):
+                g = ends[p]
+                uniq[n] = g
+                n += stamp[g] != pair_id
+                stamp[g] = pair_id
+            ta = tally[a]
+            tb = tally[b]
+            la = listed[a]
+            lb = listed[b]
+            na = n_listed[a]
+            nb = n_listed[b]
+            if b >= first_branchless:
+                for i in range(n):
+                    g = uniq[i]
+                    x = ta[g] + np.uint8(1)
+                    y = tb[g] + np.uint8(1)
+                    ta[g] = x
+                    tb[g] = y
+                    la[na] = g
+                    na += x == level
+                    lb[nb] = g
+                    nb += y == level
+            else:
+                for i in range(n):
+                    g = uniq[i]
+                    x = ta[g] + np.uint8(1)
+                    y = tb[g] + np.uint8(1)
+                    ta[g] = x
+                    tb[g] = y
+                    if x == level:
+                        la[na] = g
+                        na += 1
+                    if y == level:
+                        lb[nb] = g
+                        nb += 1
+            n_listed[a] = na
+            n_listed[b] = nb
+    return tally[:, :], n_listed
+
+
+@njit(cache=True)
 def v_alloc_only(start, stop, pairs, k, n_guide):
     m = start.shape[0]
     stamp = np.zeros(n_guide, dtype=np.uint16)
@@ -193,7 +293,8 @@ def v_alloc_only(start, stop, pairs, k, n_guide):
 
 
 VARIANTS = {"one loop (before)": v_one_loop, "kernel cast_votes": v_kernel, "branchless": v_branchless,
-            "unique first": v_unique, "unique flat": v_unique_flat, "alloc only": v_alloc_only}
+            "unique first": v_unique, "unique flat": v_unique_flat,
+            "no-branch listing": v_unique_nobranch, "alloc only": v_alloc_only}
 
 
 def main(n: int, repeats: int) -> None:
