@@ -58,7 +58,7 @@ def image_stages(alg, db, o, bundles, repeats):
     start, stop = np.zeros((m, m), dtype=np.int64), np.zeros((m, m), dtype=np.int64)
     tally = np.zeros((m, ng), dtype=like.dtype)
     stamp = np.zeros(ng, dtype=np.uint16)
-    listed, n_listed = np.empty((m, ng), dtype=db.pairs.dtype), np.zeros(m, dtype=np.int64)
+    listed, n_listed = np.empty((m, ng + 1), dtype=db.pairs.dtype), np.zeros(m, dtype=np.int64)   # as the kernel
     rows, votes = np.full(n, -1, dtype=np.int64), np.full(n, -1, dtype=np.int64)
     step = rule.round_voters if rule.round_voters >= 3 else m
     done, last_level = 0, 0
