@@ -69,7 +69,7 @@ def image_stages(alg, db, o, bundles, repeats):
                                                  np.int64(done), np.int64(upto)), repeats)  # noqa: B023
         t["searches"] += dt
         gk.extend_windows(v, sel, db.kv, vtol, start, stop, np.int64(done), np.int64(upto))
-        level = min(3, upto - 1)
+        level = max(min(3, upto - 1), (upto - 1) // 3 + 1)     # as vote_rounds
         if level != last_level:
             for a in range(done):
                 keep = [g for g in listed[a, :n_listed[a]] if tally[a, g] >= level]
