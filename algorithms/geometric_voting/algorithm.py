@@ -340,11 +340,11 @@ class GeometricVoting(Algorithm):
                         report_all=bool(self.report_all), saturate=bool(saturate))
 
     def _run(self, database: PairDatabase, observation: Observation):
-        tol, sensor, rule, vtol = _bundles(self, observation.camera, database.c_max, database.d_min_deg,
-                                             _saturates(database), _vote_window(database))
-        return voting_kernel(observation.x_px, observation.y_px, observation.mag, database.kv, database.pairs,
-                             database.degree, database.guide_unit, database.guide_hip, tol, sensor, rule, vtol,
-                             tally_like(rule))
+        tol, sensor, rule, vtol, like = _kernel_bundles(self, observation.camera, database.c_max,
+                                                        database.d_min_deg, _saturates(database),
+                                                        _vote_window(database))
+        return voting_kernel(observation.x_px, observation.y_px, observation.mag, tuple(database.kv), database.pairs,
+                             database.degree, database.guide_unit, database.guide_hip, tol, sensor, rule, vtol, like)
 
     def identify(self, database: PairDatabase, observation: Observation) -> Identification:
         _, _, hip, attitude, found, work = self._run(database, observation)
@@ -384,6 +384,17 @@ def _vote_window(database: PairDatabase) -> float | None:
 def _saturates(database: PairDatabase) -> bool:
     """What ``build`` derived for ``saturate_votes`` (a plain pyramid database: False)."""
     return bool(getattr(database, "saturate_votes", False))
+
+
+@lru_cache(maxsize=64)
+def _kernel_bundles(algorithm: GeometricVoting, camera: Camera, c_max: float, d_min_deg: float,
+                    database_saturates: bool = False, database_vote_window_px: float | None = None) -> tuple:
+    """:func:`_bundles` as ``voting_kernel`` takes them: plain tuples (numba types a named tuple
+    argument in Python, ~0.8 µs each per call; ``voting_kernel`` rebuilds the named bundles), and
+    the counters' dtype (:func:`~.kernels.tally_like`)."""
+    tol, sensor, rule, vtol = _bundles(algorithm, camera, c_max, d_min_deg, database_saturates,
+                                       database_vote_window_px)
+    return tuple(tol), tuple(sensor), tuple(rule), tuple(vtol), tally_like(rule)
 
 
 @lru_cache(maxsize=64)

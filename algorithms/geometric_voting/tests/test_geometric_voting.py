@@ -68,17 +68,19 @@ def test_votes_match_numpy_oracle(db, voted, once, expected, saturate, level):
         assert np.array_equal(rows[a], order) and np.array_equal(got[a], votes[order])
 
 
+@pytest.mark.parametrize("spare", [0, 1])
 @pytest.mark.parametrize("once", [True, False])
-def test_votes_in_rounds_add_up_to_one_round(db, voted, once):
+def test_votes_in_rounds_add_up_to_one_round(db, voted, once, spare):
     """Casting the pairs of the first 5 stars, then those with a fainter star, gives the votes of one
-    round of all, and the level lists hold exactly the stars that reached the level."""
+    round of all, and the level lists hold exactly the stars that reached the level (with a spare
+    column, as the kernels allocate them, the fainter stars list without a branch)."""
     obs, tol, v, sel, start, stop = voted
     m, n_guide = len(sel), db.guide_hip.size
     dtype = np.uint8 if once else np.int32
 
     def cast(rounds, level):
         tally, stamp = np.zeros((m, n_guide), dtype), np.zeros(n_guide, np.uint16)
-        listed, n_listed = np.empty((m, n_guide), db.pairs.dtype), np.zeros(m, np.int64)
+        listed, n_listed = np.empty((m, n_guide + spare), db.pairs.dtype), np.zeros(m, np.int64)
         for lo, hi in rounds:
             cast_votes(start, stop, db.pairs, lo, hi, once, stamp, tally, level, listed, n_listed)
         return tally, listed, n_listed
