@@ -28,6 +28,7 @@ from .planar import (
     plane_polar,
     prepare_image,
     select_guides,
+    z_index,
 )
 
 
@@ -197,7 +198,7 @@ class ImprovedLPT(PlanarAlgorithm):
     def _make_kernel_args(self, db: ImprovedLPTDatabase, cam: Camera) -> tuple:
         sensor = camera_frame(cam)._replace(f_px=float(cam.f_px))
         acc = acceptance(cam, self.sigma_px, self.beta, self.min_matches, self.confirm_fraction)
-        return (pack_params(sensor, acc, self._search(db)), *db.table, db.guide_unit)
+        return (pack_params(sensor, acc, self._search(db)), *db.table, db.guide_unit, z_index(db.guide_unit))
 
     def _run(self, db: ImprovedLPTDatabase, observation: Observation):
         trace = new_trace()

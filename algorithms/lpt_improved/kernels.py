@@ -18,12 +18,13 @@ from .planar import (
     SEPARATION_TOL,
     acceptance_at,
     begin_identify,
-    confirm_pair,
+    confirm_pair_near,
     count_work,
     frame_at,
     guide_pattern,
     keep_best,
     no_match,
+    pair_work,
     polar_buffers,
     reference_pattern,
     relative_angle,
@@ -171,19 +172,23 @@ def search_at(p, i):
 
 
 @njit(cache=True)
-def identify_kernel(x_px, y_px, params, columns, total, count_start, guide, align, align_chord, guides_unit, trace):
+def identify_kernel(x_px, y_px, params, columns, total, count_start, guide, align, align_chord, guides_unit, z_start,
+                    trace):
     """Improved-LPT identification of one image; returns ``(rows, attitude, accepted)``.
 
     ``params``: the sensor :class:`Frame`, the :class:`Acceptance` and the :class:`Search`, packed
     by ``planar.pack_params``; the next six arrays are the :class:`FeatureTable`'s fields (separate
-    arguments: numba types arrays at a call in C, NamedTuples field by field in Python).
+    arguments: numba types arrays at a call in C, NamedTuples field by field in Python); ``z_start`` is
+    ``planar.z_index`` of ``guides_unit``.
 
     For reference stars taken from the image centre outwards (at most ``search.max_refs``):
     the neighbours within R, nearest first; for each of the ``search.image_alignments`` nearest
     as alignment star (the paper: the nearest), the feature vector relative to it, the best
     ``search.n_candidates`` database rows by :func:`sad_search`; each candidate seeds an
     attitude (reference star and alignment star to their guide stars, Wahba) that
-    :func:`confirm` must accept. The first accepted candidate is the answer.
+    :func:`confirm` must accept (``planar.confirm_pair_near``: the same answers as
+    ``planar.confirm_pair``, most rejections proved without the seed's SVD or a catalog walk).
+    The first accepted candidate is the answer.
     ``trace`` (int64, 4) receives the reference star, its alignment star, the feature row and the
     difference of the accepted match (-1 when none), for ``explain``.
     """
@@ -202,6 +207,7 @@ def identify_kernel(x_px, y_px, params, columns, total, count_start, guide, alig
     best_row = np.empty(search.n_candidates, dtype=np.int64)
     best_sad = np.empty(search.n_candidates, dtype=np.int64)
     seed = np.full(n, -1, dtype=np.int64)
+    work, A0 = pair_work(n)
     sums = np.empty(table.total.shape[0], dtype=np.int32)
     chord_tol = SEPARATION_TOL * acc.eps0 if search.pair_filter else -1.0
     for t in range(min(search.max_refs, order.shape[0])):
@@ -219,8 +225,8 @@ def identify_kernel(x_px, y_px, params, columns, total, count_start, guide, alig
                                search.count_tol_above, sums, chord_rows(unit, s, unit, nbrs[a]), chord_tol)
             for c in range(found):
                 r = best_row[c]
-                ok, A = confirm_pair(unit, rows, seed, s, nbrs[a], table.guide[r], table.align[r], guides_unit,
-                                     sensor, acc)
+                ok, A = confirm_pair_near(unit, rows, seed, s, nbrs[a], table.guide[r], table.align[r],
+                                          guides_unit, z_start, sensor, acc, work, A0)
                 count_work(trace, 2, 1)
                 if ok:
                     trace[0] = s
