@@ -616,9 +616,13 @@ def assign_pass(A, unit, guides_unit, z_start, sensor, c_fov, eps, rows, work):
 
 
 @njit(cache=True)
-def confirm_near(unit, rows, attitude, guides_unit, z_start, sensor, acc, solved_from, work):
+def confirm_near(unit, rows, attitude, guides_unit, z_start, sensor, acc, solved_from, work, n_first):
     """:func:`confirm`, pass for pass, with :func:`assign_near` for the assignment.
 
+    ``n_first`` >= 0: ``rows`` already hold the first pass's assignment (``n_first`` stars, at
+    least 2, not ``solved_from``'s), as it is from ``attitude``; that pass's attitude is then never
+    used again (the next step solves Wahba from the assignment), so ``attitude`` may be any
+    rotation that gave the same assignment (:func:`pair_first_pass`). -1: make the first pass.
     The number of guide stars the attitude puts on the sensor (:func:`predicted_on_sensor`, one walk
     of the band) is needed only by the last test, and only when enough stars were kept to reach it;
     it is counted then, for the attitude and window of the last pass, as :func:`confirm` had it.
@@ -634,9 +638,12 @@ def confirm_near(unit, rows, attitude, guides_unit, z_start, sensor, acc, solved
     solved = solved_from.copy()
     stale = False
     for it in range(5):
-        n_seen = assign_pass(A, unit, guides_unit, z_start, sensor, acc.c_fov + eps, eps, rows, work)
-        A_last = A
-        eps_last = eps
+        if it == 0 and n_first >= 0:
+            n_seen = n_first
+        else:
+            n_seen = assign_pass(A, unit, guides_unit, z_start, sensor, acc.c_fov + eps, eps, rows, work)
+            A_last = A
+            eps_last = eps
         if n_seen < 2:
             return False, A
         stale = True
@@ -760,20 +767,18 @@ def band_z(z_centre, c_radius):
 
 
 @njit(cache=True)
-def pair_rejected(A, tol, v_cam, unit, z_start, c_fov, eps, s, o, guide_s, guide_o, work):
-    """Whether :func:`confirm`'s first pass, from the seed Wahba gives for the pair, provably rejects it.
+def pair_first_pass(A, tol, v_cam, unit, z_start, c_fov, eps, work):
+    """:func:`confirm`'s first pass from the seed Wahba gives for a pair, made with ``A`` when it can be.
 
-    ``A`` is :func:`pair_attitude`, within ``tol`` of that seed. The first pass of :func:`confirm`
-    (window ``eps`` = ``acc.eps0`` = ``acc.eps``) rejects the seed when it assigns fewer than 2
-    stars, or exactly the two stars the seed was solved from (the assignment is then stale, no
-    further pass is made, and 2 stars are fewer than ``min_matches``). Every test of that pass
-    (:func:`assign_near`'s) is made here with ``A`` and counts only when it clears its threshold by
-    :data:`DECIDE_FACTOR` x ``tol``, which the seed's predictions, at most ``tol`` away, cannot
-    cross; the band's limits are taken for the boresight's z moved by ``tol`` both ways (they move
-    monotonically with it). When every test that matters is decided, the assignment is the seed's
-    to the last row; when one is not, or the assignment is anything else, the answer is False (the
-    caller runs the real check). Rows are looked up around each detection's sky position ``A^T v``
-    within the window plus the margins, and skipped early when x or y alone is already too far.
+    ``A`` is :func:`pair_attitude`, within ``tol`` of that seed. Every test of the pass
+    (:func:`assign_near`'s, window ``eps``, cap ``c_fov``) is made with ``A`` and counts only when
+    it clears its threshold by :data:`DECIDE_FACTOR` x ``tol``, which the seed's predictions, at
+    most ``tol`` away, cannot cross; the band's limits are taken for the boresight's z moved by
+    ``tol`` both ways (they move monotonically with it). When every test that matters is decided,
+    the assignment is the seed's to the last row: it is left in ``work[3]`` and its count
+    returned. When one is not (or the pair buffer is full), -1: the caller makes the real pass.
+    Rows are looked up around each detection's sky position ``A^T v`` within the window plus the
+    margins, and skipped early when x or y alone is already too far.
     """
     n = v_cam.shape[0]
     pair_i, pair_g, n_match, out_row = work
@@ -801,19 +806,16 @@ def pair_rejected(A, tol, v_cam, unit, z_start, c_fov, eps, s, o, guide_s, guide
             if d > eps + margin:
                 continue
             if d > eps - margin:
-                return False   # too near the window's edge to tell
+                return -1   # too near the window's edge to tell
             d = math.sqrt((ux - bx) ** 2 + (uy - by) ** 2 + (uz - bz) ** 2)
             if d > c_fov + margin:
                 continue
             if d > c_fov - margin or uz < z_lo or uz > z_hi or n_pairs == pair_i.shape[0]:
-                return False   # the cap's or the band's edge, or too many pairs: undecided
+                return -1   # the cap's or the band's edge, or too many pairs: undecided
             pair_i[n_pairs] = i
             pair_g[n_pairs] = g - 1
             n_pairs += 1
-    n_seen = settle_pairs(pair_i, pair_g, n_pairs, n_match, out_row)
-    if n_seen < 2:
-        return True
-    return n_seen == 2 and out_row[s] == guide_s and out_row[o] == guide_o
+    return settle_pairs(pair_i, pair_g, n_pairs, n_match, out_row)
 
 
 @njit(cache=True)
@@ -828,23 +830,37 @@ def pair_work(n):
 def confirm_pair_near(unit, rows, seed, s, o, guide_s, guide_o, guides_unit, z_start, sensor, acc, work, A0):
     """:func:`confirm_pair`, the same answer, cheaper.
 
-    After the separation check, a pair that :func:`pair_rejected` proves the first pass would reject
-    costs neither the seed's SVD nor a walk of the catalog band; any other goes through the seed
-    Wahba and :func:`confirm_near`. ``work``, ``A0`` are :func:`pair_work` of the image's size. (The proof
-    holds for ``acc.eps0 == acc.eps``; otherwise every pair takes the full path.)
+    After the separation check, :func:`pair_first_pass` makes :func:`confirm`'s first pass with
+    :func:`pair_attitude` instead of the seed Wahba (LAPACK's SVD for two stars). When it is decided
+    (nearly always), its assignment is the seed's: fewer than 2 stars, or only the seed's two
+    (stale: :func:`confirm` stops and rejects), reject the pair without more work; any other goes
+    on with :func:`confirm_near` from that assignment, and the seed attitude is never needed
+    (the next step solves Wahba from the assignment). An undecided pass takes the seed Wahba and
+    :func:`confirm_near` in full. ``work``, ``A0`` are :func:`pair_work` of the image's size.
+    (This holds for ``acc.eps0 == acc.eps``; otherwise every pair takes the full path.)
     """
     if abs(chord_rows(unit, s, unit, o) - chord_rows(guides_unit, guide_s, guides_unit, guide_o)) > \
             SEPARATION_TOL * acc.eps0:
         return False, np.eye(3)
-    if acc.eps0 == acc.eps:
-        tol = pair_attitude(unit, s, o, guides_unit, guide_s, guide_o, A0)
-        if tol > 0 and pair_rejected(A0, tol, unit, guides_unit, z_start, acc.c_fov + acc.eps0, acc.eps0, s, o, guide_s,
-                                guide_o, work):
-            return False, np.eye(3)
     seed[s] = guide_s
     seed[o] = guide_o
-    A = wahba_rows(unit, seed, guides_unit)
-    ok, A = confirm_near(unit, rows, A, guides_unit, z_start, sensor, acc, seed, (work[0], work[1], work[2]))
+    n_first = np.int64(-1)
+    A = A0
+    if acc.eps0 == acc.eps:
+        tol = pair_attitude(unit, s, o, guides_unit, guide_s, guide_o, A0)
+        if tol > 0:
+            n_first = pair_first_pass(A0, tol, unit, guides_unit, z_start, acc.c_fov + acc.eps0, acc.eps0, work)
+    if n_first >= 0:
+        first = work[3]
+        if n_first < 2 or n_first == 2 and first[s] == guide_s and first[o] == guide_o:
+            seed[s] = -1
+            seed[o] = -1
+            return False, np.eye(3)
+        rows[:] = first
+    else:
+        A = wahba_rows(unit, seed, guides_unit)
+    ok, A = confirm_near(unit, rows, A, guides_unit, z_start, sensor, acc, seed, (work[0], work[1], work[2]),
+                         n_first)
     seed[s] = -1
     seed[o] = -1
     return ok, A

@@ -15,11 +15,12 @@ with the smallest total kept per image. Prints per sky the median and mean over 
   reprojection passes, catalog rows scanned, rows inside the cap, accepted (0/1).
 
 Then the same for a second copy, of the kernel as it is now (``confirm_pair_near``): begin,
-patterns, search, the pair test (separation check, ``pair_attitude``, ``pair_rejected``), the full
-check (seed Wahba, ``confirm_near``) of the pairs not proved rejected; counts of both. Both copies
+patterns, search, the pair test (separation check, ``pair_attitude``, ``pair_first_pass``), the
+full check (``confirm_near``, with the seed Wahba when the first pass was undecided) of the pairs
+not rejected there; counts of both. Both copies
 are checked against the plugin on every image (same rows, same verdict), and the largest
 difference between the seed Wahba and ``pair_attitude`` over every candidate is printed, also
-as a fraction of the bound ``pair_rejected`` assumes. The first copy is the base commit's check
+as a fraction of the bound ``pair_first_pass`` assumes. The first copy is the base commit's check
 (``planar.confirm_pair``/``confirm``, still in planar.py for grid and lpt).
 """
 
@@ -40,7 +41,7 @@ from starid_algorithms.lpt_improved.planar import (
     frame_at,
     no_match,
     pair_attitude,
-    pair_rejected,
+    pair_first_pass,
     pair_work,
     reference_pattern,
 )
@@ -191,8 +192,8 @@ def confirm_timed(unit, rows, attitude, guides_unit, sensor, acc, solved_from, s
 
 
 @njit
-def li_kernel(x_px, y_px, params, columns, total, count_start, guide, align, align_chord, guides_unit, z_start, trace,
-              st, att):
+def li_kernel(x_px, y_px, params, columns, total, count_start, guide, align, align_chord, guides_unit, z_start,
+              by_chord, chords, trace, st, att):
     t0 = cycles()
     sensor = frame_at(params, np.int64(0))
     acc = acceptance_at(params, np.int64(5))
@@ -268,15 +269,15 @@ def li_kernel(x_px, y_px, params, columns, total, count_start, guide, align, ali
 
 
 NEW_STAGES = ("begin", "patterns", "search", "pair test", "full check")
-NEW_COUNTS = ("proved rejected", "full checks")
+NEW_COUNTS = ("rejected at pass 1", "full checks", "undecided (SVD)")
 
 
 @njit
 def li_kernel_new(x_px, y_px, params, columns, total, count_start, guide, align, align_chord, guides_unit, z_start,
-                  trace, st):
+                  by_chord, chords, trace, st):
     """The plugin's ``identify_kernel`` as it is now, with its stages timed: ``confirm_pair_near``
-    split into the cheap part (separation check, ``pair_attitude``, ``pair_rejected``) and the full
-    check (seed Wahba and ``confirm_near``) of the pairs it does not reject."""
+    split into the cheap part (separation check, ``pair_attitude``, ``pair_first_pass``) and the
+    full check (``confirm_near``; the seed Wahba when the first pass was undecided)."""
     t0 = cycles()
     sensor = frame_at(params, np.int64(0))
     acc = acceptance_at(params, np.int64(5))
@@ -312,8 +313,13 @@ def li_kernel_new(x_px, y_px, params, columns, total, count_start, guide, align,
                     q += 1
             t2 = cycles()
             st[1] += t2 - t1
-            found = LI.sad_search(table, vec, nz_idx, nz, search.count_tol, search.n_candidates, best_row, best_sad,
-                                  search.count_tol_above, sums, chord_rows(unit, s, unit, nbrs[a]), chord_tol)
+            if chord_tol >= 0:
+                found = LI.sad_search_pairs(table, vec, nz_idx, nz, search.count_tol, search.n_candidates, best_row,
+                                            best_sad, search.count_tol_above, chord_rows(unit, s, unit, nbrs[a]),
+                                            chord_tol, by_chord, chords)
+            else:
+                found = LI.sad_search(table, vec, nz_idx, nz, search.count_tol, search.n_candidates, best_row, best_sad,
+                                      search.count_tol_above, sums, chord_rows(unit, s, unit, nbrs[a]), chord_tol)
             st[2] += cycles() - t2
             for c in range(found):
                 r = best_row[c]
@@ -325,20 +331,31 @@ def li_kernel_new(x_px, y_px, params, columns, total, count_start, guide, align,
                         SEPARATION_TOL * acc.eps0:
                     st[3] += cycles() - t3
                     continue
+                seed[s] = gs
+                seed[o] = go
+                n_first = np.int64(-1)
+                A = A0
                 if acc.eps0 == acc.eps:
                     tol = pair_attitude(unit, s, o, guides_unit, gs, go, A0)
-                    if tol > 0 and pair_rejected(A0, tol, unit, guides_unit, z_start, acc.c_fov + acc.eps0, acc.eps0, s,
-                                             o, gs, go, work):
+                    if tol > 0:
+                        n_first = pair_first_pass(A0, tol, unit, guides_unit, z_start, acc.c_fov + acc.eps0, acc.eps0,
+                                                  work)
+                if n_first >= 0:
+                    first = work[3]
+                    if n_first < 2 or n_first == 2 and first[s] == gs and first[o] == go:
+                        seed[s] = -1
+                        seed[o] = -1
                         st[3] += cycles() - t3
                         st[5] += 1
                         continue
+                    rows[:] = first
                 t4 = cycles()
                 st[3] += t4 - t3
-                seed[s] = gs
-                seed[o] = go
-                A = wahba_rows(unit, seed, guides_unit)
+                if n_first < 0:
+                    A = wahba_rows(unit, seed, guides_unit)
+                    st[7] += 1
                 ok, A = confirm_near(unit, rows, A, guides_unit, z_start, sensor, acc, seed,
-                                     (work[0], work[1], work[2]))
+                                     (work[0], work[1], work[2]), n_first)
                 seed[s] = -1
                 seed[o] = -1
                 st[4] += cycles() - t4
@@ -388,14 +405,14 @@ def main(n, repeats):
             counts.append(best[1][9:16])
             best = None
             for _ in range(repeats):
-                st = np.zeros(7, dtype=np.int64)
+                st = np.zeros(8, dtype=np.int64)
                 t0 = time.perf_counter_ns()
                 rows, _, ok = li_kernel_new(o.x_px, o.y_px, *args, trace, st)
                 call = (time.perf_counter_ns() - t0) / 1e3
                 assert ok == ref_ok and np.array_equal(rows, ref_rows), "the copy disagrees with the plugin"
                 if best is None or call < best[0]:
                     best = (call, st.copy())
-            new.append(np.concatenate([[best[0]], best[1][:5] / mhz, best[1][5:]]))
+            new.append(np.concatenate([[best[0]], best[1][:5] / mhz, best[1][5:8]]))
         times, counts, new = np.array(times), np.array(counts, dtype=float), np.array(new)
         print(f"\n{sky} sky, {n} images, min of {repeats}: median / mean per image; the base commit's check")
         for name, col in zip(("kernel call", *STAGES), times.T, strict=True):
