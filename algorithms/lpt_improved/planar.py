@@ -15,7 +15,10 @@ Everything the three plugins do alike lives here once:
 * the acceptance step: an attitude seeded by the matched reference star (and its alignment
   star, or the roll a circular shift gave), refined by reprojecting the guide stars
   (``starid.kernels.reproject_assign``) and Wahba (``wahba_rows``), accepted only when enough
-  guide stars it puts in the image are observed (:func:`confirm`);
+  guide stars it puts in the image are observed (:func:`confirm`); ``lpt_improved`` calls the
+  same check as :func:`confirm_pair_near`, which gives the same answers without walking the
+  catalog band (a z-bucket index, :func:`z_index`) and, for the first pass, without the two-star
+  SVD (:func:`pair_attitude`, :func:`pair_first_pass`);
 * the default neighbourhood radius, which scales with the field of view
   (:func:`default_radius_deg`).
 
@@ -482,8 +485,7 @@ Z_SLACK = 1e-6
 #: ``sigma2`` (about the product of the two pairs' separations over 2), so the bound is
 #: ``ATT_SCALE / sigma2`` (``sigma2`` bounded from below by ``det C / |C|_F``), at least ``ATT_FLOOR``.
 #: Measured (``benchmarks/tools/lpispeed_profile.py``, every candidate of 300 images per sky): the
-#: difference at most 5.8e-11, ``sigma2`` times it at most ~1e-16: ``ATT_SCALE`` leaves a factor
-#: of 1000 or more.
+#: difference at most 5.8e-11 and at most 1/1000 of this bound.
 ATT_SCALE = 1e-12
 ATT_FLOOR = 1e-12
 #: A window test decided from :func:`pair_attitude` counts only when it clears its threshold by this
@@ -548,8 +550,8 @@ def assign_near(A, v_cam, unit, z_start, c_fov, eps, out_row, pair_i, pair_g, n_
     ``A r`` within chord ``eps`` of the detection (rows whose x or y alone is farther than that from
     ``A^T v`` are skipped first). The pairs that pass are exactly the (star, row)
     pairs ``reproject_assign`` counts, and the bookkeeping (:func:`settle_pairs`) does not depend on
-    the order they come in. Returns the number of stars assigned, or -1 (``out_row`` unspecified)
-    when more pairs than ``pair_i`` holds were found.
+    the order they come in. Returns the number of stars assigned. ``pair_i``, ``pair_g`` hold the
+    pairs; when they are full, the pass is made again with buffers four times as long.
     """
     n = v_cam.shape[0]
     bore = np.empty((1, 3))
@@ -557,28 +559,36 @@ def assign_near(A, v_cam, unit, z_start, c_fov, eps, out_row, pair_i, pair_g, n_
         bore[0, a] = A[2, a]
     b = np.empty((1, 3))
     g_start, g_stop = z_band_rows(unit, bore[0, 2], c_fov)
-    n_pairs = np.int64(0)   # not a literal: one signature of settle_pairs
     reach = eps + Z_SLACK
-    for i in range(n):
-        dx = A[0, 0] * v_cam[i, 0] + A[1, 0] * v_cam[i, 1] + A[2, 0] * v_cam[i, 2]
-        dy = A[0, 1] * v_cam[i, 0] + A[1, 1] * v_cam[i, 1] + A[2, 1] * v_cam[i, 2]
-        dz = A[0, 2] * v_cam[i, 0] + A[1, 2] * v_cam[i, 1] + A[2, 2] * v_cam[i, 2]
-        g = z_first(unit, z_start, dz - reach, g_start)
-        z_hi = dz + reach
-        while g < g_stop and unit[g, 2] <= z_hi:
-            if abs(unit[g, 0] - dx) > reach or abs(unit[g, 1] - dy) > reach:
-                pass   # x or y alone is farther than the window: so is the prediction
-            elif chord_rows(unit, g, bore, np.int64(0)) <= c_fov:
-                for a in range(3):
-                    b[0, a] = A[a, 0] * unit[g, 0] + A[a, 1] * unit[g, 1] + A[a, 2] * unit[g, 2]
-                if chord_rows(v_cam, i, b, np.int64(0)) <= eps:
-                    if n_pairs == pair_i.shape[0]:
-                        return -1
-                    pair_i[n_pairs] = i
-                    pair_g[n_pairs] = g
-                    n_pairs += 1
-            g += 1
-    return settle_pairs(pair_i, pair_g, n_pairs, n_match, out_row)
+    pi = pair_i
+    pg = pair_g
+    while True:
+        n_pairs = np.int64(0)   # not a literal: one signature of settle_pairs
+        full = False
+        for i in range(n):
+            dx = A[0, 0] * v_cam[i, 0] + A[1, 0] * v_cam[i, 1] + A[2, 0] * v_cam[i, 2]
+            dy = A[0, 1] * v_cam[i, 0] + A[1, 1] * v_cam[i, 1] + A[2, 1] * v_cam[i, 2]
+            dz = A[0, 2] * v_cam[i, 0] + A[1, 2] * v_cam[i, 1] + A[2, 2] * v_cam[i, 2]
+            g = z_first(unit, z_start, dz - reach, g_start)
+            z_hi = dz + reach
+            while g < g_stop and unit[g, 2] <= z_hi and not full:
+                if abs(unit[g, 0] - dx) > reach or abs(unit[g, 1] - dy) > reach:
+                    pass   # x or y alone is farther than the window: so is the prediction
+                elif chord_rows(unit, g, bore, np.int64(0)) <= c_fov:
+                    for a in range(3):
+                        b[0, a] = A[a, 0] * unit[g, 0] + A[a, 1] * unit[g, 1] + A[a, 2] * unit[g, 2]
+                    if chord_rows(v_cam, i, b, np.int64(0)) <= eps:
+                        if n_pairs == pi.shape[0]:
+                            full = True
+                        else:
+                            pi[n_pairs] = i
+                            pg[n_pairs] = g
+                            n_pairs += 1
+                g += 1
+        if not full:
+            return settle_pairs(pi, pg, n_pairs, n_match, out_row)
+        pi = np.empty(4 * pi.shape[0], dtype=np.int64)
+        pg = np.empty(4 * pg.shape[0], dtype=np.int64)
 
 
 @njit(cache=True)
@@ -605,14 +615,10 @@ def predicted_on_sensor(A, unit, c_fov, f_px, cx_px, cy_px, width_px, height_px)
 
 
 @njit(cache=True)
-def assign_pass(A, unit, guides_unit, z_start, sensor, c_fov, eps, rows, work):
-    """One reprojection pass: :func:`assign_near`, or ``reproject_assign`` when its pair buffer is full.
-    ``work`` is ``(pair_i, pair_g, n_match)``. Returns the number of stars assigned."""
-    n_seen = assign_near(A, unit, guides_unit, z_start, c_fov, eps, rows, work[0], work[1], work[2])
-    if n_seen < 0:
-        n_seen, _ = reproject_assign(A, unit, guides_unit, c_fov, eps, rows, sensor.f_px, sensor.cx_px,
-                                     sensor.cy_px, sensor.width_px, sensor.height_px)
-    return n_seen
+def assign_pass(A, unit, guides_unit, z_start, c_fov, eps, rows, work):
+    """One reprojection pass (:func:`assign_near`); ``work`` is ``(pair_i, pair_g, n_match)``.
+    Returns the number of stars assigned."""
+    return assign_near(A, unit, guides_unit, z_start, c_fov, eps, rows, work[0], work[1], work[2])
 
 
 @njit(cache=True)
@@ -641,7 +647,7 @@ def confirm_near(unit, rows, attitude, guides_unit, z_start, sensor, acc, solved
         if it == 0 and n_first >= 0:
             n_seen = n_first
         else:
-            n_seen = assign_pass(A, unit, guides_unit, z_start, sensor, acc.c_fov + eps, eps, rows, work)
+            n_seen = assign_pass(A, unit, guides_unit, z_start, acc.c_fov + eps, eps, rows, work)
             A_last = A
             eps_last = eps
         if n_seen < 2:
@@ -661,7 +667,7 @@ def confirm_near(unit, rows, attitude, guides_unit, z_start, sensor, acc, solved
         n_prev = n_seen
         eps = acc.eps
     if not stale:
-        n_seen = assign_pass(A, unit, guides_unit, z_start, sensor, acc.c_fov + eps, eps, rows, work)
+        n_seen = assign_pass(A, unit, guides_unit, z_start, acc.c_fov + eps, eps, rows, work)
         A_last = A
         eps_last = eps
     keep = verify_pairwise(unit, rows, guides_unit, acc.eps, np.int64(2), 0.5)
@@ -683,7 +689,7 @@ def confirm_near(unit, rows, attitude, guides_unit, z_start, sensor, acc, solved
     return True, wahba_rows(unit, rows, guides_unit)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def plane_frame(x0, y0, z0, x1, y1, z1):
     """Right-handed orthonormal ``p1, p2, p3`` with ``p1`` along ``(x0, y0, z0)`` and ``p2`` in the plane
     of the two vectors (Gram-Schmidt), as nine scalars; ``p3`` = 0 when they are parallel."""
@@ -757,7 +763,7 @@ def pair_attitude(unit, s, o, guides_unit, guide_s, guide_o, A):
     return max(ATT_FLOOR, ATT_SCALE / sigma2)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def band_z(z_centre, c_radius):
     """The z limits of :func:`starid.kernels.z_band_rows`'s band (the same expressions): a row of the
     z-sorted catalog lies in the rows it returns exactly when its z is within ``[z_lo, z_hi]``."""
