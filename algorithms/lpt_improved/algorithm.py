@@ -15,7 +15,7 @@ from starid.observation import Observation
 from starid.params import check_flag, check_number, check_whole, param
 from starid.plugin import Database, Explanation
 
-from .kernels import FeatureTable, Search, build_features, feature_vector, identify_kernel
+from .kernels import FeatureTable, Search, build_features, chord_order, feature_vector, identify_kernel
 from .planar import (
     PlanarAlgorithm,
     acceptance,
@@ -28,6 +28,7 @@ from .planar import (
     plane_polar,
     prepare_image,
     select_guides,
+    z_index,
 )
 
 
@@ -197,7 +198,8 @@ class ImprovedLPT(PlanarAlgorithm):
     def _make_kernel_args(self, db: ImprovedLPTDatabase, cam: Camera) -> tuple:
         sensor = camera_frame(cam)._replace(f_px=float(cam.f_px))
         acc = acceptance(cam, self.sigma_px, self.beta, self.min_matches, self.confirm_fraction)
-        return (pack_params(sensor, acc, self._search(db)), *db.table, db.guide_unit)
+        return (pack_params(sensor, acc, self._search(db)), *db.table, db.guide_unit, z_index(db.guide_unit),
+                *chord_order(db.align_chord, db.count_start))
 
     def _run(self, db: ImprovedLPTDatabase, observation: Observation):
         trace = new_trace()

@@ -18,12 +18,13 @@ from .planar import (
     SEPARATION_TOL,
     acceptance_at,
     begin_identify,
-    confirm_pair,
+    confirm_pair_near,
     count_work,
     frame_at,
     guide_pattern,
     keep_best,
     no_match,
+    pair_work,
     polar_buffers,
     reference_pattern,
     relative_angle,
@@ -163,6 +164,78 @@ def sad_search(table, vec, nz_idx, nz, count_tol, n_best, best_row, best_sad, co
     return found
 
 
+def chord_order(align_chord: np.ndarray, count_start: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The feature rows of each non-zero count, ordered by ``align_chord`` (stable): ``(rows int64, chords
+    float32)``, ``rows[count_start[c]:count_start[c + 1]]`` the rows of count ``c`` by chord and
+    ``chords`` their chords (for :func:`sad_search_pairs`; derived from the table, kept with the kernel
+    arguments, not stored in the database)."""
+    rows = np.empty(align_chord.shape[0], dtype=np.int64)
+    for c in range(count_start.shape[0] - 1):
+        a, b = int(count_start[c]), int(count_start[c + 1])
+        rows[a:b] = a + np.argsort(align_chord[a:b], kind="stable")
+    return rows, np.ascontiguousarray(align_chord[rows], dtype=np.float32)
+
+
+@njit(cache=True)
+def chord_first(chords, lo, hi, chord, limit, upper):
+    """First position in ``chords[lo:hi]`` (ascending) whose ``chords[k] - chord`` is >= ``limit``
+    (``upper``: > ``limit``); the difference is monotone in ``chords[k]``, so bisection finds it."""
+    while lo < hi:
+        mid = (lo + hi) // 2
+        d = chords[mid] - chord
+        if d < limit or (upper and d == limit):
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
+
+
+@njit(cache=True)
+def sad_search_pairs(table, vec, nz_idx, nz, count_tol, n_best, best_row, best_sad, count_tol_above, chord, chord_tol,
+                     by_chord, chords):
+    """:func:`sad_search` with ``pair_filter`` (``chord_tol >= 0``), the same rows in the same order.
+
+    :func:`sad_search` sums the difference over every row of the count window and ranks those whose
+    alignment chord is within ``chord_tol`` of ``chord``: ``abs(align_chord[r] - chord) <= chord_tol``.
+    That difference is monotone in ``align_chord[r]``, so within each count the rows that pass are one
+    run of :func:`chord_order`'s ``by_chord``/``chords`` (found by :func:`chord_first`, the same
+    expression), about 1 row in 15. Only they are summed (the same int32 sums), and the best are
+    kept by (difference, row): the order :func:`sad_search`'s scan of ascending rows gives, ties
+    to the earlier row. Writes ``best_row``/``best_sad`` and returns how many, as :func:`sad_search`.
+    """
+    m = table.columns.shape[0]
+    lo = max(nz - count_tol, 0)
+    hi = min(nz + (count_tol if count_tol_above < 0 else count_tol_above), m)
+    found = np.int64(0)
+    for c in range(lo, hi + 1):
+        a = chord_first(chords, np.int64(table.count_start[c]), np.int64(table.count_start[c + 1]), chord, -chord_tol,
+                        np.bool_(False))
+        b = chord_first(chords, a, np.int64(table.count_start[c + 1]), chord, chord_tol, np.bool_(True))
+        for k in range(a, b):
+            r = by_chord[k]
+            sad = np.int32(table.total[r])
+            for t in range(nz):
+                i = nz_idx[t]
+                av = np.int32(vec[i])
+                cv = np.int32(table.columns[i, r])
+                d = av - cv
+                sad += max(d, -d) - cv
+            sad64 = np.int64(sad)
+            if found == n_best and (sad64 > best_sad[found - 1] or sad64 == best_sad[found - 1]
+                                    and r > best_row[found - 1]):
+                continue
+            p = found if found < n_best else n_best - 1
+            while p > 0 and (best_sad[p - 1] > sad64 or best_sad[p - 1] == sad64 and best_row[p - 1] > r):
+                best_sad[p] = best_sad[p - 1]
+                best_row[p] = best_row[p - 1]
+                p -= 1
+            best_sad[p] = sad64
+            best_row[p] = r
+            if found < n_best:
+                found += 1
+    return found
+
+
 @njit(cache=True)
 def search_at(p, i):
     """The :class:`Search` packed at ``p[i:i+10]`` by ``planar.pack_params``."""
@@ -171,19 +244,24 @@ def search_at(p, i):
 
 
 @njit(cache=True)
-def identify_kernel(x_px, y_px, params, columns, total, count_start, guide, align, align_chord, guides_unit, trace):
+def identify_kernel(x_px, y_px, params, columns, total, count_start, guide, align, align_chord, guides_unit, z_start,
+                    by_chord, chords, trace):
     """Improved-LPT identification of one image; returns ``(rows, attitude, accepted)``.
 
     ``params``: the sensor :class:`Frame`, the :class:`Acceptance` and the :class:`Search`, packed
     by ``planar.pack_params``; the next six arrays are the :class:`FeatureTable`'s fields (separate
-    arguments: numba types arrays at a call in C, NamedTuples field by field in Python).
+    arguments: numba types arrays at a call in C, NamedTuples field by field in Python); ``z_start`` is
+    ``planar.z_index`` of ``guides_unit``, ``by_chord, chords`` are :func:`chord_order` of the table
+    (with ``pair_filter`` the search is :func:`sad_search_pairs`, the same rows as :func:`sad_search`).
 
     For reference stars taken from the image centre outwards (at most ``search.max_refs``):
     the neighbours within R, nearest first; for each of the ``search.image_alignments`` nearest
     as alignment star (the paper: the nearest), the feature vector relative to it, the best
     ``search.n_candidates`` database rows by :func:`sad_search`; each candidate seeds an
     attitude (reference star and alignment star to their guide stars, Wahba) that
-    :func:`confirm` must accept. The first accepted candidate is the answer.
+    :func:`confirm` must accept (``planar.confirm_pair_near``: the same answers as
+    ``planar.confirm_pair``, most rejections proved without the seed's SVD or a catalog walk).
+    The first accepted candidate is the answer.
     ``trace`` (int64, 4) receives the reference star, its alignment star, the feature row and the
     difference of the accepted match (-1 when none), for ``explain``.
     """
@@ -202,6 +280,7 @@ def identify_kernel(x_px, y_px, params, columns, total, count_start, guide, alig
     best_row = np.empty(search.n_candidates, dtype=np.int64)
     best_sad = np.empty(search.n_candidates, dtype=np.int64)
     seed = np.full(n, -1, dtype=np.int64)
+    work, A0 = pair_work(n)
     sums = np.empty(table.total.shape[0], dtype=np.int32)
     chord_tol = SEPARATION_TOL * acc.eps0 if search.pair_filter else -1.0
     for t in range(min(search.max_refs, order.shape[0])):
@@ -215,12 +294,17 @@ def identify_kernel(x_px, y_px, params, columns, total, count_start, guide, alig
                 if vec[i] != 0:
                     nz_idx[q] = i
                     q += 1
-            found = sad_search(table, vec, nz_idx, nz, search.count_tol, search.n_candidates, best_row, best_sad,
-                               search.count_tol_above, sums, chord_rows(unit, s, unit, nbrs[a]), chord_tol)
+            if chord_tol >= 0:
+                found = sad_search_pairs(table, vec, nz_idx, nz, search.count_tol, search.n_candidates, best_row,
+                                         best_sad, search.count_tol_above, chord_rows(unit, s, unit, nbrs[a]),
+                                         chord_tol, by_chord, chords)
+            else:
+                found = sad_search(table, vec, nz_idx, nz, search.count_tol, search.n_candidates, best_row, best_sad,
+                                   search.count_tol_above, sums, chord_rows(unit, s, unit, nbrs[a]), chord_tol)
             for c in range(found):
                 r = best_row[c]
-                ok, A = confirm_pair(unit, rows, seed, s, nbrs[a], table.guide[r], table.align[r], guides_unit,
-                                     sensor, acc)
+                ok, A = confirm_pair_near(unit, rows, seed, s, nbrs[a], table.guide[r], table.align[r],
+                                          guides_unit, z_start, sensor, acc, work, A0)
                 count_work(trace, 2, 1)
                 if ok:
                     trace[0] = s

@@ -15,7 +15,10 @@ Everything the three plugins do alike lives here once:
 * the acceptance step: an attitude seeded by the matched reference star (and its alignment
   star, or the roll a circular shift gave), refined by reprojecting the guide stars
   (``starid.kernels.reproject_assign``) and Wahba (``wahba_rows``), accepted only when enough
-  guide stars it puts in the image are observed (:func:`confirm`);
+  guide stars it puts in the image are observed (:func:`confirm`); ``lpt_improved`` calls the
+  same check as :func:`confirm_pair_near`, which gives the same answers without walking the
+  catalog band (a z-bucket index, :func:`z_index`) and, for the first pass, without the two-star
+  SVD (:func:`pair_attitude`, :func:`pair_first_pass`);
 * the default neighbourhood radius, which scales with the field of view
   (:func:`default_radius_deg`).
 
@@ -41,10 +44,12 @@ from starid.kernels import (
     backproject_px,
     camera_frame,
     chord_rows,
+    keep_unique,
     reproject_assign,
     sort_rows,
     verify_pairwise,
     wahba_rows,
+    z_band_rows,
 )
 from starid.observation import Observation
 from starid.params import check_number, check_whole, param
@@ -462,6 +467,406 @@ def confirm_pair(unit, rows, seed, s, o, guide_s, guide_o, guides_unit, sensor, 
     seed[o] = guide_o
     A = wahba_rows(unit, seed, guides_unit)
     ok, A = confirm(unit, rows, A, guides_unit, sensor, acc, seed)
+    seed[s] = -1
+    seed[o] = -1
+    return ok, A
+
+
+# ---- the reprojection check without scanning the catalog (issue #25, lpt_improved) ----
+
+#: Buckets of :func:`z_index` over z in [-1, 1].
+Z_BUCKETS = 4096
+#: Extra half-width (chord) of the z range searched around each detection's sky position: covers the
+#: attitude's departure from orthogonality (Wahba's results are orthogonal to ~1e-14) with room to spare.
+Z_SLACK = 1e-6
+#: Assumed bound on the difference (2-norm) between :func:`pair_attitude` and the seed Wahba
+#: (``wahba_rows`` on two stars, LAPACK's SVD) computes for the same pair: both are the same rotation in
+#: exact arithmetic; their rounding errors grow as machine epsilon over ``B``'s second singular value
+#: ``sigma2`` (about the product of the two pairs' separations over 2), so the bound is
+#: ``ATT_SCALE / sigma2`` (``sigma2`` bounded from below by ``det C / |C|_F``), at least ``ATT_FLOOR``.
+#: Measured (``benchmarks/tools/lpispeed_profile.py``, every candidate of 300 images per sky): the
+#: difference at most 5.8e-11 and at most 1/1000 of this bound.
+ATT_SCALE = 1e-12
+ATT_FLOOR = 1e-12
+#: A window test decided from :func:`pair_attitude` counts only when it clears its threshold by this
+#: many times the attitude bound (a rotation error ``d`` moves a prediction and the boresight at
+#: most ``d``; the factor covers the rounding of the chords themselves with room).
+DECIDE_FACTOR = 10.0
+
+
+def z_index(unit: np.ndarray, n_buckets: int = Z_BUCKETS) -> np.ndarray:
+    """First row of z-sorted ``unit`` with ``z >= -1 + 2 k / n_buckets``, k = 0..n_buckets (int64)."""
+    edges = -1.0 + 2.0 * np.arange(n_buckets + 1, dtype=np.float64) / n_buckets
+    return np.searchsorted(np.asarray(unit[:, 2], dtype=np.float64), edges, side="left").astype(np.int64)
+
+
+@njit(cache=True)
+def z_first(unit, z_start, z, g_lo):
+    """First row, not before ``g_lo``, whose z is >= ``z`` (rows of ``unit`` sorted by z; ``z_start``
+    from :func:`z_index`). Starts one bucket early (rounding of the bucket number) and walks."""
+    nb = z_start.shape[0] - 1
+    k = int((z + 1.0) * 0.5 * nb) - 1
+    k = min(max(k, 0), nb - 1)
+    g = max(z_start[k], g_lo)
+    while g < unit.shape[0] and unit[g, 2] < z:
+        g += 1
+    return g
+
+
+@njit(cache=True)
+def settle_pairs(pair_i, pair_g, n_pairs, n_match, out_row):
+    """``reproject_assign``'s bookkeeping from the (star, guide row) pairs within the window.
+
+    A guide row within the window of exactly one star gives it that row (+1), of several gives each
+    of them +2; a star keeps its row only when its count is 1 (``keep_unique``). Returns how many do.
+    """
+    for i in range(n_match.shape[0]):
+        n_match[i] = 0
+        out_row[i] = -1
+    for p in range(n_pairs):
+        g = pair_g[p]
+        n_found = 0
+        for q in range(n_pairs):
+            if pair_g[q] == g:
+                n_found += 1
+        if n_found == 1:
+            n_match[pair_i[p]] += 1
+            out_row[pair_i[p]] = g
+        else:
+            n_match[pair_i[p]] += 2
+    return keep_unique(n_match, out_row)
+
+
+@njit(cache=True)
+def assign_near(A, v_cam, unit, z_start, c_fov, eps, out_row, pair_i, pair_g, n_match):
+    """``starid.kernels.reproject_assign``'s assignment (``out_row`` and the count), without the prediction count.
+
+    ``reproject_assign`` walks every guide row of the field's declination band and compares each
+    one inside the cap with every detection. Here each detection looks up the rows whose z lies within
+    ``eps`` (+ :data:`Z_SLACK`) of its own sky position ``A^T v`` (:func:`z_first`: a bucket, then a
+    few rows); a row within chord ``eps`` of the detection's prediction has its z that close. Every
+    row found is put to ``reproject_assign``'s own tests, the same expressions in the same floating
+    point: inside the band and the cap (chord ``c_fov`` from the boresight), and the prediction
+    ``A r`` within chord ``eps`` of the detection (rows whose x or y alone is farther than that from
+    ``A^T v`` are skipped first). The pairs that pass are exactly the (star, row)
+    pairs ``reproject_assign`` counts, and the bookkeeping (:func:`settle_pairs`) does not depend on
+    the order they come in. Returns the number of stars assigned. ``pair_i``, ``pair_g`` hold the
+    pairs; when they are full, the pass is made again with buffers four times as long.
+    """
+    n = v_cam.shape[0]
+    bore = np.empty((1, 3))
+    for a in range(3):
+        bore[0, a] = A[2, a]
+    b = np.empty((1, 3))
+    g_start, g_stop = z_band_rows(unit, bore[0, 2], c_fov)
+    reach = eps + Z_SLACK
+    pi = pair_i
+    pg = pair_g
+    while True:
+        n_pairs = np.int64(0)   # not a literal: one signature of settle_pairs
+        full = False
+        for i in range(n):
+            dx = A[0, 0] * v_cam[i, 0] + A[1, 0] * v_cam[i, 1] + A[2, 0] * v_cam[i, 2]
+            dy = A[0, 1] * v_cam[i, 0] + A[1, 1] * v_cam[i, 1] + A[2, 1] * v_cam[i, 2]
+            dz = A[0, 2] * v_cam[i, 0] + A[1, 2] * v_cam[i, 1] + A[2, 2] * v_cam[i, 2]
+            g = z_first(unit, z_start, dz - reach, g_start)
+            z_hi = dz + reach
+            while g < g_stop and unit[g, 2] <= z_hi and not full:
+                if abs(unit[g, 0] - dx) > reach or abs(unit[g, 1] - dy) > reach:
+                    pass   # x or y alone is farther than the window: so is the prediction
+                elif chord_rows(unit, g, bore, np.int64(0)) <= c_fov:
+                    for a in range(3):
+                        b[0, a] = A[a, 0] * unit[g, 0] + A[a, 1] * unit[g, 1] + A[a, 2] * unit[g, 2]
+                    if chord_rows(v_cam, i, b, np.int64(0)) <= eps:
+                        if n_pairs == pi.shape[0]:
+                            full = True
+                        else:
+                            pi[n_pairs] = i
+                            pg[n_pairs] = g
+                            n_pairs += 1
+                g += 1
+        if not full:
+            return settle_pairs(pi, pg, n_pairs, n_match, out_row)
+        pi = np.empty(4 * pi.shape[0], dtype=np.int64)
+        pg = np.empty(4 * pg.shape[0], dtype=np.int64)
+
+
+@njit(cache=True)
+def predicted_on_sensor(A, unit, c_fov, f_px, cx_px, cy_px, width_px, height_px):
+    """``reproject_assign``'s second count: guide rows of the cap whose prediction lands on the sensor
+    (the same loop and expressions)."""
+    bore = np.empty((1, 3))
+    for a in range(3):
+        bore[0, a] = A[2, a]
+    b = np.empty((1, 3))
+    n_predicted = 0
+    g_start, g_stop = z_band_rows(unit, bore[0, 2], c_fov)
+    for g in range(g_start, g_stop):
+        if chord_rows(unit, g, bore, np.int64(0)) > c_fov:
+            continue
+        for a in range(3):
+            b[0, a] = A[a, 0] * unit[g, 0] + A[a, 1] * unit[g, 1] + A[a, 2] * unit[g, 2]
+        if b[0, 2] > 0:
+            x = cx_px + f_px * b[0, 0] / b[0, 2]
+            y = cy_px + f_px * b[0, 1] / b[0, 2]
+            if 0 <= x < width_px and 0 <= y < height_px:
+                n_predicted += 1
+    return n_predicted
+
+
+@njit(cache=True)
+def assign_pass(A, unit, guides_unit, z_start, c_fov, eps, rows, work):
+    """One reprojection pass (:func:`assign_near`); ``work`` is ``(pair_i, pair_g, n_match)``.
+    Returns the number of stars assigned."""
+    return assign_near(A, unit, guides_unit, z_start, c_fov, eps, rows, work[0], work[1], work[2])
+
+
+@njit(cache=True)
+def confirm_near(unit, rows, attitude, guides_unit, z_start, sensor, acc, solved_from, work, n_first):
+    """:func:`confirm`, pass for pass, with :func:`assign_near` for the assignment.
+
+    ``n_first`` >= 0: ``rows`` already hold the first pass's assignment (``n_first`` stars, at
+    least 2, not ``solved_from``'s), as it is from ``attitude``; that pass's attitude is then never
+    used again (the next step solves Wahba from the assignment), so ``attitude`` may be any
+    rotation that gave the same assignment (:func:`pair_first_pass`). -1: make the first pass.
+    The number of guide stars the attitude puts on the sensor (:func:`predicted_on_sensor`, one walk
+    of the band) is needed only by the last test, and only when enough stars were kept to reach it;
+    it is counted then, for the attitude and window of the last pass, as :func:`confirm` had it.
+    Returns ``(accepted, attitude)``, the same as :func:`confirm`.
+    """
+    n = unit.shape[0]
+    A = attitude
+    eps = acc.eps0
+    n_prev = -1
+    n_seen = 0
+    A_last = A
+    eps_last = eps
+    solved = solved_from.copy()
+    stale = False
+    for it in range(5):
+        if it == 0 and n_first >= 0:
+            n_seen = n_first
+        else:
+            n_seen = assign_pass(A, unit, guides_unit, z_start, acc.c_fov + eps, eps, rows, work)
+            A_last = A
+            eps_last = eps
+        if n_seen < 2:
+            return False, A
+        stale = True
+        for i in range(n):
+            if rows[i] != solved[i]:
+                stale = False
+                break
+        if not stale:
+            A = wahba_rows(unit, rows, guides_unit)
+            solved[:] = rows
+        elif it > 0 or acc.eps0 == acc.eps:
+            break
+        if it > 0 and n_seen <= n_prev and eps == acc.eps:
+            break
+        n_prev = n_seen
+        eps = acc.eps
+    if not stale:
+        n_seen = assign_pass(A, unit, guides_unit, z_start, acc.c_fov + eps, eps, rows, work)
+        A_last = A
+        eps_last = eps
+    keep = verify_pairwise(unit, rows, guides_unit, acc.eps, np.int64(2), 0.5)
+    n_keep = 0
+    for i in range(n):
+        if not keep[i]:
+            rows[i] = -1
+        else:
+            n_keep += 1
+    reject = n_keep < acc.min_matches
+    if not reject:
+        n_pred = predicted_on_sensor(A_last, guides_unit, acc.c_fov + eps_last, sensor.f_px, sensor.cx_px,
+                                     sensor.cy_px, sensor.width_px, sensor.height_px)
+        reject = n_keep < acc.fraction * n_pred
+    if reject:
+        for i in range(n):
+            rows[i] = -1
+        return False, A
+    return True, wahba_rows(unit, rows, guides_unit)
+
+
+@njit(cache=True)
+def plane_frame(x0, y0, z0, x1, y1, z1):
+    """Right-handed orthonormal ``p1, p2, p3`` with ``p1`` along ``(x0, y0, z0)`` and ``p2`` in the plane
+    of the two vectors (Gram-Schmidt), as nine scalars; ``p3`` = 0 when they are parallel."""
+    n0 = math.sqrt(x0 * x0 + y0 * y0 + z0 * z0)
+    ax, ay, az = x0 / n0, y0 / n0, z0 / n0
+    d = x1 * ax + y1 * ay + z1 * az
+    bx, by, bz = x1 - d * ax, y1 - d * ay, z1 - d * az
+    n1 = math.sqrt(bx * bx + by * by + bz * bz)
+    if not n1 > 1e-12:
+        return ax, ay, az, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    bx, by, bz = bx / n1, by / n1, bz / n1
+    return ax, ay, az, bx, by, bz, ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+
+
+@njit(cache=True)
+def pair_attitude(unit, s, o, guides_unit, guide_s, guide_o, A):
+    """The rotation Wahba's problem gives for the two pairs ``s -> guide_s``, ``o -> guide_o`` (equal
+    weights), written to ``A`` (3 x 3).
+
+    With two stars ``B = v_s r_s^T + v_o r_o^T`` has rank 2, and ``wahba_rows`` takes LAPACK's SVD
+    (a few microseconds). In exact arithmetic its answer is this: with ``P`` an orthonormal basis of
+    the plane of ``v_s, v_o`` and ``Q`` of the plane of ``r_s, r_o`` (Gram-Schmidt, right-handed with
+    their normals ``p3``, ``q3``), ``B = P C Q^T``; ``C`` (2 x 2) has a positive determinant, its
+    polar factor is the rotation by the angle of ``(C00 + C11, C10 - C01)``, and the optimal rotation
+    is ``P R2 Q^T + p3 q3^T``. Returns the bound on the difference from the seed Wahba
+    (:data:`ATT_SCALE`), or -1 for a degenerate pair (``A`` then unspecified).
+    """
+    vx0, vy0, vz0 = np.float64(unit[s, 0]), np.float64(unit[s, 1]), np.float64(unit[s, 2])
+    vx1, vy1, vz1 = np.float64(unit[o, 0]), np.float64(unit[o, 1]), np.float64(unit[o, 2])
+    # np.float64, not float(): numba's float() keeps a float32 a float32
+    rx0, ry0, rz0 = np.float64(guides_unit[guide_s, 0]), np.float64(guides_unit[guide_s, 1]), \
+        np.float64(guides_unit[guide_s, 2])
+    rx1, ry1, rz1 = np.float64(guides_unit[guide_o, 0]), np.float64(guides_unit[guide_o, 1]), \
+        np.float64(guides_unit[guide_o, 2])
+    p1x, p1y, p1z, p2x, p2y, p2z, p3x, p3y, p3z = plane_frame(vx0, vy0, vz0, vx1, vy1, vz1)
+    q1x, q1y, q1z, q2x, q2y, q2z, q3x, q3y, q3z = plane_frame(rx0, ry0, rz0, rx1, ry1, rz1)
+    if p3x == 0.0 and p3y == 0.0 and p3z == 0.0 or q3x == 0.0 and q3y == 0.0 and q3z == 0.0:
+        return -1.0
+    # C = P^T B Q, B = sum_k v_k r_k^T
+    a0 = p1x * vx0 + p1y * vy0 + p1z * vz0
+    a1 = p1x * vx1 + p1y * vy1 + p1z * vz1
+    b0 = p2x * vx0 + p2y * vy0 + p2z * vz0
+    b1 = p2x * vx1 + p2y * vy1 + p2z * vz1
+    c0 = rx0 * q1x + ry0 * q1y + rz0 * q1z
+    c1 = rx1 * q1x + ry1 * q1y + rz1 * q1z
+    d0 = rx0 * q2x + ry0 * q2y + rz0 * q2z
+    d1 = rx1 * q2x + ry1 * q2y + rz1 * q2z
+    C00 = a0 * c0 + a1 * c1
+    C01 = a0 * d0 + a1 * d1
+    C10 = b0 * c0 + b1 * c1
+    C11 = b0 * d0 + b1 * d1
+    det = C00 * C11 - C01 * C10
+    if not det > 0:
+        return -1.0
+    sigma2 = det / math.sqrt(C00 * C00 + C01 * C01 + C10 * C10 + C11 * C11)   # <= the smaller singular value
+    h = math.sqrt((C00 + C11) ** 2 + (C10 - C01) ** 2)
+    c = (C00 + C11) / h
+    sn = (C10 - C01) / h
+    # A = P R2 Q^T + p3 q3^T, R2 = [[c, -sn], [sn, c]]
+    e1x, e1y, e1z = c * q1x - sn * q2x, c * q1y - sn * q2y, c * q1z - sn * q2z   # row 0 of R2 Q^T
+    e2x, e2y, e2z = sn * q1x + c * q2x, sn * q1y + c * q2y, sn * q1z + c * q2z   # row 1
+    A[0, 0] = p1x * e1x + p2x * e2x + p3x * q3x
+    A[0, 1] = p1x * e1y + p2x * e2y + p3x * q3y
+    A[0, 2] = p1x * e1z + p2x * e2z + p3x * q3z
+    A[1, 0] = p1y * e1x + p2y * e2x + p3y * q3x
+    A[1, 1] = p1y * e1y + p2y * e2y + p3y * q3y
+    A[1, 2] = p1y * e1z + p2y * e2z + p3y * q3z
+    A[2, 0] = p1z * e1x + p2z * e2x + p3z * q3x
+    A[2, 1] = p1z * e1y + p2z * e2y + p3z * q3y
+    A[2, 2] = p1z * e1z + p2z * e2z + p3z * q3z
+    return max(ATT_FLOOR, ATT_SCALE / sigma2)
+
+
+@njit(cache=True)
+def band_z(z_centre, c_radius):
+    """The z limits of :func:`starid.kernels.z_band_rows`'s band (the same expressions): a row of the
+    z-sorted catalog lies in the rows it returns exactly when its z is within ``[z_lo, z_hi]``."""
+    half = 2.0 * math.asin(min(1.0, 0.5 * c_radius))
+    dec0 = math.asin(max(-1.0, min(1.0, float(z_centre))))
+    return math.sin(max(-0.5 * math.pi, dec0 - half)), math.sin(min(0.5 * math.pi, dec0 + half))
+
+
+@njit(cache=True)
+def pair_first_pass(A, tol, v_cam, unit, z_start, c_fov, eps, work):
+    """:func:`confirm`'s first pass from the seed Wahba gives for a pair, made with ``A`` when it can be.
+
+    ``A`` is :func:`pair_attitude`, within ``tol`` of that seed. Every test of the pass
+    (:func:`assign_near`'s, window ``eps``, cap ``c_fov``) is made with ``A`` and counts only when
+    it clears its threshold by :data:`DECIDE_FACTOR` x ``tol``, which the seed's predictions, at
+    most ``tol`` away, cannot cross; the band's limits are taken for the boresight's z moved by
+    ``tol`` both ways (they move monotonically with it). When every test that matters is decided,
+    the assignment is the seed's to the last row: it is left in ``work[3]`` and its count
+    returned. When one is not (or the pair buffer is full), -1: the caller makes the real pass.
+    Rows are looked up around each detection's sky position ``A^T v`` within the window plus the
+    margins, and skipped early when x or y alone is already too far.
+    """
+    n = v_cam.shape[0]
+    pair_i, pair_g, n_match, out_row = work
+    margin = DECIDE_FACTOR * tol
+    bx, by, bz = A[2, 0], A[2, 1], A[2, 2]
+    z_lo = band_z(bz + tol, c_fov)[0]   # inside the band for every boresight z within tol
+    z_hi = band_z(bz - tol, c_fov)[1]
+    reach = eps + margin + Z_SLACK
+    n_pairs = np.int64(0)   # not a literal: one signature of settle_pairs
+    for i in range(n):
+        v0, v1, v2 = np.float64(v_cam[i, 0]), np.float64(v_cam[i, 1]), np.float64(v_cam[i, 2])
+        dx = A[0, 0] * v0 + A[1, 0] * v1 + A[2, 0] * v2
+        dy = A[0, 1] * v0 + A[1, 1] * v1 + A[2, 1] * v2
+        dz = A[0, 2] * v0 + A[1, 2] * v1 + A[2, 2] * v2
+        g = z_first(unit, z_start, dz - reach, np.int64(0))
+        while g < unit.shape[0] and unit[g, 2] <= dz + reach:
+            ux, uy, uz = np.float64(unit[g, 0]), np.float64(unit[g, 1]), np.float64(unit[g, 2])
+            g += 1
+            if abs(ux - dx) > reach or abs(uy - dy) > reach:
+                continue
+            px = A[0, 0] * ux + A[0, 1] * uy + A[0, 2] * uz - v0
+            py = A[1, 0] * ux + A[1, 1] * uy + A[1, 2] * uz - v1
+            pz = A[2, 0] * ux + A[2, 1] * uy + A[2, 2] * uz - v2
+            d = math.sqrt(px * px + py * py + pz * pz)
+            if d > eps + margin:
+                continue
+            if d > eps - margin:
+                return -1   # too near the window's edge to tell
+            d = math.sqrt((ux - bx) ** 2 + (uy - by) ** 2 + (uz - bz) ** 2)
+            if d > c_fov + margin:
+                continue
+            if d > c_fov - margin or uz < z_lo or uz > z_hi or n_pairs == pair_i.shape[0]:
+                return -1   # the cap's or the band's edge, or too many pairs: undecided
+            pair_i[n_pairs] = i
+            pair_g[n_pairs] = g - 1
+            n_pairs += 1
+    return settle_pairs(pair_i, pair_g, n_pairs, n_match, out_row)
+
+
+@njit(cache=True)
+def pair_work(n):
+    """Work arrays of :func:`confirm_pair_near`: ``(pair_i, pair_g, n_match, out_row), A0 (3 x 3)``."""
+    cap = 4 * n + 16
+    return (np.empty(cap, dtype=np.int64), np.empty(cap, dtype=np.int64), np.zeros(n, dtype=np.int64),
+            np.empty(n, dtype=np.int64)), np.empty((3, 3))
+
+
+@njit(cache=True)
+def confirm_pair_near(unit, rows, seed, s, o, guide_s, guide_o, guides_unit, z_start, sensor, acc, work, A0):
+    """:func:`confirm_pair`, the same answer, cheaper.
+
+    After the separation check, :func:`pair_first_pass` makes :func:`confirm`'s first pass with
+    :func:`pair_attitude` instead of the seed Wahba (LAPACK's SVD for two stars). When it is decided
+    (nearly always), its assignment is the seed's: fewer than 2 stars, or only the seed's two
+    (stale: :func:`confirm` stops and rejects), reject the pair without more work; any other goes
+    on with :func:`confirm_near` from that assignment, and the seed attitude is never needed
+    (the next step solves Wahba from the assignment). An undecided pass takes the seed Wahba and
+    :func:`confirm_near` in full. ``work``, ``A0`` are :func:`pair_work` of the image's size.
+    (This holds for ``acc.eps0 == acc.eps``; otherwise every pair takes the full path.)
+    """
+    if abs(chord_rows(unit, s, unit, o) - chord_rows(guides_unit, guide_s, guides_unit, guide_o)) > \
+            SEPARATION_TOL * acc.eps0:
+        return False, np.eye(3)
+    seed[s] = guide_s
+    seed[o] = guide_o
+    n_first = np.int64(-1)
+    A = A0
+    if acc.eps0 == acc.eps:
+        tol = pair_attitude(unit, s, o, guides_unit, guide_s, guide_o, A0)
+        if tol > 0:
+            n_first = pair_first_pass(A0, tol, unit, guides_unit, z_start, acc.c_fov + acc.eps0, acc.eps0, work)
+    if n_first >= 0:
+        first = work[3]
+        if n_first < 2 or n_first == 2 and first[s] == guide_s and first[o] == guide_o:
+            seed[s] = -1
+            seed[o] = -1
+            return False, np.eye(3)
+        rows[:] = first
+    else:
+        A = wahba_rows(unit, seed, guides_unit)
+    ok, A = confirm_near(unit, rows, A, guides_unit, z_start, sensor, acc, seed, (work[0], work[1], work[2]),
+                         n_first)
     seed[s] = -1
     seed[o] = -1
     return ok, A
