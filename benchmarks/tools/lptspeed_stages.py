@@ -1,8 +1,11 @@
-"""Stage times inside the kernels of lpt_improved, grid and lpt (issue #25 profile tables).
+"""Stage times inside the kernels of grid and lpt (issue #25 profile tables).
+
+lpt_improved's kernel changed at stop 38 (its first pass without the SVD, ``assign_near``); its stages
+are in ``benchmarks/tools/lpispeed_profile.py``, and its copy here was removed.
 
     python benchmarks/tools/lptspeed_stages.py 40 5
 
-Copies of the three ``identify_kernel`` bodies (same callees, same arguments) with the CPU cycle
+Copies of the two ``identify_kernel`` bodies (same callees, same arguments) with the CPU cycle
 counter read between stages (``llvm.readcyclecounter``, converted to us against ``perf_counter``);
 Table 6's skies at 1 px / 0.5 Mv, seed 0, N images, the run of R with the smallest total kept per
 image; prints per sky and plugin the median (and mean) over images of: the kernel call from Python
@@ -23,7 +26,6 @@ from numba import njit, types
 from numba.extending import intrinsic
 from starid_algorithms.grid import kernels as GK
 from starid_algorithms.lpt import kernels as LK
-from starid_algorithms.lpt_improved import kernels as LI
 from starid_algorithms.lpt_improved.planar import (
     acceptance_at,
     begin_identify,
@@ -46,73 +48,6 @@ def cycles(typingctx):
         return builder.call(fn, [])
 
     return types.int64(), codegen
-
-
-@njit
-def li_kernel(x_px, y_px, params, columns, total, count_start, guide, align, align_chord, guides_unit, trace, st):
-    t0 = cycles()
-    sensor = frame_at(params, np.int64(0))
-    acc = acceptance_at(params, np.int64(5))
-    search = LI.search_at(params, np.int64(10))
-    table = LI.FeatureTable(columns, total, count_start, guide, align, align_chord)
-    n = x_px.shape[0]
-    rows, unit, usable, order = begin_identify(x_px, y_px, sensor, search.double_px, trace)
-    m = search.n_sectors
-    nbrs = np.empty(n, dtype=np.int64)
-    r_px = np.empty(n)
-    phi = np.empty(n)
-    vec = np.zeros(m, dtype=np.int64)
-    nz_idx = np.empty(m, dtype=np.int64)
-    best_row = np.empty(search.n_candidates, dtype=np.int64)
-    best_sad = np.empty(search.n_candidates, dtype=np.int64)
-    seed = np.full(n, -1, dtype=np.int64)
-    sums = np.empty(table.total.shape[0], dtype=np.int32)
-    chord_tol = 2.0 * acc.eps0 if search.pair_filter else -1.0
-    t1 = cycles()
-    st[0] += t1 - t0
-    for t in range(min(search.max_refs, order.shape[0])):
-        t1 = cycles()
-        s = order[t]
-        k = reference_pattern(unit, usable, x_px, y_px, s, search.cos_radius, sensor.f_px, nbrs, r_px, phi)
-        t2 = cycles()
-        st[1] += t2 - t1
-        for a in range(min(search.image_alignments, k)):
-            t1 = cycles()
-            nz = LI.feature_vector(r_px, phi, k, a, m, search.log_scale, vec)
-            q = 0
-            for i in range(m):
-                if vec[i] != 0:
-                    nz_idx[q] = i
-                    q += 1
-            t2 = cycles()
-            st[1] += t2 - t1
-            found = LI.sad_search(
-                table,
-                vec,
-                nz_idx,
-                nz,
-                search.count_tol,
-                search.n_candidates,
-                best_row,
-                best_sad,
-                search.count_tol_above,
-                sums,
-                LI.chord_rows(unit, s, unit, nbrs[a]),
-                chord_tol,
-            )
-            t3 = cycles()
-            st[2] += t3 - t2
-            for c in range(found):
-                r = best_row[c]
-                t3 = cycles()
-                ok, A = confirm_pair(
-                    unit, rows, seed, s, nbrs[a], table.guide[r], table.align[r], guides_unit, sensor, acc
-                )
-                t4 = cycles()
-                st[3] += t4 - t3
-                if ok:
-                    return rows, A, True
-    return no_match(rows)
 
 
 @njit
@@ -338,7 +273,7 @@ def main(n, R):
         )
         tr = sim.generate(n)
         obs = [tr.observation(i, truth=False) for i in range(n)]
-        for name, kern in (("lpt_improved", li_kernel), ("grid", grid_kernel), ("lpt", lpt_kernel)):
+        for name, kern in (("grid", grid_kernel), ("lpt", lpt_kernel)):
             alg = get_algorithm(name)()
             db = alg.build(cat, cam)
             per = []
