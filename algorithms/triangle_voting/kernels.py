@@ -42,6 +42,8 @@ class Tables(NamedTuple):
     sky_axis: int
     pr_chord: float  # pattern radius as a chord
     dmin_chord: float  # D_min as a chord
+    side_i: np.ndarray  # float32 (m,) the record's main-to-n_i and main-to-n_j chords, rounded to float32
+    side_j: np.ndarray  # (:func:`record_sides`): a pre-filter of the side check, which stays exact
 
 
 class Tolerance(NamedTuple):
@@ -123,6 +125,28 @@ def build_triangles(unit, rank, nbr_ptr, nbr_idx, lam, dmin_chord):
     return base[:m], height[:m], main[:m], ni[:m], nj[:m]
 
 
+#: bound of the float32 rounding of a chord (at most 2, so its error is at most 2 * 2^-24 = 1.2e-7),
+#: doubled: a record whose float32 sides miss the window by more than this misses it exactly too
+SIDE_ROUNDING = 2.5e-7
+
+
+@njit(cache=True)
+def record_sides(unit, main, n_i, n_j):
+    """Per record the chords main-to-``n_i`` and main-to-``n_j`` (``chord_rows`` of ``unit``) as float32.
+
+    Read sequentially by :func:`vote` in place of two random reads of ``unit`` and two square roots
+    per record in both windows; only a pre-filter (the float32 values are within :data:`SIDE_ROUNDING`
+    of the exact chords), the side check itself is still made from ``unit``.
+    """
+    m = main.size
+    side_i = np.empty(m, dtype=np.float32)
+    side_j = np.empty(m, dtype=np.float32)
+    for r in range(m):
+        side_i[r] = chord_rows(unit, main[r], unit, n_i[r])
+        side_j[r] = chord_rows(unit, main[r], unit, n_j[r])
+    return side_i, side_j
+
+
 @njit(cache=True)
 def _grow(arr):
     """A copy of ``arr`` with twice the length (the new half uninitialised)."""
@@ -158,12 +182,15 @@ def vote(v_cam, db, tol, votes, mark):
     cell_start, n_cells_b, n_cells_h, cell_b, cell_h = db.cell_start, db.n_cells_b, db.n_cells_h, db.cell_b, db.cell_h
     cat_unit = db.unit
     pr_chord, dmin_chord = db.pr_chord, db.dmin_chord
+    side_i_db, side_j_db = db.side_i, db.side_j
     n_nbr, sigma_chord, k_sigma = tol.n_nbr, tol.sigma_chord, tol.k_sigma
     side_check, vote_neighbours, v_min, n_cand = tol.side_check, tol.vote_neighbours, tol.v_min, tol.n_cand
     n = v_cam.shape[0]
     eps_b = k_sigma * math.sqrt(2.0) * sigma_chord
     lo_d = dmin_chord - eps_b
     hi_d = pr_chord + eps_b
+    eps_side = eps_b + SIDE_ROUNDING
+    no_side_check = not side_check
     # votes[o, c]: votes of catalog row c for observed star o; mark[u, c], per vertex of the
     # current triangle (main, a, b): the last triangle that voted row c (both all zero on entry)
     obs = np.empty(3, dtype=np.int64)
@@ -173,6 +200,7 @@ def vote(v_cam, db, tol, votes, mark):
     touched_c = np.empty(1024, dtype=np.int64)
     n_touched = 0
     nbr = np.empty(n_nbr, dtype=np.int64)
+    listed = np.empty(256, dtype=np.int64)  # records of one image triangle left for the exact side check
     hyp = np.empty((256, 6), dtype=np.int64)  # side-matched records: (i, c, a, c_a, b, c_b)
     n_hyp = 0
     n_records = 0
@@ -210,56 +238,69 @@ def vote(v_cam, db, tol, votes, mark):
                 while n_touched + 3 * n_scan > touched_o.size:  # room for every possible vote
                     touched_o = _grow(touched_o)
                     touched_c = _grow(touched_c)
+                if n_scan + 1 > listed.size:
+                    listed = np.empty(2 * (n_scan + 1), dtype=np.int64)
                 while n_hyp + n_scan > hyp.shape[0]:
                     grown = np.empty((2 * hyp.shape[0], 6), dtype=np.int64)
                     grown[:n_hyp] = hyp[:n_hyp]
                     hyp = grown
+                # first pass, branch-free over every record of the cells (about half of them are in both
+                # windows: a branch on that is mispredicted half the time): the records in both windows
+                # whose float32 sides (sequential reads) come within their rounding of a side match,
+                # listed; the second pass checks those sides exactly, from the guide vectors, and votes
+                n_near = 0
                 for cb in range(cb0, cb1 + 1):
                     # the cells (cb, ch0..ch1) are contiguous in the record order
                     for r in range(cell_start[cb * n_cells_h + ch0], cell_start[cb * n_cells_h + ch1 + 1]):
-                        if abs(base_db[r] - base) > eps_b or abs(height_db[r] - height) > eps_h:
+                        in_windows = (abs(base_db[r] - base) <= eps_b) & (abs(height_db[r] - height) <= eps_h)
+                        s_i = float(side_i_db[r])
+                        s_j = float(side_j_db[r])
+                        near = min(max(abs(d_ia - s_i), abs(d_ib - s_j)),
+                                   max(abs(d_ia - s_j), abs(d_ib - s_i))) <= eps_side
+                        n_matches += in_windows
+                        listed[n_near] = r
+                        n_near += in_windows & (near | no_side_check)
+                for e in range(n_near):
+                    r = listed[e]
+                    c = main_db[r]
+                    ci = ni_db[r]
+                    cj = nj_db[r]
+                    d_ci = chord_rows(cat_unit, c, cat_unit, ci)
+                    d_cj = chord_rows(cat_unit, c, cat_unit, cj)
+                    e_straight = max(abs(d_ia - d_ci), abs(d_ib - d_cj))
+                    e_swapped = max(abs(d_ia - d_cj), abs(d_ib - d_ci))
+                    if e_swapped < e_straight:
+                        ci, cj = cj, ci
+                        e_straight = e_swapped
+                    sides_match = e_straight <= eps_b
+                    if side_check and not sides_match:
+                        continue
+                    n_votes = 3 if vote_neighbours and sides_match else 1
+                    if sides_match:
+                        hyp[n_hyp, 0] = i
+                        hyp[n_hyp, 1] = c
+                        hyp[n_hyp, 2] = a
+                        hyp[n_hyp, 3] = ci
+                        hyp[n_hyp, 4] = b
+                        hyp[n_hyp, 5] = cj
+                        n_hyp += 1
+                    obs[0] = i
+                    row[0] = c
+                    obs[1] = a
+                    row[1] = ci
+                    obs[2] = b
+                    row[2] = cj
+                    for u in range(n_votes):
+                        o = obs[u]
+                        c = row[u]
+                        if mark[u, c] == tri:  # at most one vote per observed triangle
                             continue
-                        n_matches += 1
-                        c = main_db[r]
-                        ci = ni_db[r]
-                        cj = nj_db[r]
-                        # the third degree of freedom: do the main-to-neighbour sides match too?
-                        d_ci = chord_rows(cat_unit, c, cat_unit, ci)
-                        d_cj = chord_rows(cat_unit, c, cat_unit, cj)
-                        e_straight = max(abs(d_ia - d_ci), abs(d_ib - d_cj))
-                        e_swapped = max(abs(d_ia - d_cj), abs(d_ib - d_ci))
-                        if e_swapped < e_straight:
-                            ci, cj = cj, ci
-                            e_straight = e_swapped
-                        sides_match = e_straight <= eps_b
-                        if side_check and not sides_match:
-                            continue
-                        n_votes = 3 if vote_neighbours and sides_match else 1
-                        if sides_match:
-                            hyp[n_hyp, 0] = i
-                            hyp[n_hyp, 1] = c
-                            hyp[n_hyp, 2] = a
-                            hyp[n_hyp, 3] = ci
-                            hyp[n_hyp, 4] = b
-                            hyp[n_hyp, 5] = cj
-                            n_hyp += 1
-                        obs[0] = i
-                        row[0] = c
-                        obs[1] = a
-                        row[1] = ci
-                        obs[2] = b
-                        row[2] = cj
-                        for u in range(n_votes):
-                            o = obs[u]
-                            c = row[u]
-                            if mark[u, c] == tri:  # at most one vote per observed triangle
-                                continue
-                            mark[u, c] = tri
-                            if votes[o, c] == 0:
-                                touched_o[n_touched] = o
-                                touched_c[n_touched] = c
-                                n_touched += 1
-                            votes[o, c] += 1
+                        mark[u, c] = tri
+                        if votes[o, c] == 0:
+                            touched_o[n_touched] = o
+                            touched_c[n_touched] = c
+                            n_touched += 1
+                        votes[o, c] += 1
     cand = np.full((n, n_cand), -1, dtype=np.int64)
     cand_votes = np.zeros((n, n_cand), dtype=np.int64)
     for e in range(n_touched):
