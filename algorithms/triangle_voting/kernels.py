@@ -365,12 +365,20 @@ def select_candidates(v_cam, cand, cand_votes, cat_unit, tol_chord):
     n, k = cand.shape
     chosen = np.full(n, -1, dtype=np.int64)
     chosen_votes = np.zeros(n, dtype=np.int64)
+    # the separations, each computed once (the same values as ``_agree``'s: a chord is the same
+    # number whichever row comes first): observed pairs, and candidate pairs on first use (-1 = not yet)
+    d_obs = np.empty((n, n))
+    for i in range(n):
+        for j in range(n):
+            d_obs[i, j] = chord_rows(v_cam, i, v_cam, j)
+    d_cat = np.full((n * k, n * k), -1.0)
     for i in range(n):
         best_support = 0
         for s in range(k):
             c = cand[i, s]
             if c < 0:
                 break
+            p = i * k + s
             support = 0
             for j in range(n):
                 if j == i:
@@ -379,7 +387,15 @@ def select_candidates(v_cam, cand, cand_votes, cat_unit, tol_chord):
                     c2 = cand[j, s2]
                     if c2 < 0:
                         break
-                    if _agree(v_cam, cat_unit, i, c, j, c2, tol_chord):
+                    if c2 == c:
+                        continue
+                    q = j * k + s2
+                    d = d_cat[p, q]
+                    if d < 0.0:
+                        d = chord_rows(cat_unit, c, cat_unit, c2)
+                        d_cat[p, q] = d
+                        d_cat[q, p] = d
+                    if abs(d_obs[i, j] - d) <= tol_chord:
                         support += 1
                         break
             if support > best_support or (support == best_support and support > 0 and (

@@ -6,7 +6,9 @@ Table 6's two skies at 1 px / 0.5 Mv (seed 0), N images (40), each call timed R 
 kept). Three cut-down copies of ``vote``'s loops, each a superset of the one before: ``triangles``
 (neighbour choice, features, grid cells of every image triangle, no record read), ``scan`` (+ the
 records of the cells read and tested against both windows and the float32 side pre-filter, counted
-only), and the plugin's own ``vote`` (+ the exact side checks, votes, candidate lists, scores); then
+only), ``side_checks`` (+ the records near a side match listed and checked exactly, counted only;
+``n_near`` per triangle must stay below 4096), and the plugin's own ``vote`` (+ the votes, candidate
+lists, scores); then
 ``identify_rows`` (+ selection, verification, confirmation / fallback), ``finish`` and ``identify``
 (+ the Python wrapper and the ``Identification``). Prints the median over images in us.
 """
@@ -30,14 +32,16 @@ from starid.registry import get_algorithm
 
 @njit(cache=True)
 def _loops(v_cam, base_db, height_db, side_i_db, side_j_db, cell_start, n_cells_b, n_cells_h, cell_b, cell_h,
-           pr_chord, dmin_chord, n_nbr, sigma_chord, k_sigma, scan):
-    """``vote``'s triangle loop; with ``scan`` also its record tests (counted, no vote)."""
+           pr_chord, dmin_chord, n_nbr, sigma_chord, k_sigma, main_db, ni_db, nj_db, cat_unit, scan):
+    """``vote``'s triangle loop; with ``scan`` 1 also its record tests (counted), with 2 also the
+    listing of the records near a side match and their exact side check (counted, no vote)."""
     n = v_cam.shape[0]
     eps_b = k_sigma * math.sqrt(2.0) * sigma_chord
     eps_side = eps_b + tvk.SIDE_ROUNDING
     lo_d = dmin_chord - eps_b
     hi_d = pr_chord + eps_b
     nbr = np.empty(n_nbr, dtype=np.int64)
+    listed = np.empty(4096, dtype=np.int64)
     count = 0
     for i in range(n):
         k = 0
@@ -64,9 +68,10 @@ def _loops(v_cam, base_db, height_db, side_i_db, side_j_db, cell_start, n_cells_
                 cb1 = min(int(math.floor((base + eps_b) / cell_b)), n_cells_b - 1)
                 ch0 = max(int(math.floor((height - eps_h) / cell_h)), 0)
                 ch1 = min(int(math.floor((height + eps_h) / cell_h)), n_cells_h - 1)
-                if not scan:
+                if scan == 0:
                     count += cb1 - cb0 + ch1 - ch0
                     continue
+                n_near = 0
                 for cb in range(cb0, cb1 + 1):
                     for r in range(cell_start[cb * n_cells_h + ch0], cell_start[cb * n_cells_h + ch1 + 1]):
                         in_windows = (abs(base_db[r] - base) <= eps_b) & (abs(height_db[r] - height) <= eps_h)
@@ -74,7 +79,20 @@ def _loops(v_cam, base_db, height_db, side_i_db, side_j_db, cell_start, n_cells_
                         s_j = float(side_j_db[r])
                         near = min(max(abs(d_ia - s_i), abs(d_ib - s_j)),
                                    max(abs(d_ia - s_j), abs(d_ib - s_i))) <= eps_side
-                        count += in_windows & near
+                        if scan == 1:
+                            count += in_windows & near
+                        else:
+                            listed[n_near] = r
+                            n_near += in_windows & near
+                for e in range(n_near):
+                    r = listed[e]
+                    c = main_db[r]
+                    ci = ni_db[r]
+                    cj = nj_db[r]
+                    d_ci = chord_rows(cat_unit, c, cat_unit, ci)
+                    d_cj = chord_rows(cat_unit, c, cat_unit, cj)
+                    e_straight = min(max(abs(d_ia - d_ci), abs(d_ib - d_cj)), max(abs(d_ia - d_cj), abs(d_ib - d_ci)))
+                    count += e_straight <= eps_b
     return count
 
 
@@ -99,11 +117,13 @@ def _steps(alg, db, o, repeats):
     tol = alg._tolerance(cam)
     tb = tva._tables(db)
     args = (v_cam, tb.base, tb.height, tb.side_i, tb.side_j, tb.cell_start, tb.n_cells_b, tb.n_cells_h, tb.cell_b,
-            tb.cell_h, tb.pr_chord, tb.dmin_chord, tol.n_nbr, tol.sigma_chord, tol.k_sigma)
+            tb.cell_h, tb.pr_chord, tb.dmin_chord, tol.n_nbr, tol.sigma_chord, tol.k_sigma, tb.main, tb.n_i, tb.n_j,
+            tb.unit)
     kt, ktol = tva._kernel_args(db, tol) if hasattr(tva, "_kernel_args") else (tb, tol)
     votes, mark = tva._scratch(db, order.size)
-    out["triangles"] = _best(lambda: _loops(*args, False), repeats)
-    out["scan"] = _best(lambda: _loops(*args, True), repeats)
+    out["triangles"] = _best(lambda: _loops(*args, 0), repeats)
+    out["scan"] = _best(lambda: _loops(*args, 1), repeats)
+    out["side_checks"] = _best(lambda: _loops(*args, 2), repeats)
     out["vote"] = _best(lambda: tvk.vote(v_cam, kt, ktol, votes, mark), repeats)
     out["identify_rows"] = _best(lambda: tvk.identify_rows(v_cam, kt, ktol, votes, mark), repeats)
     rows, _ = tvk.identify_rows(v_cam, kt, ktol, votes, mark)
@@ -134,7 +154,7 @@ def main(n: int, repeats: int) -> None:
                 rows = [{"identify": _best(lambda o=o: alg.identify(db, o), repeats)} for o in obs]  # noqa: B023
             else:
                 rows = [_steps(alg, db, o, repeats) for o in obs]
-            for k in ("triangles", "scan", "vote", "identify_rows", "finish", "identify"):
+            for k in ("triangles", "scan", "side_checks", "vote", "identify_rows", "finish", "identify"):
                 v = np.array([r.get(k, 0.0) for r in rows])
                 if v.any():
                     print(f"{sky:5s} {name:16s} {k:14s} median {np.median(v):8.1f} us  mean {v.mean():8.1f} us",
