@@ -84,13 +84,23 @@ def _tables(db: TriangleVotingDatabase) -> Tables:
     """The kernels' bundle of ``db``, made once per database: with the records' float32 side chords
     (``record_sides``, 8 bytes per record: 0.7 MB for the default 87,257 records), a derived table held
     beside the database like ``_unit_f64``, which ``vote`` reads as an exact pre-filter of its side check."""
-    tables = _TABLES.get(db)
-    if tables is None:
+    return _bundles(db)[0]
+
+
+def _kernel_tables(db: TriangleVotingDatabase) -> tuple:
+    """``_tables(db)`` as the plain tuple the kernels are called with (cheaper to dispatch)."""
+    return _bundles(db)[1]
+
+
+def _bundles(db: TriangleVotingDatabase) -> tuple[Tables, tuple]:
+    held = _TABLES.get(db)
+    if held is None:
         side_i, side_j = record_sides(db.unit_icrs, db.main, db.n_i, db.n_j)
-        tables = _TABLES[db] = Tables(db.base, db.height, db.main, db.n_i, db.n_j, db.cell_start, db.n_cells_b,
-                                      db.n_cells_h, db.cell_b, db.cell_h, db.unit_icrs, db.sky_start, db.sky_axis,
-                                      db.pattern_radius_chord, db.d_min_chord, side_i, side_j)
-    return tables
+        tables = Tables(db.base, db.height, db.main, db.n_i, db.n_j, db.cell_start, db.n_cells_b, db.n_cells_h,
+                        db.cell_b, db.cell_h, db.unit_icrs, db.sky_start, db.sky_axis, db.pattern_radius_chord,
+                        db.d_min_chord, side_i, side_j)
+        held = _TABLES[db] = (tables, tuple(tables))
+    return held
 
 
 _SCRATCH = threading.local()
@@ -355,9 +365,9 @@ class TriangleVoting(Algorithm):
         if order.size < 3:
             return Identification(out)
         v_cam = backproject_px(x[order], y[order], cam.f_px, cam.cx_px, cam.cy_px)
-        tol = self._tolerance(cam)
+        tol, kernel_tol = self._tolerances(cam)
         db = database
-        rows, work = identify_rows(v_cam, db.tables(), tol, *_scratch(db, order.size))
+        rows, work = identify_rows(v_cam, _kernel_tables(db), kernel_tol, *_scratch(db, order.size))
         counters = dict(zip(WORK_COUNTERS, work.tolist(), strict=True))
         if rows.max() < 0:
             return Identification(out, counters=counters)
@@ -387,6 +397,21 @@ class TriangleVoting(Algorithm):
         v_mag = np.array([db.deep_v_mag[np.flatnonzero(db.deep.hip == h)[0]] for h in hip[named]])
         return float(np.mean(v_mag - mag[named])) <= self.mag_margin
 
+    def _tolerances(self, cam: Camera) -> tuple[Tolerance, tuple]:
+        """``_tolerance(cam)`` and the same as the plain tuple the kernels take, kept for the last camera
+        (an identification's images share one; building the bundle was ~1.6 us of each image)."""
+        held = self.__dict__.get("_held_tolerances")
+        if held is None or held[0] is not cam:
+            tol = self._tolerance(cam)
+            held = (cam, tol, tuple(tol))
+            object.__setattr__(self, "_held_tolerances", held)  # a cache, not a parameter (frozen dataclass)
+        return held[1], held[2]
+
+    def __getstate__(self):
+        state = self.__dict__.copy()
+        state.pop("_held_tolerances", None)  # a camera: not part of the algorithm
+        return state
+
     def _tolerance(self, cam: Camera) -> Tolerance:
         sigma_chord = self.sigma_window_px / cam.f_px
         return Tolerance(
@@ -408,7 +433,8 @@ class TriangleVoting(Algorithm):
         cam = observation.camera
         v_cam = backproject_px(x[order], y[order], cam.f_px, cam.cx_px, cam.cy_px)
         db = database
-        _, cand_votes, hyp, _, _ = vote(v_cam, db.tables(), self._tolerance(cam), *_scratch(db, v_cam.shape[0]))
+        _, cand_votes, hyp, _, _ = vote(v_cam, _kernel_tables(db), self._tolerances(cam)[1],
+                                        *_scratch(db, v_cam.shape[0]))
         hip = self.identify(database, observation).hip
         segments, highlight, seen = [], [], set()
         for i, ri, a, ra, b, rb in hyp:

@@ -16,7 +16,7 @@ import numpy as np
 from numba import njit
 from starid_algorithms.planar_triangle.kernels import argsort_desc
 
-from starid.kernels import chord, chord_rows, verify_pairwise, wahba_rows
+from starid.kernels import chord_rows, verify_pairwise, wahba_rows
 
 #: names of the per-image work counters :func:`identify_rows` returns (``Identification.counters``):
 #: image triangles looked up in the grid, catalog records in the grid cells scanned, records within
@@ -61,6 +61,18 @@ class Tolerance(NamedTuple):
     min_support: int
     min_stars: int
     max_hypotheses: int
+
+
+# The kernels take both bundles as plain tuples (``tuple(Tables(...))``; a NamedTuple argument costs
+# about 1 us more per call to dispatch) and read them by these field positions (numba constants).
+DB_UNIT = Tables._fields.index("unit")
+DB_SKY_START = Tables._fields.index("sky_start")
+DB_SKY_AXIS = Tables._fields.index("sky_axis")
+TOL_EPS_CHORD = Tolerance._fields.index("eps_chord")
+TOL_RADIUS_CHORD = Tolerance._fields.index("radius_chord")
+TOL_MIN_SUPPORT = Tolerance._fields.index("min_support")
+TOL_MIN_STARS = Tolerance._fields.index("min_stars")
+TOL_MAX_HYPOTHESES = Tolerance._fields.index("max_hypotheses")
 
 
 @njit(cache=True)
@@ -178,13 +190,9 @@ def vote(v_cam, db, tol, votes, mark):
     the entries this image touched are reset (a list of them is kept anyway), instead of zeroing
     ``n x n_guide`` counters for every image.
     """
-    base_db, height_db, main_db, ni_db, nj_db = db.base, db.height, db.main, db.n_i, db.n_j
-    cell_start, n_cells_b, n_cells_h, cell_b, cell_h = db.cell_start, db.n_cells_b, db.n_cells_h, db.cell_b, db.cell_h
-    cat_unit = db.unit
-    pr_chord, dmin_chord = db.pr_chord, db.dmin_chord
-    side_i_db, side_j_db = db.side_i, db.side_j
-    n_nbr, sigma_chord, k_sigma = tol.n_nbr, tol.sigma_chord, tol.k_sigma
-    side_check, vote_neighbours, v_min, n_cand = tol.side_check, tol.vote_neighbours, tol.v_min, tol.n_cand
+    (base_db, height_db, main_db, ni_db, nj_db, cell_start, n_cells_b, n_cells_h, cell_b, cell_h, cat_unit, _, _,
+     pr_chord, dmin_chord, side_i_db, side_j_db) = db
+    sigma_chord, k_sigma, _, _, n_nbr, side_check, vote_neighbours, v_min, n_cand, _, _, _ = tol
     n = v_cam.shape[0]
     eps_b = k_sigma * math.sqrt(2.0) * sigma_chord
     lo_d = dmin_chord - eps_b
@@ -419,20 +427,25 @@ def sky_cell_of(u, n_axis):
 @njit(cache=True)
 def _nearest_row(r, db, tol_chord):
     """The only catalog row within ``tol_chord`` of unit vector ``r`` (-1 if none or several)."""
-    cat_unit, sky_start, n_axis = db.unit, db.sky_start, db.sky_axis
+    cat_unit, sky_start, n_axis = db[DB_UNIT], db[DB_SKY_START], db[DB_SKY_AXIS]
     found = -1
     w = 2.0 / n_axis
-    lo = np.empty(3, dtype=np.int64)
-    hi = np.empty(3, dtype=np.int64)
-    for d in range(3):
-        lo[d] = max(int((r[d] - tol_chord + 1.0) / w), 0)
-        hi[d] = min(int((r[d] + tol_chord + 1.0) / w), n_axis - 1)
-    for ix in range(lo[0], hi[0] + 1):
-        for iy in range(lo[1], hi[1] + 1):
-            for iz in range(lo[2], hi[2] + 1):
+    # the cell ranges as scalars (two small arrays per call were a measurable part of the fallback)
+    lo_x = max(int((r[0] - tol_chord + 1.0) / w), 0)
+    hi_x = min(int((r[0] + tol_chord + 1.0) / w), n_axis - 1)
+    lo_y = max(int((r[1] - tol_chord + 1.0) / w), 0)
+    hi_y = min(int((r[1] + tol_chord + 1.0) / w), n_axis - 1)
+    lo_z = max(int((r[2] - tol_chord + 1.0) / w), 0)
+    hi_z = min(int((r[2] + tol_chord + 1.0) / w), n_axis - 1)
+    for ix in range(lo_x, hi_x + 1):
+        for iy in range(lo_y, hi_y + 1):
+            for iz in range(lo_z, hi_z + 1):
                 cell = (ix * n_axis + iy) * n_axis + iz
                 for c in range(sky_start[cell], sky_start[cell + 1]):
-                    if chord(r, cat_unit[c]) <= tol_chord:
+                    dx = r[0] - float(cat_unit[c, 0])  # chord(r, cat_unit[c]) without the row view
+                    dy = r[1] - float(cat_unit[c, 1])
+                    dz = r[2] - float(cat_unit[c, 2])
+                    if math.sqrt(dx * dx + dy * dy + dz * dz) <= tol_chord:
                         if found >= 0:
                             return -1
                         found = c
@@ -449,9 +462,9 @@ def _extend(v_cam, row, db, tol):
     sorted by cell of the ``n_axis``^3 sky grid, ``sky_start`` delimiting the cells) when
     that row also agrees in separation with every star of the set and no other star takes it.
     """
-    cat_unit = db.unit
-    tol_chord = tol.eps_chord
-    radius_chord = tol.radius_chord
+    cat_unit = db[DB_UNIT]
+    tol_chord = tol[TOL_EPS_CHORD]
+    radius_chord = tol[TOL_RADIUS_CHORD]
     n = v_cam.shape[0]
     n_set = 0
     for i in range(n):
@@ -504,8 +517,8 @@ def confirm(v_cam, proposed, weight, db, tol, min_stars):
     3. Fewer than ``min_stars`` stars in the end: nothing is reported.
     Returns the catalog row per observed star (-1 = none).
     """
-    cat_unit = db.unit
-    tol_chord = tol.eps_chord
+    cat_unit = db[DB_UNIT]
+    tol_chord = tol[TOL_EPS_CHORD]
     n = v_cam.shape[0]
     row = proposed.copy()
     while True:
@@ -544,7 +557,7 @@ def best_hypothesis(v_cam, hyp, score, db, tol, min_stars):
     best_size = 0
     rival_size = 0
     row = np.empty(n, dtype=np.int64)
-    for h in order[:tol.max_hypotheses]:
+    for h in order[:tol[TOL_MAX_HYPOTHESES]]:
         row[:] = -1
         row[hyp[h, 0]] = hyp[h, 1]
         row[hyp[h, 2]] = hyp[h, 3]
@@ -579,13 +592,14 @@ def identify_rows(v_cam, db, tol, votes, mark):
     (:func:`best_hypothesis`). ``votes``, ``mark``: :func:`vote`'s zeroed scratch (zero again on return).
     """
     cand, cand_votes, hyp, score, work = vote(v_cam, db, tol, votes, mark)
-    chosen, chosen_votes = select_candidates(v_cam, cand, cand_votes, db.unit, tol.eps_chord)
-    verified = verify_pairwise(v_cam, chosen, db.unit, tol.eps_chord, tol.min_support)
+    cat_unit, eps_chord = db[DB_UNIT], tol[TOL_EPS_CHORD]
+    chosen, chosen_votes = select_candidates(v_cam, cand, cand_votes, cat_unit, eps_chord)
+    verified = verify_pairwise(v_cam, chosen, cat_unit, eps_chord, tol[TOL_MIN_SUPPORT])
     for i in range(chosen.shape[0]):
         if not verified[i]:
             chosen[i] = -1
-    rows = confirm(v_cam, chosen, chosen_votes, db, tol, tol.min_stars)
-    if rows.max() < 0 and tol.max_hypotheses > 0:
-        rows = best_hypothesis(v_cam, hyp, score, db, tol, tol.min_stars + 1)
+    rows = confirm(v_cam, chosen, chosen_votes, db, tol, tol[TOL_MIN_STARS])
+    if rows.max() < 0 and tol[TOL_MAX_HYPOTHESES] > 0:
+        rows = best_hypothesis(v_cam, hyp, score, db, tol, tol[TOL_MIN_STARS] + 1)
     return rows, work
 

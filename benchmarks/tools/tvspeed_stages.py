@@ -119,7 +119,7 @@ def _steps(alg, db, o, repeats):
     args = (v_cam, tb.base, tb.height, tb.side_i, tb.side_j, tb.cell_start, tb.n_cells_b, tb.n_cells_h, tb.cell_b,
             tb.cell_h, tb.pr_chord, tb.dmin_chord, tol.n_nbr, tol.sigma_chord, tol.k_sigma, tb.main, tb.n_i, tb.n_j,
             tb.unit)
-    kt, ktol = tva._kernel_args(db, tol) if hasattr(tva, "_kernel_args") else (tb, tol)
+    kt, ktol = tva._kernel_tables(db), tuple(tol)  # as identify calls the kernels
     votes, mark = tva._scratch(db, order.size)
     out["triangles"] = _best(lambda: _loops(*args, 0), repeats)
     out["scan"] = _best(lambda: _loops(*args, 1), repeats)
