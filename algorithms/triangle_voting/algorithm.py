@@ -71,6 +71,10 @@ class TriangleVotingDatabase(Database):
     d_min_chord: float
     deep: DeepSky
     deep_v_mag: np.ndarray
+    #: per record the float32 chords main-to-``n_i`` and main-to-``n_j`` (``record_sides``), read by
+    #: ``vote`` as an exact pre-filter of its side check; part of the database, so counted in its size
+    side_i: np.ndarray
+    side_j: np.ndarray
 
     def tables(self) -> Tables:
         """The arrays the kernels read, as one bundle (made once per database, see ``_tables``)."""
@@ -81,9 +85,7 @@ _TABLES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 def _tables(db: TriangleVotingDatabase) -> Tables:
-    """The kernels' bundle of ``db``, made once per database: with the records' float32 side chords
-    (``record_sides``, 8 bytes per record: 0.7 MB for the default 87,257 records), a derived table held
-    beside the database like ``_unit_f64``, which ``vote`` reads as an exact pre-filter of its side check."""
+    """The kernels' bundle of ``db``, made once per database."""
     return _bundles(db)[0]
 
 
@@ -95,10 +97,9 @@ def _kernel_tables(db: TriangleVotingDatabase) -> tuple:
 def _bundles(db: TriangleVotingDatabase) -> tuple[Tables, tuple]:
     held = _TABLES.get(db)
     if held is None:
-        side_i, side_j = record_sides(db.unit_icrs, db.main, db.n_i, db.n_j)
         tables = Tables(db.base, db.height, db.main, db.n_i, db.n_j, db.cell_start, db.n_cells_b, db.n_cells_h,
                         db.cell_b, db.cell_h, db.unit_icrs, db.sky_start, db.sky_axis, db.pattern_radius_chord,
-                        db.d_min_chord, side_i, side_j)
+                        db.d_min_chord, db.side_i, db.side_j)
         held = _TABLES[db] = (tables, tuple(tables))
     return held
 
@@ -341,14 +342,17 @@ class TriangleVoting(Algorithm):
         order = np.lexsort((main, height32, base32, cell_id))
         cell_start = np.searchsorted(cell_id[order], np.arange(n_cells_b * n_cells_h + 1)).astype(np.int32)
         deep = deep_sky(catalog)
+        main_rows, i_rows = main[order].astype(np.uint16), n_i[order].astype(np.uint16)
+        j_rows = n_j[order].astype(np.uint16)
+        unit32 = unit.astype(np.float32)
+        side_i, side_j = record_sides(unit32, main_rows, i_rows, j_rows)
         return TriangleVotingDatabase(
-            base=base32[order], height=height32[order], main=main[order].astype(np.uint16),
-            n_i=n_i[order].astype(np.uint16), n_j=n_j[order].astype(np.uint16),
-            cell_start=cell_start, unit_icrs=unit.astype(np.float32), hip=hip.astype(np.int64),
+            base=base32[order], height=height32[order], main=main_rows, n_i=i_rows, n_j=j_rows,
+            cell_start=cell_start, unit_icrs=unit32, hip=hip.astype(np.int64),
             sky_start=sky_start, sky_axis=SKY_AXIS,
             cell_b=cell, cell_h=cell, n_cells_b=n_cells_b, n_cells_h=n_cells_h,
             pattern_radius_chord=pr_chord, d_min_chord=dmin_chord,
-            deep=deep, deep_v_mag=deep_v_mag(catalog, deep))
+            deep=deep, deep_v_mag=deep_v_mag(catalog, deep), side_i=side_i, side_j=side_j)
 
     # -- identification ---------------------------------------------------------------------
     def identify(self, database: TriangleVotingDatabase, observation: Observation) -> Identification:
