@@ -20,7 +20,17 @@ from starid.observation import Observation
 from starid.params import check_flag, check_number, check_whole, param
 from starid.plugin import Algorithm, Database, Explanation, Identification
 
-from .kernels import WORK_COUNTERS, Tables, Tolerance, build_triangles, identify_rows, new_scratch, sky_cell_of, vote
+from .kernels import (
+    WORK_COUNTERS,
+    Tables,
+    Tolerance,
+    build_triangles,
+    identify_rows,
+    new_scratch,
+    record_sides,
+    sky_cell_of,
+    vote,
+)
 
 MAX_GUIDE_STARS = np.iinfo(np.uint16).max
 SKY_AXIS = 20  # sky grid cells per axis of [-1, 1]^3 (cell 0.1 ~ 5.7 deg), for reprojection
@@ -61,12 +71,37 @@ class TriangleVotingDatabase(Database):
     d_min_chord: float
     deep: DeepSky
     deep_v_mag: np.ndarray
+    #: per record the float32 chords main-to-``n_i`` and main-to-``n_j`` (``record_sides``), read by
+    #: ``vote`` as an exact pre-filter of its side check; part of the database, so counted in its size
+    side_i: np.ndarray
+    side_j: np.ndarray
 
     def tables(self) -> Tables:
-        """The arrays the kernels read, as one bundle."""
-        return Tables(self.base, self.height, self.main, self.n_i, self.n_j, self.cell_start, self.n_cells_b,
-                      self.n_cells_h, self.cell_b, self.cell_h, self.unit_icrs, self.sky_start, self.sky_axis,
-                      self.pattern_radius_chord, self.d_min_chord)
+        """The arrays the kernels read, as one bundle (made once per database, see ``_tables``)."""
+        return _tables(self)
+
+
+_TABLES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _tables(db: TriangleVotingDatabase) -> Tables:
+    """The kernels' bundle of ``db``, made once per database."""
+    return _bundles(db)[0]
+
+
+def _kernel_tables(db: TriangleVotingDatabase) -> tuple:
+    """``_tables(db)`` as the plain tuple the kernels are called with (cheaper to dispatch)."""
+    return _bundles(db)[1]
+
+
+def _bundles(db: TriangleVotingDatabase) -> tuple[Tables, tuple]:
+    held = _TABLES.get(db)
+    if held is None:
+        tables = Tables(db.base, db.height, db.main, db.n_i, db.n_j, db.cell_start, db.n_cells_b, db.n_cells_h,
+                        db.cell_b, db.cell_h, db.unit_icrs, db.sky_start, db.sky_axis, db.pattern_radius_chord,
+                        db.d_min_chord, db.side_i, db.side_j)
+        held = _TABLES[db] = (tables, tuple(tables))
+    return held
 
 
 _SCRATCH = threading.local()
@@ -307,14 +342,17 @@ class TriangleVoting(Algorithm):
         order = np.lexsort((main, height32, base32, cell_id))
         cell_start = np.searchsorted(cell_id[order], np.arange(n_cells_b * n_cells_h + 1)).astype(np.int32)
         deep = deep_sky(catalog)
+        main_rows, i_rows = main[order].astype(np.uint16), n_i[order].astype(np.uint16)
+        j_rows = n_j[order].astype(np.uint16)
+        unit32 = unit.astype(np.float32)
+        side_i, side_j = record_sides(unit32, main_rows, i_rows, j_rows)
         return TriangleVotingDatabase(
-            base=base32[order], height=height32[order], main=main[order].astype(np.uint16),
-            n_i=n_i[order].astype(np.uint16), n_j=n_j[order].astype(np.uint16),
-            cell_start=cell_start, unit_icrs=unit.astype(np.float32), hip=hip.astype(np.int64),
+            base=base32[order], height=height32[order], main=main_rows, n_i=i_rows, n_j=j_rows,
+            cell_start=cell_start, unit_icrs=unit32, hip=hip.astype(np.int64),
             sky_start=sky_start, sky_axis=SKY_AXIS,
             cell_b=cell, cell_h=cell, n_cells_b=n_cells_b, n_cells_h=n_cells_h,
             pattern_radius_chord=pr_chord, d_min_chord=dmin_chord,
-            deep=deep, deep_v_mag=deep_v_mag(catalog, deep))
+            deep=deep, deep_v_mag=deep_v_mag(catalog, deep), side_i=side_i, side_j=side_j)
 
     # -- identification ---------------------------------------------------------------------
     def identify(self, database: TriangleVotingDatabase, observation: Observation) -> Identification:
@@ -331,9 +369,9 @@ class TriangleVoting(Algorithm):
         if order.size < 3:
             return Identification(out)
         v_cam = backproject_px(x[order], y[order], cam.f_px, cam.cx_px, cam.cy_px)
-        tol = self._tolerance(cam)
+        tol, kernel_tol = self._tolerances(cam)
         db = database
-        rows, work = identify_rows(v_cam, db.tables(), tol, *_scratch(db, order.size))
+        rows, work = identify_rows(v_cam, _kernel_tables(db), kernel_tol, *_scratch(db, order.size))
         counters = dict(zip(WORK_COUNTERS, work.tolist(), strict=True))
         if rows.max() < 0:
             return Identification(out, counters=counters)
@@ -363,6 +401,21 @@ class TriangleVoting(Algorithm):
         v_mag = np.array([db.deep_v_mag[np.flatnonzero(db.deep.hip == h)[0]] for h in hip[named]])
         return float(np.mean(v_mag - mag[named])) <= self.mag_margin
 
+    def _tolerances(self, cam: Camera) -> tuple[Tolerance, tuple]:
+        """``_tolerance(cam)`` and the same as the plain tuple the kernels take, kept for the last camera
+        (an identification's images share one; building the bundle was ~1.6 us of each image)."""
+        held = self.__dict__.get("_held_tolerances")
+        if held is None or held[0] is not cam:
+            tol = self._tolerance(cam)
+            held = (cam, tol, tuple(tol))
+            object.__setattr__(self, "_held_tolerances", held)  # a cache, not a parameter (frozen dataclass)
+        return held[1], held[2]
+
+    def __getstate__(self):
+        state = self.__dict__.copy()
+        state.pop("_held_tolerances", None)  # a camera: not part of the algorithm
+        return state
+
     def _tolerance(self, cam: Camera) -> Tolerance:
         sigma_chord = self.sigma_window_px / cam.f_px
         return Tolerance(
@@ -384,7 +437,8 @@ class TriangleVoting(Algorithm):
         cam = observation.camera
         v_cam = backproject_px(x[order], y[order], cam.f_px, cam.cx_px, cam.cy_px)
         db = database
-        _, cand_votes, hyp, _, _ = vote(v_cam, db.tables(), self._tolerance(cam), *_scratch(db, v_cam.shape[0]))
+        _, cand_votes, hyp, _, _ = vote(v_cam, _kernel_tables(db), self._tolerances(cam)[1],
+                                        *_scratch(db, v_cam.shape[0]))
         hip = self.identify(database, observation).hip
         segments, highlight, seen = [], [], set()
         for i, ri, a, ra, b, rb in hyp:

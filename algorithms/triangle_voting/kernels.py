@@ -16,7 +16,7 @@ import numpy as np
 from numba import njit
 from starid_algorithms.planar_triangle.kernels import argsort_desc
 
-from starid.kernels import chord, chord_rows, verify_pairwise, wahba_rows
+from starid.kernels import chord_rows, verify_pairwise, wahba_rows
 
 #: names of the per-image work counters :func:`identify_rows` returns (``Identification.counters``):
 #: image triangles looked up in the grid, catalog records in the grid cells scanned, records within
@@ -42,6 +42,8 @@ class Tables(NamedTuple):
     sky_axis: int
     pr_chord: float  # pattern radius as a chord
     dmin_chord: float  # D_min as a chord
+    side_i: np.ndarray  # float32 (m,) the record's main-to-n_i and main-to-n_j chords, rounded to float32
+    side_j: np.ndarray  # (:func:`record_sides`): a pre-filter of the side check, which stays exact
 
 
 class Tolerance(NamedTuple):
@@ -59,6 +61,18 @@ class Tolerance(NamedTuple):
     min_support: int
     min_stars: int
     max_hypotheses: int
+
+
+# The kernels take both bundles as plain tuples (``tuple(Tables(...))``; a NamedTuple argument costs
+# about 1 us more per call to dispatch) and read them by these field positions (numba constants).
+DB_UNIT = Tables._fields.index("unit")
+DB_SKY_START = Tables._fields.index("sky_start")
+DB_SKY_AXIS = Tables._fields.index("sky_axis")
+TOL_EPS_CHORD = Tolerance._fields.index("eps_chord")
+TOL_RADIUS_CHORD = Tolerance._fields.index("radius_chord")
+TOL_MIN_SUPPORT = Tolerance._fields.index("min_support")
+TOL_MIN_STARS = Tolerance._fields.index("min_stars")
+TOL_MAX_HYPOTHESES = Tolerance._fields.index("max_hypotheses")
 
 
 @njit(cache=True)
@@ -123,6 +137,28 @@ def build_triangles(unit, rank, nbr_ptr, nbr_idx, lam, dmin_chord):
     return base[:m], height[:m], main[:m], ni[:m], nj[:m]
 
 
+#: bound of the float32 rounding of a chord (at most 2, so its error is at most 2 * 2^-24 = 1.2e-7),
+#: doubled: a record whose float32 sides miss the window by more than this misses it exactly too
+SIDE_ROUNDING = 2.5e-7
+
+
+@njit(cache=True)
+def record_sides(unit, main, n_i, n_j):
+    """Per record the chords main-to-``n_i`` and main-to-``n_j`` (``chord_rows`` of ``unit``) as float32.
+
+    Read sequentially by :func:`vote` in place of two random reads of ``unit`` and two square roots
+    per record in both windows; only a pre-filter (the float32 values are within :data:`SIDE_ROUNDING`
+    of the exact chords), the side check itself is still made from ``unit``.
+    """
+    m = main.size
+    side_i = np.empty(m, dtype=np.float32)
+    side_j = np.empty(m, dtype=np.float32)
+    for r in range(m):
+        side_i[r] = chord_rows(unit, main[r], unit, n_i[r])
+        side_j[r] = chord_rows(unit, main[r], unit, n_j[r])
+    return side_i, side_j
+
+
 @njit(cache=True)
 def _grow(arr):
     """A copy of ``arr`` with twice the length (the new half uninitialised)."""
@@ -154,16 +190,15 @@ def vote(v_cam, db, tol, votes, mark):
     the entries this image touched are reset (a list of them is kept anyway), instead of zeroing
     ``n x n_guide`` counters for every image.
     """
-    base_db, height_db, main_db, ni_db, nj_db = db.base, db.height, db.main, db.n_i, db.n_j
-    cell_start, n_cells_b, n_cells_h, cell_b, cell_h = db.cell_start, db.n_cells_b, db.n_cells_h, db.cell_b, db.cell_h
-    cat_unit = db.unit
-    pr_chord, dmin_chord = db.pr_chord, db.dmin_chord
-    n_nbr, sigma_chord, k_sigma = tol.n_nbr, tol.sigma_chord, tol.k_sigma
-    side_check, vote_neighbours, v_min, n_cand = tol.side_check, tol.vote_neighbours, tol.v_min, tol.n_cand
+    (base_db, height_db, main_db, ni_db, nj_db, cell_start, n_cells_b, n_cells_h, cell_b, cell_h, cat_unit, _, _,
+     pr_chord, dmin_chord, side_i_db, side_j_db) = db
+    sigma_chord, k_sigma, _, _, n_nbr, side_check, vote_neighbours, v_min, n_cand, _, _, _ = tol
     n = v_cam.shape[0]
     eps_b = k_sigma * math.sqrt(2.0) * sigma_chord
     lo_d = dmin_chord - eps_b
     hi_d = pr_chord + eps_b
+    eps_side = eps_b + SIDE_ROUNDING
+    no_side_check = not side_check
     # votes[o, c]: votes of catalog row c for observed star o; mark[u, c], per vertex of the
     # current triangle (main, a, b): the last triangle that voted row c (both all zero on entry)
     obs = np.empty(3, dtype=np.int64)
@@ -173,6 +208,7 @@ def vote(v_cam, db, tol, votes, mark):
     touched_c = np.empty(1024, dtype=np.int64)
     n_touched = 0
     nbr = np.empty(n_nbr, dtype=np.int64)
+    listed = np.empty(256, dtype=np.int64)  # records of one image triangle left for the exact side check
     hyp = np.empty((256, 6), dtype=np.int64)  # side-matched records: (i, c, a, c_a, b, c_b)
     n_hyp = 0
     n_records = 0
@@ -210,56 +246,69 @@ def vote(v_cam, db, tol, votes, mark):
                 while n_touched + 3 * n_scan > touched_o.size:  # room for every possible vote
                     touched_o = _grow(touched_o)
                     touched_c = _grow(touched_c)
+                if n_scan + 1 > listed.size:
+                    listed = np.empty(2 * (n_scan + 1), dtype=np.int64)
                 while n_hyp + n_scan > hyp.shape[0]:
                     grown = np.empty((2 * hyp.shape[0], 6), dtype=np.int64)
                     grown[:n_hyp] = hyp[:n_hyp]
                     hyp = grown
+                # first pass, branch-free over every record of the cells (about half of them are in both
+                # windows: a branch on that is mispredicted half the time): the records in both windows
+                # whose float32 sides (sequential reads) come within their rounding of a side match,
+                # listed; the second pass checks those sides exactly, from the guide vectors, and votes
+                n_near = 0
                 for cb in range(cb0, cb1 + 1):
                     # the cells (cb, ch0..ch1) are contiguous in the record order
                     for r in range(cell_start[cb * n_cells_h + ch0], cell_start[cb * n_cells_h + ch1 + 1]):
-                        if abs(base_db[r] - base) > eps_b or abs(height_db[r] - height) > eps_h:
+                        in_windows = (abs(base_db[r] - base) <= eps_b) & (abs(height_db[r] - height) <= eps_h)
+                        s_i = float(side_i_db[r])
+                        s_j = float(side_j_db[r])
+                        near = min(max(abs(d_ia - s_i), abs(d_ib - s_j)),
+                                   max(abs(d_ia - s_j), abs(d_ib - s_i))) <= eps_side
+                        n_matches += in_windows
+                        listed[n_near] = r
+                        n_near += in_windows & (near | no_side_check)
+                for e in range(n_near):
+                    r = listed[e]
+                    c = main_db[r]
+                    ci = ni_db[r]
+                    cj = nj_db[r]
+                    d_ci = chord_rows(cat_unit, c, cat_unit, ci)
+                    d_cj = chord_rows(cat_unit, c, cat_unit, cj)
+                    e_straight = max(abs(d_ia - d_ci), abs(d_ib - d_cj))
+                    e_swapped = max(abs(d_ia - d_cj), abs(d_ib - d_ci))
+                    if e_swapped < e_straight:
+                        ci, cj = cj, ci
+                        e_straight = e_swapped
+                    sides_match = e_straight <= eps_b
+                    if side_check and not sides_match:
+                        continue
+                    n_votes = 3 if vote_neighbours and sides_match else 1
+                    if sides_match:
+                        hyp[n_hyp, 0] = i
+                        hyp[n_hyp, 1] = c
+                        hyp[n_hyp, 2] = a
+                        hyp[n_hyp, 3] = ci
+                        hyp[n_hyp, 4] = b
+                        hyp[n_hyp, 5] = cj
+                        n_hyp += 1
+                    obs[0] = i
+                    row[0] = c
+                    obs[1] = a
+                    row[1] = ci
+                    obs[2] = b
+                    row[2] = cj
+                    for u in range(n_votes):
+                        o = obs[u]
+                        c = row[u]
+                        if mark[u, c] == tri:  # at most one vote per observed triangle
                             continue
-                        n_matches += 1
-                        c = main_db[r]
-                        ci = ni_db[r]
-                        cj = nj_db[r]
-                        # the third degree of freedom: do the main-to-neighbour sides match too?
-                        d_ci = chord_rows(cat_unit, c, cat_unit, ci)
-                        d_cj = chord_rows(cat_unit, c, cat_unit, cj)
-                        e_straight = max(abs(d_ia - d_ci), abs(d_ib - d_cj))
-                        e_swapped = max(abs(d_ia - d_cj), abs(d_ib - d_ci))
-                        if e_swapped < e_straight:
-                            ci, cj = cj, ci
-                            e_straight = e_swapped
-                        sides_match = e_straight <= eps_b
-                        if side_check and not sides_match:
-                            continue
-                        n_votes = 3 if vote_neighbours and sides_match else 1
-                        if sides_match:
-                            hyp[n_hyp, 0] = i
-                            hyp[n_hyp, 1] = c
-                            hyp[n_hyp, 2] = a
-                            hyp[n_hyp, 3] = ci
-                            hyp[n_hyp, 4] = b
-                            hyp[n_hyp, 5] = cj
-                            n_hyp += 1
-                        obs[0] = i
-                        row[0] = c
-                        obs[1] = a
-                        row[1] = ci
-                        obs[2] = b
-                        row[2] = cj
-                        for u in range(n_votes):
-                            o = obs[u]
-                            c = row[u]
-                            if mark[u, c] == tri:  # at most one vote per observed triangle
-                                continue
-                            mark[u, c] = tri
-                            if votes[o, c] == 0:
-                                touched_o[n_touched] = o
-                                touched_c[n_touched] = c
-                                n_touched += 1
-                            votes[o, c] += 1
+                        mark[u, c] = tri
+                        if votes[o, c] == 0:
+                            touched_o[n_touched] = o
+                            touched_c[n_touched] = c
+                            n_touched += 1
+                        votes[o, c] += 1
     cand = np.full((n, n_cand), -1, dtype=np.int64)
     cand_votes = np.zeros((n, n_cand), dtype=np.int64)
     for e in range(n_touched):
@@ -324,12 +373,20 @@ def select_candidates(v_cam, cand, cand_votes, cat_unit, tol_chord):
     n, k = cand.shape
     chosen = np.full(n, -1, dtype=np.int64)
     chosen_votes = np.zeros(n, dtype=np.int64)
+    # the separations, each computed once (the same values as ``_agree``'s: a chord is the same
+    # number whichever row comes first): observed pairs, and candidate pairs on first use (-1 = not yet)
+    d_obs = np.empty((n, n))
+    for i in range(n):
+        for j in range(n):
+            d_obs[i, j] = chord_rows(v_cam, i, v_cam, j)
+    d_cat = np.full((n * k, n * k), -1.0)
     for i in range(n):
         best_support = 0
         for s in range(k):
             c = cand[i, s]
             if c < 0:
                 break
+            p = i * k + s
             support = 0
             for j in range(n):
                 if j == i:
@@ -338,7 +395,15 @@ def select_candidates(v_cam, cand, cand_votes, cat_unit, tol_chord):
                     c2 = cand[j, s2]
                     if c2 < 0:
                         break
-                    if _agree(v_cam, cat_unit, i, c, j, c2, tol_chord):
+                    if c2 == c:
+                        continue
+                    q = j * k + s2
+                    d = d_cat[p, q]
+                    if d < 0.0:
+                        d = chord_rows(cat_unit, c, cat_unit, c2)
+                        d_cat[p, q] = d
+                        d_cat[q, p] = d
+                    if abs(d_obs[i, j] - d) <= tol_chord:
                         support += 1
                         break
             if support > best_support or (support == best_support and support > 0 and (
@@ -362,20 +427,25 @@ def sky_cell_of(u, n_axis):
 @njit(cache=True)
 def _nearest_row(r, db, tol_chord):
     """The only catalog row within ``tol_chord`` of unit vector ``r`` (-1 if none or several)."""
-    cat_unit, sky_start, n_axis = db.unit, db.sky_start, db.sky_axis
+    cat_unit, sky_start, n_axis = db[DB_UNIT], db[DB_SKY_START], db[DB_SKY_AXIS]
     found = -1
     w = 2.0 / n_axis
-    lo = np.empty(3, dtype=np.int64)
-    hi = np.empty(3, dtype=np.int64)
-    for d in range(3):
-        lo[d] = max(int((r[d] - tol_chord + 1.0) / w), 0)
-        hi[d] = min(int((r[d] + tol_chord + 1.0) / w), n_axis - 1)
-    for ix in range(lo[0], hi[0] + 1):
-        for iy in range(lo[1], hi[1] + 1):
-            for iz in range(lo[2], hi[2] + 1):
+    # the cell ranges as scalars (two small arrays per call were a measurable part of the fallback)
+    lo_x = max(int((r[0] - tol_chord + 1.0) / w), 0)
+    hi_x = min(int((r[0] + tol_chord + 1.0) / w), n_axis - 1)
+    lo_y = max(int((r[1] - tol_chord + 1.0) / w), 0)
+    hi_y = min(int((r[1] + tol_chord + 1.0) / w), n_axis - 1)
+    lo_z = max(int((r[2] - tol_chord + 1.0) / w), 0)
+    hi_z = min(int((r[2] + tol_chord + 1.0) / w), n_axis - 1)
+    for ix in range(lo_x, hi_x + 1):
+        for iy in range(lo_y, hi_y + 1):
+            for iz in range(lo_z, hi_z + 1):
                 cell = (ix * n_axis + iy) * n_axis + iz
                 for c in range(sky_start[cell], sky_start[cell + 1]):
-                    if chord(r, cat_unit[c]) <= tol_chord:
+                    dx = r[0] - float(cat_unit[c, 0])  # chord(r, cat_unit[c]) without the row view
+                    dy = r[1] - float(cat_unit[c, 1])
+                    dz = r[2] - float(cat_unit[c, 2])
+                    if math.sqrt(dx * dx + dy * dy + dz * dz) <= tol_chord:
                         if found >= 0:
                             return -1
                         found = c
@@ -392,9 +462,9 @@ def _extend(v_cam, row, db, tol):
     sorted by cell of the ``n_axis``^3 sky grid, ``sky_start`` delimiting the cells) when
     that row also agrees in separation with every star of the set and no other star takes it.
     """
-    cat_unit = db.unit
-    tol_chord = tol.eps_chord
-    radius_chord = tol.radius_chord
+    cat_unit = db[DB_UNIT]
+    tol_chord = tol[TOL_EPS_CHORD]
+    radius_chord = tol[TOL_RADIUS_CHORD]
     n = v_cam.shape[0]
     n_set = 0
     for i in range(n):
@@ -447,8 +517,8 @@ def confirm(v_cam, proposed, weight, db, tol, min_stars):
     3. Fewer than ``min_stars`` stars in the end: nothing is reported.
     Returns the catalog row per observed star (-1 = none).
     """
-    cat_unit = db.unit
-    tol_chord = tol.eps_chord
+    cat_unit = db[DB_UNIT]
+    tol_chord = tol[TOL_EPS_CHORD]
     n = v_cam.shape[0]
     row = proposed.copy()
     while True:
@@ -487,7 +557,7 @@ def best_hypothesis(v_cam, hyp, score, db, tol, min_stars):
     best_size = 0
     rival_size = 0
     row = np.empty(n, dtype=np.int64)
-    for h in order[:tol.max_hypotheses]:
+    for h in order[:tol[TOL_MAX_HYPOTHESES]]:
         row[:] = -1
         row[hyp[h, 0]] = hyp[h, 1]
         row[hyp[h, 2]] = hyp[h, 3]
@@ -522,13 +592,14 @@ def identify_rows(v_cam, db, tol, votes, mark):
     (:func:`best_hypothesis`). ``votes``, ``mark``: :func:`vote`'s zeroed scratch (zero again on return).
     """
     cand, cand_votes, hyp, score, work = vote(v_cam, db, tol, votes, mark)
-    chosen, chosen_votes = select_candidates(v_cam, cand, cand_votes, db.unit, tol.eps_chord)
-    verified = verify_pairwise(v_cam, chosen, db.unit, tol.eps_chord, tol.min_support)
+    cat_unit, eps_chord = db[DB_UNIT], tol[TOL_EPS_CHORD]
+    chosen, chosen_votes = select_candidates(v_cam, cand, cand_votes, cat_unit, eps_chord)
+    verified = verify_pairwise(v_cam, chosen, cat_unit, eps_chord, tol[TOL_MIN_SUPPORT])
     for i in range(chosen.shape[0]):
         if not verified[i]:
             chosen[i] = -1
-    rows = confirm(v_cam, chosen, chosen_votes, db, tol, tol.min_stars)
-    if rows.max() < 0 and tol.max_hypotheses > 0:
-        rows = best_hypothesis(v_cam, hyp, score, db, tol, tol.min_stars + 1)
+    rows = confirm(v_cam, chosen, chosen_votes, db, tol, tol[TOL_MIN_STARS])
+    if rows.max() < 0 and tol[TOL_MAX_HYPOTHESES] > 0:
+        rows = best_hypothesis(v_cam, hyp, score, db, tol, tol[TOL_MIN_STARS] + 1)
     return rows, work
 
