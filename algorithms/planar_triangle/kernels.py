@@ -407,7 +407,7 @@ def _few_hash(cand, tri_stars, node_cat, layer_lo, layer_hi, mark):
             mark[tri_stars[node_cat[f], x]] = 1
     nc = cand.shape[0]
     keep = np.empty(nc, dtype=np.int64)
-    n = 0
+    n = np.int64(0)  # np.int64: _fill_hash and _hash_size not compiled again for a literal
     for c in range(nc):
         r = cand[c]
         if mark[tri_stars[r, 0]] + mark[tri_stars[r, 1]] + mark[tri_stars[r, 2]] >= 2:
