@@ -31,7 +31,9 @@ from starid.kernels import (
 
 MOMENT_BLOCK = 256  # triangles per block of the moment index (offsets fit uint8)
 HASH_ROOM = 8  # hash-table slots per cached candidate (3 pairs, table at most 3/4 full, power of two)
-EMPTY = np.uint32(0xFFFFFFFF)  # an empty hash slot (no star pair lo < hi < 65536 has this key)
+EMPTY = np.uint64(0xFFFFFFFFFFFFFFFF)  # an empty hash slot (no star pair lo < hi < 65536 has this key)
+SHIFT = np.uint64(32)  # a slot is (star-pair key << 32) | candidate, one 8-byte read per probe
+LOW = np.uint64(0xFFFFFFFF)
 #: names of the per-image work counters the identify kernels return (``Identification.counters``):
 #: star subsets pivoted, pivots made (triangles appended to a chain), catalog candidates examined
 #: (start-triangle hits plus star-pair hash hits at each pivot), unique finalists verified, and
@@ -108,8 +110,8 @@ class MomentCache(NamedTuple):
     start: np.ndarray  # int64 (M,) they are buf[start[g]:stop[g]]
     stop: np.ndarray
     buf: np.ndarray  # int64 (CACHE_PER_TRIANGLE x M,) storage; full: no more caching
-    keys: np.ndarray  # uint32 (HASH_ROOM x len(buf),) hash tables of the candidates' star pairs (EMPTY: empty slot)
-    key_cand: np.ndarray  # int32 the candidate of each slot
+    keys: np.ndarray  # uint64 (HASH_ROOM x len(buf),) hash tables of the candidates' star pairs: slot =
+    # key << SHIFT | candidate (EMPTY: empty slot)
     hstart: np.ndarray  # int64 (M,) triangle g's table is keys[hstart[g]:hstart[g] + hsize[g]]
     hsize: np.ndarray  # int64 (M,) a power of two >= 4 x its candidates (3 keys each)
     fill: np.ndarray  # int64 (1,) used length of buf
@@ -333,10 +335,10 @@ def _moment_list(t, img, db, tol, cache):
 
 
 @njit(cache=True)
-def _fill_hash(cand, n, tri_stars, keys, key_cand):
+def _fill_hash(cand, n, tri_stars, keys):
     """Open-addressing hash table (linear probing; ``keys.shape[0]`` a power of two, EMPTY = empty
-    slot) of the three star pairs ``lo * KEY_BASE + hi`` of the catalog triangles ``cand[:n]``, with
-    the candidate of each slot. Entries of one key are met by a probe in the order of ``cand``."""
+    slot) of the three star pairs ``lo * KEY_BASE + hi`` of the catalog triangles ``cand[:n]``, each
+    slot ``key << SHIFT | candidate``. Entries of one key are met by a probe in the order of ``cand``."""
     mask = keys.shape[0] - 1
     keys[:] = EMPTY
     for c in range(n):
@@ -353,8 +355,7 @@ def _fill_hash(cand, n, tri_stars, keys, key_cand):
             pos = _slot(key, mask)
             while keys[pos] != EMPTY:
                 pos = (pos + 1) & mask
-            keys[pos] = key
-            key_cand[pos] = cand[c]
+            keys[pos] = (np.uint64(key) << SHIFT) | np.uint64(cand[c])
 
 
 @njit(cache=True)
@@ -368,30 +369,28 @@ def _hash_size(n):
 
 @njit(cache=True)
 def _moment_hash(t, img, cand, tri_stars, cache):
-    """``(keys, key_cand)``: the hash table (:func:`_fill_hash`) of the star pairs of image triangle
+    """``keys``: the hash table (:func:`_fill_hash`) of the star pairs of image triangle
     ``t``'s candidates ``cand`` (:func:`_moment_list`), what a pivot matches on. From ``cache`` when
     built before (views: do not write into them); stored there while it has room (only for a
     triangle whose candidates are cached)."""
     g = img.gid[t]
     if cache.done[g] and cache.hsize[g] > 0:
         h0 = cache.hstart[g]
-        return cache.keys[h0:h0 + cache.hsize[g]], cache.key_cand[h0:h0 + cache.hsize[g]]
+        return cache.keys[h0:h0 + cache.hsize[g]]
     nc = cand.shape[0]
     size = _hash_size(nc)
     q = cache.hfill[0]
     cached = cache.done[g] and q + size <= cache.keys.shape[0]
     if cached:
         keys = cache.keys[q:q + size]
-        key_cand = cache.key_cand[q:q + size]
     else:
-        keys = np.empty(size, dtype=np.uint32)
-        key_cand = np.empty(size, dtype=np.int32)
-    _fill_hash(cand, nc, tri_stars, keys, key_cand)
+        keys = np.empty(size, dtype=np.uint64)
+    _fill_hash(cand, nc, tri_stars, keys)
     if cached:
         cache.hstart[g] = q
         cache.hsize[g] = size
         cache.hfill[0] = q + size
-    return keys, key_cand
+    return keys
 
 
 @njit(cache=True)
@@ -417,10 +416,9 @@ def _few_hash(cand, tri_stars, node_cat, layer_lo, layer_hi, mark):
         for x in range(3):
             mark[tri_stars[node_cat[f], x]] = 0
     size = _hash_size(n)
-    keys = np.empty(size, dtype=np.uint32)
-    key_cand = np.empty(size, dtype=np.int32)
-    _fill_hash(keep, n, tri_stars, keys, key_cand)
-    return keys, key_cand
+    keys = np.empty(size, dtype=np.uint64)
+    _fill_hash(keep, n, tri_stars, keys)
+    return keys
 
 
 @njit(cache=True)
@@ -430,8 +428,8 @@ def new_cache(img, n_guide):
     m = img.tri.shape[0]
     total = CACHE_PER_TRIANGLE * m
     return MomentCache(np.zeros(m, dtype=np.bool_), np.zeros(m, dtype=np.int64), np.zeros(m, dtype=np.int64),
-                       np.empty(total, dtype=np.int64), np.empty(HASH_ROOM * total, dtype=np.uint32),
-                       np.empty(HASH_ROOM * total, dtype=np.int32), np.zeros(m, dtype=np.int64),
+                       np.empty(total, dtype=np.int64), np.empty(HASH_ROOM * total, dtype=np.uint64),
+                       np.zeros(m, dtype=np.int64),
                        np.zeros(m, dtype=np.int64), np.zeros(1, dtype=np.int64), np.zeros(1, dtype=np.int64),
                        np.full(MEMO_DIM * MEMO_DIM, -1, dtype=np.int64), np.empty(MEMO_DIM * MEMO_DIM, dtype=np.int64),
                        np.empty(MEMO_DIM * MEMO_DIM, dtype=np.int64), np.empty(MEMO_DIM * MEMO_DIM, dtype=np.int64),
@@ -550,10 +548,10 @@ def _grow(arr, size):
 
 
 @njit(cache=True)
-def _pivot_layer(layer_lo, layer_hi, n_nodes, node_cat, node_parent, hkeys, hcand, tri_stars, img_sig, step,
+def _pivot_layer(layer_lo, layer_hi, n_nodes, node_cat, node_parent, hkeys, tri_stars, img_sig, step,
                  abort_if_grow, consistent_chain, work):
     """One pivot of :func:`_pivot`: every finalist ``f`` in ``[layer_lo, layer_hi)`` extended by the
-    candidates of the next image triangle (hash table ``hkeys``/``hcand`` of their star pairs) that
+    candidates of the next image triangle (hash table ``hkeys`` of their star pairs) that
     share exactly two catalog stars with its last triangle (and, with ``consistent_chain``, whose
     chain shares its stars as the image chain's signatures ``img_sig``); the new finalists are
     written to ``node_cat``/``node_parent`` from ``n_nodes`` on, in order. Counts the candidates
@@ -583,12 +581,13 @@ def _pivot_layer(layer_lo, layer_hi, n_nodes, node_cat, node_parent, hkeys, hcan
             else:
                 key = a1 * KEY_BASE + a2
             pos = _slot(key, hmask)
+            ukey = np.uint64(key)
             while hkeys[pos] != EMPTY:
-                if hkeys[pos] != key:
-                    pos = (pos + 1) & hmask
-                    continue
-                c = np.int64(hcand[pos])
+                entry = hkeys[pos]
                 pos = (pos + 1) & hmask
+                if (entry >> SHIFT) != ukey:
+                    continue
+                c = np.int64(entry & LOW)
                 work[2] += 1
                 shared = 0
                 for x in range(3):
@@ -699,10 +698,10 @@ def _pivot(first, img, db, tol, pivot_limit, cache, work):
         cand = _moment_list(t, img, db, tol, cache)
         g = img.gid[t]
         if (cache.done[g] and cache.hsize[g] > 0) or n_fin > FEW_FINALISTS or cache.scans[g] > 0:
-            hkeys, hcand = _moment_hash(t, img, cand, tri_stars, cache)
+            hkeys = _moment_hash(t, img, cand, tri_stars, cache)
         else:
             cache.scans[g] += 1
-            hkeys, hcand = _few_hash(cand, tri_stars, node_cat, np.int64(layer_lo), np.int64(layer_hi), cache.mark)
+            hkeys = _few_hash(cand, tri_stars, node_cat, np.int64(layer_lo), np.int64(layer_hi), cache.mark)
         img_members = np.empty((step + 1, 3), dtype=np.int64)
         for li in range(step + 1):
             img_members[li] = img_tri[chain[li]]
@@ -715,7 +714,7 @@ def _pivot(first, img, db, tol, pivot_limit, cache, work):
         while True:
             # np.int64: not compiled again for the literal first layer (0) and step (1)
             n_new, grew, fits = _pivot_layer(np.int64(layer_lo), np.int64(layer_hi), np.int64(n_nodes), node_cat,
-                                             node_parent, hkeys, hcand, tri_stars, img_sig, np.int64(step),
+                                             node_parent, hkeys, tri_stars, img_sig, np.int64(step),
                                              abort_if_grow, consistent_chain, work)
             if fits:
                 break

@@ -49,7 +49,7 @@ def _parts(v, db, tol, with_hash):
         n += cand.shape[0]
         if with_hash:
             size = ptk._hash_size(cand.shape[0])
-            ptk._fill_hash(cand, cand.shape[0], db.stars, np.empty(size, np.uint32), np.empty(size, np.int32))
+            ptk._fill_hash(cand, cand.shape[0], db.stars, np.empty(size, np.uint64))
     return n, img.tri.shape[0]
 
 
