@@ -31,7 +31,9 @@ from starid.kernels import (
 
 MOMENT_BLOCK = 256  # triangles per block of the moment index (offsets fit uint8)
 HASH_ROOM = 8  # hash-table slots per cached candidate (3 pairs, table at most 3/4 full, power of two)
-EMPTY = np.uint32(0xFFFFFFFF)  # an empty hash slot (no star pair lo < hi < 65536 has this key)
+EMPTY = np.uint64(0xFFFFFFFFFFFFFFFF)  # an empty hash slot (no star pair lo < hi < 65536 has this key)
+SHIFT = np.uint64(32)  # a slot is (star-pair key << 32) | candidate, one 8-byte read per probe
+LOW = np.uint64(0xFFFFFFFF)
 #: names of the per-image work counters the identify kernels return (``Identification.counters``):
 #: star subsets pivoted, pivots made (triangles appended to a chain), catalog candidates examined
 #: (start-triangle hits plus star-pair hash hits at each pivot), unique finalists verified, and
@@ -46,6 +48,10 @@ N_WORK = len(WORK_COUNTERS)
 CACHE_PER_TRIANGLE = 2048  # room for moment candidates per image triangle (on average) in the cache
 MEMO_DIM = 64  # first pivots (start triangle g0, second g1) with g0, g1 < MEMO_DIM are memoised per image
 MEMO_NODES = 1 << 15  # room for the memoised pivots' new finalists per image (full: no more memoising)
+#: a pivot of at most this many finalists into a triangle whose hash table is not built matches them
+#: against the candidates holding two of their stars only (``_few_hash``; the second such pivot into
+#: the same triangle builds the whole table, kept for the other subsets)
+FEW_FINALISTS = 256
 KEY_BASE = 65536  # star indices are < 65536 (uint16), so a sorted pair packs into lo * 65536 + hi
 
 
@@ -104,8 +110,8 @@ class MomentCache(NamedTuple):
     start: np.ndarray  # int64 (M,) they are buf[start[g]:stop[g]]
     stop: np.ndarray
     buf: np.ndarray  # int64 (CACHE_PER_TRIANGLE x M,) storage; full: no more caching
-    keys: np.ndarray  # uint32 (HASH_ROOM x len(buf),) hash tables of the candidates' star pairs (EMPTY: empty slot)
-    key_cand: np.ndarray  # int32 the candidate of each slot
+    keys: np.ndarray  # uint64 (HASH_ROOM x len(buf),) hash tables of the candidates' star pairs: slot =
+    # key << SHIFT | candidate (EMPTY: empty slot)
     hstart: np.ndarray  # int64 (M,) triangle g's table is keys[hstart[g]:hstart[g] + hsize[g]]
     hsize: np.ndarray  # int64 (M,) a power of two >= 4 x its candidates (3 keys each)
     fill: np.ndarray  # int64 (1,) used length of buf
@@ -120,6 +126,9 @@ class MomentCache(NamedTuple):
     memo_node: np.ndarray  # int64 (MEMO_NODES,) catalog triangle of each new finalist
     memo_parent: np.ndarray  # int64 (MEMO_NODES,) its parent: index of a start candidate
     memo_fill: np.ndarray  # int64 (2,) entries and memo_node slots used
+    # a pivot with few finalists matches them without the next triangle's hash table (``_few_hash``):
+    mark: np.ndarray  # uint8 (guide stars,) all zero between pivots; 1 = a star of a finalist's last triangle
+    scans: np.ndarray  # int64 (M,) pivots into triangle g matched that way (the second builds its table)
 
 
 @njit(cache=True)
@@ -301,43 +310,41 @@ def _slot(key, mask):
 
 
 @njit(cache=True)
-def _moment_candidates(t, img, db, tol, cache):
-    """``(candidates, keys, key_cand)`` of image triangle ``t``: its area hits
-    ``[img.start[t], img.stop[t])`` whose polar moment lies within ``beta`` standard deviations of
-    its own (paper eqs. 16-20), and an open-addressing hash table (linear probing; a power-of-two
-    size, EMPTY = empty slot) of their three star pairs ``lo * KEY_BASE + hi`` with the candidate of each
-    slot (what a pivot matches on). From ``cache`` when this triangle was already looked up for
-    another subset (views: do not write into them); stored there while it has room."""
+def _moment_list(t, img, db, tol, cache):
+    """The candidates of image triangle ``t``: its area hits ``[img.start[t], img.stop[t])`` whose
+    polar moment lies within ``beta`` standard deviations of its own (paper eqs. 16-20), ascending.
+    From ``cache`` when this triangle was already looked up for another subset (a view: do not
+    write into it); stored there while it has room."""
     g = img.gid[t]
     if cache.done[g]:
-        a, b = cache.start[g], cache.stop[g]
-        h0, h1 = cache.hstart[g], cache.hstart[g] + cache.hsize[g]
-        return cache.buf[a:b], cache.keys[h0:h1], cache.key_cand[h0:h1]
+        return cache.buf[cache.start[g]:cache.stop[g]]
     r1, r2, r3 = img.v[img.tri[t, 0]], img.v[img.tri[t, 1]], img.v[img.tri[t, 2]]
     _, moment, _ = triangle_features(r1, r2, r3)
     _, var_j = triangle_variances(r1, r2, r3, tol.sigma_rad)
     half = tol.beta * math.sqrt(var_j)
     out = _moment_filter(db.moment, db.moment_perm, img.start[t], img.stop[t], moment - half, moment + half)
     nc = out.shape[0]
-    size = 8
-    while size < 4 * nc:
-        size *= 2
-    mask = size - 1
     p = cache.fill[0]
-    q = cache.hfill[0]
-    cached = p + nc <= cache.buf.shape[0] and q + size <= cache.keys.shape[0]
-    if cached:
-        keys = cache.keys[q:q + size]
-        key_cand = cache.key_cand[q:q + size]
-    else:
-        keys = np.empty(size, dtype=np.uint32)
-        key_cand = np.empty(size, dtype=np.int32)
+    if p + nc <= cache.buf.shape[0]:
+        cache.buf[p:p + nc] = out
+        cache.start[g] = p
+        cache.stop[g] = p + nc
+        cache.fill[0] = p + nc
+        cache.done[g] = True
+    return out
+
+
+@njit(cache=True)
+def _fill_hash(cand, n, tri_stars, keys):
+    """Open-addressing hash table (linear probing; ``keys.shape[0]`` a power of two, EMPTY = empty
+    slot) of the three star pairs ``lo * KEY_BASE + hi`` of the catalog triangles ``cand[:n]``, each
+    slot ``key << SHIFT | candidate``. Entries of one key are met by a probe in the order of ``cand``."""
+    mask = keys.shape[0] - 1
     keys[:] = EMPTY
-    tri_stars = db.stars
-    for c in range(nc):
-        s0 = np.int64(tri_stars[out[c], 0])
-        s1 = np.int64(tri_stars[out[c], 1])
-        s2 = np.int64(tri_stars[out[c], 2])  # stored ascending
+    for c in range(n):
+        s0 = np.int64(tri_stars[cand[c], 0])
+        s1 = np.int64(tri_stars[cand[c], 1])
+        s2 = np.int64(tri_stars[cand[c], 2])  # stored ascending
         for x in range(3):
             if x == 0:
                 key = s0 * KEY_BASE + s1
@@ -348,34 +355,87 @@ def _moment_candidates(t, img, db, tol, cache):
             pos = _slot(key, mask)
             while keys[pos] != EMPTY:
                 pos = (pos + 1) & mask
-            keys[pos] = key
-            key_cand[pos] = out[c]
-    if cached:
-        cache.buf[p:p + nc] = out
-        cache.start[g] = p
-        cache.stop[g] = p + nc
-        cache.fill[0] = p + nc
-        cache.hstart[g] = q
-        cache.hsize[g] = size
-        cache.hfill[0] = q + size
-        cache.done[g] = True
-    return out, keys, key_cand
+            keys[pos] = (np.uint64(key) << SHIFT) | np.uint64(cand[c])
 
 
 @njit(cache=True)
-def new_cache(img):
+def _hash_size(n):
+    """Slots of a table of ``n`` candidates (3 keys each, at most 3/8 full): a power of two >= 8."""
+    size = 8
+    while size < 4 * n:
+        size *= 2
+    return size
+
+
+@njit(cache=True)
+def _moment_hash(t, img, cand, tri_stars, cache):
+    """``keys``: the hash table (:func:`_fill_hash`) of the star pairs of image triangle
+    ``t``'s candidates ``cand`` (:func:`_moment_list`), what a pivot matches on. From ``cache`` when
+    built before (views: do not write into them); stored there while it has room (only for a
+    triangle whose candidates are cached)."""
+    g = img.gid[t]
+    if cache.done[g] and cache.hsize[g] > 0:
+        h0 = cache.hstart[g]
+        return cache.keys[h0:h0 + cache.hsize[g]]
+    nc = cand.shape[0]
+    size = _hash_size(nc)
+    q = cache.hfill[0]
+    cached = cache.done[g] and q + size <= cache.keys.shape[0]
+    if cached:
+        keys = cache.keys[q:q + size]
+    else:
+        keys = np.empty(size, dtype=np.uint64)
+    _fill_hash(cand, nc, tri_stars, keys)
+    if cached:
+        cache.hstart[g] = q
+        cache.hsize[g] = size
+        cache.hfill[0] = q + size
+    return keys
+
+
+@njit(cache=True)
+def _few_hash(cand, tri_stars, node_cat, layer_lo, layer_hi, mark):
+    """The hash table of only those candidates ``cand`` that hold two or more stars of the
+    finalists' last triangles (``node_cat[layer_lo:layer_hi]``), in the order of ``cand``: a probe
+    for a finalist's star pair meets exactly the entries it meets in the whole table (a candidate
+    holding that pair holds two marked stars), in the same order, so the pivot is the same; for a
+    few finalists it costs a pass over the candidates instead of a table of all of them.
+    ``mark`` (uint8 per guide star) is all zero on entry and on return."""
+    for f in range(layer_lo, layer_hi):
+        for x in range(3):
+            mark[tri_stars[node_cat[f], x]] = 1
+    nc = cand.shape[0]
+    keep = np.empty(nc, dtype=np.int64)
+    n = np.int64(0)  # np.int64: _fill_hash and _hash_size not compiled again for a literal
+    for c in range(nc):
+        r = cand[c]
+        if mark[tri_stars[r, 0]] + mark[tri_stars[r, 1]] + mark[tri_stars[r, 2]] >= 2:
+            keep[n] = r
+            n += 1
+    for f in range(layer_lo, layer_hi):
+        for x in range(3):
+            mark[tri_stars[node_cat[f], x]] = 0
+    size = _hash_size(n)
+    keys = np.empty(size, dtype=np.uint64)
+    _fill_hash(keep, n, tri_stars, keys)
+    return keys
+
+
+@njit(cache=True)
+def new_cache(img, n_guide):
     """An empty :class:`MomentCache` for the triangles of ``img`` (``gid`` 0..m-1), room for
-    CACHE_PER_TRIANGLE candidates per triangle on average."""
+    CACHE_PER_TRIANGLE candidates per triangle on average; ``n_guide`` guide stars."""
     m = img.tri.shape[0]
     total = CACHE_PER_TRIANGLE * m
     return MomentCache(np.zeros(m, dtype=np.bool_), np.zeros(m, dtype=np.int64), np.zeros(m, dtype=np.int64),
-                       np.empty(total, dtype=np.int64), np.empty(HASH_ROOM * total, dtype=np.uint32),
-                       np.empty(HASH_ROOM * total, dtype=np.int32), np.zeros(m, dtype=np.int64),
+                       np.empty(total, dtype=np.int64), np.empty(HASH_ROOM * total, dtype=np.uint64),
+                       np.zeros(m, dtype=np.int64),
                        np.zeros(m, dtype=np.int64), np.zeros(1, dtype=np.int64), np.zeros(1, dtype=np.int64),
                        np.full(MEMO_DIM * MEMO_DIM, -1, dtype=np.int64), np.empty(MEMO_DIM * MEMO_DIM, dtype=np.int64),
                        np.empty(MEMO_DIM * MEMO_DIM, dtype=np.int64), np.empty(MEMO_DIM * MEMO_DIM, dtype=np.int64),
                        np.empty(MEMO_DIM * MEMO_DIM, dtype=np.bool_), np.empty(MEMO_NODES, dtype=np.int64),
-                       np.empty(MEMO_NODES, dtype=np.int64), np.zeros(2, dtype=np.int64))
+                       np.empty(MEMO_NODES, dtype=np.int64), np.zeros(2, dtype=np.int64),
+                       np.zeros(n_guide, dtype=np.uint8), np.zeros(m, dtype=np.int64))
 
 
 @njit(cache=True)
@@ -386,7 +446,7 @@ def first_query(img, db, tol, cache, rows, first, work):
     candidate is the triangle of the rows they are named as. The candidates come from ``cache``."""
     if first < 0:
         return
-    cand = _moment_candidates(first, img, db, tol, cache)[0]
+    cand = _moment_list(first, img, db, tol, cache)
     work[5] = cand.shape[0]
     r0 = rows[img.tri[first, 0]]
     r1 = rows[img.tri[first, 1]]
@@ -488,10 +548,10 @@ def _grow(arr, size):
 
 
 @njit(cache=True)
-def _pivot_layer(layer_lo, layer_hi, n_nodes, node_cat, node_parent, hkeys, hcand, tri_stars, img_sig, step,
+def _pivot_layer(layer_lo, layer_hi, n_nodes, node_cat, node_parent, hkeys, tri_stars, img_sig, step,
                  abort_if_grow, consistent_chain, work):
     """One pivot of :func:`_pivot`: every finalist ``f`` in ``[layer_lo, layer_hi)`` extended by the
-    candidates of the next image triangle (hash table ``hkeys``/``hcand`` of their star pairs) that
+    candidates of the next image triangle (hash table ``hkeys`` of their star pairs) that
     share exactly two catalog stars with its last triangle (and, with ``consistent_chain``, whose
     chain shares its stars as the image chain's signatures ``img_sig``); the new finalists are
     written to ``node_cat``/``node_parent`` from ``n_nodes`` on, in order. Counts the candidates
@@ -521,12 +581,13 @@ def _pivot_layer(layer_lo, layer_hi, n_nodes, node_cat, node_parent, hkeys, hcan
             else:
                 key = a1 * KEY_BASE + a2
             pos = _slot(key, hmask)
+            ukey = np.uint64(key)
             while hkeys[pos] != EMPTY:
-                if hkeys[pos] != key:
-                    pos = (pos + 1) & hmask
-                    continue
-                c = np.int64(hcand[pos])
+                entry = hkeys[pos]
                 pos = (pos + 1) & hmask
+                if (entry >> SHIFT) != ukey:
+                    continue
+                c = np.int64(entry & LOW)
                 work[2] += 1
                 shared = 0
                 for x in range(3):
@@ -592,7 +653,7 @@ def _pivot(first, img, db, tol, pivot_limit, cache, work):
     chain[0] = first
     used_tri[first] = True
     # finalist tree: node = (catalog triangle, parent node); one layer per chain triangle
-    node_cat = _moment_candidates(first, img, db, tol, cache)[0].copy()
+    node_cat = _moment_list(first, img, db, tol, cache).copy()
     n_nodes = node_cat.shape[0]
     work[2] += n_nodes
     node_parent = np.full(max(n_nodes, 1), -1, dtype=np.int64)
@@ -632,8 +693,15 @@ def _pivot(first, img, db, tol, pivot_limit, cache, work):
                 continue
         work_before = work[2]
         nodes_before = n_nodes
-        # the candidates indexed by each of their three star pairs (sorted keys)
-        _, hkeys, hcand = _moment_candidates(t, img, db, tol, cache)
+        # the candidates indexed by each of their three star pairs: all of them (kept for the other
+        # subsets), or for a few finalists only those that can match (the same probes, see _few_hash)
+        cand = _moment_list(t, img, db, tol, cache)
+        g = img.gid[t]
+        if (cache.done[g] and cache.hsize[g] > 0) or n_fin > FEW_FINALISTS or cache.scans[g] > 0:
+            hkeys = _moment_hash(t, img, cand, tri_stars, cache)
+        else:
+            cache.scans[g] += 1
+            hkeys = _few_hash(cand, tri_stars, node_cat, np.int64(layer_lo), np.int64(layer_hi), cache.mark)
         img_members = np.empty((step + 1, 3), dtype=np.int64)
         for li in range(step + 1):
             img_members[li] = img_tri[chain[li]]
@@ -646,7 +714,7 @@ def _pivot(first, img, db, tol, pivot_limit, cache, work):
         while True:
             # np.int64: not compiled again for the literal first layer (0) and step (1)
             n_new, grew, fits = _pivot_layer(np.int64(layer_lo), np.int64(layer_hi), np.int64(n_nodes), node_cat,
-                                             node_parent, hkeys, hcand, tri_stars, img_sig, np.int64(step),
+                                             node_parent, hkeys, tri_stars, img_sig, np.int64(step),
                                              abort_if_grow, consistent_chain, work)
             if fits:
                 break
@@ -969,7 +1037,7 @@ def identify_rows(img_v, db, tol):
     img = image_triangles(img_v, db, tol)
     work[0] = 1
     work[4] = img.tri.shape[0]
-    cache = new_cache(img)
+    cache = new_cache(img, db.unit.shape[0])
     rows, chain = _identify_img(img, db, tol, cache, work)
     # the first start triangle: the largest area, the first of equal ones (argsort_desc's order)
     first = np.int64(-1)  # np.int64: not compiled again for a literal
@@ -1028,7 +1096,7 @@ def identify_subsets(img_v, bright, db, tol, stages):
         return out, chain, -1, work
     img = image_triangles(img_v, db, tol)
     work[4] = img.tri.shape[0]
-    cache = new_cache(img)
+    cache = new_cache(img, db.unit.shape[0])
     first = np.int64(-1)  # the first subset's start triangle (a row of img; np.int64: not a literal)
     for st in range(stages.shape[0]):
         pool = min(stages[st, 1], k)
