@@ -26,7 +26,7 @@ import pandas as pd
 
 from .catalog import Catalog
 from .jitcache import describe
-from .kernels.score import attitude_error_rad
+from .kernels.score import attitude_error_rad, check_ids
 from .observation import Observation, TrialSet
 from .plugin import Algorithm, check_identification
 from .provenance import versions
@@ -66,6 +66,20 @@ def build_key(algorithm: Algorithm) -> tuple:
     return type(algorithm), repr(sorted((k, v) for k, v in algorithm.params().items() if k not in skip))
 
 
+def warm_scoring(catalog: Catalog) -> None:
+    """Compile the harness's scoring kernels (:mod:`starid.kernels.score`) for the types :func:`trial_row`
+    passes them. :func:`prepare` calls it in the warm-up, which runs under the build time limit and is not
+    the plugin's ``compile_s``: on a cold cache their compile (~4.5 CPU s, much longer on a loaded machine)
+    would otherwise fall inside the first image's time limit, and a worker killed there compiles again."""
+    cat_hip = np.ascontiguousarray(catalog.hip, dtype=np.int64)
+    hip = np.array(cat_hip[:3], dtype=np.int64)
+    check_ids(hip, cat_hip)
+    truth = np.eye(3)
+    truth.flags.writeable = False           # trial_row's true attitudes are read-only views of the trial set
+    attitude_error_rad(hip, np.array(catalog.unit_icrs[:3], dtype=np.float64), catalog.hip, catalog.unit_icrs,
+                       truth)
+
+
 def _describe(exc: BaseException) -> str:
     return describe(exc)
 
@@ -98,6 +112,9 @@ def prepare(algorithm: Algorithm, catalog: Catalog, camera, warmup: Observation 
     if warmup is not None:
         if on_phase is not None:
             on_phase("warmup")
+        warm_scoring(catalog)
+        warmup.unit_cam()       # trial_row's back-projection of the read-only image arrays (a kernel signature)
+        t0 = time.perf_counter()
         plugin_view = warmup.for_plugin()
         try:
             algorithm.identify(database, plugin_view)

@@ -96,3 +96,55 @@ def test_attitude_error_matches_the_numpy_solution_bit_for_bit(sky):
         compared += not np.isnan(ref)
         flipped += not np.isnan(ref) and ref > 3600
     assert compared > 1_500 and flipped > 100
+
+
+
+_PREPARE_THEN_ROW = """
+import importlib, pkgutil
+import numpy as np
+from numba.core.registry import CPUDispatcher
+import starid.kernels
+from starid import Camera, SimConfig, Simulator, load_hipparcos
+from starid.harness import prepare, trial_row
+from starid.kernels.score import attitude_error_terms, check_ids
+from starid.plugin import Identification
+from starid.scoring import SuccessRule
+
+cat = load_hipparcos()
+
+
+class Named:
+    name = "named"
+
+    def derived(self, catalog, camera):
+        return self
+
+    def build(self, catalog, camera):
+        return None
+
+    def identify(self, database, observation):      # valid, distinct (wrong) ids
+        return Identification(np.array(cat.hip[: len(observation)], dtype=np.int64))
+
+
+trials = Simulator(cat, Camera(), SimConfig(), seed=3).generate(2)
+prepared = prepare(Named(), cat, trials.camera, trials.warmup)
+kernels = [v for info in pkgutil.walk_packages(starid.kernels.__path__, "starid.kernels.")
+           for v in vars(importlib.import_module(info.name)).values() if isinstance(v, CPUDispatcher)]
+count = lambda: sum(len(k.signatures) for k in kernels)
+before = (len(attitude_error_terms.signatures), len(check_ids.signatures))
+n_before = count()
+row = trial_row(prepared, trials, 0, cat, SuccessRule())
+after = (len(attitude_error_terms.signatures), len(check_ids.signatures))
+print(before, after, count() - n_before, row["error"] == "" and row["attitude_err_arcsec"] > 0)
+"""
+
+
+def test_prepare_compiles_what_trial_row_calls():
+    """The scoring kernels compile in the warm-up (under the build time limit), never in an image's time
+    limit: in a new process (no signature yet), a trial row after ``prepare`` adds none to them or to any
+    kernel of ``starid.kernels`` (the back-projection of the read-only image arrays included)."""
+    import subprocess
+    import sys
+
+    out = subprocess.run([sys.executable, "-c", _PREPARE_THEN_ROW], capture_output=True, text=True, timeout=600)
+    assert out.stdout.strip() == "(1, 1) (1, 1) 0 True", out.stdout + out.stderr

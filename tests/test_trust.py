@@ -146,10 +146,10 @@ def test_a_name_clash_is_refused_naming_both(tmp_path, monkeypatch):
 
 
 SLOW = """
-import sys
+import faulthandler, signal, sys
+faulthandler.register(signal.SIGUSR1, all_threads=True)    # the test's diagnosis when the run does not end
 from starid.cli import main
-sys.exit(main(["run", "ptp", "pvector", "planar_triangle", "--trials", "100000", "--jobs", "2", "--quiet",
-               "--out", sys.argv[1]]))
+sys.exit(main(["run", "tetra", "pvector", "--trials", "100000", "--jobs", "2", "--quiet", "--out", sys.argv[1]]))
 """
 
 
@@ -163,7 +163,11 @@ def test_interrupt_stops_workers_and_exits_cleanly(tmp_path, sig, code):
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     chunks = tmp_path / "out" / "chunks"
-    deadline = time.time() + 120
+    # the first chunk comes after a cold compile of the two plugins (tetra and pvector, the quickest: ~16 CPU s).
+    # Stop 38 found why this test failed now and then: the harness's scoring kernels compiled inside the first
+    # image's 10 s limit, and on a loaded machine the worker was killed there and restarted, over and over
+    # (harness.warm_scoring now compiles them in the warm-up; tests/test_score_kernels.py checks it)
+    deadline = time.time() + 180
     while time.time() < deadline and not list(chunks.glob("*.parquet")):
         time.sleep(0.2)
     children = subprocess.run(["pgrep", "-P", str(proc.pid)], capture_output=True, text=True).stdout.split()
@@ -174,7 +178,16 @@ def test_interrupt_stops_workers_and_exits_cleanly(tmp_path, sig, code):
         pytest.fail(f"no worker processes: run exit code {code_then}, "
                     f"{len(list(chunks.glob('*.parquet')))} chunks written; stderr: {err[-3000:]!r}")
     proc.send_signal(sig)
-    out, err = proc.communicate(timeout=60)
+    try:
+        out, err = proc.communicate(timeout=60)
+    except subprocess.TimeoutExpired:       # say where it hangs: every thread's stack, and the process tree
+        tree = subprocess.run(["ps", "-o", "pid,ppid,stat,etime,wchan:20,args", "--ppid", str(proc.pid), "-p",
+                               str(proc.pid)], capture_output=True, text=True).stdout
+        proc.send_signal(signal.SIGUSR1)
+        time.sleep(2)
+        proc.kill()
+        out, err = proc.communicate(timeout=60)
+        pytest.fail(f"the run did not end within 60 s of signal {sig}; processes:\n{tree}\nstderr:\n{err[-6000:]}")
     assert proc.returncode == code
     assert len(err.strip().splitlines()) == 1 and "run the same command again to resume" in err
     time.sleep(0.5)
