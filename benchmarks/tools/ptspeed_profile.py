@@ -75,8 +75,9 @@ def _tv_steps(alg, db, o, repeats):
         return out
     cam = o.camera
     v_cam = backproject_px(x[order], y[order], cam.f_px, cam.cx_px, cam.cy_px)
-    tol = alg._tolerance(cam)
-    tables = db.tables()
+    tol_nt = alg._tolerance(cam)
+    tol = tuple(tol_nt)       # plain tuples, as identify passes them (one kernel signature)
+    tables = tuple(db.tables())
     votes, mark = tva._scratch(db, order.size)
     out["vote"] = _best(lambda: tvk.vote(v_cam, tables, tol, votes, mark), repeats)
     out["kernel"] = _best(lambda: tvk.identify_rows(v_cam, tables, tol, votes, mark), repeats)
@@ -84,7 +85,7 @@ def _tv_steps(alg, db, o, repeats):
     if rows.max() >= 0:
         all_rows = np.full(len(x), -1, dtype=np.int64)
         all_rows[order] = rows
-        rules = ptk.Finish(tol.eps_chord, float(alg.mag_margin), float(alg.mag_limit),
+        rules = ptk.Finish(tol_nt.eps_chord, float(alg.mag_margin), float(alg.mag_limit),
                            float(alg.coverage_mag_margin), float(alg.max_missed_fraction), bool(alg.assign_all))
         frame = camera_frame(cam)
         unit = getattr(tva, "_unit_f64", lambda d: d.unit_icrs)(db)
