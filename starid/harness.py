@@ -66,6 +66,13 @@ def build_key(algorithm: Algorithm) -> tuple:
     return type(algorithm), repr(sorted((k, v) for k, v in algorithm.params().items() if k not in skip))
 
 
+def database_key(algorithm: Algorithm, catalog_path: str, camera) -> tuple:
+    """What a built database depends on: :func:`build_key`, the catalog and the camera the algorithm
+    assumes. A worker builds one database per key (``executors.execute_task``), and the dispatcher keeps
+    each worker to the keys it holds (``warmup.Dispatcher``): both take it from here."""
+    return (*build_key(algorithm), catalog_path, camera)
+
+
 def warm_scoring(catalog: Catalog) -> None:
     """Compile the harness's scoring kernels (:mod:`starid.kernels.score`) for the types :func:`trial_row`
     passes them. :func:`prepare` calls it in the warm-up, which runs under the build time limit and is not

@@ -38,7 +38,7 @@ import pandas as pd
 
 from ..catalog import Catalog, load_csv, load_hipparcos
 from ..errors import ConfigError
-from ..harness import build_key, constant_columns, failed_row, param_columns, prepare, rows_to_frame, trial_row
+from ..harness import constant_columns, database_key, failed_row, param_columns, prepare, rows_to_frame, trial_row
 from ..provenance import versions
 from ..registry import algorithm_info
 from ..scoring import CRASHED, TIMEOUT, SuccessRule
@@ -194,7 +194,7 @@ def execute_task(task: Task, beat=None) -> pd.DataFrame:
                     beat[2], beat[1] = time.monotonic(), _WARMUP if phase == "warmup" else _BUILD
 
             # a database built at another noise level serves when only query_only parameters differ
-            same_db = (build_key(algorithm), task.catalog_path, trials.camera)
+            same_db = database_key(algorithm, task.catalog_path, trials.camera)
             prepared = prepare(algorithm, catalog, trials.camera, trials.warmup, chunk.variant.label, on_phase,
                                built=_CACHE["databases"].get(same_db))
             _CACHE["prepared"][key] = prepared

@@ -64,19 +64,17 @@ LOOK_AHEAD = 400
 
 
 def _prepared_key(task) -> tuple:
-    """What a worker keys the database it built by (``executors.execute_task``): the plugin, its parameters
-    once the grid point's settings fill its ``follows`` ones, its ``query_only`` ones left out
-    (:func:`starid.harness.build_key`), the catalog and the camera the algorithm assumes. Chunks with one
-    key share one database on a worker."""
-    from ..harness import build_key
+    """What a worker keys the database it built by: :func:`starid.harness.database_key` of the plugin
+    with the grid point's settings filled into its ``follows`` parameters. Chunks with one key share one
+    database on a worker."""
+    from ..harness import database_key
     from ..simulate import SimConfig, assumed_camera
 
     chunk = task.chunk
     try:
         config = SimConfig(**chunk.settings)
         algorithm = chunk.variant.make().resolved(config)
-        return (chunk.variant.name, build_key(algorithm)[1], getattr(task, "catalog_path", ""),
-                assumed_camera(task.camera, config))
+        return database_key(algorithm, getattr(task, "catalog_path", ""), assumed_camera(task.camera, config))
     except Exception:  # noqa: BLE001 -- an algorithm that cannot be made: its chunk's own key
         return ("unmade", chunk.variant, getattr(chunk, "settings_key", None), getattr(task, "catalog_path", ""))
 
