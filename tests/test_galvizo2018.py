@@ -133,3 +133,24 @@ def test_our_f_and_s_from_the_first_query_counters():
     f, s, n_f, n_s = g.first_query(rows)
     assert (f, s, n_f, n_s) == (0.5, 1200.0, 2, 5)
     assert np.isnan(g.first_query(rows.drop(columns="n_first_R"))[0])
+
+
+def test_access_counts_on_hokus_definition():
+    """The access table: counts capped at 501 (hoku logs a run stopped by its 500-access limit so),
+    the 'count > 1' rows averaged over the images that needed more than one access and counted per
+    2,000, the false-star point pooling 6 and 12 false stars, each printed value beside its method."""
+    import pandas as pd
+    sig = g.sigma_px_of(1e-4)
+    rows = [{"study": "false_stars", "grid_false_stars": f, "grid_sigma_px": 0.0, "algorithm": "angle",
+             "label": "angle:galvizo2018", "n_pairs": p, "n_to_r": r}
+            for f, p, r in ((0, 10, 10), (0, 900, 40), (6, 30, 3), (12, 50, 5))]
+    rows += [{"study": "noise", "grid_false_stars": 0, "grid_sigma_px": sig, "algorithm": "spherical_triangle",
+              "label": "spherical_triangle:galvizo2018", "n_pairs": np.nan, "n_to_r": r} for r in (1, 1, 7, 600)]
+    df = g.access_frame(pd.DataFrame(rows)).set_index(["accesses_to", "point"])
+    assert df.loc[("h", "no noise"), "mean"] == (10 + 501) / 2 and df.loc[("h", "no noise"), "paper_mean"] == 69.85
+    assert df.loc[("r", "no noise"), "mean"] == 25
+    assert df.loc[("h", "false stars"), "mean"] == 40 and df.loc[("h", "false stars"), "images"] == 2
+    assert ("h", "rho 1e-2 deg") not in df.index  # no rows at that point
+    sph = df.loc[("r, count > 1", "rho 1e-4 deg")]
+    assert sph["mean"] == (7 + 501) / 2 and sph["runs_of_2000"] == 1000 and sph["paper_runs_of_2000"] == 1952
+    assert sph["images"] == 4 and "(Fig. rPivot)" in g.access_table(pd.DataFrame(rows)).notes[0]

@@ -139,7 +139,7 @@ def confirm_pattern(v_cam, pat_star, pat_row, guide_unit, c_fov, eps, widen, cam
 
 
 #: the work counters of :func:`angle_kernel`, in the order of its ``work`` array
-WORK_NAMES = ("pairs", "windows", "candidates", "tests", "confirms", "first_R", "first_named", "first_in_R")
+WORK_NAMES = ("pairs", "windows", "candidates", "tests", "confirms", "first_R", "first_named", "first_in_R", "to_r")
 
 
 @njit(cache=True)
@@ -151,7 +151,9 @@ def angle_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_un
     pair windows computed (one k-vector search each, at most), catalog pairs (or, with ``compare``
     off, catalog triangles) taken from the windows, direct-match tests, attitude confirmations, and
     the first query step's (the two brightest selected stars'): |R|, whether the identification
-    names both stars, and whether R holds the catalog pair it names them as.
+    names both stars, and whether R holds the catalog pair it names them as; and ``to_r``, the image
+    pairs (in the order of step 2) up to the first whose window holds exactly one catalog pair (all of
+    them when none does): hoku's reduction step, its count of catalog accesses to obtain r.
 
     1. isolated detections, brightest first, at most ``tol.max_stars``;
     2. image pairs in hoku's order ``for i: for j > i``, at most ``tol.max_pairs``;
@@ -171,6 +173,7 @@ def angle_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_un
     m = sel.shape[0]
     start, stop = pair_windows(v_cam, sel, kv, tol)
     work[1] = m * (m - 1) // 2
+    work[8] = _pairs_to_r(start, stop)
     rows, pair = _search(v_cam, sel, start, stop, pairs, nbr, nbr_chord, nbr_start, guide_unit, tol, cam, work)
     if m >= 2:
         lo, hi = start[0, 1], stop[0, 1]
@@ -184,6 +187,19 @@ def angle_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_un
                     work[7] = 1
                     break
     return rows, pair, work
+
+
+@njit(cache=True)
+def _pairs_to_r(start, stop):
+    """Image pairs, in the order ``for a: for b > a``, up to the first whose window holds one catalog pair."""
+    m = start.shape[0]
+    k = 0
+    for a in range(m - 1):
+        for b in range(a + 1, m):
+            k += 1
+            if stop[a, b] - start[a, b] == 1:
+                return k
+    return k
 
 
 @njit(cache=True)

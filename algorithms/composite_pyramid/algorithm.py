@@ -126,6 +126,7 @@ class CompositePyramid(Algorithm):
 
     def identify(self, database: TriangleDatabase, observation: Observation) -> Identification:
         rows, attitude, _, work = self._run(database, observation)
+        work[5] = work[5] or work[1]  # to_r: every query made when none left one candidate
         found = rows.max(initial=-1) >= 0
         return Identification(hip_of(database, rows), attitude if found else None,
                               counters=dict(zip(WORK_NAMES, work.tolist(), strict=True)))

@@ -91,7 +91,8 @@ def composite_kernel(x_px, y_px, mag, index, guide_unit, tol, cam):
     fourth star of the accepted identification, -1 when none; ``work``: the spherical triangle's
     counters ``WORK_NAMES`` -- trios tried, (area, moment) queries made (fourth-star queries included),
     and the first query step's (the three brightest selected stars') |R|, whether the identification
-    names them, and whether R holds the catalog triangle it names them as).
+    names them, and whether R holds the catalog triangle it names them as; ``to_r``: the queries made
+    up to the trio query that first returned exactly one candidate, 0 when none did).
 
     1. usable detections (isolated by ``d_min``), the ``max_stars`` brightest, brightest first;
     2. trios in Mortari's order ``for dj, for dk, for i: j = i + dj, k = j + dk``, at most ``max_trios``;
@@ -143,6 +144,8 @@ def composite_kernel(x_px, y_px, mag, index, guide_unit, tol, cam):
                     work[2] = max(nc, 0)
                     first_trio[:] = trio
                     first_cand[:min(max(nc, 0), nc_max)] = cand[:min(max(nc, 0), nc_max)]
+                if nc == 1 and work[5] == 0:
+                    work[5] = work[1]
                 if nc <= 0 or (tol.unique and nc != 1):
                     continue
                 n_ok = 0

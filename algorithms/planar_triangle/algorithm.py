@@ -471,6 +471,7 @@ class PlanarTriangle(Algorithm):
             rows, chain, stage, work = identify_subsets(v_cam, rank, database.tables(), tol, self._stages(order.size))
         all_rows = np.full(n, -1, dtype=np.int64)
         all_rows[order] = rows
+        work[9] = work[9] or work[8] + work[1]  # to_r: every query made when none left one finalist
         return all_rows, order[chain], int(stage), dict(zip(WORK_COUNTERS, work.tolist(), strict=True))
 
     def identify(self, database: PlanarTriangleDatabase, observation: Observation) -> Identification:

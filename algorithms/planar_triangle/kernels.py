@@ -41,9 +41,11 @@ LOW = np.uint64(0xFFFFFFFF)
 #: step's (the start triangle of the first chain: the largest-area image triangle of the first subset
 #: tried): |R| = its catalog candidates (area and moment windows), whether the identification names its
 #: three stars, and whether R holds the catalog triangle it names them as (``first_R``,
-#: ``first_named``, ``first_in_R``: Galvizo & Lim's f and S, docs/experiments.md)
+#: ``first_named``, ``first_in_R``: Galvizo & Lim's f and S, docs/experiments.md); start triangles
+#: queried, and the queries (start triangles and pivots) made up to the first that left one finalist
+#: (``to_r``: hoku's catalog accesses to obtain r; 0 when none did, reported as every query made)
 WORK_COUNTERS = ("subsets", "pivots", "candidates", "verifications", "image_triangles", "first_R", "first_named",
-                 "first_in_R")
+                 "first_in_R", "starts", "to_r")
 N_WORK = len(WORK_COUNTERS)
 CACHE_PER_TRIANGLE = 2048  # room for moment candidates per image triangle (on average) in the cache
 MEMO_DIM = 64  # first pivots (start triangle g0, second g1) with g0, g1 < MEMO_DIM are memoised per image
@@ -995,6 +997,9 @@ def _identify_img(img, db, tol, cache, work):
     ranked = argsort_desc(img.area)
     for attempt in range(min(tol.restarts + 1, m)):
         chain, cat_chain, n_fin = _pivot(ranked[attempt], img, db, tol, pivot_limit, cache, work)
+        work[8] += 1
+        if n_fin == 1 and work[9] == 0:  # the queries (start triangles and pivots) that first left one finalist
+            work[9] = work[8] + work[1]
         no_chain = img.tri[chain]
         if n_fin != 1:
             continue

@@ -54,7 +54,7 @@ def _share_two(stars, p, q):
 
 
 #: the work counters of :func:`spherical_kernel` and the composite pyramid's kernel (``work``)
-WORK_NAMES = ("trios", "queries", "first_R", "first_named", "first_in_R")
+WORK_NAMES = ("trios", "queries", "first_R", "first_named", "first_in_R", "to_r")
 
 
 @njit(cache=True)
@@ -86,7 +86,9 @@ def spherical_kernel(x_px, y_px, mag, index, guide_unit, tol, cam):
     """Identify one image. Returns ``(rows, attitude, trio, work)``; ``work``: the counters
     :data:`WORK_NAMES` -- image trios tried, (area, moment) queries made (pivots included), and the
     first query step's (the three brightest selected stars'): |R| (0 when the window was skipped),
-    whether the identification names its stars, whether R holds the catalog triangle it names them as.
+    whether the identification names its stars, whether R holds the catalog triangle it names them as;
+    ``to_r``: the queries made up to the one that first left exactly one candidate (after pivoting; 0
+    when none did, which ``identify`` reports as every query made): hoku's catalog accesses to obtain r.
 
     1. usable detections (isolated by ``d_min``), the ``max_stars`` brightest, brightest first;
     2. trios (i, j, k) in the naive order i < j < k (Galvizo & Lim's C(n, 3) loop), at most ``max_trios``;
@@ -156,6 +158,8 @@ def spherical_kernel(x_px, y_px, mag, index, guide_unit, tol, cam):
                         trio[2] = sel[b]
                         if nc <= 1:
                             break
+                if nc == 1 and work[5] == 0:
+                    work[5] = work[1]
                 if nc == 0 or (tol.unique and nc != 1):
                     continue
                 n_ok = 0

@@ -58,9 +58,10 @@ def _in_field(v, field, camera):
     return (v[:, 2] > 0) & camera.in_image(x, y)
 
 
-def images(n, false_stars, rho_deg, field, order, noise, seed=0):
+def images(n, false_stars, rho_deg, field, order, noise, seed=0, catalog=None):
+    """The images of one setting (see the module's docstring), from ``catalog`` (all of Hipparcos when None)."""
     camera = _camera(field)
-    catalog = load_hipparcos()
+    catalog = load_hipparcos() if catalog is None else catalog
     axis_px = g.sigma_px_of(rho_deg, camera)
     direct = field == "square" and noise == "axis"
     settings = sim_settings(g.SIM, {"sigma_px": axis_px if direct else 0.0,

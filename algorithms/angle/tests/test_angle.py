@@ -99,7 +99,8 @@ def test_galvizo_reading_works_noise_free_only(catalog, camera):
 def test_work_counters(algo, db, catalog, camera):
     """Identification.counters against a recount in Python of the same image (the pair windows by
     k-vector), for hoku's test (compare, |R| = 1: one candidate per usable pair, two orientations each)
-    and starid's; the first query's |R|, and whether its R holds the pair the image is named as."""
+    and starid's; the first query's |R|, whether its R holds the pair the image is named as, and the
+    pairs up to the first window of one catalog pair (to_r)."""
     trials = Simulator(catalog.brighter_than(6.0), camera, SimConfig(), seed=8).generate(4)
     hoku = dataclasses.replace(algo, **{k: GALVIZO2018[k] for k in (
         "sigma_query_deg", "sigma_overlay_deg", "unique_window", "compare", "n_check", "min_support", "chirality",
@@ -124,6 +125,8 @@ def test_work_counters(algo, db, catalog, camera):
                 return 0 if hi - lo > tol.max_window else hi - lo
 
             assert c["windows"] == m * (m - 1) // 2 and c["first_R"] == size(0, 1)
+            ones = [k + 1 for k, ab in enumerate(order) if size(*ab) == 1]
+            assert c["to_r"] == (ones[0] if ones else len(order))  # hoku's reduction: pairs to |R| = 1
             if pair[0] >= 0:
                 a, b = (int(np.flatnonzero(sel == s)[0]) for s in pair)
                 assert c["pairs"] == order.index((a, b)) + 1 and 1 <= c["confirms"] <= c["tests"]

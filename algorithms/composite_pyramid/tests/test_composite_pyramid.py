@@ -109,3 +109,23 @@ def test_default_on_the_galvizo2018_camera(catalog):
         assert np.all(hip[hip >= 0] == obs.truth_hip[hip >= 0])
         ok += int((hip >= 0).any())
     assert ok >= 38
+
+
+def test_to_r_counts_trio_queries_in_mortari_order(catalog, camera, db):
+    """``to_r``: the trio queries, in Mortari's order, up to the first whose R has one member (no
+    fourth-star query comes before it: those follow a single candidate), recounted in Python; every
+    query made when none has."""
+    from starid_algorithms.spherical_triangle.tests.test_spherical_triangle import _first_single
+
+    def mortari(m):
+        return [(i, i + dj, i + dj + dk) for dj in range(1, m - 1) for dk in range(1, m - dj)
+                for i in range(0, m - dj - dk)]
+
+    reading = CompositePyramid(**{**GALVIZO2018, "max_stars": 8, "max_trios": 300})
+    for sigma, seed in ((0.0, 5), (1.0, 6)):
+        trials = Simulator(catalog.brighter_than(6.0), camera, SimConfig(sigma_px=sigma), seed=seed).generate(6)
+        for t in range(6):
+            obs = trials.observation(t)
+            c = reading.identify(db, obs).counters
+            first = _first_single(reading, db, obs, mortari)
+            assert c["to_r"] == (first if first else c["queries"])

@@ -254,11 +254,22 @@ def test_first_query_counters_match_a_recount(db, camera, catalog):
             v = camera.backproject(obs.x_px[keep], obs.y_px[keep])
             rank = np.argsort(obs.mag[keep], kind="stable")
             rows, _, work = identify_rows(v, tables, tol)
-            assert tuple(work[5:]) == _first_query_recount(v, np.arange(keep.size), tables, tol, rows)
+            assert tuple(work[5:8]) == _first_query_recount(v, np.arange(keep.size), tables, tol, rows)
+            _check_to_r(rows, work)
             rows, _, _, work = identify_subsets(v, rank, tables, tol, np.array([[4, keep.size, 20]]))
-            assert tuple(work[5:]) == _first_query_recount(v, np.sort(rank[:4]), tables, tol, rows)
-            seen.add(tuple(work[5:] > 0))
+            assert tuple(work[5:8]) == _first_query_recount(v, np.sort(rank[:4]), tables, tol, rows)
+            _check_to_r(rows, work)
+            seen.add(tuple(work[5:8] > 0))
     assert (True, True, True) in seen and len(seen) > 1
+
+
+def _check_to_r(rows, work):
+    """``to_r`` (work[9], hoku's accesses to r): set at the first unique finalist, which is also the
+    first verification; when that one is accepted, every query made (start triangles work[8] and
+    pivots work[1]) came before it."""
+    assert (work[9] > 0) == (work[3] > 0) and work[9] <= work[8] + work[1]
+    if work[3] == 1 and rows.max() >= 0:
+        assert work[9] == work[8] + work[1]
 
 
 def test_float32_area_resolution_is_far_below_the_search_window(db, camera):
