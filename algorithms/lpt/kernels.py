@@ -440,6 +440,50 @@ def reaches_tables(chars, g, need, tables, planes):
 
 
 @njit(cache=True, inline="always")
+def image_groups(chars, g, img, u, pattern, valid, xs, groups):
+    """A necessary condition of guide ``g``'s best score reaching ``nz - u`` (``u >= 0``): false only when it does not.
+
+    For every image character t, the set of shifts under which it is matched (``xs[t]``, int64
+    (nz, 2), overwritten: ``pattern[(j - k) mod m]`` over the level-compatible pairs of a database
+    character in sector j and t in sector k, ``pattern[x]`` the shifts x - d, ``|d| <=
+    sector_tol``). A shift reaching ``nz - u`` misses at most u image characters, so one of the
+    ``u + 1`` groups the characters are dealt into (``groups``, int64 (u + 1, 2)) has all its
+    characters matched under it: when every group's intersection is empty, the score stays below.
+    """
+    nz = img.nz
+    m = pattern.shape[0]
+    for t in range(nz):
+        xs[t, 0] = 0
+        xs[t, 1] = 0
+    for q in range(np.uint64(chars.start[g]), np.uint64(chars.start[g + 1])):
+        lv = np.int64(chars.level[q])
+        j = np.int64(chars.sector[q])
+        for p in range(np.uint64(img.level_start[lv]), np.uint64(img.level_start[lv + 1])):
+            t = img.by_level[p]
+            x = j - img.sector[t]
+            if x < 0:
+                x += m
+            xs[t, 0] |= pattern[x, 0]
+            xs[t, 1] |= pattern[x, 1]
+    for i in range(u + 1):
+        groups[i, 0] = valid[0]
+        groups[i, 1] = valid[1]
+    e = 0
+    for t in range(nz):
+        groups[e, 0] &= xs[t, 0]
+        groups[e, 1] &= xs[t, 1]
+        e += 1
+        if e > u:
+            e = 0
+    any_a = np.int64(0)
+    any_b = np.int64(0)
+    for i in range(u + 1):
+        any_a |= groups[i, 0]
+        any_b |= groups[i, 1]
+    return (any_a | any_b) != 0
+
+
+@njit(cache=True, inline="always")
 def reaches_groups(chars, g, v, most, tables, valid, groups):
     """A necessary condition of :func:`reaches_budget` (same arguments): false only when it is false.
 
@@ -612,6 +656,12 @@ def identify_kernel(x_px, y_px, params, char_sector, char_level, char_start, gui
     at_most = np.zeros((BUDGET_MAX + 1, 2), dtype=np.int64)
     valid = np.zeros(2, dtype=np.int64)
     groups = np.zeros((3 * m + 1, 2), dtype=np.int64)
+    xs = np.zeros((m, 2), dtype=np.int64)
+    pattern = np.zeros((m if fast else 0, 2), dtype=np.int64)   # pattern[x]: the shifts x - d, |d| <= sector_tol
+    for x_ in range(pattern.shape[0]):
+        for d in range(-search.sector_tol, search.sector_tol + 1):
+            s_ = (x_ - d) % m
+            pattern[x_, s_ >> 6] |= np.int64(1) << (s_ & 63)
     for s_ in range(min(m, 128)):
         valid[s_ >> 6] |= np.int64(1) << (s_ & 63)
     row = np.zeros(m, dtype=np.uint8)
@@ -680,7 +730,12 @@ def identify_kernel(x_px, y_px, params, char_sector, char_level, char_start, gui
                     total = 0
                     for q in range(chars.start[g], chars.start[g + 1]):
                         total += most[chars.level[q]]
-                    if total < need or not reaches_groups(chars, g, total - need, most, tables, valid, groups):
+                    if total < need:
+                        continue
+                    if nz - need < total - need:
+                        if not image_groups(chars, g, image, nz - need, pattern, valid, xs, groups):
+                            continue
+                    elif not reaches_groups(chars, g, total - need, most, tables, valid, groups):
                         continue
                     if total - need <= BUDGET_MAX:
                         if not reaches_budget(chars, g, total - need, most, tables, valid, at_most):

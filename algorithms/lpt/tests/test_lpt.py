@@ -11,6 +11,7 @@ from starid_algorithms.lpt.kernels import (
     ImageString,
     StringSearch,
     dense_string,
+    image_groups,
     index_image,
     least_needed,
     match_bound,
@@ -71,7 +72,11 @@ def test_shift_scores_equal_brute_force_circular_match(m, sector_tol):
     words = (m + 63) // 64
     sets, planes = np.zeros((m + 1, words), dtype=np.int64), np.zeros((9, words), dtype=np.int64)
     sum_planes, at_most = np.zeros((12, 2), dtype=np.int64), np.zeros((3 * m + 1, 2), dtype=np.int64)
-    groups = np.zeros((3 * m + 1, 2), dtype=np.int64)
+    groups, xs = np.zeros((3 * m + 1, 2), dtype=np.int64), np.zeros((m, 2), dtype=np.int64)
+    pattern = np.zeros((m, 128), dtype=bool)
+    for d in range(-sector_tol, sector_tol + 1):
+        pattern[np.arange(m), (np.arange(m) - d) % m % 128] = True
+    pattern = np.packbits(pattern, axis=1, bitorder="little").view(np.int64)
     valid = np.zeros(128, dtype=bool)
     valid[:m] = True
     valid = np.packbits(valid, bitorder="little").view(np.int64)
@@ -95,6 +100,7 @@ def test_shift_scores_equal_brute_force_circular_match(m, sector_tol):
                 total = int(most[rows[g][rows[g] > 0]].sum())
                 assert total >= expect[0]
                 assert reaches_tables(chars, g, expect[0], tables, sum_planes)
+                assert image_groups(chars, g, image, nz - expect[0], pattern, valid, xs, groups)
                 for need in range(1, total + 1):    # the two forms of the filter agree
                     exact = reaches_tables(chars, g, need, tables, sum_planes)
                     assert reaches_budget(chars, g, total - need, most, tables, valid, at_most) == exact
