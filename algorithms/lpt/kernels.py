@@ -26,7 +26,6 @@ from ..lpt_improved.planar import (
     seed_attitude_roll,
 )
 
-
 #: the largest budget :func:`reaches_budget` takes; a string with more goes to :func:`reaches_tables`
 BUDGET_MAX = 4
 
@@ -316,7 +315,9 @@ def shift_scores(chars, g, img, search, sets, planes):
 
 @njit(cache=True)
 def window_counts(img, search, most):
-    """``most[L]`` (L = 1..n_levels): the most image characters within ``level_tol`` rows of L in any 2 ``sector_tol`` + 1 consecutive sectors.
+    """``most[L]`` (L = 1..n_levels): the most image characters near row L in any few consecutive sectors.
+
+    Near: within ``level_tol`` rows; few: 2 ``sector_tol`` + 1.
 
     Under any shift a database character of row L matches only image characters within
     ``level_tol`` rows of L in the 2 ``sector_tol`` + 1 sectors it covers: at most ``most[L]``
@@ -723,13 +724,17 @@ def identify_kernel(x_px, y_px, params, char_sector, char_level, char_start, gui
                     need = least_needed(best_sc[n_best - 1], length, search.min_score)
                     if need > cap:
                         break
-                if match_bound(chars, g, image) < need:
-                    continue
-                count_work(trace, 1, 1)
                 if fast:
+                    # match_bound and the sum of most over the characters, in one pass
+                    bits = 0
                     total = 0
-                    for q in range(chars.start[g], chars.start[g + 1]):
-                        total += most[chars.level[q]]
+                    for q in range(np.uint64(chars.start[g]), np.uint64(chars.start[g + 1])):
+                        lv = chars.level[q]
+                        bits |= mask[lv]
+                        total += most[lv]
+                    if (_popcount(bits) if nz <= 62 else match_bound(chars, g, image)) < need:
+                        continue
+                    count_work(trace, 1, 1)
                     if total < need:
                         continue
                     if nz - need < total - need:
@@ -742,6 +747,10 @@ def identify_kernel(x_px, y_px, params, char_sector, char_level, char_start, gui
                             continue
                     elif not reaches_tables(chars, g, need, tables, sum_planes):
                         continue
+                else:
+                    if match_bound(chars, g, image) < need:
+                        continue
+                    count_work(trace, 1, 1)
                 matched, sh = shift_scores(chars, g, image, search, sets, planes)
                 if matched < need:
                     continue

@@ -85,21 +85,22 @@ def main(sky, n):
         refs = []
         for s in order[:alg.max_refs]:
             nz = all_scores(obs.x_px, obs.y_px, params, *db.chars, int(s), bound, score, length)
-            if nz:
+            if nz >= alg.min_score:
                 rank = np.where(score >= alg.min_score, 1024 * score - np.minimum(length - score, 1023), -10**9)
                 thr = np.sort(rank)[-alg.n_candidates]
                 # strings whose exact score makes a rank >= the list's last (must be scored)
                 must = int((rank >= thr).sum())
                 # the level bound's rank at the final threshold
-                brank = 1024 * np.minimum(bound, np.minimum(nz, 3 * length)) - np.minimum(length - np.minimum(bound, nz), 1023)
+                capped = np.minimum(bound, np.minimum(nz, 3 * length))
+                brank = 1024 * capped - np.minimum(length - np.minimum(bound, nz), 1023)
                 passb = int(((brank >= thr) & (bound >= alg.min_score)).sum())
                 refs.append((int(s), nz, must, passb, int(thr // 1024 + 1)))
                 tot_need += must
                 tot_bound += passb
             if int(s) == last:
                 break
-        tot_scored += int(ident.counters.get("n_comparisons", 0))
-        print(i, len(obs.x_px), "scored", ident.counters.get("n_comparisons"), "refs (s, nz, must, bound-pass, need):",
+        tot_scored += int(ident.counters.get("comparisons", 0))
+        print(i, len(obs.x_px), "compared", ident.counters.get("comparisons"), "refs (s, nz, must, bound-pass, need):",
               refs)
     print("total scored", tot_scored, "must", tot_need, "bound at final threshold", tot_bound)
 
