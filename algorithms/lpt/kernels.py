@@ -26,6 +26,9 @@ from ..lpt_improved.planar import (
     seed_attitude_roll,
 )
 
+#: the largest budget :func:`reaches_budget` takes; a string with more goes to :func:`reaches_tables`
+BUDGET_MAX = 4
+
 
 class StringSearch(NamedTuple):
     """Pattern and search parameters as a kernel bundle."""
@@ -311,6 +314,240 @@ def shift_scores(chars, g, img, search, sets, planes):
 
 
 @njit(cache=True)
+def window_counts(img, search, most):
+    """``most[L]`` (L = 1..n_levels): the most image characters near row L in any few consecutive sectors.
+
+    Near: within ``level_tol`` rows; few: 2 ``sector_tol`` + 1.
+
+    Under any shift a database character of row L matches only image characters within
+    ``level_tol`` rows of L in the 2 ``sector_tol`` + 1 sectors it covers: at most ``most[L]``
+    of them. The image characters are in ascending sectors (as :func:`index_image` lists them).
+    """
+    m = search.n_sectors
+    span = 2 * search.sector_tol
+    most[0] = 0
+    for lv in range(1, search.n_levels + 1):
+        a = img.level_start[lv]
+        b = img.level_start[lv + 1]
+        best = 0
+        for p in range(a, b):
+            k0 = img.sector[img.by_level[p]]
+            c = 0
+            for r in range(a, b):
+                gap = img.sector[img.by_level[r]] - k0
+                if gap < 0:
+                    gap += m
+                if gap <= span:
+                    c += 1
+            if c > best:
+                best = c
+        most[lv] = best
+
+
+@njit(cache=True)
+def shift_tables(img, search, tables):
+    """Per reference star, the shifts under which one database character matches image characters.
+
+    ``tables[r, L, j]`` (int64 (3, n_levels + 1, m, 2)): the shifts s (bit s) under which a
+    database character of row L in sector j matches at least r + 1 image characters (those
+    within ``level_tol`` rows of L in sectors j - s + d, ``|d| <= sector_tol``). Only for
+    ``n_sectors <= 128`` and ``sector_tol <= 1`` (two words, at most 3 characters per window).
+    """
+    m = search.n_sectors
+    tol = search.sector_tol
+    for lv in range(search.n_levels + 1):
+        a = img.level_start[lv] if lv > 0 else 0
+        b = img.level_start[lv + 1] if lv > 0 else 0
+        for j in range(m):
+            r1a = np.int64(0)
+            r1b = np.int64(0)
+            r2a = np.int64(0)
+            r2b = np.int64(0)
+            r3a = np.int64(0)
+            r3b = np.int64(0)
+            for p in range(a, b):
+                base = j - img.sector[img.by_level[p]]
+                xa = np.int64(0)
+                xb = np.int64(0)
+                for d in range(-tol, tol + 1):
+                    s = base - d
+                    if s < 0:
+                        s += m
+                    elif s >= m:
+                        s -= m
+                    if s < 64:
+                        xa |= np.int64(1) << s
+                    else:
+                        xb |= np.int64(1) << (s - 64)
+                r3a |= r2a & xa
+                r3b |= r2b & xb
+                r2a |= r1a & xa
+                r2b |= r1b & xb
+                r1a |= xa
+                r1b |= xb
+            tables[0, lv, j, 0] = r1a
+            tables[0, lv, j, 1] = r1b
+            tables[1, lv, j, 0] = r2a
+            tables[1, lv, j, 1] = r2b
+            tables[2, lv, j, 0] = r3a
+            tables[2, lv, j, 1] = r3b
+
+
+@njit(cache=True, inline="always")
+def reaches_tables(chars, g, need, tables, planes):
+    """Whether guide ``g``'s best score can reach ``need``: false only when :func:`shift_scores` is below it.
+
+    Under a shift s every matched image character is matched by some database character, and
+    database character q matches w_q(s) <= 3 image characters, so score(s) <= sum over q of
+    w_q(s), which is the number of :func:`shift_tables` sets (q's row and sector, layers 1..3)
+    holding s. Those sums, every shift at once, are added as bit-sliced counters (``planes``,
+    int64 (bits, 2)) and compared with ``need``.
+    """
+    a = np.uint64(chars.start[g])
+    b = np.uint64(chars.start[g + 1])
+    n_bits = planes.shape[0]
+    for i in range(n_bits):
+        planes[i, 0] = 0
+        planes[i, 1] = 0
+    for q in range(a, b):
+        lv = np.uint64(chars.level[q])
+        j = np.uint64(chars.sector[q])
+        for r in range(np.uint64(3)):
+            xa = tables[r, lv, j, 0]
+            xb = tables[r, lv, j, 1]
+            if (xa | xb) == 0:
+                break
+            i = np.uint64(0)
+            while (xa | xb) != 0:
+                ca = planes[i, 0] & xa
+                cb = planes[i, 1] & xb
+                planes[i, 0] ^= xa
+                planes[i, 1] ^= xb
+                xa = ca
+                xb = cb
+                i += np.uint64(1)
+    gta = np.int64(0)
+    gtb = np.int64(0)
+    eqa = np.int64(-1)
+    eqb = np.int64(-1)
+    for i in range(n_bits - 1, -1, -1):
+        if (need >> i) & 1:
+            eqa &= planes[i, 0]
+            eqb &= planes[i, 1]
+        else:
+            gta |= eqa & planes[i, 0]
+            gtb |= eqb & planes[i, 1]
+    return (gta | eqa | gtb | eqb) != 0
+
+
+@njit(cache=True, inline="always")
+def image_groups(chars, g, img, u, pattern, valid, xs, groups):
+    """A necessary condition of guide ``g``'s best score reaching ``nz - u`` (``u >= 0``): false only when it does not.
+
+    For every image character t, the set of shifts under which it is matched (``xs[t]``, int64
+    (nz, 2), overwritten: ``pattern[(j - k) mod m]`` over the level-compatible pairs of a database
+    character in sector j and t in sector k, ``pattern[x]`` the shifts x - d, ``|d| <=
+    sector_tol``). A shift reaching ``nz - u`` misses at most u image characters, so one of the
+    ``u + 1`` groups the characters are dealt into (``groups``, int64 (u + 1, 2)) has all its
+    characters matched under it: when every group's intersection is empty, the score stays below.
+    """
+    nz = img.nz
+    m = pattern.shape[0]
+    for t in range(nz):
+        xs[t, 0] = 0
+        xs[t, 1] = 0
+    for q in range(np.uint64(chars.start[g]), np.uint64(chars.start[g + 1])):
+        lv = np.int64(chars.level[q])
+        j = np.int64(chars.sector[q])
+        for p in range(np.uint64(img.level_start[lv]), np.uint64(img.level_start[lv + 1])):
+            t = img.by_level[p]
+            x = j - img.sector[t]
+            if x < 0:
+                x += m
+            xs[t, 0] |= pattern[x, 0]
+            xs[t, 1] |= pattern[x, 1]
+    for i in range(u + 1):
+        groups[i, 0] = valid[0]
+        groups[i, 1] = valid[1]
+    e = 0
+    for t in range(nz):
+        groups[e, 0] &= xs[t, 0]
+        groups[e, 1] &= xs[t, 1]
+        e += 1
+        if e > u:
+            e = 0
+    any_a = np.int64(0)
+    any_b = np.int64(0)
+    for i in range(u + 1):
+        any_a |= groups[i, 0]
+        any_b |= groups[i, 1]
+    return (any_a | any_b) != 0
+
+
+@njit(cache=True, inline="always")
+def reaches_groups(chars, g, v, most, tables, valid, groups):
+    """A necessary condition of :func:`reaches_budget` (same arguments): false only when it is false.
+
+    The sets are dealt in turn into ``v + 1`` groups (``groups``, int64 (v + 1, 2), overwritten)
+    and each group's sets are intersected. A shift missing at most ``v`` sets has a group it misses
+    none of (pigeonhole), so it is in that group's intersection: when every intersection is empty,
+    no shift reaches. Intersections of two or more of these sparse sets are nearly always empty,
+    so an unrelated string is turned away by one pass over its characters, without branches.
+    """
+    for i in range(v + 1):
+        groups[i, 0] = valid[0]
+        groups[i, 1] = valid[1]
+    e = 0
+    for q in range(np.uint64(chars.start[g]), np.uint64(chars.start[g + 1])):
+        lv = np.uint64(chars.level[q])
+        j = np.uint64(chars.sector[q])
+        for r in range(np.uint64(most[lv])):
+            groups[e, 0] &= tables[r, lv, j, 0]
+            groups[e, 1] &= tables[r, lv, j, 1]
+            e += 1
+            if e > v:
+                e = 0
+    any_a = np.int64(0)
+    any_b = np.int64(0)
+    for i in range(v + 1):
+        any_a |= groups[i, 0]
+        any_b |= groups[i, 1]
+    return (any_a | any_b) != 0
+
+
+@njit(cache=True, inline="always")
+def reaches_budget(chars, g, v, most, tables, valid, at_most):
+    """Whether some shift s has ``sum over g's characters q of w_q(s) >= total - v`` (see :func:`reaches_tables`).
+
+    ``total`` is the sum of ``most[L_q]`` over ``g``'s characters and ``v = total - need >= 0``.
+    Character q stands for its ``most[L_q]`` :func:`shift_tables` sets (layers 1..most[L_q]), and
+    the sets not holding s are its misses, ``most[L_q] - w_q(s)`` of them: the test holds at s
+    exactly when s misses at most ``v`` sets in all. The sets are taken in turn; ``at_most[i]``
+    (int64 (v + 1, 2), overwritten) holds the shifts missed by at most i so far:
+    ``at_most[i] = at_most[i - 1] | (at_most[i] & x)``, starting from the ``valid`` shifts (2
+    words). No as soon as ``at_most[v]`` empties: for an unrelated string after about ``v + 1``
+    sets, each holding a few of the m shifts.
+    """
+    for i in range(v + 1):
+        at_most[i, 0] = valid[0]
+        at_most[i, 1] = valid[1]
+    for q in range(np.uint64(chars.start[g]), np.uint64(chars.start[g + 1])):
+        lv = np.uint64(chars.level[q])
+        j = np.uint64(chars.sector[q])
+        for r in range(np.uint64(most[lv])):
+            xa = tables[r, lv, j, 0]
+            xb = tables[r, lv, j, 1]
+            for i in range(v, 0, -1):
+                at_most[i, 0] = at_most[i - 1, 0] | (at_most[i, 0] & xa)
+                at_most[i, 1] = at_most[i - 1, 1] | (at_most[i, 1] & xb)
+            at_most[0, 0] &= xa
+            at_most[0, 1] &= xb
+            if at_most[v, 0] | at_most[v, 1] == 0:
+                return False
+    return True
+
+
+@njit(cache=True)
 def order_by_count(chars, count_start, by_count):
     """Guide rows ordered by their strings' character count, guide order within a count (counting sort).
 
@@ -413,6 +650,21 @@ def identify_kernel(x_px, y_px, params, char_sector, char_level, char_start, gui
         n_bits += 1
     sets = np.zeros((m + 1, n_words), dtype=np.int64)
     planes = np.zeros((n_bits + 1, n_words), dtype=np.int64)
+    fast = m <= 128 and search.sector_tol <= 1    # the shift tables' layout (two words, 3 layers)
+    most = np.zeros(search.n_levels + 1, dtype=np.int64)
+    tables = np.zeros((3, search.n_levels + 1, m if fast else 0, 2), dtype=np.int64)
+    sum_planes = np.zeros((n_bits + 3, 2), dtype=np.int64)
+    at_most = np.zeros((BUDGET_MAX + 1, 2), dtype=np.int64)
+    valid = np.zeros(2, dtype=np.int64)
+    groups = np.zeros((3 * m + 1, 2), dtype=np.int64)
+    xs = np.zeros((m, 2), dtype=np.int64)
+    pattern = np.zeros((m if fast else 0, 2), dtype=np.int64)   # pattern[x]: the shifts x - d, |d| <= sector_tol
+    for x_ in range(pattern.shape[0]):
+        for d in range(-search.sector_tol, search.sector_tol + 1):
+            s_ = (x_ - d) % m
+            pattern[x_, s_ >> 6] |= np.int64(1) << (s_ & 63)
+    for s_ in range(min(m, 128)):
+        valid[s_ >> 6] |= np.int64(1) << (s_ & 63)
     row = np.zeros(m, dtype=np.uint8)
     n_best = search.n_candidates
     best_item = np.empty(n_best, dtype=np.int64)   # guide row * m + shift
@@ -438,6 +690,9 @@ def identify_kernel(x_px, y_px, params, char_sector, char_level, char_start, gui
                 q += 1
         index_image(img_sector, img_level, nz, search, level_start, by_level, mask)
         image = ImageString(img_sector, img_level, nz, level_start, by_level, mask)
+        if fast:
+            window_counts(image, search, most)
+            shift_tables(image, search, tables)
         if not ordered:
             order_by_count(chars, count_start, by_count)
             ordered = True
@@ -469,10 +724,34 @@ def identify_kernel(x_px, y_px, params, char_sector, char_level, char_start, gui
                     need = least_needed(best_sc[n_best - 1], length, search.min_score)
                     if need > cap:
                         break
-                if match_bound(chars, g, image) < need:
-                    continue
+                if fast:
+                    # match_bound and the sum of most over the characters, in one pass
+                    bits = 0
+                    total = 0
+                    for q in range(np.uint64(chars.start[g]), np.uint64(chars.start[g + 1])):
+                        lv = chars.level[q]
+                        bits |= mask[lv]
+                        total += most[lv]
+                    if (_popcount(bits) if nz <= 62 else match_bound(chars, g, image)) < need:
+                        continue
+                    count_work(trace, 1, 1)
+                    if total < need:
+                        continue
+                    if nz - need < total - need:
+                        if not image_groups(chars, g, image, nz - need, pattern, valid, xs, groups):
+                            continue
+                    elif not reaches_groups(chars, g, total - need, most, tables, valid, groups):
+                        continue
+                    if total - need <= BUDGET_MAX:
+                        if not reaches_budget(chars, g, total - need, most, tables, valid, at_most):
+                            continue
+                    elif not reaches_tables(chars, g, need, tables, sum_planes):
+                        continue
+                else:
+                    if match_bound(chars, g, image) < need:
+                        continue
+                    count_work(trace, 1, 1)
                 matched, sh = shift_scores(chars, g, image, search, sets, planes)
-                count_work(trace, 1, 1)
                 if matched < need:
                     continue
                 found = keep_best(best_sc, best_item, found, n_best, rank_key(matched, length), g * m + sh)

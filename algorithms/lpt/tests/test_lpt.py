@@ -11,12 +11,18 @@ from starid_algorithms.lpt.kernels import (
     ImageString,
     StringSearch,
     dense_string,
+    image_groups,
     index_image,
     least_needed,
     match_bound,
     rank_key,
+    reaches_budget,
+    reaches_groups,
+    reaches_tables,
     shift_scores,
+    shift_tables,
     sparse_strings,
+    window_counts,
 )
 
 from starid import Camera, ConfigError, SimConfig, Simulator
@@ -65,6 +71,15 @@ def test_shift_scores_equal_brute_force_circular_match(m, sector_tol):
     chars = sparse_strings(rows)
     words = (m + 63) // 64
     sets, planes = np.zeros((m + 1, words), dtype=np.int64), np.zeros((9, words), dtype=np.int64)
+    sum_planes, at_most = np.zeros((12, 2), dtype=np.int64), np.zeros((3 * m + 1, 2), dtype=np.int64)
+    groups, xs = np.zeros((3 * m + 1, 2), dtype=np.int64), np.zeros((m, 2), dtype=np.int64)
+    pattern = np.zeros((m, 128), dtype=bool)
+    for d in range(-sector_tol, sector_tol + 1):
+        pattern[np.arange(m), (np.arange(m) - d) % m % 128] = True
+    pattern = np.packbits(pattern, axis=1, bitorder="little").view(np.int64)
+    valid = np.zeros(128, dtype=bool)
+    valid[:m] = True
+    valid = np.packbits(valid, bitorder="little").view(np.int64)
     for img in images:
         sec = np.flatnonzero(img)
         nz = sec.size
@@ -72,10 +87,24 @@ def test_shift_scores_equal_brute_force_circular_match(m, sector_tol):
         by_level = np.zeros(3 * m, dtype=np.int64)
         index_image(sec, img[sec], nz, search, level_start, by_level, mask)
         image = ImageString(sec, img[sec], nz, level_start, by_level, mask)
+        most, tables = np.zeros(17, dtype=np.int64), None
+        if m <= 128 and sector_tol <= 1:
+            window_counts(image, search, most)
+            tables = np.zeros((3, 17, m, 2), dtype=np.int64)
+            shift_tables(image, search, tables)
         for g in range(len(rows)):      # every string against every image: true matches and unrelated ones
             expect = _brute_force(rows[g], img, m, 1, sector_tol)
             assert shift_scores(chars, g, image, search, sets, planes) == expect
             assert match_bound(chars, g, image) >= expect[0]
+            if tables is not None:              # the scan's filter: never below the score
+                total = int(most[rows[g][rows[g] > 0]].sum())
+                assert total >= expect[0]
+                assert reaches_tables(chars, g, expect[0], tables, sum_planes)
+                assert image_groups(chars, g, image, nz - expect[0], pattern, valid, xs, groups)
+                for need in range(1, total + 1):    # the two forms of the filter agree
+                    exact = reaches_tables(chars, g, need, tables, sum_planes)
+                    assert reaches_budget(chars, g, total - need, most, tables, valid, at_most) == exact
+                    assert reaches_groups(chars, g, total - need, most, tables, valid, groups) or not exact
 
 
 def test_least_needed_is_the_pruning_threshold():
