@@ -31,6 +31,7 @@ from starid.plugin import Algorithm, Database, Explanation, Identification
 
 from .kernels import (
     WORK_NAMES,
+    SideIndex,
     Tables,
     Tolerances,
     View,
@@ -45,6 +46,11 @@ from .kernels import (
 CHORD_SCALE = 10000.0
 #: Smallest centroid noise (px) the windows assume, whatever ``sigma_px`` says, on the paper's camera.
 SIGMA_FLOOR_PX = 1.0
+#: Bin width of side a in the second index (scaled chord, about 0.05 deg): near the 3 sigma side tolerance
+#: at 1 px on the paper's camera (7.2), so a window reads 2-3 bins. Any width gives the same rows.
+INDEX_WIDTH = 8.0
+#: log2 of the block of projection-ordered rows the second index points into (64 rows).
+INDEX_SHIFT = 6
 #: The paper's double-star limit d_min (section 2.1: D_ms >= 8.728, i.e. 0.05 deg), on its camera
 #: (Table 4, which is :data:`starid.camera.REFERENCE_CAMERA`).
 D_MIN_DEG = 0.05
@@ -85,6 +91,9 @@ class PTPDatabase(Database):
         those are None, derived from the build camera by :func:`camera_rules`); identify uses these.
     deep : :class:`starid.kernels.DeepSky`, the stars to V <= ``deep_mag_limit`` for ``assign_all``
         (empty unless ``assign_all``).
+    index : :class:`~starid_algorithms.ptp.kernels.SideIndex`, the second index: the rows by bins of
+        side a within blocks of the projection order (:func:`side_index`), so a window reads only the rows
+        whose side a can agree.
     """
 
     kv: KVector
@@ -97,6 +106,7 @@ class PTPDatabase(Database):
     deep: DeepSky
     extra_unit: np.ndarray
     explained_variance: float
+    index: SideIndex
     d_min_deg: float = D_MIN_DEG
     sigma_floor_px: float = SIGMA_FLOOR_PX
 
@@ -118,7 +128,7 @@ class PTPDatabase(Database):
     @cached_property
     def _tables(self) -> Tables:     # built once: saves about 1 us per image
         return Tables(self.kv, self.ids, self.sides, self.mean, self.axis, self.guide_unit, self.guide_hip,
-                      self.extra_unit)
+                      self.extra_unit, self.index)
 
 
 @lru_cache(maxsize=16)
@@ -155,6 +165,23 @@ def _tolerances(algorithm: PTP, d_min_deg: float, sigma_floor_px: float) -> Tole
 
 def _index_dtype(n: int):
     return np.uint16 if n <= np.iinfo(np.uint16).max else np.int32
+
+
+def side_index(side_a: np.ndarray, width: float = INDEX_WIDTH, shift: int = INDEX_SHIFT) -> SideIndex:
+    """The second index over the database rows (in projection order) by their float32 side a: the rows
+    sorted by (``floor(a / width)``, row), and for every bin the position of its first row in each block of
+    ``2**shift`` rows (:class:`~starid_algorithms.ptp.kernels.SideIndex`)."""
+    t = side_a.shape[0]
+    bins = np.floor(side_a.astype(np.float64) / width).astype(np.int64)
+    n_bins = int(bins.max()) + 1
+    n_blocks = (t + (1 << shift) - 1) >> shift
+    span = n_blocks << shift
+    keys = bins * span + np.arange(t, dtype=np.int64)
+    order = np.argsort(keys, kind="stable")
+    marks = (np.arange(n_bins, dtype=np.int64)[:, None] * span
+             + (np.arange(n_blocks + 1, dtype=np.int64) << shift)[None, :])
+    offsets = np.searchsorted(keys[order], marks, side="left")
+    return SideIndex(order.astype(_index_dtype(t)), offsets.astype(_index_dtype(t)), float(width), int(shift))
 
 
 @dataclass(frozen=True)
@@ -454,13 +481,14 @@ class PTP(Algorithm):
         proj = q @ axis                                   # eq. 3
         order = np.argsort(proj, kind="stable")
         kv = kvector_make(proj[order], values_dtype=np.float32, index_dtype=_index_dtype(len(order)))
+        sides = np.ascontiguousarray(sides[order].T, dtype=np.float32)
         return PTPDatabase(kv=kv, ids=ids[order].astype(_index_dtype(len(guide))),
-                           sides=np.ascontiguousarray(sides[order].T, dtype=np.float32), mean=mean, axis=axis,
+                           sides=sides, mean=mean, axis=axis,
                            guide_hip=guide_hip.astype(np.int64), guide_unit=unit.astype(np.float32),
                            deep=deep_sky(catalog, self.deep_mag_limit if self.assign_all else -math.inf),
                            extra_unit=check_stars(catalog, guide_hip,
                                                   self.check_mag_limit if self.hypotheses else -math.inf),
-                           explained_variance=float(eigval[-1] / eigval.sum()),
+                           explained_variance=float(eigval[-1] / eigval.sum()), index=side_index(sides[0]),
                            d_min_deg=d_min_deg, sigma_floor_px=sigma_floor_px)
 
     def identify(self, database: PTPDatabase, observation: Observation) -> Identification:

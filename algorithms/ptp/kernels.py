@@ -32,6 +32,24 @@ class View(NamedTuple):
     c_fov: float
 
 
+class SideIndex(NamedTuple):
+    """The second index of the database rows (issue #25): by side a, within blocks of the projection order.
+
+    rows : (t,) the database rows ordered by (bin of side a, row); the bin of a row is
+        ``floor(a / width)`` of its float32 side a.
+    offsets : (n_bins, n_blocks + 1) positions in ``rows``: ``offsets[i, j]`` is the first entry of bin ``i``
+        whose row is at least ``j << shift`` (``offsets[i, n_blocks]`` is the end of bin ``i``). The rows of
+        bin ``i`` inside a k-vector window ``[start, stop)`` are therefore among the entries
+        ``offsets[i, start >> shift]`` to ``offsets[i, ((stop - 1) >> shift) + 1]``, in ascending row order.
+    width : the bin width (scaled chord); shift : log2 of the block size (rows).
+    """
+
+    rows: np.ndarray
+    offsets: np.ndarray
+    width: float
+    shift: int
+
+
 class Tables(NamedTuple):
     """What identify reads from :class:`~starid_algorithms.ptp.PTPDatabase`, as one kernel argument.
 
@@ -43,6 +61,7 @@ class Tables(NamedTuple):
     costs numba's dispatch time on every image.)
     extra_unit : float32 (e, 3) ICRS unit vectors, z-sorted, of the catalog stars that are not guide
         stars, to V <= ``check_mag_limit`` (the whole-image check; may be empty).
+    index : :class:`SideIndex`, the rows by side a within blocks of the projection order.
     """
 
     kv: KVector
@@ -53,6 +72,7 @@ class Tables(NamedTuple):
     guide_unit: np.ndarray
     guide_hip: np.ndarray
     extra_unit: np.ndarray
+    index: SideIndex
 
 
 class Tolerances(NamedTuple):
@@ -259,6 +279,58 @@ def _side_check(sides, start, stop, db_sides, sigma, scale, side_beta, out_cand)
     return n_out
 
 
+#: Margin (scaled chord) by which the bins an indexed check reads extend beyond side a's tolerance: more
+#: than the float32 rounding of the sides (1.2e-4 below 2048), so every row the float32 check accepts is read.
+INDEX_MARGIN = 0.01
+#: Windows the indexed check reads through the index: at most this many bins of side a ...
+INDEX_MAX_BINS = 8
+#: ... and this many rows (Table 6's windows: 2-3 bins, about 400 rows).
+INDEX_MAX_ROWS = 4096
+
+
+@njit(cache=True)
+def _side_check_indexed(sides, start, stop, db_sides, index, sigma, scale, side_beta, out_cand):
+    """The rows of :func:`_side_check` (the same rows, ascending), read through the :class:`SideIndex`: only
+    the rows of the window ``[start, stop)`` whose side a lies in a bin within the tolerance of ``sides[0]``
+    (about 12 of some 400) are compared, by the same float32 test. ``out_cand`` must hold ``stop - start``
+    entries. A window that spans more than :data:`INDEX_MAX_BINS` bins or :data:`INDEX_MAX_ROWS` rows
+    (wide fields, large noise) is scanned by :func:`_side_check` instead: its rows would interleave from
+    many bins, and their ascending order would cost an insertion sort of many rows.
+    """
+    a = np.float32(sides[0])
+    b = np.float32(sides[1])
+    c = np.float32(sides[2])
+    ta = np.float32(side_beta * scale * side_sigma(sides[0] / scale, sigma))
+    tb = np.float32(side_beta * scale * side_sigma(sides[1] / scale, sigma))
+    tc = np.float32(side_beta * scale * side_sigma(sides[2] / scale, sigma))
+    if stop <= start:
+        return 0
+    offsets = index.offsets
+    rows = index.rows
+    i0 = max(int(math.floor((float(a) - float(ta) - INDEX_MARGIN) / index.width)), 0)
+    i1 = min(int(math.floor((float(a) + float(ta) + INDEX_MARGIN) / index.width)), offsets.shape[0] - 1)
+    if i1 - i0 >= INDEX_MAX_BINS or stop - start > INDEX_MAX_ROWS:
+        return _side_check(sides, start, stop, db_sides, sigma, scale, side_beta, out_cand)
+    j0 = start >> index.shift
+    j1 = ((stop - 1) >> index.shift) + 1
+    sa = db_sides[0]
+    sb = db_sides[1]
+    sc = db_sides[2]
+    n_out = 0
+    for i in range(i0, i1 + 1):
+        for e in range(offsets[i, j0], offsets[i, j1]):
+            r = np.int64(rows[e])
+            if r < start or r >= stop or _side_excess(sa, sb, sc, r, a, b, c, ta, tb, tc) > 0:
+                continue
+            k = n_out       # ascending rows, as the scan of the window gives them (bins interleave)
+            while k > 0 and out_cand[k - 1] > r:
+                out_cand[k] = out_cand[k - 1]
+                k -= 1
+            out_cand[k] = r
+            n_out += 1
+    return n_out
+
+
 @njit(cache=True)
 def _triple_key(i, j, k, n):
     """Order-free key of a set of three image stars."""
@@ -376,7 +448,8 @@ def identify_kernel(x_px, y_px, mag, view_t, db_t, tol_t):
     each caller it is linked into, so a level less in the call tree is a cold compile about 2 s shorter.
     """
     view = View(Frame(*view_t[0]), view_t[1])
-    db = Tables(KVector(*db_t[0]), db_t[1], db_t[2], db_t[3], db_t[4], db_t[5], db_t[6], db_t[7])
+    db = Tables(KVector(*db_t[0]), db_t[1], db_t[2], db_t[3], db_t[4], db_t[5], db_t[6], db_t[7],
+                SideIndex(*db_t[8]))
     tol = Tolerances(*tol_t)
     n = x_px.shape[0]
     hip = np.full(n, -1, dtype=np.int64)
@@ -444,7 +517,7 @@ def identify_kernel(x_px, y_px, mag, view_t, db_t, tol_t):
                                           sides, db.kv, db.mean, db.axis, sigma, scale, tol.beta)
                     if stop - start > cand.shape[0]:
                         cand = np.empty(2 * (stop - start), dtype=np.int64)
-                    nc = _side_check(sides, start, stop, db.sides, sigma, scale, side_beta, cand)
+                    nc = _side_check_indexed(sides, start, stop, db.sides, db.index, sigma, scale, side_beta, cand)
                     work[0] += 1
                     work[1] += stop - start
                     work[2] += nc
