@@ -81,8 +81,6 @@ class PTPDatabase(Database):
     kv : :class:`starid.kernels.KVector`: ``kv.values`` float32 (t,) the projections p_r (eq. 3),
         ascending; ``kv.k`` uint16/int32 (t,) the k-vector, ``kv.m``, ``kv.q`` its line (eq. 16).
     ids : uint16/int32 (t, 3) guide-star rows of (r1, r2, r3) = (master, nearer slave, farther slave).
-    sides : float32 (3, t) scaled sides a, b, c of eq. 1, one row per side (contiguous for the
-        vectorised three-side check).
     mean : float64 (3,) mean side vector; axis : float64 (3,) the projection axis u_max.
     guide_hip : int64 (g,) catalog id of each guide row; guide rows are sorted by z (declination).
     guide_unit : float32 (g, 3) ICRS unit vectors of the guide stars, for verification and
@@ -92,13 +90,13 @@ class PTPDatabase(Database):
     deep : :class:`starid.kernels.DeepSky`, the stars to V <= ``deep_mag_limit`` for ``assign_all``
         (empty unless ``assign_all``).
     index : :class:`~starid_algorithms.ptp.kernels.SideIndex`, the second index: the rows by bins of
-        side a within blocks of the projection order (:func:`side_index`), so a window reads only the rows
-        whose side a can agree.
+        side a within blocks of the projection order, with their float32 scaled sides a, b, c of eq. 1
+        (:func:`side_index`), so a window reads only the rows whose side a can agree. The sides in
+        projection order, (3, t), are :attr:`sides` (derived, not stored).
     """
 
     kv: KVector
     ids: np.ndarray
-    sides: np.ndarray
     mean: np.ndarray
     axis: np.ndarray
     guide_hip: np.ndarray
@@ -115,6 +113,14 @@ class PTPDatabase(Database):
         """The sorted projections p_r (``kv.values``)."""
         return self.kv.values
 
+    @cached_property
+    def sides(self) -> np.ndarray:
+        """float32 (3, t) the scaled sides a, b, c of eq. 1 in projection order, one row per side, rebuilt
+        from the index (identify reads them only through the index)."""
+        out = np.empty((3, self.index.rows.shape[0]), dtype=np.float32)
+        out[:, self.index.rows.astype(np.int64)] = self.index.sides.T
+        return out
+
     def tables(self) -> Tables:
         """The arrays identify reads, as one kernel argument."""
         return self._tables
@@ -127,8 +133,8 @@ class PTPDatabase(Database):
 
     @cached_property
     def _tables(self) -> Tables:     # built once: saves about 1 us per image
-        return Tables(self.kv, self.ids, self.sides, self.mean, self.axis, self.guide_unit, self.guide_hip,
-                      self.extra_unit, self.index)
+        return Tables(self.kv, self.ids, self.mean, self.axis, self.guide_unit, self.guide_hip, self.extra_unit,
+                      self.index)
 
 
 @lru_cache(maxsize=16)
@@ -167,12 +173,13 @@ def _index_dtype(n: int):
     return np.uint16 if n <= np.iinfo(np.uint16).max else np.int32
 
 
-def side_index(side_a: np.ndarray, width: float = INDEX_WIDTH, shift: int = INDEX_SHIFT) -> SideIndex:
-    """The second index over the database rows (in projection order) by their float32 side a: the rows
-    sorted by (``floor(a / width)``, row), and for every bin the position of its first row in each block of
-    ``2**shift`` rows (:class:`~starid_algorithms.ptp.kernels.SideIndex`)."""
-    t = side_a.shape[0]
-    bins = np.floor(side_a.astype(np.float64) / width).astype(np.int64)
+def side_index(sides: np.ndarray, width: float = INDEX_WIDTH, shift: int = INDEX_SHIFT) -> SideIndex:
+    """The second index over the database rows (in projection order) by their float32 side a (``sides``:
+    float32 (3, t), projection order): the rows sorted by (``floor(a / width)``, row), their sides in that
+    order, and for every bin the position of its first row in each block of ``2**shift`` rows
+    (:class:`~starid_algorithms.ptp.kernels.SideIndex`)."""
+    t = sides.shape[1]
+    bins = np.floor(sides[0].astype(np.float64) / width).astype(np.int64)
     n_bins = int(bins.max()) + 1
     n_blocks = (t + (1 << shift) - 1) >> shift
     span = n_blocks << shift
@@ -181,7 +188,8 @@ def side_index(side_a: np.ndarray, width: float = INDEX_WIDTH, shift: int = INDE
     marks = (np.arange(n_bins, dtype=np.int64)[:, None] * span
              + (np.arange(n_blocks + 1, dtype=np.int64) << shift)[None, :])
     offsets = np.searchsorted(keys[order], marks, side="left")
-    return SideIndex(order.astype(_index_dtype(t)), offsets.astype(_index_dtype(t)), float(width), int(shift))
+    return SideIndex(order.astype(_index_dtype(t)), np.ascontiguousarray(sides[:, order].T, dtype=np.float32),
+                     np.ascontiguousarray(offsets.T, dtype=_index_dtype(t)), float(width), int(shift))
 
 
 @dataclass(frozen=True)
@@ -481,14 +489,14 @@ class PTP(Algorithm):
         proj = q @ axis                                   # eq. 3
         order = np.argsort(proj, kind="stable")
         kv = kvector_make(proj[order], values_dtype=np.float32, index_dtype=_index_dtype(len(order)))
-        sides = np.ascontiguousarray(sides[order].T, dtype=np.float32)
         return PTPDatabase(kv=kv, ids=ids[order].astype(_index_dtype(len(guide))),
-                           sides=sides, mean=mean, axis=axis,
+                           mean=mean, axis=axis,
                            guide_hip=guide_hip.astype(np.int64), guide_unit=unit.astype(np.float32),
                            deep=deep_sky(catalog, self.deep_mag_limit if self.assign_all else -math.inf),
                            extra_unit=check_stars(catalog, guide_hip,
                                                   self.check_mag_limit if self.hypotheses else -math.inf),
-                           explained_variance=float(eigval[-1] / eigval.sum()), index=side_index(sides[0]),
+                           explained_variance=float(eigval[-1] / eigval.sum()),
+                           index=side_index(np.ascontiguousarray(sides[order].T, dtype=np.float32)),
                            d_min_deg=d_min_deg, sigma_floor_px=sigma_floor_px)
 
     def identify(self, database: PTPDatabase, observation: Observation) -> Identification:

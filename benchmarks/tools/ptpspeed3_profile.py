@@ -27,8 +27,7 @@ from starid.registry import get_algorithm
 @njit(cache=False)   # not cached: numba does not see a change in the kernels it calls
 def search_stage(x_px, y_px, mag, view_t, db_t, tol_t, level):
     view = K.View(K.Frame(*view_t[0]), view_t[1])
-    db = K.Tables(K.KVector(*db_t[0]), db_t[1], db_t[2], db_t[3], db_t[4], db_t[5], db_t[6], db_t[7],
-                   K.SideIndex(*db_t[8]))
+    db = K.Tables(K.KVector(*db_t[0]), db_t[1], db_t[2], db_t[3], db_t[4], db_t[5], db_t[6], K.SideIndex(*db_t[7]))
     tol = K.Tolerances(*tol_t)
     sel = K.select_stars(x_px, y_px, mag, tol.max_stars)
     k = 0
@@ -86,10 +85,9 @@ def search_stage(x_px, y_px, mag, view_t, db_t, tol_t, level):
                     if level == 1:
                         total += stop - start
                         continue
-                    if stop - start > cand.shape[0]:
-                        cand = np.empty(2 * (stop - start), dtype=np.int64)
-                    nc = K._side_check_indexed(sides, start, stop, db.sides, db.index, sigma, scale, tol.side_beta,
-                                               cand)
+                    if stop - start >= cand.shape[0]:
+                        cand = np.empty(2 * (stop - start) + 1, dtype=np.int64)
+                    nc = K._side_check_indexed(sides, start, stop, db.index, sigma, scale, tol.side_beta, cand)
                     total += nc
                     if level == 2 or nc > tol.max_candidates:
                         continue

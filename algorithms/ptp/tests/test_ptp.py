@@ -40,7 +40,7 @@ def test_database_layout(db, catalog):
     assert db.guide_hip.dtype == np.int64
     # the paper's Table 6: 0.784 MB; here + int64 ids, d_max 6 deg (measured 0.81 MB), the whole-image
     # check's unit vectors (V <= 7, float32, 0.126 MB) and the second index (0.179 MB): 1.118 MB
-    index_mb = (db.index.rows.nbytes + db.index.offsets.nbytes) / 1e6
+    index_mb = (db.index.rows.nbytes + db.index.offsets.nbytes) / 1e6     # beside the sides it holds
     assert (db.nbytes - db.extra_unit.nbytes) / 1e6 - index_mb <= 0.82 and index_mb <= 0.18
     assert db.nbytes / 1e6 <= 1.13
     assert db.extra_unit.dtype == np.float32 and np.all(np.diff(db.extra_unit[:, 2]) >= 0)
@@ -150,12 +150,13 @@ def test_side_index_reads_the_same_rows(db):
     index = db.index
     rows = index.rows.astype(np.int64)
     assert np.array_equal(np.sort(rows), np.arange(db.proj.size))
+    assert np.array_equal(db.sides[:, rows].T, index.sides)
     bins = np.floor(db.sides[0, rows].astype(np.float64) / index.width)
     assert np.all(np.diff(bins) >= 0) and np.all(np.diff(rows)[np.diff(bins) == 0] > 0)
     rng = np.random.default_rng(5)
     t = db.proj.size
     pick = rng.integers(0, t, 3000)
-    out_a, out_b = np.empty(t, dtype=np.int64), np.empty(t, dtype=np.int64)
+    out_a, out_b = np.empty(t, dtype=np.int64), np.empty(t + 1, dtype=np.int64)
     n_total = 0
     for k, r in enumerate(pick):
         sides = db.sides[:, r].astype(np.float64) + rng.normal(0.0, 4.0, 3)
@@ -164,7 +165,7 @@ def test_side_index_reads_the_same_rows(db):
         lo = int(np.searchsorted(db.proj, p - rng.uniform(0.0, 40.0), "left"))
         hi = int(np.searchsorted(db.proj, p + rng.uniform(0.0, 40.0), "right"))
         n_a = _side_check(sides, lo, hi, db.sides, sigma, CHORD_SCALE, 3.0, out_a)
-        n_b = _side_check_indexed(sides, lo, hi, db.sides, index, sigma, CHORD_SCALE, 3.0, out_b)
+        n_b = _side_check_indexed(sides, lo, hi, index, sigma, CHORD_SCALE, 3.0, out_b)
         assert n_a == n_b and np.array_equal(out_a[:n_a], out_b[:n_b])
         n_total += n_a
     assert n_total > 1000
