@@ -435,6 +435,25 @@ class PTP(Algorithm):
         return plain(self._derived_tol)
 
     @cached_property
+    def _tol_by_database(self) -> dict:
+        return {}
+
+    def _tolerances_pair(self, database: PTPDatabase) -> tuple[Tolerances, tuple]:
+        """:meth:`tolerances` and the same as plain tuples (the kernel's argument). An instance that was not
+        :meth:`derived` (e.g. ``get_algorithm("ptp")()`` as the benchmarks time it) keeps both per database
+        setting in a dict of its own: the lru_cache's hash of the whole instance and ``plain`` cost about
+        2 us of every image."""
+        if self.d_min_deg is not None and self.sigma_floor_px is not None:
+            return self._derived_tol, self._derived_tol_t
+        key = (database.d_min_deg, database.sigma_floor_px)
+        pair = self._tol_by_database.get(key)
+        if pair is None:
+            tol = _tolerances(self, *key)
+            pair = (tol, plain(tol))
+            self._tol_by_database[key] = pair
+        return pair
+
+    @cached_property
     def _d_max(self) -> float:
         """d_max as a scaled chord (872.8 for 5 deg)."""
         return CHORD_SCALE * rad_to_chord(math.radians(self.d_max_deg))
@@ -503,8 +522,7 @@ class PTP(Algorithm):
         """:func:`~starid_algorithms.ptp.kernels.identify_kernel`, then (``assign_all``) the attitude of the
         identified stars (Wahba) assigns every detection to the deep catalog star predicted within the
         tolerance (``starid.kernels.assign_all``, one-to-one only). Counters: :data:`WORK_NAMES`."""
-        (view, view_t), tol = _view(observation.camera), self.tolerances(database)
-        tol_t = plain(tol) if self.d_min_deg is None or self.sigma_floor_px is None else self._derived_tol_t
+        (view, view_t), (tol, tol_t) = _view(observation.camera), self._tolerances_pair(database)
         hip, unit, rows, work = identify_kernel(observation.x_px, observation.y_px, observation.mag, view_t,
                                                 database.plain_tables, tol_t)
         if tol.assign_all and database.deep.unit.shape[0] > 0 and np.count_nonzero(rows >= 0) >= 3:
