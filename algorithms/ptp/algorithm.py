@@ -31,6 +31,7 @@ from starid.plugin import Algorithm, Database, Explanation, Identification
 
 from .kernels import (
     WORK_NAMES,
+    SideIndex,
     Tables,
     Tolerances,
     View,
@@ -45,6 +46,11 @@ from .kernels import (
 CHORD_SCALE = 10000.0
 #: Smallest centroid noise (px) the windows assume, whatever ``sigma_px`` says, on the paper's camera.
 SIGMA_FLOOR_PX = 1.0
+#: Bin width of side a in the second index (scaled chord, about 0.05 deg): near the 3 sigma side tolerance
+#: at 1 px on the paper's camera (7.2), so a window reads 2-3 bins. Any width gives the same rows.
+INDEX_WIDTH = 8.0
+#: log2 of the block of projection-ordered rows the second index points into (64 rows).
+INDEX_SHIFT = 6
 #: The paper's double-star limit d_min (section 2.1: D_ms >= 8.728, i.e. 0.05 deg), on its camera
 #: (Table 4, which is :data:`starid.camera.REFERENCE_CAMERA`).
 D_MIN_DEG = 0.05
@@ -75,8 +81,6 @@ class PTPDatabase(Database):
     kv : :class:`starid.kernels.KVector`: ``kv.values`` float32 (t,) the projections p_r (eq. 3),
         ascending; ``kv.k`` uint16/int32 (t,) the k-vector, ``kv.m``, ``kv.q`` its line (eq. 16).
     ids : uint16/int32 (t, 3) guide-star rows of (r1, r2, r3) = (master, nearer slave, farther slave).
-    sides : float32 (3, t) scaled sides a, b, c of eq. 1, one row per side (contiguous for the
-        vectorised three-side check).
     mean : float64 (3,) mean side vector; axis : float64 (3,) the projection axis u_max.
     guide_hip : int64 (g,) catalog id of each guide row; guide rows are sorted by z (declination).
     guide_unit : float32 (g, 3) ICRS unit vectors of the guide stars, for verification and
@@ -85,11 +89,14 @@ class PTPDatabase(Database):
         those are None, derived from the build camera by :func:`camera_rules`); identify uses these.
     deep : :class:`starid.kernels.DeepSky`, the stars to V <= ``deep_mag_limit`` for ``assign_all``
         (empty unless ``assign_all``).
+    index : :class:`~starid_algorithms.ptp.kernels.SideIndex`, the second index: the rows by bins of
+        side a within blocks of the projection order, with their float32 scaled sides a, b, c of eq. 1
+        (:func:`side_index`), so a window reads only the rows whose side a can agree. The sides in
+        projection order, (3, t), are :attr:`sides` (derived, not stored).
     """
 
     kv: KVector
     ids: np.ndarray
-    sides: np.ndarray
     mean: np.ndarray
     axis: np.ndarray
     guide_hip: np.ndarray
@@ -97,6 +104,7 @@ class PTPDatabase(Database):
     deep: DeepSky
     extra_unit: np.ndarray
     explained_variance: float
+    index: SideIndex
     d_min_deg: float = D_MIN_DEG
     sigma_floor_px: float = SIGMA_FLOOR_PX
 
@@ -104,6 +112,14 @@ class PTPDatabase(Database):
     def proj(self) -> np.ndarray:
         """The sorted projections p_r (``kv.values``)."""
         return self.kv.values
+
+    @cached_property
+    def sides(self) -> np.ndarray:
+        """float32 (3, t) the scaled sides a, b, c of eq. 1 in projection order, one row per side, rebuilt
+        from the index (identify reads them only through the index)."""
+        out = np.empty((3, self.index.rows.shape[0]), dtype=np.float32)
+        out[:, self.index.rows.astype(np.int64)] = self.index.sides.T
+        return out
 
     def tables(self) -> Tables:
         """The arrays identify reads, as one kernel argument."""
@@ -117,8 +133,8 @@ class PTPDatabase(Database):
 
     @cached_property
     def _tables(self) -> Tables:     # built once: saves about 1 us per image
-        return Tables(self.kv, self.ids, self.sides, self.mean, self.axis, self.guide_unit, self.guide_hip,
-                      self.extra_unit)
+        return Tables(self.kv, self.ids, self.mean, self.axis, self.guide_unit, self.guide_hip, self.extra_unit,
+                      self.index)
 
 
 @lru_cache(maxsize=16)
@@ -155,6 +171,25 @@ def _tolerances(algorithm: PTP, d_min_deg: float, sigma_floor_px: float) -> Tole
 
 def _index_dtype(n: int):
     return np.uint16 if n <= np.iinfo(np.uint16).max else np.int32
+
+
+def side_index(sides: np.ndarray, width: float = INDEX_WIDTH, shift: int = INDEX_SHIFT) -> SideIndex:
+    """The second index over the database rows (in projection order) by their float32 side a (``sides``:
+    float32 (3, t), projection order): the rows sorted by (``floor(a / width)``, row), their sides in that
+    order, and for every bin the position of its first row in each block of ``2**shift`` rows
+    (:class:`~starid_algorithms.ptp.kernels.SideIndex`)."""
+    t = sides.shape[1]
+    bins = np.floor(sides[0].astype(np.float64) / width).astype(np.int64)
+    n_bins = int(bins.max()) + 1
+    n_blocks = (t + (1 << shift) - 1) >> shift
+    span = n_blocks << shift
+    keys = bins * span + np.arange(t, dtype=np.int64)
+    order = np.argsort(keys, kind="stable")
+    marks = (np.arange(n_bins, dtype=np.int64)[:, None] * span
+             + (np.arange(n_blocks + 1, dtype=np.int64) << shift)[None, :])
+    offsets = np.searchsorted(keys[order], marks, side="left")
+    return SideIndex(order.astype(_index_dtype(t)), np.ascontiguousarray(sides[:, order].T, dtype=np.float32),
+                     np.ascontiguousarray(offsets.T, dtype=_index_dtype(t)), float(width), int(shift))
 
 
 @dataclass(frozen=True)
@@ -400,6 +435,25 @@ class PTP(Algorithm):
         return plain(self._derived_tol)
 
     @cached_property
+    def _tol_by_database(self) -> dict:
+        return {}
+
+    def _tolerances_pair(self, database: PTPDatabase) -> tuple[Tolerances, tuple]:
+        """:meth:`tolerances` and the same as plain tuples (the kernel's argument). An instance that was not
+        :meth:`derived` (e.g. ``get_algorithm("ptp")()`` as the benchmarks time it) keeps both per database
+        setting in a dict of its own: the lru_cache's hash of the whole instance and ``plain`` cost about
+        2 us of every image."""
+        if self.d_min_deg is not None and self.sigma_floor_px is not None:
+            return self._derived_tol, self._derived_tol_t
+        key = (database.d_min_deg, database.sigma_floor_px)
+        pair = self._tol_by_database.get(key)
+        if pair is None:
+            tol = _tolerances(self, *key)
+            pair = (tol, plain(tol))
+            self._tol_by_database[key] = pair
+        return pair
+
+    @cached_property
     def _d_max(self) -> float:
         """d_max as a scaled chord (872.8 for 5 deg)."""
         return CHORD_SCALE * rad_to_chord(math.radians(self.d_max_deg))
@@ -455,20 +509,20 @@ class PTP(Algorithm):
         order = np.argsort(proj, kind="stable")
         kv = kvector_make(proj[order], values_dtype=np.float32, index_dtype=_index_dtype(len(order)))
         return PTPDatabase(kv=kv, ids=ids[order].astype(_index_dtype(len(guide))),
-                           sides=np.ascontiguousarray(sides[order].T, dtype=np.float32), mean=mean, axis=axis,
+                           mean=mean, axis=axis,
                            guide_hip=guide_hip.astype(np.int64), guide_unit=unit.astype(np.float32),
                            deep=deep_sky(catalog, self.deep_mag_limit if self.assign_all else -math.inf),
                            extra_unit=check_stars(catalog, guide_hip,
                                                   self.check_mag_limit if self.hypotheses else -math.inf),
                            explained_variance=float(eigval[-1] / eigval.sum()),
+                           index=side_index(np.ascontiguousarray(sides[order].T, dtype=np.float32)),
                            d_min_deg=d_min_deg, sigma_floor_px=sigma_floor_px)
 
     def identify(self, database: PTPDatabase, observation: Observation) -> Identification:
         """:func:`~starid_algorithms.ptp.kernels.identify_kernel`, then (``assign_all``) the attitude of the
         identified stars (Wahba) assigns every detection to the deep catalog star predicted within the
         tolerance (``starid.kernels.assign_all``, one-to-one only). Counters: :data:`WORK_NAMES`."""
-        (view, view_t), tol = _view(observation.camera), self.tolerances(database)
-        tol_t = plain(tol) if self.d_min_deg is None or self.sigma_floor_px is None else self._derived_tol_t
+        (view, view_t), (tol, tol_t) = _view(observation.camera), self._tolerances_pair(database)
         hip, unit, rows, work = identify_kernel(observation.x_px, observation.y_px, observation.mag, view_t,
                                                 database.plain_tables, tol_t)
         if tol.assign_all and database.deep.unit.shape[0] > 0 and np.count_nonzero(rows >= 0) >= 3:

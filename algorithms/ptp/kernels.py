@@ -32,27 +32,52 @@ class View(NamedTuple):
     c_fov: float
 
 
+class SideIndex(NamedTuple):
+    """The second index of the database rows (issue #25): by side a, within blocks of the projection order.
+
+    rows : (t,) the database rows (projection order) ordered by (bin of side a, row); the bin of a row is
+        ``floor(a / width)`` of its float32 side a.
+    sides : float32 (t, 3) the scaled sides a, b, c (eq. 1) of ``rows[e]`` at entry ``e``: the entries a
+        window reads lie together in memory. (The only copy of the sides: ``PTPDatabase.sides`` rebuilds
+        the projection-ordered (3, t) table from it.)
+    offsets : (n_blocks + 1, n_bins) positions in ``rows``: ``offsets[j, i]`` is the first entry of bin ``i``
+        whose row is at least ``j << shift`` (``offsets[n_blocks, i]`` is the end of bin ``i``). The rows of
+        bin ``i`` inside a k-vector window ``[start, stop)`` are therefore among the entries
+        ``offsets[start >> shift, i]`` to ``offsets[((stop - 1) >> shift) + 1, i]``, in ascending row order
+        (block-major: a window's neighbouring bins are neighbours in memory).
+    width : the bin width (scaled chord); shift : log2 of the block size (rows).
+    """
+
+    rows: np.ndarray
+    sides: np.ndarray
+    offsets: np.ndarray
+    width: float
+    shift: int
+
+
 class Tables(NamedTuple):
     """What identify reads from :class:`~starid_algorithms.ptp.PTPDatabase`, as one kernel argument.
 
     kv : :class:`starid.kernels.KVector` over the projections p_r (eq. 3), ascending.
-    ids : (t, 3) guide rows of (r1, r2, r3); sides : float32 (3, t) scaled sides a, b, c (eq. 1).
+    ids : (t, 3) guide rows of (r1, r2, r3).
     mean : (3,) mean side vector; axis : (3,) projection axis u_max.
     guide_unit : float32 (g, 3) guide unit vectors (ICRS, z-sorted); guide_hip : int64 (g,) their ids.
     (Not the database's ``deep`` stars: ``assign_all`` runs in ``PTP.identify``, and every array passed
     costs numba's dispatch time on every image.)
     extra_unit : float32 (e, 3) ICRS unit vectors, z-sorted, of the catalog stars that are not guide
         stars, to V <= ``check_mag_limit`` (the whole-image check; may be empty).
+    index : :class:`SideIndex`, the rows by side a within blocks of the projection order, with their
+        sides a, b, c (eq. 1).
     """
 
     kv: KVector
     ids: np.ndarray
-    sides: np.ndarray
     mean: np.ndarray
     axis: np.ndarray
     guide_unit: np.ndarray
     guide_hip: np.ndarray
     extra_unit: np.ndarray
+    index: SideIndex
 
 
 class Tolerances(NamedTuple):
@@ -259,6 +284,62 @@ def _side_check(sides, start, stop, db_sides, sigma, scale, side_beta, out_cand)
     return n_out
 
 
+#: Margin (scaled chord) by which the bins an indexed check reads extend beyond side a's tolerance: more
+#: than the float32 rounding of the sides (1.2e-4 below 2048), so every row the float32 check accepts is read.
+INDEX_MARGIN = 0.01
+
+
+@njit(cache=True)
+def _side_check_indexed(sides, start, stop, index, sigma, scale, side_beta, out_cand):
+    """The rows of :func:`_side_check` (the same rows, ascending), read through the :class:`SideIndex`: only
+    the entries of the window ``[start, stop)`` whose side a lies in a bin within the tolerance of
+    ``sides[0]`` (about 20 of some 400 rows, 2-3 bins) are compared, by the same float32 test on the same
+    float32 sides. ``out_cand`` must hold ``stop - start + 1`` entries.
+    """
+    a = np.float32(sides[0])
+    b = np.float32(sides[1])
+    c = np.float32(sides[2])
+    ta = np.float32(side_beta * scale * side_sigma(sides[0] / scale, sigma))
+    tb = np.float32(side_beta * scale * side_sigma(sides[1] / scale, sigma))
+    tc = np.float32(side_beta * scale * side_sigma(sides[2] / scale, sigma))
+    if stop <= start:
+        return 0
+    offsets = index.offsets
+    rows = index.rows
+    s = index.sides
+    i0 = max(int(math.floor((float(a) - float(ta) - INDEX_MARGIN) / index.width)), 0)
+    i1 = min(int(math.floor((float(a) + float(ta) + INDEX_MARGIN) / index.width)), offsets.shape[1] - 1)
+    j0 = start >> index.shift
+    j1 = ((stop - 1) >> index.shift) + 1
+    n_out = 0
+    for i in range(i0, i1 + 1):
+        for e in range(offsets[j0, i], offsets[j1, i]):
+            r = np.int64(rows[e])
+            # the test of _side_excess (each excess <= 0) and the window, without a branch: the row is
+            # written in any case and kept by counting it (a quarter faster than branching)
+            ok = ((abs(s[e, 0] - a) - ta <= 0) & (abs(s[e, 1] - b) - tb <= 0) & (abs(s[e, 2] - c) - tc <= 0)
+                  & (r >= start) & (r < stop))
+            out_cand[n_out] = r
+            n_out += ok
+    if i1 > i0 and n_out > 1:       # rows of several bins: ascending, as the scan of the window gives them
+        if n_out <= 32:
+            for k in range(1, n_out):
+                r = out_cand[k]
+                m = k
+                while m > 0 and out_cand[m - 1] > r:
+                    out_cand[m] = out_cand[m - 1]
+                    m -= 1
+                out_cand[m] = r
+        else:
+            found = np.empty(n_out, dtype=np.int64)     # (a new array: argsort_int's one signature)
+            for k in range(n_out):
+                found[k] = out_cand[k]
+            order = argsort_int(found)
+            for k in range(n_out):
+                out_cand[k] = found[order[k]]
+    return n_out
+
+
 @njit(cache=True)
 def _triple_key(i, j, k, n):
     """Order-free key of a set of three image stars."""
@@ -376,7 +457,7 @@ def identify_kernel(x_px, y_px, mag, view_t, db_t, tol_t):
     each caller it is linked into, so a level less in the call tree is a cold compile about 2 s shorter.
     """
     view = View(Frame(*view_t[0]), view_t[1])
-    db = Tables(KVector(*db_t[0]), db_t[1], db_t[2], db_t[3], db_t[4], db_t[5], db_t[6], db_t[7])
+    db = Tables(KVector(*db_t[0]), db_t[1], db_t[2], db_t[3], db_t[4], db_t[5], db_t[6], SideIndex(*db_t[7]))
     tol = Tolerances(*tol_t)
     n = x_px.shape[0]
     hip = np.full(n, -1, dtype=np.int64)
@@ -442,9 +523,9 @@ def identify_kernel(x_px, y_px, mag, view_t, db_t, tol_t):
                     order_img[2] = s2 if o == 0 else s1
                     start, stop = _window(unit, order_img[0], order_img[1], order_img[2],
                                           sides, db.kv, db.mean, db.axis, sigma, scale, tol.beta)
-                    if stop - start > cand.shape[0]:
-                        cand = np.empty(2 * (stop - start), dtype=np.int64)
-                    nc = _side_check(sides, start, stop, db.sides, sigma, scale, side_beta, cand)
+                    if stop - start >= cand.shape[0]:
+                        cand = np.empty(2 * (stop - start) + 1, dtype=np.int64)
+                    nc = _side_check_indexed(sides, start, stop, db.index, sigma, scale, side_beta, cand)
                     work[0] += 1
                     work[1] += stop - start
                     work[2] += nc
@@ -501,9 +582,12 @@ def identify_kernel(x_px, y_px, mag, view_t, db_t, tol_t):
         for s in range(n):
             if result[s] >= 0:
                 n_found += 1
+        attitude = np.empty((3, 3))
+        have_attitude = False     # the attitude of ``result`` as it stands, for nearest_check
         if tol.confirm_fraction > 0 and n_found >= 2:
             guide_rows_f64(result, guide_unit, w_idx, w_cat)
             attitude = wahba_rows(unit, w_idx, w_cat)
+            have_attitude = True
             seen = np.empty(n, dtype=np.int64)
             n_seen, n_predicted = reproject_assign(attitude, unit, guide_unit, view.c_fov + tol_chord, tol_chord, seen,
                                                    f_px, cx_px, cy_px, frame.width_px, frame.height_px)
@@ -511,8 +595,10 @@ def identify_kernel(x_px, y_px, mag, view_t, db_t, tol_t):
                 result[:] = -1
                 n_found = 0
         if tol.nearest_check and n_found >= 3:
-            guide_rows_f64(result, guide_unit, w_idx, w_cat)
-            n_found = drop_displaced(unit, result, guide_unit, tol_chord, wahba_rows(unit, w_idx, w_cat))
+            if not have_attitude:     # (confirmation's attitude is of the same pairings: the same bits)
+                guide_rows_f64(result, guide_unit, w_idx, w_cat)
+                attitude = wahba_rows(unit, w_idx, w_cat)
+            n_found = drop_displaced(unit, result, guide_unit, tol_chord, attitude)
         if n_found < 3 and tol.hypotheses > 0:
             if not try_hypotheses(unit, view, db, tol, n_match, m_img, m_cat, support, tol_chord, result, work):
                 result[:] = -1

@@ -13,7 +13,13 @@ import numpy as np
 import pytest
 from starid_algorithms.ptp import PTP
 from starid_algorithms.ptp.algorithm import CHORD_SCALE, camera_rules
-from starid_algorithms.ptp.kernels import nearest_slaves, projection_sigma, select_stars
+from starid_algorithms.ptp.kernels import (
+    _side_check,
+    _side_check_indexed,
+    nearest_slaves,
+    projection_sigma,
+    select_stars,
+)
 
 from starid import Camera, ConfigError, Observation, SimConfig, Simulator, run, summarize
 from starid.kernels import assign_all, backproject_px, camera_frame, deep_sky, wahba_rows
@@ -32,9 +38,11 @@ def test_database_layout(db, catalog):
     assert np.all(np.diff(db.proj) >= 0)
     assert db.ids.dtype == np.uint16 and db.kv.k.dtype == np.uint16 and db.sides.dtype == np.float32
     assert db.guide_hip.dtype == np.int64
-    # the paper's Table 6: 0.784 MB; here + int64 ids, d_max 6 deg (measured 0.81 MB) and the whole-image
-    # check's unit vectors (V <= 7, float32, 0.126 MB): 0.939 MB
-    assert (db.nbytes - db.extra_unit.nbytes) / 1e6 <= 0.82 and db.nbytes / 1e6 <= 0.95
+    # the paper's Table 6: 0.784 MB; here + int64 ids, d_max 6 deg (measured 0.81 MB), the whole-image
+    # check's unit vectors (V <= 7, float32, 0.126 MB) and the second index (0.179 MB): 1.118 MB
+    index_mb = (db.index.rows.nbytes + db.index.offsets.nbytes) / 1e6     # beside the sides it holds
+    assert (db.nbytes - db.extra_unit.nbytes) / 1e6 - index_mb <= 0.82 and index_mb <= 0.18
+    assert db.nbytes / 1e6 <= 1.13
     assert db.extra_unit.dtype == np.float32 and np.all(np.diff(db.extra_unit[:, 2]) >= 0)
     assert 10_000 <= db.extra_unit.shape[0] <= 10_600       # 6 < V <= 7 (and the excluded doubles)
     assert PTP(hypotheses=0).build(catalog, Camera()).extra_unit.shape == (0, 3)
@@ -134,6 +142,33 @@ def test_coincident_detections_without_d_min(catalog, camera):
         dup = o.permuted(np.concatenate([np.arange(len(o)), [0, 1]]))      # stars 0 and 1 twice
         hip = check_identification(algo.identify(base, dup), len(dup), catalog.hip).hip
         assert not np.any((hip >= 0) & (hip != dup.truth_hip))
+
+
+def test_side_index_reads_the_same_rows(db):
+    """The indexed three-side check returns the rows of the window scan, in the same order, for windows
+    and noise far from Table 6's (bins at the edges, wide windows that fall back to the scan)."""
+    index = db.index
+    rows = index.rows.astype(np.int64)
+    assert np.array_equal(np.sort(rows), np.arange(db.proj.size))
+    assert np.array_equal(db.sides[:, rows].T, index.sides)
+    bins = np.floor(db.sides[0, rows].astype(np.float64) / index.width)
+    assert np.all(np.diff(bins) >= 0) and np.all(np.diff(rows)[np.diff(bins) == 0] > 0)
+    rng = np.random.default_rng(5)
+    t = db.proj.size
+    pick = rng.integers(0, t, 3000)
+    out_a, out_b = np.empty(t, dtype=np.int64), np.empty(t + 1, dtype=np.int64)
+    n_total = 0
+    for k, r in enumerate(pick):
+        sides = db.sides[:, r].astype(np.float64) + rng.normal(0.0, 4.0, 3)
+        sigma = (0.1, 1.0, 3.0, 40.0)[k % 4] / 5852.0
+        p = float(db.axis @ (sides - db.mean))
+        lo = int(np.searchsorted(db.proj, p - rng.uniform(0.0, 40.0), "left"))
+        hi = int(np.searchsorted(db.proj, p + rng.uniform(0.0, 40.0), "right"))
+        n_a = _side_check(sides, lo, hi, db.sides, sigma, CHORD_SCALE, 3.0, out_a)
+        n_b = _side_check_indexed(sides, lo, hi, index, sigma, CHORD_SCALE, 3.0, out_b)
+        assert n_a == n_b and np.array_equal(out_a[:n_a], out_b[:n_b])
+        n_total += n_a
+    assert n_total > 1000
 
 
 @pytest.mark.parametrize("fov_deg", [170.0, 60.0])
