@@ -69,7 +69,7 @@ class Rules(NamedTuple):
 class Tables(NamedTuple):
     """The database as the kernels read it (see ``PlanarTriangleDatabase``)."""
 
-    stars: np.ndarray  # uint16 (N, 3) guide rows of each triangle, ascending within a row
+    stars: np.ndarray  # uint16 (N, 3) guide rows of the triangle of each moment-index entry, ascending within a row
     area: KVector  # float32 areas, ascending, with their k-vector
     moment: np.ndarray  # float32 (N,) polar moments, sorted within each block of MOMENT_BLOCK triangles
     moment_perm: np.ndarray  # uint8 (N,) triangle (offset in its block, area order) of each entry of ``moment``
@@ -267,14 +267,23 @@ def moment_blocks(moment):
     return sorted_moment, perm
 
 
+def entry_triangles(moment_perm):
+    """The area-order triangle of each entry ``p`` of the moment index: ``p - p % MOMENT_BLOCK +
+    moment_perm[p]`` (int64)."""
+    entry = np.arange(moment_perm.shape[0], dtype=np.int64)
+    return entry - entry % MOMENT_BLOCK + moment_perm
+
+
 @njit(cache=True)
 def _moment_filter(moment, moment_perm, start, stop, lo, hi):
-    """Catalog triangles ``t`` in ``[start, stop)`` (area order) whose polar moment lies in
-    ``[lo, hi]``, ascending.
+    """The catalog triangles in ``[start, stop)`` (area order) whose polar moment lies in
+    ``[lo, hi]``, as their entries (positions) in the moment index, ascending: the triangle of entry
+    ``p`` is ``p - p % MOMENT_BLOCK + moment_perm[p]`` in area order, its stars ``Tables.stars[p]``.
 
     The same set as scanning the area hits, found with a binary search in each block of the
     moment index that the area range touches (the area window holds ~20x more triangles than
-    the moment window).
+    the moment window). A block's hits are consecutive entries, so their stars are read from a
+    few cache lines (the stars are stored in the index's order).
     """
     out = np.empty(max(stop - start, 0), dtype=np.int64)
     m = 0
@@ -300,7 +309,7 @@ def _moment_filter(moment, moment_perm, start, stop, lo, hi):
             if moment[pos] >= lo:
                 t = base + np.int64(moment_perm[pos])
                 if t >= start and t < stop:
-                    out[m] = t
+                    out[m] = pos
                     m += 1
             pos += 1
     return out[:m]
@@ -1085,14 +1094,25 @@ def identify_subsets(img_v, bright, db, tol, stages):
             if not seen:
                 tried += 1
                 work[0] += 1
-                idx = np.sort(bright[comb])
+                idx = np.empty(size, dtype=np.int64)  # bright[comb] sorted (insertion sort: np.sort and
+                for a in range(size):                  # fancy indexing cost compile time, not run time)
+                    v = bright[comb[a]]
+                    j = a - 1
+                    while j >= 0 and idx[j] > v:
+                        idx[j + 1] = idx[j]
+                        j -= 1
+                    idx[j + 1] = v
                 sub = np.empty((size, 3))
                 for a in range(size):
                     for x in range(3):
                         sub[a, x] = img_v[idx[a], x]
                 sub_img = _sub_triangles(img, idx, size, sub)
                 if first < 0 and sub_img.tri.shape[0] > 0:  # its start triangle, as in identify_rows
-                    first = sub_img.gid[np.argmax(sub_img.area)]
+                    best = 0  # np.argmax: the first of the largest areas
+                    for q in range(1, sub_img.tri.shape[0]):
+                        if sub_img.area[q] > sub_img.area[best]:
+                            best = q
+                    first = sub_img.gid[best]
                 # steps 2-5 of identify_rows on the subset (inline: a kernel level less to compile)
                 rows = np.full(size, -1, dtype=np.int64)
                 found = False
