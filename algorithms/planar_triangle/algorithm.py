@@ -26,6 +26,7 @@ from .kernels import (
     Tables,
     Tolerance,
     deep_v_mag,
+    entry_triangles,
     finish,
     identify_rows,
     identify_subsets,
@@ -75,7 +76,11 @@ def derived_fov_db_deg(camera: Camera) -> float:
 class PlanarTriangleDatabase(Database):
     """Cole's triangle catalog plus what verification reads.
 
-    tri_stars: uint16 (N, 3) guide-star rows of each triangle, ascending within a row.
+    tri_stars: uint16 (N, 3) guide-star rows of the triangle of each entry of the moment index
+        (below; entry ``p`` is triangle ``p - p % MOMENT_BLOCK + tri_moment_perm[p]`` of the area order),
+        ascending within a row: the kernels name a catalog triangle by its entry, and the hits of one
+        block are consecutive entries, so their stars lie together (:meth:`stars_by_area` gives the
+        area order).
     tri_area: KVector of float32 (N,) chord-triangle areas, ascending, and their int32
         Mortari k-vector.
     tri_moment: float32 (N,) polar moment ``J`` of the same triangles, sorted within each block of
@@ -112,6 +117,12 @@ class PlanarTriangleDatabase(Database):
         base = t - t % MOMENT_BLOCK
         block = self.tri_moment_perm[base:base + MOMENT_BLOCK]
         return float(self.tri_moment[base + int(np.flatnonzero(block == t - base)[0])])
+
+    def stars_by_area(self) -> np.ndarray:
+        """``tri_stars`` in area order (row ``t``: the stars of triangle ``t``)."""
+        out = np.empty_like(self.tri_stars)
+        out[entry_triangles(self.tri_moment_perm)] = self.tri_stars
+        return out
 
     def tables(self) -> Tables:
         """The arrays the kernels read, as one bundle."""
@@ -415,12 +426,14 @@ class PlanarTriangle(Algorithm):
         area32 = area.astype(np.float32)
         order = np.argsort(area32, kind="stable")
         moment_sorted, moment_perm = moment_blocks(moment[order])
+        # the stars in the moment index's order (entry p: area-order triangle entry_triangles(perm)[p])
+        tri_stars = np.ascontiguousarray(stars[order][entry_triangles(moment_perm)])
         # Neighbours for the distance extension: anything two observed stars can be apart.
         diag_chord = float(rad_to_chord(2.0 * min(camera.half_diagonal_rad, math.pi / 2)))
         nptr, nidx = _neighbour_csr(unit, diag_chord * 1.01, symmetric=True)
         deep = deep_sky(catalog)
         return PlanarTriangleDatabase(
-            tri_stars=np.ascontiguousarray(stars[order]),
+            tri_stars=tri_stars,
             tri_area=kvector_make(area32[order], np.float32, np.int32),
             tri_moment=moment_sorted, tri_moment_perm=moment_perm, guide_hip=guide.hip.astype(np.int64),
             guide_unit=unit, nbr_ptr=nptr.astype(np.int32), nbr_idx=nidx.astype(np.uint16), rules=rules,

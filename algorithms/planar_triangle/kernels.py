@@ -55,6 +55,9 @@ MEMO_NODES = 1 << 15  # room for the memoised pivots' new finalists per image (f
 #: the same triangle builds the whole table, kept for the other subsets)
 FEW_FINALISTS = 256
 KEY_BASE = 65536  # star indices are < 65536 (uint16), so a sorted pair packs into lo * 65536 + hi
+#: the decorator of a kernel that only other kernels call: numba builds no Python and no C wrapper for it
+#: (~30 ms of a cold compile each); call it from Python through a kernel that does
+_inner = njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)
 
 
 class Rules(NamedTuple):
@@ -68,7 +71,7 @@ class Rules(NamedTuple):
 class Tables(NamedTuple):
     """The database as the kernels read it (see ``PlanarTriangleDatabase``)."""
 
-    stars: np.ndarray  # uint16 (N, 3) guide rows of each triangle, ascending within a row
+    stars: np.ndarray  # uint16 (N, 3) guide rows of the triangle of each moment-index entry, ascending within a row
     area: KVector  # float32 areas, ascending, with their k-vector
     moment: np.ndarray  # float32 (N,) polar moments, sorted within each block of MOMENT_BLOCK triangles
     moment_perm: np.ndarray  # uint8 (N,) triangle (offset in its block, area order) of each entry of ``moment``
@@ -133,7 +136,7 @@ class MomentCache(NamedTuple):
     scans: np.ndarray  # int64 (M,) pivots into triangle g matched that way (the second builds its table)
 
 
-@njit(cache=True)
+@_inner
 def _cross(u0, u1, u2, w0, w1, w2):
     return u1 * w2 - u2 * w1, u2 * w0 - u0 * w2, u0 * w1 - u1 * w0
 
@@ -266,14 +269,23 @@ def moment_blocks(moment):
     return sorted_moment, perm
 
 
+def entry_triangles(moment_perm):
+    """The area-order triangle of each entry ``p`` of the moment index: ``p - p % MOMENT_BLOCK +
+    moment_perm[p]`` (int64)."""
+    entry = np.arange(moment_perm.shape[0], dtype=np.int64)
+    return entry - entry % MOMENT_BLOCK + moment_perm
+
+
 @njit(cache=True)
 def _moment_filter(moment, moment_perm, start, stop, lo, hi):
-    """Catalog triangles ``t`` in ``[start, stop)`` (area order) whose polar moment lies in
-    ``[lo, hi]``, ascending.
+    """The catalog triangles in ``[start, stop)`` (area order) whose polar moment lies in
+    ``[lo, hi]``, as their entries (positions) in the moment index, ascending: the triangle of entry
+    ``p`` is ``p - p % MOMENT_BLOCK + moment_perm[p]`` in area order, its stars ``Tables.stars[p]``.
 
     The same set as scanning the area hits, found with a binary search in each block of the
     moment index that the area range touches (the area window holds ~20x more triangles than
-    the moment window).
+    the moment window). A block's hits are consecutive entries, so their stars are read from a
+    few cache lines (the stars are stored in the index's order).
     """
     out = np.empty(max(stop - start, 0), dtype=np.int64)
     m = 0
@@ -299,19 +311,19 @@ def _moment_filter(moment, moment_perm, start, stop, lo, hi):
             if moment[pos] >= lo:
                 t = base + np.int64(moment_perm[pos])
                 if t >= start and t < stop:
-                    out[m] = t
+                    out[m] = pos
                     m += 1
             pos += 1
     return out[:m]
 
 
-@njit(cache=True)
+@_inner
 def _slot(key, mask):
     """Home slot of a star-pair key in a hash table of ``mask + 1`` slots (Fibonacci hashing)."""
     return np.int64((np.uint64(key) * np.uint64(0x9E3779B97F4A7C15)) >> np.uint64(40)) & mask
 
 
-@njit(cache=True)
+@_inner
 def _moment_list(t, img, db, tol, cache):
     """The candidates of image triangle ``t``: its area hits ``[img.start[t], img.stop[t])`` whose
     polar moment lies within ``beta`` standard deviations of its own (paper eqs. 16-20), ascending.
@@ -328,7 +340,8 @@ def _moment_list(t, img, db, tol, cache):
     nc = out.shape[0]
     p = cache.fill[0]
     if p + nc <= cache.buf.shape[0]:
-        cache.buf[p:p + nc] = out
+        for q in range(nc):  # not a slice assignment: its shape check compiles numba's string formatting
+            cache.buf[p + q] = out[q]
         cache.start[g] = p
         cache.stop[g] = p + nc
         cache.fill[0] = p + nc
@@ -336,7 +349,7 @@ def _moment_list(t, img, db, tol, cache):
     return out
 
 
-@njit(cache=True)
+@_inner
 def _fill_hash(cand, n, tri_stars, keys):
     """Open-addressing hash table (linear probing; ``keys.shape[0]`` a power of two, EMPTY = empty
     slot) of the three star pairs ``lo * KEY_BASE + hi`` of the catalog triangles ``cand[:n]``, each
@@ -360,7 +373,7 @@ def _fill_hash(cand, n, tri_stars, keys):
             keys[pos] = (np.uint64(key) << SHIFT) | np.uint64(cand[c])
 
 
-@njit(cache=True)
+@_inner
 def _hash_size(n):
     """Slots of a table of ``n`` candidates (3 keys each, at most 3/8 full): a power of two >= 8."""
     size = 8
@@ -369,7 +382,7 @@ def _hash_size(n):
     return size
 
 
-@njit(cache=True)
+@_inner
 def _moment_hash(t, img, cand, tri_stars, cache):
     """``keys``: the hash table (:func:`_fill_hash`) of the star pairs of image triangle
     ``t``'s candidates ``cand`` (:func:`_moment_list`), what a pivot matches on. From ``cache`` when
@@ -395,7 +408,7 @@ def _moment_hash(t, img, cand, tri_stars, cache):
     return keys
 
 
-@njit(cache=True)
+@_inner
 def _few_hash(cand, tri_stars, node_cat, layer_lo, layer_hi, mark):
     """The hash table of only those candidates ``cand`` that hold two or more stars of the
     finalists' last triangles (``node_cat[layer_lo:layer_hi]``), in the order of ``cand``: a probe
@@ -423,7 +436,7 @@ def _few_hash(cand, tri_stars, node_cat, layer_lo, layer_hi, mark):
     return keys
 
 
-@njit(cache=True)
+@_inner
 def new_cache(img, n_guide):
     """An empty :class:`MomentCache` for the triangles of ``img`` (``gid`` 0..m-1), room for
     CACHE_PER_TRIANGLE candidates per triangle on average; ``n_guide`` guide stars."""
@@ -440,7 +453,7 @@ def new_cache(img, n_guide):
                        np.zeros(n_guide, dtype=np.uint8), np.zeros(m, dtype=np.int64))
 
 
-@njit(cache=True)
+@_inner
 def first_query(img, db, tol, cache, rows, first, work):
     """``work[5:8]`` (the first-query counters) of the image triangle ``first`` (a row of ``img``, the
     whole image's triangles; -1: none was queried) given the identification's ``rows`` (guide row per
@@ -467,7 +480,7 @@ def first_query(img, db, tol, cache, rows, first, work):
             return
 
 
-@njit(cache=True)
+@_inner
 def _next_in_chain(prev, used, img_tri, img_area):
     """Cole's linked list: the unused image triangle of largest area sharing exactly two stars
     with ``prev`` (-1 if none)."""
@@ -499,7 +512,7 @@ def _signatures(members, length):
     return np.sort(masks[:n])
 
 
-@njit(cache=True)
+@_inner
 def _fill_masks(members, length, ids, masks):
     """The chain's distinct stars into ``ids[:n]`` and their membership bitmasks (bit ``l`` for
     triangle ``l``) into ``masks[:n]``, in first-seen order; returns ``n``."""
@@ -521,7 +534,7 @@ def _fill_masks(members, length, ids, masks):
     return n
 
 
-@njit(cache=True)
+@_inner
 def _same_signatures(members, length, want, ids, masks):
     """``_signatures(members, length)`` equals ``want`` (sorted), computed in the scratch arrays
     ``ids`` and ``masks`` (at least ``3 * length`` long) without allocating: the pivot calls this
@@ -542,14 +555,15 @@ def _same_signatures(members, length, want, ids, masks):
     return True
 
 
-@njit(cache=True)
+@_inner
 def _grow(arr, size):
     out = np.empty(max(2 * arr.shape[0], size), dtype=arr.dtype)
-    out[:arr.shape[0]] = arr
+    for q in range(arr.shape[0]):  # not a slice assignment (see _moment_list)
+        out[q] = arr[q]
     return out
 
 
-@njit(cache=True)
+@_inner
 def _pivot_layer(layer_lo, layer_hi, n_nodes, node_cat, node_parent, hkeys, tri_stars, img_sig, step,
                  abort_if_grow, consistent_chain, work):
     """One pivot of :func:`_pivot`: every finalist ``f`` in ``[layer_lo, layer_hi)`` extended by the
@@ -618,7 +632,7 @@ def _pivot_layer(layer_lo, layer_hi, n_nodes, node_cat, node_parent, hkeys, tri_
     return n_new, False, True
 
 
-@njit(cache=True)
+@_inner
 def _pivot(first, img, db, tol, pivot_limit, cache, work):
     """The chain and pivot procedure of ``MatchStarsWPlanarTris.m``.
 
@@ -706,7 +720,8 @@ def _pivot(first, img, db, tol, pivot_limit, cache, work):
             hkeys = _few_hash(cand, tri_stars, node_cat, np.int64(layer_lo), np.int64(layer_hi), cache.mark)
         img_members = np.empty((step + 1, 3), dtype=np.int64)
         for li in range(step + 1):
-            img_members[li] = img_tri[chain[li]]
+            for x in range(3):
+                img_members[li, x] = img_tri[chain[li], x]
         img_sig = _signatures(img_members, step + 1)
         # room for every new finalist the abort rule allows (more only without it: grown and redone)
         if n_nodes + n_fin + 1 > node_cat.shape[0]:
@@ -755,7 +770,7 @@ def _pivot(first, img, db, tol, pivot_limit, cache, work):
 PERMS = np.array([[0, 1, 2], [0, 2, 1], [1, 0, 2], [1, 2, 0], [2, 0, 1], [2, 1, 0]], dtype=np.int64)
 
 
-@njit(cache=True)
+@_inner
 def _triangle_consistent(img_v, cat_unit, i0, i1, i2, g0, g1, g2, tol_chord):
     """Chords agree within ``tol_chord`` and the handedness is the same."""
     if abs(chord_rows(img_v, i0, img_v, i1) - chord_rows(cat_unit, g0, cat_unit, g1)) > tol_chord:
@@ -769,7 +784,7 @@ def _triangle_consistent(img_v, cat_unit, i0, i1, i2, g0, g1, g2, tol_chord):
     return (ti > 0.0) == (tc > 0.0)
 
 
-@njit(cache=True)
+@_inner
 def recover_correspondence(img, chain, cat_chain, db, tol_chord):
     """Per-star catalog rows from the single surviving chain, or all -1.
 
@@ -844,7 +859,7 @@ def recover_correspondence(img, chain, cat_chain, db, tol_chord):
     return best
 
 
-@njit(cache=True)
+@_inner
 def extend_by_distance(img_v, rows, db, tol_chord):
     """Extension (not in the paper): identify further stars by angular distance.
 
@@ -859,9 +874,18 @@ def extend_by_distance(img_v, rows, db, tol_chord):
     nbr_idx = db.nbr_idx
     n = img_v.shape[0]
     out = rows.copy()
-    anchors = np.flatnonzero(rows >= 0)
-    if anchors.shape[0] == 0:
+    n_anchors = 0
+    for i in range(n):
+        if rows[i] >= 0:
+            n_anchors += 1
+    if n_anchors == 0:
         return out
+    anchors = np.empty(n_anchors, dtype=np.int64)  # the assigned stars (not np.flatnonzero: compiles slowly)
+    n_anchors = 0
+    for i in range(n):
+        if rows[i] >= 0:
+            anchors[n_anchors] = i
+            n_anchors += 1
     a0 = anchors[0]
     g0 = rows[a0]
     for o in range(n):
@@ -980,46 +1004,6 @@ def argsort_desc(values):
     return idx
 
 
-@njit(cache=True)
-def _identify_img(img, db, tol, cache, work):
-    """Steps 2-5 of :func:`identify_rows` on the image triangles ``img`` (counting into ``work``)."""
-    img_v = img.v
-    n = img_v.shape[0]
-    none = np.full(n, -1, dtype=np.int64)
-    no_chain = np.zeros((0, 3), dtype=np.int64)
-    m = img.tri.shape[0]
-    if m == 0:
-        return none, no_chain
-    tol_chord = tol.beta * math.sqrt(2.0) * tol.sigma_rad
-    pivot_limit = tol.pivot_limit
-    if pivot_limit < 0:  # no limit: the chain may use every image triangle
-        pivot_limit = m - 1
-    ranked = argsort_desc(img.area)
-    for attempt in range(min(tol.restarts + 1, m)):
-        chain, cat_chain, n_fin = _pivot(ranked[attempt], img, db, tol, pivot_limit, cache, work)
-        work[8] += 1
-        if n_fin == 1 and work[9] == 0:  # the queries (start triangles and pivots) that first left one finalist
-            work[9] = work[8] + work[1]
-        no_chain = img.tri[chain]
-        if n_fin != 1:
-            continue
-        work[3] += 1
-        rows = recover_correspondence(img, chain, cat_chain, db, tol_chord)
-        if tol.extend:
-            rows = extend_by_distance(img_v, rows, db, tol_chord)
-        keep = verify_pairwise(img_v, rows, db.unit, tol_chord, tol.min_support)
-        n_keep = 0
-        for i in range(n):
-            if not keep[i]:
-                rows[i] = -1
-            else:
-                n_keep += 1
-        if n_keep >= tol.min_verified:
-            return rows, no_chain
-    return none, no_chain
-
-
-@njit(cache=True)
 def identify_rows(img_v, db, tol):
     """The whole identification of one image: guide-star row per observed star, -1 if none.
 
@@ -1034,25 +1018,17 @@ def identify_rows(img_v, db, tol):
     Returns ``(rows, chain, work)``: ``chain`` (L, 3) the stars of the image triangles of the accepted
     pivot sequence (of the last one tried when none is accepted; for ``explain``); ``work`` the
     int64 counters of :data:`WORK_COUNTERS`.
+
+    :func:`identify_subsets` with one stage of one subset, all the stars (the same steps, the same
+    counters): not a kernel of its own, so numba compiles the identification once for both.
     """
     n = img_v.shape[0]
-    work = np.zeros(N_WORK, dtype=np.int64)
-    if n < 3:
-        return np.full(n, -1, dtype=np.int64), np.zeros((0, 3), dtype=np.int64), work
-    img = image_triangles(img_v, db, tol)
-    work[0] = 1
-    work[4] = img.tri.shape[0]
-    cache = new_cache(img, db.unit.shape[0])
-    rows, chain = _identify_img(img, db, tol, cache, work)
-    # the first start triangle: the largest area, the first of equal ones (argsort_desc's order)
-    first = np.int64(-1)  # np.int64: not compiled again for a literal
-    if img.tri.shape[0] > 0:
-        first = np.int64(np.argmax(img.area))
-    first_query(img, db, tol, cache, rows, first, work)
+    rows, chain, _, work = identify_subsets(img_v, np.arange(n, dtype=np.int64), db, tol,
+                                            np.array([[n, n, 1]], dtype=np.int64))
     return rows, chain, work
 
 
-@njit(cache=True)
+@_inner
 def _sub_triangles(img, idx, size, sub_v):
     """The triangles of ``img`` whose three stars are all in ``idx[:size]`` (sorted star indices),
     renumbered to positions in ``idx``; ``gid`` keeps the row in ``img`` (the cache key)."""
@@ -1102,6 +1078,7 @@ def identify_subsets(img_v, bright, db, tol, stages):
     img = image_triangles(img_v, db, tol)
     work[4] = img.tri.shape[0]
     cache = new_cache(img, db.unit.shape[0])
+    tol_chord = tol.beta * math.sqrt(2.0) * tol.sigma_rad
     first = np.int64(-1)  # the first subset's start triangle (a row of img; np.int64: not a literal)
     for st in range(stages.shape[0]):
         pool = min(stages[st, 1], k)
@@ -1119,19 +1096,64 @@ def identify_subsets(img_v, bright, db, tol, stages):
             if not seen:
                 tried += 1
                 work[0] += 1
-                idx = np.sort(bright[comb])
+                idx = np.empty(size, dtype=np.int64)  # bright[comb] sorted (insertion sort: np.sort and
+                for a in range(size):                  # fancy indexing cost compile time, not run time)
+                    v = bright[comb[a]]
+                    j = a - 1
+                    while j >= 0 and idx[j] > v:
+                        idx[j + 1] = idx[j]
+                        j -= 1
+                    idx[j + 1] = v
                 sub = np.empty((size, 3))
                 for a in range(size):
-                    sub[a] = img_v[idx[a]]
+                    for x in range(3):
+                        sub[a, x] = img_v[idx[a], x]
                 sub_img = _sub_triangles(img, idx, size, sub)
                 if first < 0 and sub_img.tri.shape[0] > 0:  # its start triangle, as in identify_rows
-                    first = sub_img.gid[np.argmax(sub_img.area)]
-                rows, sub_chain = _identify_img(sub_img, db, tol, cache, work)
+                    best = 0  # np.argmax: the first of the largest areas
+                    for q in range(1, sub_img.tri.shape[0]):
+                        if sub_img.area[q] > sub_img.area[best]:
+                            best = q
+                    first = sub_img.gid[best]
+                # steps 2-5 of identify_rows on the subset (inline: a kernel level less to compile)
+                rows = np.full(size, -1, dtype=np.int64)
+                found = False
+                sub_chain = np.zeros((0, 3), dtype=np.int64)
+                m_sub = sub_img.tri.shape[0]
+                if m_sub > 0:
+                    pivot_limit = tol.pivot_limit
+                    if pivot_limit < 0:  # no limit: the chain may use every image triangle
+                        pivot_limit = m_sub - 1
+                    ranked = argsort_desc(sub_img.area)
+                    for attempt in range(min(tol.restarts + 1, m_sub)):
+                        tri_chain, cat_chain, n_fin = _pivot(ranked[attempt], sub_img, db, tol, pivot_limit, cache,
+                                                             work)
+                        work[8] += 1
+                        if n_fin == 1 and work[9] == 0:  # the queries (starts and pivots) to the first finalist
+                            work[9] = work[8] + work[1]
+                        sub_chain = sub_img.tri[tri_chain]
+                        if n_fin != 1:
+                            continue
+                        work[3] += 1
+                        got = recover_correspondence(sub_img, tri_chain, cat_chain, db, tol_chord)
+                        if tol.extend:
+                            got = extend_by_distance(sub, got, db, tol_chord)
+                        keep = verify_pairwise(sub, got, db.unit, tol_chord, tol.min_support)
+                        n_keep = 0
+                        for i in range(size):
+                            if not keep[i]:
+                                got[i] = -1
+                            else:
+                                n_keep += 1
+                        if n_keep >= tol.min_verified:
+                            rows = got
+                            found = True
+                            break
                 chain = np.empty_like(sub_chain)
                 for li in range(sub_chain.shape[0]):
                     for x in range(3):
                         chain[li, x] = idx[sub_chain[li, x]]
-                if rows.max() >= 0:
+                if found:
                     for a in range(size):
                         out[idx[a]] = rows[a]
                     first_query(img, db, tol, cache, out, first, work)
@@ -1169,7 +1191,7 @@ def deep_v_mag(catalog, deep) -> np.ndarray:
     return catalog.v_mag[by_hip[np.searchsorted(catalog.hip[by_hip], deep.hip)]].astype(np.float32)
 
 
-@njit(cache=True)
+@_inner
 def _deep_mag_of(deep, deep_mag, r_icrs, eps_chord, hip):
     """V of the deep star ``hip``, which lies within chord ``eps_chord`` of the ICRS direction ``r_icrs``."""
     start, stop = z_band_rows(deep.unit, float(r_icrs[2]), 2.0 * eps_chord)
@@ -1179,7 +1201,7 @@ def _deep_mag_of(deep, deep_mag, r_icrs, eps_chord, hip):
     return np.inf
 
 
-@njit(cache=True)
+@_inner
 def _rivals(deep, deep_mag, r_icrs, eps_chord, mag_max):
     """How many deep stars with V <= ``mag_max`` lie within chord ``eps_chord`` of the ICRS direction ``r_icrs``."""
     start, stop = z_band_rows(deep.unit, float(r_icrs[2]), eps_chord)
@@ -1194,7 +1216,7 @@ def _rivals(deep, deep_mag, r_icrs, eps_chord, mag_max):
     return count
 
 
-@njit(cache=True)
+@_inner
 def coverage(attitude, deep, deep_mag, mag_max, found_hip, frame):
     """``(predicted, missed)``: stars of ``deep`` with V <= ``mag_max`` that ``attitude`` puts on the
     sensor, and how many of them are not among ``found_hip`` (sorted ids of the identified stars).

@@ -12,6 +12,7 @@ from starid_algorithms.planar_triangle.kernels import (
     MOMENT_BLOCK,
     _moment_filter,
     _signatures,
+    entry_triangles,
     identify_rows,
     identify_subsets,
     triangle_features,
@@ -115,7 +116,7 @@ def test_database_invariants(db, catalog):
     n = db.tri_area.values.size
     assert 500_000 < n < 5_000_000
     assert np.all(np.diff(db.tri_area.values) >= 0)
-    s = db.tri_stars.astype(np.int64)
+    s = db.stars_by_area().astype(np.int64)  # row t: triangle t of the area order
     assert np.all(s[:, 0] < s[:, 1]) and np.all(s[:, 1] < s[:, 2]) and s.max() < len(guide)
     assert np.unique(s[:, 0] * 2**32 + s[:, 1] * 2**16 + s[:, 2]).size == n  # no duplicates
     assert db.tri_area.values[0] >= np.float32(db.rules.min_area) * (1 - 1e-6)
@@ -173,7 +174,9 @@ def test_moment_filter_matches_a_scan_of_the_area_hits(db):
         stop = start + int(rng.integers(0, 20_000))
         lo = float(moment[rng.integers(start, stop)]) if stop > start else 0.0
         hi = lo * rng.uniform(1.0, 1.2)
-        got = np.sort(_moment_filter(db.tri_moment, db.tri_moment_perm, start, stop, lo, hi))
+        entries = _moment_filter(db.tri_moment, db.tri_moment_perm, start, stop, lo, hi)
+        assert np.all(np.diff(entries) > 0)  # entries of the moment index, ascending
+        got = np.sort(entry_triangles(db.tri_moment_perm)[entries])
         want = start + np.flatnonzero((moment[start:stop] >= lo) & (moment[start:stop] <= hi))
         assert np.array_equal(got, want)
 
@@ -236,7 +239,9 @@ def _first_query_recount(v, idx, tables, tol, rows):
     start, stop, mo, half = window
     hits = start + np.flatnonzero((moment[start:stop] >= mo - half) & (moment[start:stop] <= mo + half))
     named = all(rows[q] >= 0 for q in best)
-    in_r = named and {int(rows[q]) for q in best} in [set(tables.stars[h].tolist()) for h in hits]
+    by_area = np.empty_like(tables.stars)  # tables.stars is in the moment index's order
+    by_area[entry_triangles(tables.moment_perm)] = tables.stars
+    in_r = named and {int(rows[q]) for q in best} in [set(by_area[h].tolist()) for h in hits]
     return len(hits), int(named), int(in_r)
 
 
@@ -275,7 +280,7 @@ def _check_to_r(rows, work):
 def test_float32_area_resolution_is_far_below_the_search_window(db, camera):
     # the smallest area window (beta * sigma_A at 1 px) must dwarf the float32 spacing
     sigma = 1.0 / camera.f_px
-    u = db.guide_unit[db.tri_stars[-1].astype(np.int64)]  # largest area: coarsest spacing
+    u = db.guide_unit[db.stars_by_area()[-1].astype(np.int64)]  # largest area: coarsest spacing
     var_a, _ = triangle_variances(u[0], u[1], u[2], sigma)
     spacing = np.spacing(db.tri_area.values[-1])
     assert 3 * math.sqrt(var_a) > 1000 * spacing
