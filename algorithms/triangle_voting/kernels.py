@@ -14,9 +14,9 @@ from typing import NamedTuple
 
 import numpy as np
 from numba import njit
-from starid_algorithms.planar_triangle.kernels import argsort_desc
+from starid_algorithms.planar_triangle.kernels import Finish, argsort_desc, finish
 
-from starid.kernels import chord_rows, verify_pairwise, wahba_rows
+from starid.kernels import DeepSky, Frame, backproject_px, chord_rows, verify_pairwise, wahba_rows
 
 #: names of the per-image work counters :func:`identify_rows` returns (``Identification.counters``):
 #: image triangles looked up in the grid, catalog records in the grid cells scanned, records within
@@ -603,3 +603,71 @@ def identify_rows(v_cam, db, tol, votes, mark):
         rows = best_hypothesis(v_cam, hyp, score, db, tol, tol[TOL_MIN_STARS] + 1)
     return rows, work
 
+
+
+@njit(cache=True)
+def _brightest_first(x_px, y_px, mag):
+    """``np.lexsort((y_px, x_px, mag))``: the stars by magnitude, then x, then y (stable insertion sort,
+    the same order for the few dozen stars of an image)."""
+    n = mag.shape[0]
+    order = np.empty(n, dtype=np.int64)
+    for k in range(n):
+        o = k
+        p = k
+        while p > 0:
+            q = order[p - 1]
+            after = mag[q] > mag[o] or (mag[q] == mag[o] and (
+                x_px[q] > x_px[o] or (x_px[q] == x_px[o] and y_px[q] > y_px[o])))
+            if after:
+                order[p] = q
+                p -= 1
+            else:
+                break
+        order[p] = o
+    return order
+
+
+@njit(cache=True)
+def identify_image(x_px, y_px, mag, db, tol, fin_db, fin_cam, votes, mark):
+    """``identify`` of one image in one call: ``(status, hip, attitude, accepted, work)``.
+
+    The stars brightest first (``np.lexsort((y, x, mag))``) with ``mag <= mag_cut``, at most ``max_stars``
+    (-1: all); fewer than 3: ``status`` 0. Then :func:`identify_rows` on their camera vectors (no guide row:
+    ``status`` 1, ``work`` its counters) and planar_triangle's ``finish`` on every star (``status`` 2).
+    ``db``, ``tol``: the plain tuples of :class:`Tables` and :class:`Tolerance`; ``fin_db`` = (guide unit
+    vectors float64, guide HIP, deep unit, deep HIP, deep V); ``fin_cam`` = (the camera's ``Frame`` fields,
+    the ``Finish`` rules' fields, ``mag_cut``, ``max_stars``), plain tuples (a NamedTuple argument costs
+    about 1 us more per call to dispatch). One call instead of the wrapper's several kernel calls.
+    """
+    unit64, guide_hip, deep_unit, deep_hip, deep_mag = fin_db
+    (f_px, cx_px, cy_px, width_px, height_px, eps_chord, mag_margin, mag_limit, coverage_mag_margin,
+     max_missed_fraction, assign_all, mag_cut, max_stars) = fin_cam
+    n = x_px.shape[0]
+    order = _brightest_first(x_px, y_px, mag)
+    sel = np.empty(n, dtype=np.int64)
+    m = 0
+    for k in range(n):
+        if mag[order[k]] <= mag_cut:
+            sel[m] = order[k]
+            m += 1
+    if max_stars >= 0 and m > max_stars:
+        m = max_stars
+    if m < 3:
+        return 0, np.full(n, -1, dtype=np.int64), np.zeros((3, 3)), False, np.zeros(len(WORK_COUNTERS), dtype=np.int64)
+    xs = np.empty(m)
+    ys = np.empty(m)
+    for k in range(m):
+        xs[k] = x_px[sel[k]]
+        ys[k] = y_px[sel[k]]
+    v_cam = backproject_px(xs, ys, f_px, cx_px, cy_px)
+    rows, work = identify_rows(v_cam, db, tol, votes, mark)
+    if rows.max() < 0:
+        return 1, np.full(n, -1, dtype=np.int64), np.zeros((3, 3)), False, work
+    all_rows = np.full(n, -1, dtype=np.int64)
+    for k in range(m):
+        all_rows[sel[k]] = rows[k]
+    hip, attitude, accepted = finish(x_px, y_px, mag, all_rows, unit64, guide_hip, DeepSky(deep_unit, deep_hip),
+                                     deep_mag, Frame(f_px, cx_px, cy_px, width_px, height_px),
+                                     Finish(eps_chord, mag_margin, mag_limit, coverage_mag_margin, max_missed_fraction,
+                                            assign_all))
+    return 2, hip, attitude, accepted, work
