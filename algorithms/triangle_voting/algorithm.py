@@ -20,6 +20,7 @@ from starid.observation import Observation
 from starid.params import check_flag, check_number, check_whole, param
 from starid.plugin import Algorithm, Database, Explanation, Identification
 
+from .final import band_order
 from .kernels import (
     WORK_COUNTERS,
     Tables,
@@ -352,6 +353,8 @@ class TriangleVoting(Algorithm):
         order = np.lexsort((main, height32, base32, cell_id))
         cell_start = np.searchsorted(cell_id[order], np.arange(n_cells_b * n_cells_h + 1)).astype(np.int32)
         deep = deep_sky(catalog)
+        by_cone = band_order(deep.unit, deep.hip)  # the final step's cone searches (final.py), not by z alone
+        deep = DeepSky(np.ascontiguousarray(deep.unit[by_cone]), np.ascontiguousarray(deep.hip[by_cone]))
         main_rows, i_rows = main[order].astype(np.uint16), n_i[order].astype(np.uint16)
         j_rows = n_j[order].astype(np.uint16)
         unit32 = unit.astype(np.float32)

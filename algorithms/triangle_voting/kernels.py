@@ -14,9 +14,11 @@ from typing import NamedTuple
 
 import numpy as np
 from numba import njit
-from starid_algorithms.planar_triangle.kernels import Finish, argsort_desc, finish
+from starid_algorithms.planar_triangle.kernels import argsort_desc
 
-from starid.kernels import DeepSky, Frame, backproject_px, chord_rows, verify_pairwise, wahba_rows
+from starid.kernels import backproject_px, chord_rows, verify_pairwise, wahba_rows
+
+from .final import finish_cone
 
 #: names of the per-image work counters :func:`identify_rows` returns (``Identification.counters``):
 #: image triangles looked up in the grid, catalog records in the grid cells scanned, records within
@@ -666,8 +668,7 @@ def identify_image(x_px, y_px, mag, db, tol, fin_db, fin_cam, votes, mark):
     all_rows = np.full(n, -1, dtype=np.int64)
     for k in range(m):
         all_rows[sel[k]] = rows[k]
-    hip, attitude, accepted = finish(x_px, y_px, mag, all_rows, unit64, guide_hip, DeepSky(deep_unit, deep_hip),
-                                     deep_mag, Frame(f_px, cx_px, cy_px, width_px, height_px),
-                                     Finish(eps_chord, mag_margin, mag_limit, coverage_mag_margin, max_missed_fraction,
-                                            assign_all))
+    hip, attitude, accepted = finish_cone(x_px, y_px, mag, all_rows, unit64, guide_hip, deep_unit, deep_hip, deep_mag,
+                                          f_px, cx_px, cy_px, width_px, height_px, eps_chord, mag_margin, mag_limit,
+                                          coverage_mag_margin, max_missed_fraction, assign_all)
     return 2, hip, attitude, accepted, work
