@@ -380,7 +380,7 @@ class TriangleVoting(Algorithm):
         # order), only stars bright enough to be guide stars (with a margin), at most max_stars of them;
         # voting, verification (identify_rows) and the final step (finish)
         status, hip, attitude, accepted, work = identify_image(x, y, mag, _kernel_tables(db), kernel_tol,
-                                                               _finish_tables(db), fin_cam, *_scratch(db, n))
+                                                               _finish_tables(db), fin_cam)
         if status == 0:
             return Identification(hip)
         counters = dict(zip(WORK_COUNTERS, work.tolist(), strict=True))

@@ -170,6 +170,28 @@ def _grow(arr):
 
 
 @njit(cache=True)
+def _slot(slots, touched_o, touched_c, o, c, n_guide):
+    """The slot of the pair ``(o, c)`` in :func:`vote`'s table: the one holding it, or the empty one
+    where it goes (linear probing; ``slots.size`` a power of 2, never full)."""
+    mask = slots.size - 1
+    e = ((o * n_guide + c) * 40503) & mask
+    while True:
+        h = slots[e]
+        if h == 0 or (touched_o[h - 1] == o and touched_c[h - 1] == c):
+            return e
+        e = (e + 1) & mask
+
+
+@njit(cache=True)
+def _rehash(touched_o, touched_c, n_touched, n_guide, size):
+    """:func:`vote`'s table rebuilt with ``size`` slots for its first ``n_touched`` pairs."""
+    slots = np.zeros(size, dtype=np.int64)
+    for k in range(n_touched):
+        slots[_slot(slots, touched_o, touched_c, touched_o[k], touched_c[k], n_guide)] = k + 1
+    return slots
+
+
+@njit(cache=True)
 def vote(v_cam, db, tol, votes, mark):
     """Triangle voting (Fan & Zhong's double feature constraint) over a 2-D grid index.
 
@@ -187,10 +209,9 @@ def vote(v_cam, db, tol, votes, mark):
     record whose sides matched too, as ``(i, row_i, a, row_a, b, row_b)``; ``score`` (m,):
     the votes of its three assignments summed; ``work``: int64 counters of :data:`WORK_COUNTERS`.
 
-    ``votes`` (int32, at least (n, n_guide)) and ``mark`` (int32 (3, n_guide)) are scratch counters
-    that must be all zero on entry (:func:`new_scratch`); they are all zero again on return: only
-    the entries this image touched are reset (a list of them is kept anyway), instead of zeroing
-    ``n x n_guide`` counters for every image.
+    ``votes``, ``mark``: no longer read (the former per-database scratch counters, (n, n_guide) and
+    (3, n_guide); the votes are now tallied in a small table of the pairs touched, which stays in
+    the first-level cache); kept so that callers and tools keep their signature, left as they are.
     """
     (base_db, height_db, main_db, ni_db, nj_db, cell_start, n_cells_b, n_cells_h, cell_b, cell_h, cat_unit, _, _,
      pr_chord, dmin_chord, side_i_db, side_j_db) = db
@@ -201,14 +222,22 @@ def vote(v_cam, db, tol, votes, mark):
     hi_d = pr_chord + eps_b
     eps_side = eps_b + SIDE_ROUNDING
     no_side_check = not side_check
-    # votes[o, c]: votes of catalog row c for observed star o; mark[u, c], per vertex of the
-    # current triangle (main, a, b): the last triangle that voted row c (both all zero on entry)
+    # the votes of (observed star o, catalog row c): tally[e] for the e-th pair touched, (touched_o[e],
+    # touched_c[e]); a small open-addressing table (slot: index e + 1, 0 = empty) finds e from the key
+    # o * n_guide + c. Small enough to stay in the first-level cache, where an (n, n_guide) matrix sent
+    # each vote to a random line of 1.3 MB. tri_u / tri_c: the (vertex, row) pairs the current
+    # triangle has voted (one vote per triangle each)
+    n_guide = cat_unit.shape[0]
     obs = np.empty(3, dtype=np.int64)
     row = np.empty(3, dtype=np.int64)
     tri = 0
     touched_o = np.empty(1024, dtype=np.int64)
     touched_c = np.empty(1024, dtype=np.int64)
+    tally = np.empty(1024, dtype=np.int64)
+    slots = np.zeros(2048, dtype=np.int64)
     n_touched = 0
+    tri_u = np.empty(64, dtype=np.int64)
+    tri_c = np.empty(64, dtype=np.int64)
     nbr = np.empty(n_nbr, dtype=np.int64)
     listed = np.empty(256, dtype=np.int64)  # records of one image triangle left for the exact side check
     hyp = np.empty((256, 6), dtype=np.int64)  # side-matched records: (i, c, a, c_a, b, c_b)
@@ -248,6 +277,13 @@ def vote(v_cam, db, tol, votes, mark):
                 while n_touched + 3 * n_scan > touched_o.size:  # room for every possible vote
                     touched_o = _grow(touched_o)
                     touched_c = _grow(touched_c)
+                    tally = _grow(tally)
+                if 2 * touched_o.size > slots.size:  # at most half full
+                    slots = _rehash(touched_o, touched_c, n_touched, n_guide, 2 * touched_o.size)
+                if 3 * n_scan > tri_u.size:
+                    tri_u = np.empty(3 * n_scan, dtype=np.int64)
+                    tri_c = np.empty(3 * n_scan, dtype=np.int64)
+                n_tri = 0
                 if n_scan + 1 > listed.size:
                     listed = np.empty(2 * (n_scan + 1), dtype=np.int64)
                 while n_hyp + n_scan > hyp.shape[0]:
@@ -303,20 +339,31 @@ def vote(v_cam, db, tol, votes, mark):
                     for u in range(n_votes):
                         o = obs[u]
                         c = row[u]
-                        if mark[u, c] == tri:  # at most one vote per observed triangle
+                        again = False  # at most one vote per observed triangle
+                        for t in range(n_tri):
+                            if tri_u[t] == u and tri_c[t] == c:
+                                again = True
+                                break
+                        if again:
                             continue
-                        mark[u, c] = tri
-                        if votes[o, c] == 0:
+                        tri_u[n_tri] = u
+                        tri_c[n_tri] = c
+                        n_tri += 1
+                        e = _slot(slots, touched_o, touched_c, o, c, n_guide)
+                        h = slots[e]
+                        if h == 0:
                             touched_o[n_touched] = o
                             touched_c[n_touched] = c
+                            tally[n_touched] = 0
                             n_touched += 1
-                        votes[o, c] += 1
+                            h = slots[e] = n_touched
+                        tally[h - 1] += 1
     cand = np.full((n, n_cand), -1, dtype=np.int64)
     cand_votes = np.zeros((n, n_cand), dtype=np.int64)
     for e in range(n_touched):
         o = touched_o[e]
         c = touched_c[e]
-        w = votes[o, c]
+        w = tally[e]
         # insertion into the top list of o: more votes first, ties by lower catalog row
         pos = n_cand
         while pos > 0 and (cand[o, pos - 1] < 0 or w > cand_votes[o, pos - 1]
@@ -337,13 +384,12 @@ def vote(v_cam, db, tol, votes, mark):
     hyp = hyp[:n_hyp]
     score = np.empty(n_hyp, dtype=np.int64)
     for h in range(n_hyp):
-        score[h] = votes[hyp[h, 0], hyp[h, 1]] + votes[hyp[h, 2], hyp[h, 3]] + votes[hyp[h, 4], hyp[h, 5]]
-    for e in range(n_touched):  # every counter set above is in the touched list: all zero again
-        c = touched_c[e]
-        votes[touched_o[e], c] = 0
-        mark[0, c] = 0
-        mark[1, c] = 0
-        mark[2, c] = 0
+        w = 0
+        for u in range(3):
+            slot = slots[_slot(slots, touched_o, touched_c, hyp[h, 2 * u], hyp[h, 2 * u + 1], n_guide)]
+            if slot > 0:
+                w += tally[slot - 1]
+        score[h] = w
     work = np.zeros(len(WORK_COUNTERS), dtype=np.int64)
     work[0] = tri
     work[1] = n_records
@@ -630,7 +676,7 @@ def _brightest_first(x_px, y_px, mag):
 
 
 @njit(cache=True)
-def identify_image(x_px, y_px, mag, db, tol, fin_db, fin_cam, votes, mark):
+def identify_image(x_px, y_px, mag, db, tol, fin_db, fin_cam):
     """``identify`` of one image in one call: ``(status, hip, attitude, accepted, work)``.
 
     The stars brightest first (``np.lexsort((y, x, mag))``) with ``mag <= mag_cut``, at most ``max_stars``
@@ -662,7 +708,8 @@ def identify_image(x_px, y_px, mag, db, tol, fin_db, fin_cam, votes, mark):
         xs[k] = x_px[sel[k]]
         ys[k] = y_px[sel[k]]
     v_cam = backproject_px(xs, ys, f_px, cx_px, cy_px)
-    rows, work = identify_rows(v_cam, db, tol, votes, mark)
+    no_scratch = np.zeros((0, 0), dtype=np.int32)  # vote's former scratch, no longer read
+    rows, work = identify_rows(v_cam, db, tol, no_scratch, no_scratch)
     if rows.max() < 0:
         return 1, np.full(n, -1, dtype=np.int64), np.zeros((3, 3)), False, work
     all_rows = np.full(n, -1, dtype=np.int64)
