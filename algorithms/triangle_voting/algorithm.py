@@ -350,7 +350,9 @@ class TriangleVoting(Algorithm):
         n_cells_b = int(cb.max()) + 1 if cb.size else 1
         n_cells_h = int(ch.max()) + 1 if ch.size else 1
         cell_id = cb * n_cells_h + ch
-        order = np.lexsort((main, height32, base32, cell_id))
+        # by cell, then height (then base, main): a grid column's cells are one run of rising height, so
+        # vote skips the records below and above its height window
+        order = np.lexsort((main, base32, height32, cell_id))
         cell_start = np.searchsorted(cell_id[order], np.arange(n_cells_b * n_cells_h + 1)).astype(np.int32)
         deep = deep_sky(catalog)
         by_cone = band_order(deep.unit, deep.hip)  # the final step's cone searches (final.py), not by z alone

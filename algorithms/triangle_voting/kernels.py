@@ -170,6 +170,40 @@ def _grow(arr):
 
 
 @njit(cache=True)
+def _by_base(listed, n, cell_start, cb0, cb1, ch0, ch1, n_cells_h, base_db, height_db, main_db):
+    """Reorder the records ``listed[:n]`` (ascending, from the cells ``cb0..cb1`` x ``ch0..ch1``) by cell,
+    then base, height and main star (stable): the order of the records before they were sorted by height
+    within a cell, so the side-matched triangles (the fallback's hypotheses, whose ties go by position)
+    come in the same order as before."""
+    cell = np.empty(n, dtype=np.int64)
+    for e in range(n):
+        r = listed[e]
+        found = -1
+        for cb in range(cb0, cb1 + 1):
+            for ch in range(ch0, ch1 + 1):
+                c = cb * n_cells_h + ch
+                if cell_start[c] <= r < cell_start[c + 1]:
+                    found = c
+        cell[e] = found
+    for k in range(1, n):
+        r = listed[k]
+        c = cell[k]
+        p = k
+        while p > 0:
+            q = listed[p - 1]
+            cq = cell[p - 1]
+            after = cq > c or (cq == c and (base_db[q] > base_db[r] or (base_db[q] == base_db[r] and (
+                height_db[q] > height_db[r] or (height_db[q] == height_db[r] and main_db[q] > main_db[r])))))
+            if not after:
+                break
+            listed[p] = q
+            cell[p] = cq
+            p -= 1
+        listed[p] = r
+        cell[p] = c
+
+
+@njit(cache=True)
 def _slot(slots, touched_o, touched_c, o, c, n_guide):
     """The slot of the pair ``(o, c)`` in :func:`vote`'s table: the one holding it, or the empty one
     where it goes (linear probing; ``slots.size`` a power of 2, never full)."""
@@ -296,8 +330,15 @@ def vote(v_cam, db, tol, votes, mark):
                 # listed; the second pass checks those sides exactly, from the guide vectors, and votes
                 n_near = 0
                 for cb in range(cb0, cb1 + 1):
-                    # the cells (cb, ch0..ch1) are contiguous in the record order
-                    for r in range(cell_start[cb * n_cells_h + ch0], cell_start[cb * n_cells_h + ch1 + 1]):
+                    # the cells (cb, ch0..ch1) are contiguous in the record order and sorted by height
+                    # (cell, then height): the records below and above the height window are skipped
+                    r0 = cell_start[cb * n_cells_h + ch0]
+                    r1 = cell_start[cb * n_cells_h + ch1 + 1]
+                    while r0 < r1 and height_db[r0] - height < -eps_h:
+                        r0 += 1
+                    while r1 > r0 and height_db[r1 - 1] - height > eps_h:
+                        r1 -= 1
+                    for r in range(r0, r1):
                         in_windows = (abs(base_db[r] - base) <= eps_b) & (abs(height_db[r] - height) <= eps_h)
                         s_i = float(side_i_db[r])
                         s_j = float(side_j_db[r])
@@ -306,6 +347,8 @@ def vote(v_cam, db, tol, votes, mark):
                         n_matches += in_windows
                         listed[n_near] = r
                         n_near += in_windows & (near | no_side_check)
+                if n_near > 1:  # the records in the order of (cell, base, height, main), as they were stored
+                    _by_base(listed, n_near, cell_start, cb0, cb1, ch0, ch1, n_cells_h, base_db, height_db, main_db)
                 for e in range(n_near):
                     r = listed[e]
                     c = main_db[r]
