@@ -57,8 +57,8 @@ def deep_keys(unit):
     band = np.empty(m, dtype=np.int64)
     key = np.empty(m)
     for g in range(m):
-        band[g] = deep_band(float(unit[g, 2]))
-        key[g] = ra_key(float(unit[g, 0]), float(unit[g, 1]))
+        band[g] = deep_band(np.float64(unit[g, 2]))  # np.float64: float() of a float32 stays float32
+        key[g] = ra_key(np.float64(unit[g, 0]), np.float64(unit[g, 1]))
     return band, key
 
 
@@ -73,7 +73,7 @@ def _first_band(unit, b, lo, hi):
     """First row in ``[lo, hi)`` whose band is ``>= b`` (rows sorted by band)."""
     while lo < hi:
         mid = (lo + hi) // 2
-        if deep_band(float(unit[mid, 2])) < b:
+        if deep_band(np.float64(unit[mid, 2])) < b:
             lo = mid + 1
         else:
             hi = mid
@@ -85,7 +85,7 @@ def _first_key(unit, k, lo, hi, upper):
     """First row in ``[lo, hi)`` whose key is ``>= k`` (``upper``: ``> k``), rows of one band (sorted by key)."""
     while lo < hi:
         mid = (lo + hi) // 2
-        km = ra_key(float(unit[mid, 0]), float(unit[mid, 1]))
+        km = ra_key(np.float64(unit[mid, 0]), np.float64(unit[mid, 1]))
         if km < k or (upper and km == k):
             lo = mid + 1
         else:
@@ -122,7 +122,7 @@ def cone_ranges(unit, cx, cy, cz, c_radius, ranges):
             wrap = True
     m = unit.shape[0]
     count = 0
-    start = _first_band(unit, b0, 0, m)
+    start = _first_band(unit, b0, np.int64(0), m)  # runtime values: one signature
     for b in range(b0, b1 + 1):
         stop = _first_band(unit, b + 1, start, m)
         if full:
@@ -130,15 +130,15 @@ def cone_ranges(unit, cx, cy, cz, c_radius, ranges):
             ranges[count, 1] = stop
             count += 1
         elif wrap:  # [k0, 4) and [0, k1]
-            ranges[count, 0] = _first_key(unit, k0, start, stop, False)
+            ranges[count, 0] = _first_key(unit, k0, start, stop, np.bool_(False))
             ranges[count, 1] = stop
             ranges[count + 1, 0] = start
-            ranges[count + 1, 1] = _first_key(unit, k1, start, stop, True)
+            ranges[count + 1, 1] = _first_key(unit, k1, start, stop, np.bool_(True))
             count += 2
         else:
-            lo = _first_key(unit, k0, start, stop, False)
+            lo = _first_key(unit, k0, start, stop, np.bool_(False))
             ranges[count, 0] = lo
-            ranges[count, 1] = _first_key(unit, k1, lo, stop, True)
+            ranges[count, 1] = _first_key(unit, k1, lo, stop, np.bool_(True))
             count += 1
         start = stop
     return count

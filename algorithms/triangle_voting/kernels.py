@@ -313,7 +313,7 @@ def vote(v_cam, db, tol, votes, mark):
                     touched_c = _grow(touched_c)
                     tally = _grow(tally)
                 if 2 * touched_o.size > slots.size:  # at most half full
-                    slots = _rehash(touched_o, touched_c, n_touched, n_guide, 2 * touched_o.size)
+                    slots = _rehash(touched_o, touched_c, np.int64(n_touched), n_guide, 2 * touched_o.size)
                 if 3 * n_scan > tri_u.size:
                     tri_u = np.empty(3 * n_scan, dtype=np.int64)
                     tri_c = np.empty(3 * n_scan, dtype=np.int64)
@@ -348,7 +348,8 @@ def vote(v_cam, db, tol, votes, mark):
                         listed[n_near] = r
                         n_near += in_windows & (near | no_side_check)
                 if n_near > 1:  # the records in the order of (cell, base, height, main), as they were stored
-                    _by_base(listed, n_near, cell_start, cb0, cb1, ch0, ch1, n_cells_h, base_db, height_db, main_db)
+                    _by_base(listed, np.int64(n_near), cell_start, cb0, cb1, ch0, ch1, n_cells_h, base_db, height_db,
+                             main_db)
                 for e in range(n_near):
                     r = listed[e]
                     c = main_db[r]
