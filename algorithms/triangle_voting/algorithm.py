@@ -10,7 +10,7 @@ from typing import ClassVar
 
 import numpy as np
 from scipy.spatial import cKDTree
-from starid_algorithms.planar_triangle.kernels import Finish, deep_v_mag, finish
+from starid_algorithms.planar_triangle.kernels import Finish, deep_v_mag
 
 from starid.camera import Camera
 from starid.catalog import Catalog
@@ -20,12 +20,13 @@ from starid.observation import Observation
 from starid.params import check_flag, check_number, check_whole, param
 from starid.plugin import Algorithm, Database, Explanation, Identification
 
+from .final import band_order
 from .kernels import (
     WORK_COUNTERS,
     Tables,
     Tolerance,
     build_triangles,
-    identify_rows,
+    identify_image,
     new_scratch,
     record_sides,
     sky_cell_of,
@@ -122,6 +123,16 @@ def _scratch(db: TriangleVotingDatabase, n: int) -> tuple[np.ndarray, np.ndarray
 
 
 _UNIT_F64: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+_FINISH_TABLES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _finish_tables(db: TriangleVotingDatabase) -> tuple:
+    """``identify_image``'s ``fin_db``: the guide unit vectors as float64 (``_unit_f64``), the guide HIP,
+    the deep sky's unit vectors and HIP and its V, as one plain tuple made once per database."""
+    held = _FINISH_TABLES.get(db)
+    if held is None:
+        held = _FINISH_TABLES[db] = (_unit_f64(db), db.hip, db.deep.unit, db.deep.hip, db.deep_v_mag)
+    return held
 
 
 def _unit_f64(db: TriangleVotingDatabase) -> np.ndarray:
@@ -339,9 +350,13 @@ class TriangleVoting(Algorithm):
         n_cells_b = int(cb.max()) + 1 if cb.size else 1
         n_cells_h = int(ch.max()) + 1 if ch.size else 1
         cell_id = cb * n_cells_h + ch
-        order = np.lexsort((main, height32, base32, cell_id))
+        # by cell, then height (then base, main): a grid column's cells are one run of rising height, so
+        # vote skips the records below and above its height window
+        order = np.lexsort((main, base32, height32, cell_id))
         cell_start = np.searchsorted(cell_id[order], np.arange(n_cells_b * n_cells_h + 1)).astype(np.int32)
         deep = deep_sky(catalog)
+        by_cone = band_order(deep.unit, deep.hip)  # the final step's cone searches (final.py), not by z alone
+        deep = DeepSky(np.ascontiguousarray(deep.unit[by_cone]), np.ascontiguousarray(deep.hip[by_cone]))
         main_rows, i_rows = main[order].astype(np.uint16), n_i[order].astype(np.uint16)
         j_rows = n_j[order].astype(np.uint16)
         unit32 = unit.astype(np.float32)
@@ -357,30 +372,22 @@ class TriangleVoting(Algorithm):
     # -- identification ---------------------------------------------------------------------
     def identify(self, database: TriangleVotingDatabase, observation: Observation) -> Identification:
         n = observation.x_px.size
-        out = np.full(n, -1, dtype=np.int64)
         if n < 3:
-            return Identification(out)
+            return Identification(np.full(n, -1, dtype=np.int64))
         cam = observation.camera
         x, y, mag = observation.x_px, observation.y_px, observation.mag
-        # brightest first; ties broken on position so the result does not depend on input order;
-        # only stars bright enough to be guide stars (with a margin), at most max_stars of them
-        order = np.lexsort((y, x, mag))
-        order = order[mag[order] <= self.mag_limit + self.mag_margin][:self.max_stars]
-        if order.size < 3:
-            return Identification(out)
-        v_cam = backproject_px(x[order], y[order], cam.f_px, cam.cx_px, cam.cy_px)
-        tol, kernel_tol = self._tolerances(cam)
         db = database
-        rows, work = identify_rows(v_cam, _kernel_tables(db), kernel_tol, *_scratch(db, order.size))
+        _, kernel_tol, fin_cam = self._tolerances(cam)
+        # one kernel call: brightest first (ties on position, so the result does not depend on input
+        # order), only stars bright enough to be guide stars (with a margin), at most max_stars of them;
+        # voting, verification (identify_rows) and the final step (finish)
+        status, hip, attitude, accepted, work = identify_image(x, y, mag, _kernel_tables(db), kernel_tol,
+                                                               _finish_tables(db), fin_cam)
+        if status == 0:
+            return Identification(hip)
         counters = dict(zip(WORK_COUNTERS, work.tolist(), strict=True))
-        if rows.max() < 0:
-            return Identification(out, counters=counters)
-        all_rows = np.full(n, -1, dtype=np.int64)
-        all_rows[order] = rows
-        rules = Finish(tol.eps_chord, float(self.mag_margin), float(self.mag_limit), float(self.coverage_mag_margin),
-                       float(self.max_missed_fraction), bool(self.assign_all))
-        hip, attitude, accepted = finish(x, y, mag, all_rows, _unit_f64(db), db.hip, db.deep, db.deep_v_mag,
-                                         camera_frame(cam), rules)
+        if status == 1:
+            return Identification(hip, counters=counters)
         if accepted and not self._photometry_agrees(db, hip, mag):
             return Identification(np.full(n, -1, dtype=np.int64), counters=counters)
         return Identification(hip, attitude if accepted else None, counters=counters)
@@ -401,15 +408,21 @@ class TriangleVoting(Algorithm):
         v_mag = np.array([db.deep_v_mag[np.flatnonzero(db.deep.hip == h)[0]] for h in hip[named]])
         return float(np.mean(v_mag - mag[named])) <= self.mag_margin
 
-    def _tolerances(self, cam: Camera) -> tuple[Tolerance, tuple]:
-        """``_tolerance(cam)`` and the same as the plain tuple the kernels take, kept for the last camera
-        (an identification's images share one; building the bundle was ~1.6 us of each image)."""
+    def _tolerances(self, cam: Camera) -> tuple[Tolerance, tuple, tuple]:
+        """``_tolerance(cam)``, the same as the plain tuple the kernels take, and ``identify_image``'s
+        ``fin_cam`` (the camera's frame, the final step's rules, the magnitude cut and ``max_stars``), kept
+        for the last camera (an identification's images share one; building the bundle was ~1.6 us of
+        each image)."""
         held = self.__dict__.get("_held_tolerances")
         if held is None or held[0] is not cam:
             tol = self._tolerance(cam)
-            held = (cam, tol, tuple(tol))
+            rules = Finish(tol.eps_chord, float(self.mag_margin), float(self.mag_limit),
+                           float(self.coverage_mag_margin), float(self.max_missed_fraction), bool(self.assign_all))
+            fin_cam = (*camera_frame(cam), *rules, float(self.mag_limit + self.mag_margin),
+                       -1 if self.max_stars is None else int(self.max_stars))
+            held = (cam, tol, tuple(tol), fin_cam)
             object.__setattr__(self, "_held_tolerances", held)  # a cache, not a parameter (frozen dataclass)
-        return held[1], held[2]
+        return held[1], held[2], held[3]
 
     def __getstate__(self):
         state = self.__dict__.copy()

@@ -16,7 +16,9 @@ import numpy as np
 from numba import njit
 from starid_algorithms.planar_triangle.kernels import argsort_desc
 
-from starid.kernels import chord_rows, verify_pairwise, wahba_rows
+from starid.kernels import backproject_px, chord_rows, verify_pairwise, wahba_rows
+
+from .final import finish_cone
 
 #: names of the per-image work counters :func:`identify_rows` returns (``Identification.counters``):
 #: image triangles looked up in the grid, catalog records in the grid cells scanned, records within
@@ -168,6 +170,62 @@ def _grow(arr):
 
 
 @njit(cache=True)
+def _by_base(listed, n, cell_start, cb0, cb1, ch0, ch1, n_cells_h, base_db, height_db, main_db):
+    """Reorder the records ``listed[:n]`` (ascending, from the cells ``cb0..cb1`` x ``ch0..ch1``) by cell,
+    then base, height and main star (stable): the order of the records before they were sorted by height
+    within a cell, so the side-matched triangles (the fallback's hypotheses, whose ties go by position)
+    come in the same order as before."""
+    cell = np.empty(n, dtype=np.int64)
+    for e in range(n):
+        r = listed[e]
+        found = -1
+        for cb in range(cb0, cb1 + 1):
+            for ch in range(ch0, ch1 + 1):
+                c = cb * n_cells_h + ch
+                if cell_start[c] <= r < cell_start[c + 1]:
+                    found = c
+        cell[e] = found
+    for k in range(1, n):
+        r = listed[k]
+        c = cell[k]
+        p = k
+        while p > 0:
+            q = listed[p - 1]
+            cq = cell[p - 1]
+            after = cq > c or (cq == c and (base_db[q] > base_db[r] or (base_db[q] == base_db[r] and (
+                height_db[q] > height_db[r] or (height_db[q] == height_db[r] and main_db[q] > main_db[r])))))
+            if not after:
+                break
+            listed[p] = q
+            cell[p] = cq
+            p -= 1
+        listed[p] = r
+        cell[p] = c
+
+
+@njit(cache=True)
+def _slot(slots, touched_o, touched_c, o, c, n_guide):
+    """The slot of the pair ``(o, c)`` in :func:`vote`'s table: the one holding it, or the empty one
+    where it goes (linear probing; ``slots.size`` a power of 2, never full)."""
+    mask = slots.size - 1
+    e = ((o * n_guide + c) * 40503) & mask
+    while True:
+        h = slots[e]
+        if h == 0 or (touched_o[h - 1] == o and touched_c[h - 1] == c):
+            return e
+        e = (e + 1) & mask
+
+
+@njit(cache=True)
+def _rehash(touched_o, touched_c, n_touched, n_guide, size):
+    """:func:`vote`'s table rebuilt with ``size`` slots for its first ``n_touched`` pairs."""
+    slots = np.zeros(size, dtype=np.int64)
+    for k in range(n_touched):
+        slots[_slot(slots, touched_o, touched_c, touched_o[k], touched_c[k], n_guide)] = k + 1
+    return slots
+
+
+@njit(cache=True)
 def vote(v_cam, db, tol, votes, mark):
     """Triangle voting (Fan & Zhong's double feature constraint) over a 2-D grid index.
 
@@ -185,10 +243,9 @@ def vote(v_cam, db, tol, votes, mark):
     record whose sides matched too, as ``(i, row_i, a, row_a, b, row_b)``; ``score`` (m,):
     the votes of its three assignments summed; ``work``: int64 counters of :data:`WORK_COUNTERS`.
 
-    ``votes`` (int32, at least (n, n_guide)) and ``mark`` (int32 (3, n_guide)) are scratch counters
-    that must be all zero on entry (:func:`new_scratch`); they are all zero again on return: only
-    the entries this image touched are reset (a list of them is kept anyway), instead of zeroing
-    ``n x n_guide`` counters for every image.
+    ``votes``, ``mark``: no longer read (the former per-database scratch counters, (n, n_guide) and
+    (3, n_guide); the votes are now tallied in a small table of the pairs touched, which stays in
+    the first-level cache); kept so that callers and tools keep their signature, left as they are.
     """
     (base_db, height_db, main_db, ni_db, nj_db, cell_start, n_cells_b, n_cells_h, cell_b, cell_h, cat_unit, _, _,
      pr_chord, dmin_chord, side_i_db, side_j_db) = db
@@ -199,14 +256,22 @@ def vote(v_cam, db, tol, votes, mark):
     hi_d = pr_chord + eps_b
     eps_side = eps_b + SIDE_ROUNDING
     no_side_check = not side_check
-    # votes[o, c]: votes of catalog row c for observed star o; mark[u, c], per vertex of the
-    # current triangle (main, a, b): the last triangle that voted row c (both all zero on entry)
+    # the votes of (observed star o, catalog row c): tally[e] for the e-th pair touched, (touched_o[e],
+    # touched_c[e]); a small open-addressing table (slot: index e + 1, 0 = empty) finds e from the key
+    # o * n_guide + c. Small enough to stay in the first-level cache, where an (n, n_guide) matrix sent
+    # each vote to a random line of 1.3 MB. tri_u / tri_c: the (vertex, row) pairs the current
+    # triangle has voted (one vote per triangle each)
+    n_guide = cat_unit.shape[0]
     obs = np.empty(3, dtype=np.int64)
     row = np.empty(3, dtype=np.int64)
     tri = 0
     touched_o = np.empty(1024, dtype=np.int64)
     touched_c = np.empty(1024, dtype=np.int64)
+    tally = np.empty(1024, dtype=np.int64)
+    slots = np.zeros(2048, dtype=np.int64)
     n_touched = 0
+    tri_u = np.empty(64, dtype=np.int64)
+    tri_c = np.empty(64, dtype=np.int64)
     nbr = np.empty(n_nbr, dtype=np.int64)
     listed = np.empty(256, dtype=np.int64)  # records of one image triangle left for the exact side check
     hyp = np.empty((256, 6), dtype=np.int64)  # side-matched records: (i, c, a, c_a, b, c_b)
@@ -246,6 +311,13 @@ def vote(v_cam, db, tol, votes, mark):
                 while n_touched + 3 * n_scan > touched_o.size:  # room for every possible vote
                     touched_o = _grow(touched_o)
                     touched_c = _grow(touched_c)
+                    tally = _grow(tally)
+                if 2 * touched_o.size > slots.size:  # at most half full
+                    slots = _rehash(touched_o, touched_c, np.int64(n_touched), n_guide, 2 * touched_o.size)
+                if 3 * n_scan > tri_u.size:
+                    tri_u = np.empty(3 * n_scan, dtype=np.int64)
+                    tri_c = np.empty(3 * n_scan, dtype=np.int64)
+                n_tri = 0
                 if n_scan + 1 > listed.size:
                     listed = np.empty(2 * (n_scan + 1), dtype=np.int64)
                 while n_hyp + n_scan > hyp.shape[0]:
@@ -258,8 +330,15 @@ def vote(v_cam, db, tol, votes, mark):
                 # listed; the second pass checks those sides exactly, from the guide vectors, and votes
                 n_near = 0
                 for cb in range(cb0, cb1 + 1):
-                    # the cells (cb, ch0..ch1) are contiguous in the record order
-                    for r in range(cell_start[cb * n_cells_h + ch0], cell_start[cb * n_cells_h + ch1 + 1]):
+                    # the cells (cb, ch0..ch1) are contiguous in the record order and sorted by height
+                    # (cell, then height): the records below and above the height window are skipped
+                    r0 = cell_start[cb * n_cells_h + ch0]
+                    r1 = cell_start[cb * n_cells_h + ch1 + 1]
+                    while r0 < r1 and height_db[r0] - height < -eps_h:
+                        r0 += 1
+                    while r1 > r0 and height_db[r1 - 1] - height > eps_h:
+                        r1 -= 1
+                    for r in range(r0, r1):
                         in_windows = (abs(base_db[r] - base) <= eps_b) & (abs(height_db[r] - height) <= eps_h)
                         s_i = float(side_i_db[r])
                         s_j = float(side_j_db[r])
@@ -268,6 +347,9 @@ def vote(v_cam, db, tol, votes, mark):
                         n_matches += in_windows
                         listed[n_near] = r
                         n_near += in_windows & (near | no_side_check)
+                if n_near > 1:  # the records in the order of (cell, base, height, main), as they were stored
+                    _by_base(listed, np.int64(n_near), cell_start, cb0, cb1, ch0, ch1, n_cells_h, base_db, height_db,
+                             main_db)
                 for e in range(n_near):
                     r = listed[e]
                     c = main_db[r]
@@ -301,20 +383,31 @@ def vote(v_cam, db, tol, votes, mark):
                     for u in range(n_votes):
                         o = obs[u]
                         c = row[u]
-                        if mark[u, c] == tri:  # at most one vote per observed triangle
+                        again = False  # at most one vote per observed triangle
+                        for t in range(n_tri):
+                            if tri_u[t] == u and tri_c[t] == c:
+                                again = True
+                                break
+                        if again:
                             continue
-                        mark[u, c] = tri
-                        if votes[o, c] == 0:
+                        tri_u[n_tri] = u
+                        tri_c[n_tri] = c
+                        n_tri += 1
+                        e = _slot(slots, touched_o, touched_c, o, c, n_guide)
+                        h = slots[e]
+                        if h == 0:
                             touched_o[n_touched] = o
                             touched_c[n_touched] = c
+                            tally[n_touched] = 0
                             n_touched += 1
-                        votes[o, c] += 1
+                            h = slots[e] = n_touched
+                        tally[h - 1] += 1
     cand = np.full((n, n_cand), -1, dtype=np.int64)
     cand_votes = np.zeros((n, n_cand), dtype=np.int64)
     for e in range(n_touched):
         o = touched_o[e]
         c = touched_c[e]
-        w = votes[o, c]
+        w = tally[e]
         # insertion into the top list of o: more votes first, ties by lower catalog row
         pos = n_cand
         while pos > 0 and (cand[o, pos - 1] < 0 or w > cand_votes[o, pos - 1]
@@ -335,13 +428,12 @@ def vote(v_cam, db, tol, votes, mark):
     hyp = hyp[:n_hyp]
     score = np.empty(n_hyp, dtype=np.int64)
     for h in range(n_hyp):
-        score[h] = votes[hyp[h, 0], hyp[h, 1]] + votes[hyp[h, 2], hyp[h, 3]] + votes[hyp[h, 4], hyp[h, 5]]
-    for e in range(n_touched):  # every counter set above is in the touched list: all zero again
-        c = touched_c[e]
-        votes[touched_o[e], c] = 0
-        mark[0, c] = 0
-        mark[1, c] = 0
-        mark[2, c] = 0
+        w = 0
+        for u in range(3):
+            slot = slots[_slot(slots, touched_o, touched_c, hyp[h, 2 * u], hyp[h, 2 * u + 1], n_guide)]
+            if slot > 0:
+                w += tally[slot - 1]
+        score[h] = w
     work = np.zeros(len(WORK_COUNTERS), dtype=np.int64)
     work[0] = tri
     work[1] = n_records
@@ -603,3 +695,71 @@ def identify_rows(v_cam, db, tol, votes, mark):
         rows = best_hypothesis(v_cam, hyp, score, db, tol, tol[TOL_MIN_STARS] + 1)
     return rows, work
 
+
+
+@njit(cache=True)
+def _brightest_first(x_px, y_px, mag):
+    """``np.lexsort((y_px, x_px, mag))``: the stars by magnitude, then x, then y (stable insertion sort,
+    the same order for the few dozen stars of an image)."""
+    n = mag.shape[0]
+    order = np.empty(n, dtype=np.int64)
+    for k in range(n):
+        o = k
+        p = k
+        while p > 0:
+            q = order[p - 1]
+            after = mag[q] > mag[o] or (mag[q] == mag[o] and (
+                x_px[q] > x_px[o] or (x_px[q] == x_px[o] and y_px[q] > y_px[o])))
+            if after:
+                order[p] = q
+                p -= 1
+            else:
+                break
+        order[p] = o
+    return order
+
+
+@njit(cache=True)
+def identify_image(x_px, y_px, mag, db, tol, fin_db, fin_cam):
+    """``identify`` of one image in one call: ``(status, hip, attitude, accepted, work)``.
+
+    The stars brightest first (``np.lexsort((y, x, mag))``) with ``mag <= mag_cut``, at most ``max_stars``
+    (-1: all); fewer than 3: ``status`` 0. Then :func:`identify_rows` on their camera vectors (no guide row:
+    ``status`` 1, ``work`` its counters) and planar_triangle's ``finish`` on every star (``status`` 2).
+    ``db``, ``tol``: the plain tuples of :class:`Tables` and :class:`Tolerance`; ``fin_db`` = (guide unit
+    vectors float64, guide HIP, deep unit, deep HIP, deep V); ``fin_cam`` = (the camera's ``Frame`` fields,
+    the ``Finish`` rules' fields, ``mag_cut``, ``max_stars``), plain tuples (a NamedTuple argument costs
+    about 1 us more per call to dispatch). One call instead of the wrapper's several kernel calls.
+    """
+    unit64, guide_hip, deep_unit, deep_hip, deep_mag = fin_db
+    (f_px, cx_px, cy_px, width_px, height_px, eps_chord, mag_margin, mag_limit, coverage_mag_margin,
+     max_missed_fraction, assign_all, mag_cut, max_stars) = fin_cam
+    n = x_px.shape[0]
+    order = _brightest_first(x_px, y_px, mag)
+    sel = np.empty(n, dtype=np.int64)
+    m = 0
+    for k in range(n):
+        if mag[order[k]] <= mag_cut:
+            sel[m] = order[k]
+            m += 1
+    if max_stars >= 0 and m > max_stars:
+        m = max_stars
+    if m < 3:
+        return 0, np.full(n, -1, dtype=np.int64), np.zeros((3, 3)), False, np.zeros(len(WORK_COUNTERS), dtype=np.int64)
+    xs = np.empty(m)
+    ys = np.empty(m)
+    for k in range(m):
+        xs[k] = x_px[sel[k]]
+        ys[k] = y_px[sel[k]]
+    v_cam = backproject_px(xs, ys, f_px, cx_px, cy_px)
+    no_scratch = np.zeros((0, 0), dtype=np.int32)  # vote's former scratch, no longer read
+    rows, work = identify_rows(v_cam, db, tol, no_scratch, no_scratch)
+    if rows.max() < 0:
+        return 1, np.full(n, -1, dtype=np.int64), np.zeros((3, 3)), False, work
+    all_rows = np.full(n, -1, dtype=np.int64)
+    for k in range(m):
+        all_rows[sel[k]] = rows[k]
+    hip, attitude, accepted = finish_cone(x_px, y_px, mag, all_rows, unit64, guide_hip, deep_unit, deep_hip, deep_mag,
+                                          f_px, cx_px, cy_px, width_px, height_px, eps_chord, mag_margin, mag_limit,
+                                          coverage_mag_margin, max_missed_fraction, assign_all)
+    return 2, hip, attitude, accepted, work
