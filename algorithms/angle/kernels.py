@@ -187,28 +187,34 @@ def angle_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_un
 
 
 @njit(cache=True)
-def _triangles_keyed(v_cam, si, sj, sk, win_ij, win_ik, pairs, guide_unit, eps, scratch, tick, out):
-    """pyramid's ``triad_triangles`` (the same triangles (I, J, K) in ``out[:, :3]``, in the same
-    order, the same count), and for each triangle its two window positions: ``out[t, 3]`` =
-    2 (p - start) + o of its (I, J) entry in window ij, ``out[t, 4]`` that of its (I, K) entry in
-    window ik (the adjacency's
-    insertion index), so that the triad's other orientation (pair ik, anchor j) can be put in
-    the order ``triad_triangles`` would give it (:func:`_swap_cached`)."""
+def _triangles_by_ik(v_cam, si, sj, sk, win_ij, win_ik, pairs, guide_unit, eps, scratch, tick, out):
+    """pyramid's ``triad_triangles`` of the image triad (i, j, k), the join taken the other way round.
+
+    ``triad_triangles`` builds the partner lists of window ik and walks them for each entry of
+    window ij; here the partner lists are those of window ij (built by the caller with
+    ``_adjacency`` and stamp ``tick``, once for every anchor k of the pair ij) and each entry of
+    window ik walks them. The tests are the same expressions on the same rows (third side
+    ``|chord(r_J, r_K) - chord(b_j, b_k)| <= eps``, then the handedness), so the triangles are the
+    same set; they are then sorted into ``triad_triangles``' order: by the position of the (I, J)
+    entry in window ij, 2 (p - start) + o (``out[t, 3]``), then the (I, K) entry's insertion index in
+    window ik descending (``out[t, 4]``; its list is walked newest first). Rows (I, J, K) in
+    ``out[:, :3]``; returns the count, ``out.shape[0] + 1`` when there are more (as
+    ``triad_triangles``).
+    """
     head, stamp, nxt, val = scratch
-    _adjacency(pairs, win_ik[0], win_ik[1], head, stamp, tick, nxt, val)
     c_jk = chord_rows(v_cam, sj, v_cam, sk)
     t_obs = triple(v_cam, si, v_cam, sj, v_cam, sk)
     count = 0
-    lo = win_ij[0]
-    for p in range(lo, win_ij[1]):
+    lo = win_ik[0]
+    for p in range(lo, win_ik[1]):
         for o in range(2):
             big_i = np.int64(pairs[p, o])
-            big_j = np.int64(pairs[p, 1 - o])
+            big_k = np.int64(pairs[p, 1 - o])
             if stamp[big_i] != tick:
                 continue
             e = head[big_i]
             while e >= 0:
-                big_k = np.int64(val[e])
+                big_j = np.int64(val[e])
                 e_here = e
                 e = nxt[e]
                 if big_k == big_j:
@@ -219,11 +225,19 @@ def _triangles_keyed(v_cam, si, sj, sk, win_ij, win_ik, pairs, guide_unit, eps, 
                     continue
                 if count == out.shape[0]:
                     return count + 1
-                out[count, 0] = big_i
-                out[count, 1] = big_j
-                out[count, 2] = big_k
-                out[count, 3] = 2 * (p - lo) + o
-                out[count, 4] = e_here
+                # insertion sort on (ij entry ascending, ik entry descending)
+                k_ij = np.int64(e_here)
+                k_ik = 2 * (p - lo) + o
+                u = count
+                while u > 0 and (out[u - 1, 3] > k_ij or (out[u - 1, 3] == k_ij and out[u - 1, 4] < k_ik)):
+                    for c in range(5):
+                        out[u, c] = out[u - 1, c]
+                    u -= 1
+                out[u, 0] = big_i
+                out[u, 1] = big_j
+                out[u, 2] = big_k
+                out[u, 3] = k_ij
+                out[u, 4] = k_ik
                 count += 1
     return count
 
@@ -231,7 +245,7 @@ def _triangles_keyed(v_cam, si, sj, sk, win_ij, win_ik, pairs, guide_unit, eps, 
 @njit(cache=True)
 def _swap_cached(store, first, count, out):
     """The triangles of triad (a, k, j) from those computed for (a, j, k) (``store[first:first + count]``,
-    rows of :func:`_triangles_keyed`), in ``triad_triangles``' order for (a, k, j): rows
+    rows of :func:`_triangles_by_ik`), in ``triad_triangles``' order for (a, k, j): rows
     (I, K, J) by the (I, K) entry's position in window ak, then the (I, J) entry's insertion index
     in window aj descending (its adjacency list is walked newest first). The side tests and the
     handedness are the same numbers for both orders (chords are symmetric, a swapped triple product
@@ -320,6 +334,7 @@ def _search(v_cam, sel, start, stop, pairs, nbr, nbr_chord, nbr_start, guide_uni
             # pairings it supports are the catalog triangles of (a, b, k) (pyramid's join of the
             # windows ab and ak, with the handedness test), then counted over the other stars
             tried = 0
+            built = False
             for k in range(m):
                 if k == a or k == b:
                     continue
@@ -328,13 +343,16 @@ def _search(v_cam, sel, start, stop, pairs, nbr, nbr_chord, nbr_start, guide_uni
                 tried += 1
                 if stop[a, k] == start[a, k] or tol.min_support < 1:
                     continue
-                tick += 1
                 if k < b and b < n_slot and slot_a[k, b] == a:    # found for pair (a, k), anchor b
                     n_tri = slot_count[k, b]
                     if n_tri <= cap_tri:
                         _swap_cached(store, slot_first[k, b], n_tri, tri)
                 else:
-                    n_tri = _triangles_keyed(v_cam, sel[a], sel[b], sel[k], (lo, hi), (start[a, k], stop[a, k]),
+                    if not built:                       # window ab's partner lists, once for all anchors
+                        tick += 1
+                        _adjacency(pairs, lo, hi, scratch[0], scratch[1], tick, scratch[2], scratch[3])
+                        built = True
+                    n_tri = _triangles_by_ik(v_cam, sel[a], sel[b], sel[k], (lo, hi), (start[a, k], stop[a, k]),
                                              pairs, guide_unit, tol.eps_match, scratch, tick, tri)
                     if b < k < n_slot:
                         n_keep = n_tri if n_tri <= cap_tri else 0
