@@ -272,6 +272,21 @@ def _swap_cached(store, first, count, out):
 
 
 @njit(cache=True)
+def _keep(store, n_store, tri, count):
+    """``store`` with ``tri[:count]`` written from row ``n_store`` on (grown when full)."""
+    if n_store + count > store.shape[0]:
+        grown = np.empty((max(2 * store.shape[0], n_store + count), 5), dtype=np.int64)
+        for q in range(n_store):
+            for c in range(5):
+                grown[q, c] = store[q, c]
+        store = grown
+    for q in range(count):
+        for c in range(5):
+            store[n_store + q, c] = tri[q, c]
+    return store
+
+
+@njit(cache=True)
 def _search(v_cam, sel, start, stop, pairs, nbr, nbr_chord, nbr_start, guide_unit, tol, cam, work):
     """Steps 2-5 of :func:`angle_kernel`; returns ``(rows, pair)`` and adds to ``work``."""
     n = v_cam.shape[0]
@@ -355,16 +370,11 @@ def _search(v_cam, sel, start, stop, pairs, nbr, nbr_chord, nbr_start, guide_uni
                     n_tri = _triangles_by_ik(v_cam, sel[a], sel[b], sel[k], (lo, hi), (start[a, k], stop[a, k]),
                                              pairs, guide_unit, tol.eps_match, scratch, tick, tri)
                     if b < k < n_slot:
-                        n_keep = n_tri if n_tri <= cap_tri else 0
-                        if n_store + n_keep > store.shape[0]:
-                            grown = np.empty((max(2 * store.shape[0], n_store + n_keep), 5), dtype=np.int64)
-                            grown[:n_store] = store[:n_store]
-                            store = grown
-                        store[n_store:n_store + n_keep] = tri[:n_keep]
                         slot_a[b, k] = a
                         slot_first[b, k] = n_store
                         slot_count[b, k] = n_tri
-                        n_store += n_keep
+                        store = _keep(store, n_store, tri, n_tri if n_tri <= cap_tri else 0)
+                        n_store += n_tri if n_tri <= cap_tri else 0
                 if n_tri > cap_tri:
                     continue
                 work[2] += n_tri
