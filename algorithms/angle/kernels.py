@@ -308,10 +308,10 @@ def _search(v_cam, sel, start, stop, pairs, nbr, nbr_chord, nbr_start, guide_uni
     slot_first = np.zeros((n_slot, n_slot), dtype=np.int64)
     slot_count = np.zeros((n_slot, n_slot), dtype=np.int64)
     store = np.empty((64 if n_slot > 0 else 0, 5), dtype=np.int64)
-    n_store = 0
+    n_store = np.int64(0)
     tick = 0
     for a in range(m - 1):
-        n_store = 0
+        n_store = np.int64(0)
         for b in range(a + 1, m):
             if work[0] >= tol.max_pairs:
                 rows[:] = -1
