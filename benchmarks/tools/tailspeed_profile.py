@@ -3,16 +3,17 @@
     python benchmarks/tools/tailspeed_profile.py 200 3
 
 Two copies of ``angle``'s ``_search`` (default reading), same callees and arguments, with the CPU
-cycle counter read around the stages: the base commit's (``profiled``: pyramid's ``triad_triangles``
-for every pair and anchor) and the current one (``profiled_new``: window ab's partner lists once per
-pair, ``_triangles_by_ik`` per anchor, ``_swap_cached`` for the triad's second orientation). Stages:
-the pair windows, the triangle search (the new copy: its partner-list builds included, and also shown apart as "lists"), the direct-match test
-(``support``), the confirmation (``confirm_pattern``); counts: triangle searches, tests, tests of a
-pairing (I, J) already tested for the same image pair (found by another anchor), confirmations,
-and confirmations of a pairing already confirmed (and failed) for that pair. Table 6's real sky at
-1 px / 0.5 Mv, seed 0, N images, the run of R with the smallest total kept per image; both copies
-are checked against the plugin's rows. Prints for each copy the 10 % slowest images (by the
-base copy's total) and the totals over them and over all images, in thousand cycles.
+cycle counter read around the stages: the base commit's (``profiled``: pyramid's
+``triad_triangles`` for every pair and anchor) and the current one (``profiled_new``: window ab's
+partner lists once per pair, ``_triangles_by_ik`` per anchor, ``_swap_cached`` for the triad's
+second orientation). Stages: the pair windows, the triangle search (the new copy: its partner-list
+builds included, and also shown apart as "lists"), the direct-match test (``support``), the
+confirmation (``confirm_pattern``); counts: triangle searches, tests, tests of a pairing (I, J)
+already tested for the same image pair (found by another anchor), confirmations, and confirmations
+of a pairing already confirmed (and failed) for that pair. Table 6's real sky at 1 px / 0.5 Mv,
+seed 0, N images, the run of R with the smallest total kept per image; both copies are checked
+against the plugin's rows. Prints for each copy the 10 % slowest images (by the base copy's total)
+and the totals over them and over all images, in thousand cycles.
 """
 
 import sys
