@@ -12,7 +12,7 @@ from typing import NamedTuple
 
 import numpy as np
 from numba import njit
-from starid_algorithms.pyramid.kernels import neighbours_within, pair_windows, select_stars, triad_triangles, triple
+from starid_algorithms.pyramid.kernels import _adjacency, neighbours_within, pair_windows, select_stars, triple
 
 from starid.kernels import backproject_px, chord_rows, reproject_assign, wahba_rows
 
@@ -203,6 +203,106 @@ def _pairs_to_r(start, stop):
 
 
 @njit(cache=True)
+def _triangles_by_ik(v_cam, si, sj, sk, win_ij, win_ik, pairs, guide_unit, eps, scratch, tick, out):
+    """pyramid's ``triad_triangles`` of the image triad (i, j, k), the join taken the other way round.
+
+    ``triad_triangles`` builds the partner lists of window ik and walks them for each entry of
+    window ij; here the partner lists are those of window ij (built by the caller with
+    ``_adjacency`` and stamp ``tick``, once for every anchor k of the pair ij) and each entry of
+    window ik walks them. The tests are the same expressions on the same rows (third side
+    ``|chord(r_J, r_K) - chord(b_j, b_k)| <= eps``, then the handedness), so the triangles are the
+    same set; they are then sorted into ``triad_triangles``' order: by the position of the (I, J)
+    entry in window ij, 2 (p - start) + o (``out[t, 3]``), then the (I, K) entry's insertion index in
+    window ik descending (``out[t, 4]``; its list is walked newest first). Rows (I, J, K) in
+    ``out[:, :3]``; returns the count, ``out.shape[0] + 1`` when there are more (as
+    ``triad_triangles``).
+    """
+    head, stamp, nxt, val = scratch
+    c_jk = chord_rows(v_cam, sj, v_cam, sk)
+    t_obs = triple(v_cam, si, v_cam, sj, v_cam, sk)
+    count = 0
+    lo = win_ik[0]
+    for p in range(lo, win_ik[1]):
+        for o in range(2):
+            big_i = np.int64(pairs[p, o])
+            big_k = np.int64(pairs[p, 1 - o])
+            if stamp[big_i] != tick:
+                continue
+            e = head[big_i]
+            while e >= 0:
+                big_j = np.int64(val[e])
+                e_here = e
+                e = nxt[e]
+                if big_k == big_j:
+                    continue
+                if abs(chord_rows(guide_unit, big_j, guide_unit, big_k) - c_jk) > eps:
+                    continue
+                if triple(guide_unit, big_i, guide_unit, big_j, guide_unit, big_k) * t_obs <= 0.0:
+                    continue
+                if count == out.shape[0]:
+                    return count + 1
+                # insertion sort on (ij entry ascending, ik entry descending)
+                k_ij = np.int64(e_here)
+                k_ik = 2 * (p - lo) + o
+                u = count
+                while u > 0 and (out[u - 1, 3] > k_ij or (out[u - 1, 3] == k_ij and out[u - 1, 4] < k_ik)):
+                    for c in range(5):
+                        out[u, c] = out[u - 1, c]
+                    u -= 1
+                out[u, 0] = big_i
+                out[u, 1] = big_j
+                out[u, 2] = big_k
+                out[u, 3] = k_ij
+                out[u, 4] = k_ik
+                count += 1
+    return count
+
+
+@njit(cache=True)
+def _swap_cached(store, first, count, out):
+    """The triangles of triad (a, k, j) from those computed for (a, j, k) (``store[first:first + count]``,
+    rows of :func:`_triangles_by_ik`), in ``triad_triangles``' order for (a, k, j): rows
+    (I, K, J) by the (I, K) entry's position in window ak, then the (I, J) entry's insertion index
+    in window aj descending (its adjacency list is walked newest first). The side tests and the
+    handedness are the same numbers for both orders (chords are symmetric, a swapped triple product
+    is the exact negative), so the set is the one ``triad_triangles`` finds."""
+    for t in range(count):
+        q = first + t
+        k1 = store[q, 4]
+        k2 = store[q, 3]
+        # insertion sort on (k1 ascending, k2 descending)
+        u = t
+        while u > 0:
+            w1 = out[u - 1, 3]
+            w2 = out[u - 1, 4]
+            if w1 < k1 or (w1 == k1 and w2 > k2):
+                break
+            for c in range(5):
+                out[u, c] = out[u - 1, c]
+            u -= 1
+        out[u, 0] = store[q, 0]
+        out[u, 1] = store[q, 2]
+        out[u, 2] = store[q, 1]
+        out[u, 3] = k1
+        out[u, 4] = k2
+
+
+@njit(cache=True)
+def _keep(store, n_store, tri, count):
+    """``store`` with ``tri[:count]`` written from row ``n_store`` on (grown when full)."""
+    if n_store + count > store.shape[0]:
+        grown = np.empty((max(2 * store.shape[0], n_store + count), 5), dtype=np.int64)
+        for q in range(n_store):
+            for c in range(5):
+                grown[q, c] = store[q, c]
+        store = grown
+    for q in range(count):
+        for c in range(5):
+            store[n_store + q, c] = tri[q, c]
+    return store
+
+
+@njit(cache=True)
 def _search(v_cam, sel, start, stop, pairs, nbr, nbr_chord, nbr_start, guide_unit, tol, cam, work):
     """Steps 2-5 of :func:`angle_kernel`; returns ``(rows, pair)`` and adds to ``work``."""
     n = v_cam.shape[0]
@@ -215,9 +315,19 @@ def _search(v_cam, sel, start, stop, pairs, nbr, nbr_chord, nbr_start, guide_uni
     cap = 2 * max(tol.max_window, 1)
     scratch = (np.full(n_guide, -1, dtype=np.int32), np.zeros(n_guide, dtype=np.int32),
                np.empty(cap, dtype=np.int32), np.empty(cap, dtype=np.int32))
-    tri = np.empty((max(tol.max_triangles, 1), 3), dtype=np.int64)
+    tri = np.empty((max(tol.max_triangles, 1), 5), dtype=np.int64)
+    cap_tri = tri.shape[0]
+    # the triangles of triad (a, b, k) found for pair (a, b) with anchor k > b, kept for pair (a, k)
+    # with anchor b (the same triangles, :func:`_swap_cached`); per a, stars below n_check + 2
+    n_slot = 0 if (tol.compare or tol.min_support < 1) else min(m, tol.n_check + 2)
+    slot_a = np.full((n_slot, n_slot), -1, dtype=np.int64)
+    slot_first = np.zeros((n_slot, n_slot), dtype=np.int64)
+    slot_count = np.zeros((n_slot, n_slot), dtype=np.int64)
+    store = np.empty((64 if n_slot > 0 else 0, 5), dtype=np.int64)
+    n_store = np.int64(0)
     tick = 0
     for a in range(m - 1):
+        n_store = np.int64(0)
         for b in range(a + 1, m):
             if work[0] >= tol.max_pairs:
                 rows[:] = -1
@@ -255,6 +365,7 @@ def _search(v_cam, sel, start, stop, pairs, nbr, nbr_chord, nbr_start, guide_uni
             # pairings it supports are the catalog triangles of (a, b, k) (pyramid's join of the
             # windows ab and ak, with the handedness test), then counted over the other stars
             tried = 0
+            built = False
             for k in range(m):
                 if k == a or k == b:
                     continue
@@ -263,10 +374,24 @@ def _search(v_cam, sel, start, stop, pairs, nbr, nbr_chord, nbr_start, guide_uni
                 tried += 1
                 if stop[a, k] == start[a, k] or tol.min_support < 1:
                     continue
-                tick += 1
-                n_tri = triad_triangles(v_cam, sel[a], sel[b], sel[k], (lo, hi), (start[a, k], stop[a, k]), pairs,
-                                        guide_unit, tol.eps_match, scratch, tick, tri)
-                if n_tri > tri.shape[0]:
+                if k < b and b < n_slot and slot_a[k, b] == a:    # found for pair (a, k), anchor b
+                    n_tri = slot_count[k, b]
+                    if n_tri <= cap_tri:
+                        _swap_cached(store, slot_first[k, b], n_tri, tri)
+                else:
+                    if not built:                       # window ab's partner lists, once for all anchors
+                        tick += 1
+                        _adjacency(pairs, lo, hi, scratch[0], scratch[1], tick, scratch[2], scratch[3])
+                        built = True
+                    n_tri = _triangles_by_ik(v_cam, sel[a], sel[b], sel[k], (lo, hi), (start[a, k], stop[a, k]),
+                                             pairs, guide_unit, tol.eps_match, scratch, tick, tri)
+                    if b < k < n_slot:
+                        slot_a[b, k] = a
+                        slot_first[b, k] = n_store
+                        slot_count[b, k] = n_tri
+                        store = _keep(store, n_store, tri, n_tri if n_tri <= cap_tri else 0)
+                        n_store += n_tri if n_tri <= cap_tri else 0
+                if n_tri > cap_tri:
                     continue
                 work[2] += n_tri
                 for t in range(n_tri):
