@@ -358,7 +358,8 @@ def _search(v_cam, sel, start, stop, pairs, nbr, nbr_chord, nbr_start, guide_uni
                     work[4] += 1
                     if confirm_pattern(v_cam, pat_star, pat_row, guide_unit, tol.c_fov, tol.eps_match, tol.widen, cam,
                                        tol.min_extra, tol.confirm_fraction, rows):
-                        pair[:] = pat_star
+                        pair[0] = pat_star[0]
+                        pair[1] = pat_star[1]
                         return rows, pair
                 continue
             # starid's test: each of the first n_check other stars k in turn anchors the test; the
@@ -406,7 +407,8 @@ def _search(v_cam, sel, start, stop, pairs, nbr, nbr_chord, nbr_start, guide_uni
                     work[4] += 1
                     if confirm_pattern(v_cam, pat_star, pat_row, guide_unit, tol.c_fov, tol.eps_match, tol.widen, cam,
                                        tol.min_extra, tol.confirm_fraction, rows):
-                        pair[:] = pat_star
+                        pair[0] = pat_star[0]
+                        pair[1] = pat_star[1]
                         return rows, pair
     rows[:] = -1
     return rows, pair

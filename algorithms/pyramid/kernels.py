@@ -442,11 +442,14 @@ def pyramid_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_
                     n_ok += 1
                     if n_ok > 1:
                         break
-                    pyr_star[:] = cand_star
-                    rows[:] = trial_rows
+                    for q in range(pyr_star.shape[0]):  # loops, not array slices: cheaper to compile
+                        pyr_star[q] = cand_star[q]
+                    for q in range(rows.shape[0]):
+                        rows[q] = trial_rows[q]
                     attitude = cand_attitude
                 if n_ok == 1:
-                    pyramid[:] = pyr_star
+                    for q in range(pyramid.shape[0]):
+                        pyramid[q] = pyr_star[q]
                     first_query_check(work, rows, first_trio, first_tri)
                     return rows, _hip(rows, guide_hip), attitude, pyramid, work
                 rows[:] = -1

@@ -132,7 +132,8 @@ def spherical_kernel(x_px, y_px, mag, index, guide_unit, tol, cam):
                     first_trio[0] = sel[i]
                     first_trio[1] = sel[j]
                     first_trio[2] = sel[k]
-                    first_cand[:min(max(nc, 0), first_cand.shape[0])] = cand[:min(max(nc, 0), first_cand.shape[0])]
+                    for c in range(min(max(nc, 0), first_cand.shape[0])):  # loops, not slices: compile
+                        first_cand[c] = cand[c]
                 if nc <= 0:
                     continue
                 trio[0] = sel[i]
@@ -153,7 +154,8 @@ def spherical_kernel(x_px, y_px, mag, index, guide_unit, tol, cam):
                                     cand3[kept] = cand2[c2]
                                     kept += 1
                                     break
-                        cand[:kept] = cand3[:kept]
+                        for c in range(kept):
+                            cand[c] = cand3[c]
                         nc = kept
                         trio[2] = sel[b]
                         if nc <= 1:
@@ -171,8 +173,10 @@ def spherical_kernel(x_px, y_px, mag, index, guide_unit, tol, cam):
                     n_ok += 1
                     if n_ok > 1:
                         break
-                    rows[:] = try_rows
-                    trio_out[:] = trio
+                    for q in range(n):
+                        rows[q] = try_rows[q]
+                    for q in range(3):
+                        trio_out[q] = trio[q]
                 if n_ok == 1:
                     first_query_check(work, rows, first_trio, first_cand, stars)
                     return rows, wahba_rows(v_cam, rows, guide_unit), trio_out, work

@@ -165,7 +165,8 @@ def record_sides(unit, main, n_i, n_j):
 def _grow(arr):
     """A copy of ``arr`` with twice the length (the new half uninitialised)."""
     out = np.empty(2 * arr.size, dtype=arr.dtype)
-    out[:arr.size] = arr
+    for q in range(arr.size):  # a loop, not an array slice: cheaper to compile
+        out[q] = arr[q]
     return out
 
 
@@ -322,7 +323,9 @@ def vote(v_cam, db, tol, votes, mark):
                     listed = np.empty(2 * (n_scan + 1), dtype=np.int64)
                 while n_hyp + n_scan > hyp.shape[0]:
                     grown = np.empty((2 * hyp.shape[0], 6), dtype=np.int64)
-                    grown[:n_hyp] = hyp[:n_hyp]
+                    for q in range(n_hyp):
+                        for col in range(6):
+                            grown[q, col] = hyp[q, col]
                     hyp = grown
                 # first pass, branch-free over every record of the cells (about half of them are in both
                 # windows: a branch on that is mispredicted half the time): the records in both windows
@@ -665,7 +668,8 @@ def best_hypothesis(v_cam, hyp, score, db, tol, min_stars):
         if size > best_size:
             rival_size = best_size
             best_size = size
-            best[:] = row
+            for q in range(best.shape[0]):
+                best[q] = row[q]
         elif size > rival_size:
             rival_size = size
     if best_size < min_stars or best_size <= rival_size:
