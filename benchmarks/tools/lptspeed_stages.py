@@ -3,6 +3,9 @@
 lpt_improved's kernel changed at stop 38 (its first pass without the SVD, ``assign_near``); its stages
 are in ``benchmarks/tools/lpispeed_profile.py``, and its copy here was removed.
 
+Its lpt stages copy the string scan as it was before the exact string tests (branch lptspeed2); the
+current scan's stages are ``lptspeed2_filters.py``.
+
     python benchmarks/tools/lptspeed_stages.py 40 5
 
 Copies of the two ``identify_kernel`` bodies (same callees, same arguments) with the CPU cycle

@@ -2,6 +2,9 @@
 stage by stage on Table 6's images (1 px / 0.5 Mv, seed 0), timed as the minimum of R repeats per image,
 median over N images, in microseconds.
 
+Superseded: it builds the database layout ptp had before its second index (branch ptpspeed3) and runs
+on that code only (``git checkout 307b5ee``); ``ptpspeed3_profile.py`` profiles the current kernel.
+
     python benchmarks/tools/ptpspeed2_profile.py N R
 
 Stages (each includes the ones above): setup (selection, unit vectors, distances, slave lists, the

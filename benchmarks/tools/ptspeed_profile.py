@@ -1,5 +1,8 @@
 """Where planar_triangle's and triangle_voting's per-image time goes (issue #25 profile tables).
 
+Since branch tvspeed2 triangle_voting's deep sky is ordered for cone searches, not by z, so its
+``finish`` line here no longer times what identify runs; ``tvspeed2_stages.py`` does.
+
     python benchmarks/tools/ptspeed_profile.py 60 5
 
 Table 6's two skies at 1 px / 0.5 Mv (seed 0), N images, each step timed R times (minimum kept, as

@@ -1,5 +1,8 @@
 """Where triangle_voting's ``vote`` spends its time (issue #25, branch tvspeed).
 
+Describes ``vote`` before branch tvspeed2 (records by cell then height, the hash-table tally); the
+current stages are ``tvspeed2_stages.py``.
+
     python benchmarks/tools/tvspeed_stages.py [N] [R]
 
 Table 6's two skies at 1 px / 0.5 Mv (seed 0), N images (40), each call timed R times (5, minimum
