@@ -196,6 +196,20 @@ def test_interrupt_stops_workers_and_exits_cleanly(tmp_path, sig, code):
     assert list(chunks.glob("*.parquet")), "finished chunks were lost"
 
 
+def test_sigterm_is_not_swallowed_by_except_exception():
+    """SIGTERM becomes ``starid.cli.Terminated`` wherever the main thread is; an ``except Exception`` on the way
+    (pandas, pyarrow, a plugin's failure being recorded) must let it through, as it does KeyboardInterrupt."""
+    from starid.cli import Terminated, _on_sigterm
+
+    try:
+        try:
+            _on_sigterm(signal.SIGTERM, None)
+        except Exception:  # noqa: BLE001 -- what library code does
+            pytest.fail("Terminated was caught by except Exception")
+    except Terminated:
+        pass
+
+
 def test_python_O_does_not_skip_conformance(tmp_path):
     code = ("from misbehaving import Misbehaving\nfrom starid.testing import check_algorithm, ConformanceError\n"
             "try:\n    check_algorithm(Misbehaving, ['noise_free_identified'])\nexcept ConformanceError as e:\n"

@@ -21,8 +21,13 @@ from . import cameras, check, experiments, identify, images, plugins, report, sc
 from .options import Formatter
 
 
-class Terminated(Exception):
-    """SIGTERM, turned into an exception so that workers are stopped and outputs stay whole."""
+class Terminated(BaseException):
+    """SIGTERM, turned into an exception so that workers are stopped and outputs stay whole.
+
+    A ``BaseException``, as ``KeyboardInterrupt`` is: raised wherever the main thread happens to be when the
+    signal arrives, it must not be swallowed by an ``except Exception`` on the way (pandas and pyarrow reading
+    or writing a chunk, a plugin's failure being recorded); as an ``Exception`` it was, now and then, and the
+    run went on after SIGTERM (tests/test_trust.py::test_interrupt_stops_workers_and_exits_cleanly)."""
 
 
 def build_parser() -> argparse.ArgumentParser:
