@@ -250,7 +250,7 @@ def _argsort_stable(values):
     return order
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _search_left(a, v):
     """``np.searchsorted(a, v)`` of an ascending ``a`` in numpy's order (NaN after every number), written
     out: numba's searchsorted costs ~0.3 CPU s per side to compile, in every kernel that inlines it."""
@@ -266,7 +266,7 @@ def _search_left(a, v):
     return lo
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _search_right(a, v):
     """``np.searchsorted(a, v, side="right")``, as :func:`_search_left`."""
     lo = 0
