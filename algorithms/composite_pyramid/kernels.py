@@ -64,7 +64,7 @@ def _third_stars(stars, hits, n_hits, cat, out):
             m += 1
     # sorted and distinct, as np.unique would (whose sort costs ~1 CPU s to compile); a copy, since
     # fourth_star keeps three results made in the same ``out``
-    sort_int_prefix(out, m)
+    sort_int_prefix(out, np.int64(m))   # np.int64: not a literal (one signature)
     u = 0
     for i in range(m):
         if u == 0 or out[i] != out[u - 1]:

@@ -110,7 +110,7 @@ def grid_cells(r_px, phi, n, o, spec, out):
         row = min(int((y + spec.half_px) / w), spec.g - 1)
         out[k] = row * spec.g + col
         k += 1
-    sort_int_prefix(out, k)   # not np.sort: numpy's quicksort costs ~1 CPU s to compile, in every caller
+    sort_int_prefix(out, np.int64(k))   # not np.sort (~1 CPU s to compile); np.int64: one signature
     m = 0
     for i in range(k):
         if m == 0 or out[i] != out[m - 1]:
@@ -256,7 +256,7 @@ def identify_kernel(x_px, y_px, params, patterns, cell_start, start, guide, orie
             # over its own sorted cells, so it is the same float)
             # (every credit is positive, so a pattern's sum reaches min_score at most once: the patterns
             # that reach it are listed as they do, ``hot``, and only they are ranked, in pattern order)
-            sort_int_prefix(touched, nt)
+            sort_int_prefix(touched, np.int64(nt))
             nh = 0
             for i in range(nt):
                 c = touched[i]
@@ -271,7 +271,7 @@ def identify_kernel(x_px, y_px, params, patterns, cell_start, start, guide, orie
                 count_work(trace, 1, table.cell_start[c + 1] - table.cell_start[c])
             found = np.int64(0)   # not a literal: one signature of keep_best
             if spec.min_score > 0.0:
-                sort_int_prefix(hot, nh)
+                sort_int_prefix(hot, np.int64(nh))
                 for i in range(nh):
                     p = hot[i]
                     score = raw[p]

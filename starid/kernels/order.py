@@ -116,7 +116,7 @@ def sort_int_prefix(a, n):
         t = a[0]
         a[0] = a[end]
         a[end] = t
-        _sift_down(a, 0, end)
+        _sift_down(a, np.int64(0), end)   # np.int64: not a literal (one signature)
 
 
 @_inner
