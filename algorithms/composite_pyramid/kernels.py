@@ -15,6 +15,7 @@ from starid_algorithms.pyramid.kernels import select_stars
 from starid_algorithms.spherical_triangle.kernels import WORK_NAMES, first_query_check
 
 from starid.kernels import backproject_px, wahba_rows
+from starid.kernels.order import sort_int_prefix
 from starid.kernels.triangles import trio_confirm, trio_query
 
 
@@ -61,8 +62,15 @@ def _third_stars(stars, hits, n_hits, cat, out):
         if inside == 2:
             out[m] = other
             m += 1
-    res = np.unique(out[:m])
-    return res
+    # sorted and distinct, as np.unique would (whose sort costs ~1 CPU s to compile); a copy, since
+    # fourth_star keeps three results made in the same ``out``
+    sort_int_prefix(out, np.int64(m))   # np.int64: not a literal (one signature)
+    u = 0
+    for i in range(m):
+        if u == 0 or out[i] != out[u - 1]:
+            out[u] = out[i]
+            u += 1
+    return out[:u].copy()
 
 
 @njit(cache=True)
@@ -142,8 +150,11 @@ def composite_kernel(x_px, y_px, mag, index, guide_unit, tol, cam):
                 work[1] += 1
                 if work[0] == 1:
                     work[2] = max(nc, 0)
-                    first_trio[:] = trio
-                    first_cand[:min(max(nc, 0), nc_max)] = cand[:min(max(nc, 0), nc_max)]
+                    # plain loops: an array slice assignment compiles its shape-mismatch message (~2 CPU s)
+                    for a in range(3):
+                        first_trio[a] = trio[a]
+                    for a in range(min(max(nc, 0), nc_max)):
+                        first_cand[a] = cand[a]
                 if nc == 1 and work[5] == 0:
                     work[5] = work[1]
                 if nc <= 0 or (tol.unique and nc != 1):
@@ -186,8 +197,10 @@ def composite_kernel(x_px, y_px, mag, index, guide_unit, tol, cam):
                     n_ok += 1
                     if n_ok > 1:
                         break
-                    rows[:] = try_rows
-                    out4[:3] = trio
+                    for a in range(n):
+                        rows[a] = try_rows[a]
+                    for a in range(3):
+                        out4[a] = trio[a]
                     out4[3] = beta
                 if n_ok == 1:
                     first_query_check(work, rows, first_trio, first_cand, stars)

@@ -212,7 +212,13 @@ def rank_votes(v_cam, sel, n_voters, start, stop, tally, degree, tol, expected, 
     last = n_keep - 1
     saturate = expected and saturate
     p_b = np.empty(n_voters)
-    chance = np.empty(np.int64(np.max(degree)) + 1 if saturate and n_guide > 0 else 1)
+    n_chance = 1
+    if saturate and n_guide > 0:    # np.max(degree) + 1, a loop: numpy's reduction costs ~0.3 CPU s to compile
+        deg_max = np.int64(degree[0])
+        for g in range(1, degree.shape[0]):
+            deg_max = max(deg_max, np.int64(degree[g]))
+        n_chance = deg_max + 1
+    chance = np.empty(n_chance)
     deg_min = -1                    # the catalog's smallest degree, found when first needed
     for a in range(n_voters):
         w_a = 0.0

@@ -12,6 +12,8 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
+from starid.kernels.order import sort_int_prefix
+
 from ..lpt_improved.planar import (
     acceptance_at,
     begin_identify,
@@ -108,8 +110,7 @@ def grid_cells(r_px, phi, n, o, spec, out):
         row = min(int((y + spec.half_px) / w), spec.g - 1)
         out[k] = row * spec.g + col
         k += 1
-    if k > 1:
-        out[:k] = np.sort(out[:k])
+    sort_int_prefix(out, np.int64(k))   # not np.sort (~1 CPU s to compile); np.int64: one signature
     m = 0
     for i in range(k):
         if m == 0 or out[i] != out[m - 1]:
@@ -144,9 +145,11 @@ def build_patterns(unit, nbr, nbr_off, f_px, spec, db_orientations):
             while total + k > cap:
                 cap *= 2
                 bigger = np.empty(cap, dtype=np.int64)
-                bigger[:total] = cells[:total]
+                for i in range(total):   # loops: an array slice assignment compiles an error message (~2 CPU s)
+                    bigger[i] = cells[i]
                 cells = bigger
-            cells[total:total + k] = buf[:k]
+            for i in range(k):
+                cells[total + i] = buf[i]
             total += k
             start.append(total)
             guide.append(g)
@@ -253,7 +256,7 @@ def identify_kernel(x_px, y_px, params, patterns, cell_start, start, guide, orie
             # over its own sorted cells, so it is the same float)
             # (every credit is positive, so a pattern's sum reaches min_score at most once: the patterns
             # that reach it are listed as they do, ``hot``, and only they are ranked, in pattern order)
-            touched[:nt] = np.sort(touched[:nt])
+            sort_int_prefix(touched, np.int64(nt))
             nh = 0
             for i in range(nt):
                 c = touched[i]
@@ -268,8 +271,7 @@ def identify_kernel(x_px, y_px, params, patterns, cell_start, start, guide, orie
                 count_work(trace, 1, table.cell_start[c + 1] - table.cell_start[c])
             found = np.int64(0)   # not a literal: one signature of keep_best
             if spec.min_score > 0.0:
-                if nh > 1:
-                    hot[:nh] = np.sort(hot[:nh])
+                sort_int_prefix(hot, np.int64(nh))
                 for i in range(nh):
                     p = hot[i]
                     score = raw[p]

@@ -199,9 +199,13 @@ def interior_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide
         work[2] += max(count, 0)
         if c == 0:
             work[4] = max(count, 0)
-            first_star[:] = pat_star
+            # plain loops: an array slice assignment compiles its shape-mismatch message (~2 CPU s)
+            for a in range(3):
+                first_star[a] = pat_star[a]
             kept = min(max(count, 0), first.shape[0])
-            first[:kept] = out[:kept]
+            for t in range(kept):
+                for a in range(3):
+                    first[t, a] = out[t, a]
         if count <= 0 or count > tol.max_candidates or (tol.unique and count != 1):
             continue
         for t in range(count):
@@ -210,7 +214,8 @@ def interior_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide
             work[3] += 1
             if confirm_pattern(v_cam, pat_star, pat_row, guide_unit, tol.c_fov, tol.eps, tol.widen, cam, tol.min_extra,
                                tol.confirm_fraction, rows):
-                trio[:] = pat_star
+                for a in range(3):
+                    trio[a] = pat_star[a]
                 found = True
                 break
         if found:

@@ -353,7 +353,8 @@ def confirm(unit, rows, attitude, guides_unit, sensor, acc, solved_from):
                 break
         if not stale:
             A = wahba_rows(unit, rows, guides_unit)
-            solved[:] = rows
+            for i in range(n):   # a loop: an array slice assignment compiles its shape-mismatch message (~2 CPU s)
+                solved[i] = rows[i]
         elif it > 0 or acc.eps0 == acc.eps:
             break   # the next pass (same A, same eps) would return this assignment and stop there
         if it > 0 and n_seen <= n_prev and eps == acc.eps:
@@ -659,7 +660,8 @@ def confirm_near(unit, rows, attitude, guides_unit, z_start, sensor, acc, solved
                 break
         if not stale:
             A = wahba_rows(unit, rows, guides_unit)
-            solved[:] = rows
+            for i in range(n):   # a loop: an array slice assignment compiles its shape-mismatch message (~2 CPU s)
+                solved[i] = rows[i]
         elif it > 0 or acc.eps0 == acc.eps:
             break
         if it > 0 and n_seen <= n_prev and eps == acc.eps:
@@ -862,7 +864,8 @@ def confirm_pair_near(unit, rows, seed, s, o, guide_s, guide_o, guides_unit, z_s
             seed[s] = -1
             seed[o] = -1
             return False, np.eye(3)
-        rows[:] = first
+        for i in range(rows.shape[0]):   # a loop, not rows[:] = first (see confirm)
+            rows[i] = first[i]
     else:
         A = wahba_rows(unit, seed, guides_unit)
     ok, A = confirm_near(unit, rows, A, guides_unit, z_start, sensor, acc, seed, (work[0], work[1], work[2]),

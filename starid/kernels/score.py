@@ -14,8 +14,25 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from .order import sort_int_prefix
+
 #: :func:`check_ids` codes
 IDS_OK, ID_NOT_IN_CATALOG, ID_TWICE = 0, 1, 2
+
+
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+def _search_int(a, v):
+    """``np.searchsorted(a, v)`` of an ascending integer array (a bisection written out: numba's
+    searchsorted costs ~0.3 CPU s to compile, re-optimised in each kernel that inlines it)."""
+    lo = 0
+    hi = a.shape[0]
+    while lo < hi:
+        mid = (lo + hi) >> 1
+        if a[mid] < v:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
 
 
 @njit(cache=True)
@@ -30,7 +47,7 @@ def check_ids(hip, catalog_hip):
         if h == -1:
             continue
         k += 1
-        pos = np.searchsorted(catalog_hip, h)
+        pos = _search_int(catalog_hip, h)
         if pos >= n_cat:
             pos = n_cat - 1
         if n_cat == 0 or catalog_hip[pos] != h:
@@ -43,7 +60,7 @@ def check_ids(hip, catalog_hip):
         if hip[i] != -1:
             reported[k] = hip[i]
             k += 1
-    reported.sort()
+    sort_int_prefix(reported, k)    # not reported.sort(): numpy's quicksort costs ~0.7 CPU s to compile
     for i in range(1, k):
         if reported[i] == reported[i - 1]:
             return ID_TWICE, reported[i]
@@ -69,7 +86,7 @@ def attitude_error_terms(hip, v_cam, catalog_hip, unit_icrs, attitude_true):
     k = 0
     for i in range(hip.shape[0]):
         if hip[i] != -1:
-            row = np.searchsorted(catalog_hip, hip[i])
+            row = _search_int(catalog_hip, hip[i])
             for a in range(3):
                 b[k, a] = v_cam[i, a]
                 r[k, a] = unit_icrs[row, a]
