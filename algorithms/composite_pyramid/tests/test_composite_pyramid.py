@@ -7,6 +7,7 @@ import pytest
 from starid_algorithms.composite_pyramid import GALVIZO2018, CompositePyramid
 from starid_algorithms.composite_pyramid.kernels import composite_kernel, fourth_star
 from starid_algorithms.pyramid.testing import noisy_results
+from starid_algorithms.spherical_triangle.testing import first_single_query
 
 from starid import ConfigError, SimConfig, Simulator
 from starid.kernels import camera_frame
@@ -115,8 +116,6 @@ def test_to_r_counts_trio_queries_in_mortari_order(catalog, camera, db):
     """``to_r``: the trio queries, in Mortari's order, up to the first whose R has one member (no
     fourth-star query comes before it: those follow a single candidate), recounted in Python; every
     query made when none has."""
-    from starid_algorithms.spherical_triangle.tests.test_spherical_triangle import _first_single
-
     def mortari(m):
         return [(i, i + dj, i + dj + dk) for dj in range(1, m - 1) for dk in range(1, m - dj)
                 for i in range(0, m - dj - dk)]
@@ -127,5 +126,5 @@ def test_to_r_counts_trio_queries_in_mortari_order(catalog, camera, db):
         for t in range(6):
             obs = trials.observation(t)
             c = reading.identify(db, obs).counters
-            first = _first_single(reading, db, obs, mortari)
+            first = first_single_query(reading, db, obs, mortari)
             assert c["to_r"] == (first if first else c["queries"])

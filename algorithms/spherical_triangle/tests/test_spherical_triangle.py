@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 from starid_algorithms.pyramid.testing import noisy_results
 from starid_algorithms.spherical_triangle import GALVIZO2018, SphericalTriangle
+from starid_algorithms.spherical_triangle.testing import first_single_query
 
 from starid import ConfigError, SimConfig, Simulator
 from starid.kernels import triangles as T
@@ -144,30 +145,6 @@ def test_max_hits_follows_the_database(algo, db, camera):
     assert max_hits_for(SphericalTriangle(max_hits=500), wide) == 500
 
 
-def _first_single(algo, db, obs, order):
-    """1-based position, in ``order`` (trios of selected-star positions), of the first trio whose
-    (area, moment) query returns exactly one catalog triangle; 0 when none does (Python recount with
-    the shared query kernel)."""
-    from starid_algorithms.pyramid.kernels import select_stars
-
-    from starid.kernels import backproject_px
-
-    cam = obs.camera
-    tol = algo.tolerances(cam, db)
-    v = backproject_px(obs.x_px, obs.y_px, cam.f_px, cam.cx_px, cam.cy_px)
-    sel = select_stars(obs.x_px, obs.y_px, obs.mag, v, tol.d_min, tol.max_stars)
-    cand = np.empty(tol.max_candidates, dtype=np.int64)
-    for q, (i, j, k) in enumerate(order(len(sel))):
-        if i >= len(sel) or k >= len(sel):
-            continue
-        nc = T.trio_query(v, sel[i], sel[j], sel[k], db.index, tol.kind, tol.depth, tol.sigma_rad, tol.beta,
-                          tol.fixed_area, tol.fixed_moment, tol.chord_max, tol.max_hits, tol.truncate,
-                          db.guide_unit, tol.eps_side, cand)
-        if nc == 1:
-            return q + 1
-    return 0
-
-
 def naive_order(m):
     return [(i, j, k) for i in range(m) for j in range(i + 1, m) for k in range(j + 1, m)]
 
@@ -185,7 +162,7 @@ def test_to_r_counts_queries_to_the_first_single_candidate(catalog, camera, db):
         for t in range(6):
             obs = trials.observation(t)
             c = plain.identify(db, obs).counters
-            first = _first_single(plain, db, obs, naive_order)
+            first = first_single_query(plain, db, obs, naive_order)
             assert c["queries"] == c["trios"]
             assert c["to_r"] == (first if first else c["queries"])
             none_single += first == 0
