@@ -21,6 +21,7 @@ from starid.kernels import (
     verify_pairwise,
     wahba_rows,
 )
+from starid.kernels.order import stable_sort_by_key
 
 
 class View(NamedTuple):
@@ -349,40 +350,12 @@ def _triple_key(i, j, k, n):
 
 @njit(cache=True)
 def argsort_int(keys):
-    """Ascending, stable order of int64 ``keys`` (a bottom-up merge sort: compiles in a fraction of the
-    time of ``np.argsort``'s quicksort; both callers need only a correct order, :func:`validate` groups
-    equal keys and :func:`try_hypotheses` sorts unique ones)."""
-    n = keys.shape[0]
-    order = np.arange(n)
-    tmp = np.empty(n, dtype=np.int64)
-    width = 1
-    while width < n:
-        i = 0
-        while i < n:
-            mid = min(i + width, n)
-            hi = min(i + 2 * width, n)
-            a = i
-            b = mid
-            k = i
-            while a < mid and b < hi:
-                if keys[order[b]] < keys[order[a]]:
-                    tmp[k] = order[b]
-                    b += 1
-                else:
-                    tmp[k] = order[a]
-                    a += 1
-                k += 1
-            while a < mid:
-                tmp[k] = order[a]
-                a += 1
-                k += 1
-            while b < hi:
-                tmp[k] = order[b]
-                b += 1
-                k += 1
-            i += 2 * width
-        order, tmp = tmp, order
-        width *= 2
+    """Ascending, stable order of int64 ``keys``: the shared merge sort
+    (:func:`starid.kernels.order.stable_sort_by_key`, which compiles in a fraction of the time of
+    ``np.argsort``'s quicksort) on ``0 .. n-1``; both callers need only a correct order, :func:`validate`
+    groups equal keys and :func:`try_hypotheses` sorts unique ones."""
+    order = np.arange(keys.shape[0])
+    stable_sort_by_key(order, np.int64(order.shape[0]), keys)
     return order
 
 

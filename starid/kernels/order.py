@@ -35,10 +35,11 @@ def _key_less(x, y):
 
 
 @_inner
-def _merge_sort_by_key(rows, n, key):
-    """Stable sort of ``rows[:n]`` by ``key[rows]``: the order ``np.argsort(key[rows[:n]],
+def stable_sort_by_key(rows, n, key):
+    """Stable sort of ``rows[:n]`` in place by ``key[rows]``, NaN last: the order ``np.argsort(key[rows[:n]],
     kind="mergesort")`` gives (a stable order is unique), by a bottom-up merge sort written out, not
-    numba's argmergesort (~1.3 CPU s to compile, again in every kernel that inlines it)."""
+    numba's argmergesort (~1.3 CPU s to compile, again in every kernel that inlines it). Kernels only
+    (no Python wrapper); ptp's ``argsort_int`` is this on ``np.arange(n)``."""
     src = rows[:n].copy()
     dst = np.empty_like(src)
     width = 1
@@ -78,7 +79,7 @@ def sort_rows(rows, n, key, x_px, y_px):
     """Sort ``rows[:n]`` in place by :func:`before` (stable): an insertion sort, after a stable
     merge sort by ``key`` alone when there are more than :data:`PRESORT_ROWS` of them."""
     if n > PRESORT_ROWS:
-        _merge_sort_by_key(rows, n, key)
+        stable_sort_by_key(rows, n, key)
     for a in range(1, n):
         r = rows[a]
         b = a - 1

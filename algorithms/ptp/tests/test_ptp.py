@@ -320,3 +320,13 @@ def test_work_counters(db, catalog, camera):
     two = Observation(np.array([10.0, 20.0]), np.array([10.0, 20.0]), np.array([3.0, 3.0]), camera)
     assert set(PTP().identify(db, two).counters.values()) == {0}
 
+
+
+def test_argsort_int_is_numpys_stable_order():
+    """ptp's argsort_int (the shared merge sort on 0 .. n-1) against numpy's stable argsort, ties included."""
+    from starid_algorithms.ptp.kernels import argsort_int
+
+    rng = np.random.default_rng(4)
+    for n in (0, 1, 2, 7, 64, 65, 300):
+        keys = rng.integers(0, max(n // 3, 1), n).astype(np.int64)
+        assert np.array_equal(argsort_int(keys), np.argsort(keys, kind="stable"))
