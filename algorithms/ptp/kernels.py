@@ -253,6 +253,18 @@ def _side_excess(sa, sb, sc, k, a, b, c, ta, tb, tc):
 
 
 @njit(cache=True)
+def _side_window(sides, sigma, scale, side_beta):
+    """The image triangle's three scaled sides and their tolerances, float32 as the database's sides."""
+    a = np.float32(sides[0])
+    b = np.float32(sides[1])
+    c = np.float32(sides[2])
+    ta = np.float32(side_beta * scale * side_sigma(sides[0] / scale, sigma))
+    tb = np.float32(side_beta * scale * side_sigma(sides[1] / scale, sigma))
+    tc = np.float32(side_beta * scale * side_sigma(sides[2] / scale, sigma))
+    return a, b, c, ta, tb, tc
+
+
+@njit(cache=True)
 def _side_check(sides, start, stop, db_sides, sigma, scale, side_beta, out_cand):
     """Database rows in ``[start, stop)`` whose three sides all agree with ``sides``; returns the count.
 
@@ -261,12 +273,7 @@ def _side_check(sides, start, stop, db_sides, sigma, scale, side_beta, out_cand)
     rows, and only the rows between them are then collected. ``out_cand`` must hold
     ``stop - start`` entries.
     """
-    a = np.float32(sides[0])
-    b = np.float32(sides[1])
-    c = np.float32(sides[2])
-    ta = np.float32(side_beta * scale * side_sigma(sides[0] / scale, sigma))
-    tb = np.float32(side_beta * scale * side_sigma(sides[1] / scale, sigma))
-    tc = np.float32(side_beta * scale * side_sigma(sides[2] / scale, sigma))
+    a, b, c, ta, tb, tc = _side_window(sides, sigma, scale, side_beta)
     sa = db_sides[0, start:stop]
     sb = db_sides[1, start:stop]
     sc = db_sides[2, start:stop]
@@ -297,12 +304,7 @@ def _side_check_indexed(sides, start, stop, index, sigma, scale, side_beta, out_
     ``sides[0]`` (about 20 of some 400 rows, 2-3 bins) are compared, by the same float32 test on the same
     float32 sides. ``out_cand`` must hold ``stop - start + 1`` entries.
     """
-    a = np.float32(sides[0])
-    b = np.float32(sides[1])
-    c = np.float32(sides[2])
-    ta = np.float32(side_beta * scale * side_sigma(sides[0] / scale, sigma))
-    tb = np.float32(side_beta * scale * side_sigma(sides[1] / scale, sigma))
-    tc = np.float32(side_beta * scale * side_sigma(sides[2] / scale, sigma))
+    a, b, c, ta, tb, tc = _side_window(sides, sigma, scale, side_beta)
     if stop <= start:
         return 0
     offsets = index.offsets
