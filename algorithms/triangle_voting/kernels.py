@@ -20,6 +20,9 @@ from starid.kernels import backproject_px, chord_rows, verify_pairwise, wahba_ro
 
 from .final import finish_cone
 
+#: kernels only other kernels call: no Python or C entry point to compile (issue #25, compile time)
+_inner = njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)
+
 #: names of the per-image work counters :func:`identify_rows` returns (``Identification.counters``):
 #: image triangles looked up in the grid, catalog records in the grid cells scanned, records within
 #: both the base and the height window, and of those the records whose sides matched too
@@ -29,8 +32,8 @@ WORK_COUNTERS = ("triangles", "records", "matches", "side_matches")
 class Tables(NamedTuple):
     """The database as the kernels read it (see ``TriangleVotingDatabase``)."""
 
-    base: np.ndarray  # float32 (m,) triangle records sorted by 2-D grid cell
-    height: np.ndarray  # float32 (m,)
+    features: np.ndarray  # float32 (m, 4) per record base, height, side_i, side_j (see below); records sorted by
+    # 2-D grid cell, then height
     main: np.ndarray  # uint16 (m,) guide rows: main star (apex) and its two neighbours
     n_i: np.ndarray
     n_j: np.ndarray
@@ -44,8 +47,29 @@ class Tables(NamedTuple):
     sky_axis: int
     pr_chord: float  # pattern radius as a chord
     dmin_chord: float  # D_min as a chord
-    side_i: np.ndarray  # float32 (m,) the record's main-to-n_i and main-to-n_j chords, rounded to float32
-    side_j: np.ndarray  # (:func:`record_sides`): a pre-filter of the side check, which stays exact
+
+    # features' columns: base and height (chord units), and the record's main-to-n_i and main-to-n_j chords
+    # rounded to float32 (:func:`record_sides`: a pre-filter of the side check, which stays exact). One row of
+    # 16 bytes per record, so the vote's scan of a few records reads one or two cache lines, not four streams.
+    @property
+    def base(self) -> np.ndarray:
+        return self.features[:, FEAT_BASE]
+
+    @property
+    def height(self) -> np.ndarray:
+        return self.features[:, FEAT_HEIGHT]
+
+    @property
+    def side_i(self) -> np.ndarray:
+        return self.features[:, FEAT_SIDE_I]
+
+    @property
+    def side_j(self) -> np.ndarray:
+        return self.features[:, FEAT_SIDE_J]
+
+
+#: columns of ``Tables.features`` (the database's ``features``)
+FEAT_BASE, FEAT_HEIGHT, FEAT_SIDE_I, FEAT_SIDE_J = 0, 1, 2, 3
 
 
 class Tolerance(NamedTuple):
@@ -122,11 +146,25 @@ def build_triangles(unit, rank, nbr_ptr, nbr_idx, lam, dmin_chord):
             if c != s and chord_rows(unit, s, unit, c) >= dmin_chord:
                 keep[k] = c
                 k += 1
-        keep = keep[:k]
-        order = np.argsort(rank[keep])
-        top = keep[order[:lam]]
-        for i in range(top.size):
-            for j in range(i + 1, top.size):
+        # the lam kept stars of lowest rank, by rank (ranks are unique: np.argsort's order; a bounded
+        # insertion, not np.argsort and fancy indexing, which cost compile time)
+        top = np.empty(lam, dtype=np.int64)
+        n_top = 0
+        for e in range(k):
+            c = keep[e]
+            if n_top == lam:
+                if rank[c] >= rank[top[lam - 1]]:
+                    continue
+                p = lam - 1  # the last one drops out
+            else:
+                p = n_top
+                n_top += 1
+            while p > 0 and rank[top[p - 1]] > rank[c]:
+                top[p] = top[p - 1]
+                p -= 1
+            top[p] = c
+        for i in range(n_top):
+            for j in range(i + 1, n_top):
                 b, h, _ = triangle_features(unit[s], unit[top[i]], unit[top[j]])
                 if b < dmin_chord:
                     continue
@@ -161,7 +199,7 @@ def record_sides(unit, main, n_i, n_j):
     return side_i, side_j
 
 
-@njit(cache=True)
+@_inner
 def _grow(arr):
     """A copy of ``arr`` with twice the length (the new half uninitialised)."""
     out = np.empty(2 * arr.size, dtype=arr.dtype)
@@ -170,8 +208,8 @@ def _grow(arr):
     return out
 
 
-@njit(cache=True)
-def _by_base(listed, n, cell_start, cb0, cb1, ch0, ch1, n_cells_h, base_db, height_db, main_db):
+@_inner
+def _by_base(listed, n, cell_start, cb0, cb1, ch0, ch1, n_cells_h, features, main_db):
     """Reorder the records ``listed[:n]`` (ascending, from the cells ``cb0..cb1`` x ``ch0..ch1``) by cell,
     then base, height and main star (stable): the order of the records before they were sorted by height
     within a cell, so the side-matched triangles (the fallback's hypotheses, whose ties go by position)
@@ -193,8 +231,12 @@ def _by_base(listed, n, cell_start, cb0, cb1, ch0, ch1, n_cells_h, base_db, heig
         while p > 0:
             q = listed[p - 1]
             cq = cell[p - 1]
-            after = cq > c or (cq == c and (base_db[q] > base_db[r] or (base_db[q] == base_db[r] and (
-                height_db[q] > height_db[r] or (height_db[q] == height_db[r] and main_db[q] > main_db[r])))))
+            bq = features[q, FEAT_BASE]
+            br = features[r, FEAT_BASE]
+            hq = features[q, FEAT_HEIGHT]
+            hr = features[r, FEAT_HEIGHT]
+            after = cq > c or (cq == c and (bq > br or (bq == br and (
+                hq > hr or (hq == hr and main_db[q] > main_db[r])))))
             if not after:
                 break
             listed[p] = q
@@ -204,7 +246,7 @@ def _by_base(listed, n, cell_start, cb0, cb1, ch0, ch1, n_cells_h, base_db, heig
         cell[p] = c
 
 
-@njit(cache=True)
+@_inner
 def _slot(slots, touched_o, touched_c, o, c, n_guide):
     """The slot of the pair ``(o, c)`` in :func:`vote`'s table: the one holding it, or the empty one
     where it goes (linear probing; ``slots.size`` a power of 2, never full)."""
@@ -217,7 +259,7 @@ def _slot(slots, touched_o, touched_c, o, c, n_guide):
         e = (e + 1) & mask
 
 
-@njit(cache=True)
+@_inner
 def _rehash(touched_o, touched_c, n_touched, n_guide, size):
     """:func:`vote`'s table rebuilt with ``size`` slots for its first ``n_touched`` pairs."""
     slots = np.zeros(size, dtype=np.int64)
@@ -248,8 +290,8 @@ def vote(v_cam, db, tol, votes, mark):
     (3, n_guide); the votes are now tallied in a small table of the pairs touched, which stays in
     the first-level cache); kept so that callers and tools keep their signature, left as they are.
     """
-    (base_db, height_db, main_db, ni_db, nj_db, cell_start, n_cells_b, n_cells_h, cell_b, cell_h, cat_unit, _, _,
-     pr_chord, dmin_chord, side_i_db, side_j_db) = db
+    (features, main_db, ni_db, nj_db, cell_start, n_cells_b, n_cells_h, cell_b, cell_h, cat_unit, _, _,
+     pr_chord, dmin_chord) = db
     sigma_chord, k_sigma, _, _, n_nbr, side_check, vote_neighbours, v_min, n_cand, _, _, _ = tol
     n = v_cam.shape[0]
     eps_b = k_sigma * math.sqrt(2.0) * sigma_chord
@@ -337,22 +379,22 @@ def vote(v_cam, db, tol, votes, mark):
                     # (cell, then height): the records below and above the height window are skipped
                     r0 = cell_start[cb * n_cells_h + ch0]
                     r1 = cell_start[cb * n_cells_h + ch1 + 1]
-                    while r0 < r1 and height_db[r0] - height < -eps_h:
+                    while r0 < r1 and features[r0, FEAT_HEIGHT] - height < -eps_h:
                         r0 += 1
-                    while r1 > r0 and height_db[r1 - 1] - height > eps_h:
+                    while r1 > r0 and features[r1 - 1, FEAT_HEIGHT] - height > eps_h:
                         r1 -= 1
                     for r in range(r0, r1):
-                        in_windows = (abs(base_db[r] - base) <= eps_b) & (abs(height_db[r] - height) <= eps_h)
-                        s_i = float(side_i_db[r])
-                        s_j = float(side_j_db[r])
+                        in_windows = ((abs(features[r, FEAT_BASE] - base) <= eps_b)
+                                      & (abs(features[r, FEAT_HEIGHT] - height) <= eps_h))
+                        s_i = float(features[r, FEAT_SIDE_I])
+                        s_j = float(features[r, FEAT_SIDE_J])
                         near = min(max(abs(d_ia - s_i), abs(d_ib - s_j)),
                                    max(abs(d_ia - s_j), abs(d_ib - s_i))) <= eps_side
                         n_matches += in_windows
                         listed[n_near] = r
                         n_near += in_windows & (near | no_side_check)
                 if n_near > 1:  # the records in the order of (cell, base, height, main), as they were stored
-                    _by_base(listed, np.int64(n_near), cell_start, cb0, cb1, ch0, ch1, n_cells_h, base_db, height_db,
-                             main_db)
+                    _by_base(listed, np.int64(n_near), cell_start, cb0, cb1, ch0, ch1, n_cells_h, features, main_db)
                 for e in range(n_near):
                     r = listed[e]
                     c = main_db[r]
@@ -450,13 +492,13 @@ def new_scratch(n, n_guide):
     return np.zeros((n, n_guide), dtype=np.int32), np.zeros((3, n_guide), dtype=np.int32)
 
 
-@njit(cache=True)
+@_inner
 def _agree(v_cam, cat_unit, i, ri, j, rj, tol_chord):
     """Whether observed stars ``i``, ``j`` and catalog rows ``ri``, ``rj`` have the same separation."""
     return ri != rj and abs(chord_rows(v_cam, i, v_cam, j) - chord_rows(cat_unit, ri, cat_unit, rj)) <= tol_chord
 
 
-@njit(cache=True)
+@_inner
 def select_candidates(v_cam, cand, cand_votes, cat_unit, tol_chord):
     """Per observed star, the vote candidate best supported by the other stars' candidates.
 
@@ -519,7 +561,7 @@ def sky_cell_of(u, n_axis):
     return (ix * n_axis + iy) * n_axis + iz
 
 
-@njit(cache=True)
+@_inner
 def _nearest_row(r, db, tol_chord):
     """The only catalog row within ``tol_chord`` of unit vector ``r`` (-1 if none or several)."""
     cat_unit, sky_start, n_axis = db[DB_UNIT], db[DB_SKY_START], db[DB_SKY_AXIS]
@@ -547,7 +589,7 @@ def _nearest_row(r, db, tol_chord):
     return found
 
 
-@njit(cache=True)
+@_inner
 def _extend(v_cam, row, db, tol):
     """Extend the consistent set ``row`` (-1 = not in it) by reprojection, in place; returns its size.
 
@@ -600,7 +642,7 @@ def _extend(v_cam, row, db, tol):
     return n_set
 
 
-@njit(cache=True)
+@_inner
 def confirm(v_cam, proposed, weight, db, tol, min_stars):
     """Make the verified proposals one consistent set, extend it by reprojection, keep it if large enough.
 
@@ -637,7 +679,7 @@ def confirm(v_cam, proposed, weight, db, tol, min_stars):
     return row
 
 
-@njit(cache=True)
+@_inner
 def best_hypothesis(v_cam, hyp, score, db, tol, min_stars):
     """Fallback when voting and verification found no set: test single matched triangles.
 
@@ -653,7 +695,8 @@ def best_hypothesis(v_cam, hyp, score, db, tol, min_stars):
     rival_size = 0
     row = np.empty(n, dtype=np.int64)
     for h in order[:tol[TOL_MAX_HYPOTHESES]]:
-        row[:] = -1
+        for q in range(n):  # a loop, not row[:] = -1 (slice assignment: compile time)
+            row[q] = -1
         row[hyp[h, 0]] = hyp[h, 1]
         row[hyp[h, 2]] = hyp[h, 3]
         row[hyp[h, 4]] = hyp[h, 5]
@@ -677,6 +720,15 @@ def best_hypothesis(v_cam, hyp, score, db, tol, min_stars):
     return best
 
 
+@_inner
+def _any_row(rows):
+    """``rows.max() >= 0`` without numpy's reduction machinery (compile time)."""
+    for k in range(rows.shape[0]):
+        if rows[k] >= 0:
+            return True
+    return False
+
+
 @njit(cache=True)
 def identify_rows(v_cam, db, tol, votes, mark):
     """The whole identification of one image (``v_cam`` brightest first): ``(rows, work)``, the guide
@@ -695,13 +747,13 @@ def identify_rows(v_cam, db, tol, votes, mark):
         if not verified[i]:
             chosen[i] = -1
     rows = confirm(v_cam, chosen, chosen_votes, db, tol, tol[TOL_MIN_STARS])
-    if rows.max() < 0 and tol[TOL_MAX_HYPOTHESES] > 0:
+    if not _any_row(rows) and tol[TOL_MAX_HYPOTHESES] > 0:
         rows = best_hypothesis(v_cam, hyp, score, db, tol, tol[TOL_MIN_STARS] + 1)
     return rows, work
 
 
 
-@njit(cache=True)
+@_inner
 def _brightest_first(x_px, y_px, mag):
     """``np.lexsort((y_px, x_px, mag))``: the stars by magnitude, then x, then y (stable insertion sort,
     the same order for the few dozen stars of an image)."""
@@ -758,7 +810,7 @@ def identify_image(x_px, y_px, mag, db, tol, fin_db, fin_cam):
     v_cam = backproject_px(xs, ys, f_px, cx_px, cy_px)
     no_scratch = np.zeros((0, 0), dtype=np.int32)  # vote's former scratch, no longer read
     rows, work = identify_rows(v_cam, db, tol, no_scratch, no_scratch)
-    if rows.max() < 0:
+    if not _any_row(rows):
         return 1, np.full(n, -1, dtype=np.int64), np.zeros((3, 3)), False, work
     all_rows = np.full(n, -1, dtype=np.int64)
     for k in range(m):
