@@ -178,7 +178,9 @@ def build_triangles(unit, rank, nbr_ptr, nbr_idx, lam, dmin_chord):
 
 
 #: bound of the float32 rounding of a chord (at most 2, so its error is at most 2 * 2^-24 = 1.2e-7),
-#: doubled: a record whose float32 sides miss the window by more than this misses it exactly too
+#: doubled: a record whose float32 sides miss the window by more than this misses it exactly too; and
+#: one whose float32 side errors are more than this inside the window (and whose two vertex orders
+#: differ by more than twice this) matches exactly too, in the same order
 SIDE_ROUNDING = 2.5e-7
 
 
@@ -400,14 +402,27 @@ def vote(v_cam, db, tol, votes, mark):
                     c = main_db[r]
                     ci = ni_db[r]
                     cj = nj_db[r]
-                    d_ci = chord_rows(cat_unit, c, cat_unit, ci)
-                    d_cj = chord_rows(cat_unit, c, cat_unit, cj)
-                    e_straight = max(abs(d_ia - d_ci), abs(d_ib - d_cj))
-                    e_swapped = max(abs(d_ia - d_cj), abs(d_ib - d_ci))
-                    if e_swapped < e_straight:
-                        ci, cj = cj, ci
-                        e_straight = e_swapped
-                    sides_match = e_straight <= eps_b
+                    # the side check from the float32 sides when their rounding cannot change its outcome (both
+                    # errors and their difference farther than the rounding from the window and from a tie);
+                    # else exactly, from the guide vectors (three random reads: cold in the interleaved timing)
+                    s_i = float(features[r, FEAT_SIDE_I])
+                    s_j = float(features[r, FEAT_SIDE_J])
+                    e_straight = max(abs(d_ia - s_i), abs(d_ib - s_j))
+                    e_swapped = max(abs(d_ia - s_j), abs(d_ib - s_i))
+                    e_best = min(e_straight, e_swapped)
+                    if abs(e_straight - e_swapped) > 2.0 * SIDE_ROUNDING and abs(e_best - eps_b) > SIDE_ROUNDING:
+                        if e_swapped < e_straight:
+                            ci, cj = cj, ci
+                        sides_match = e_best < eps_b
+                    else:
+                        d_ci = chord_rows(cat_unit, c, cat_unit, ci)
+                        d_cj = chord_rows(cat_unit, c, cat_unit, cj)
+                        e_straight = max(abs(d_ia - d_ci), abs(d_ib - d_cj))
+                        e_swapped = max(abs(d_ia - d_cj), abs(d_ib - d_ci))
+                        if e_swapped < e_straight:
+                            ci, cj = cj, ci
+                            e_straight = e_swapped
+                        sides_match = e_straight <= eps_b
                     if side_check and not sides_match:
                         continue
                     n_votes = 3 if vote_neighbours and sides_match else 1
