@@ -123,7 +123,7 @@ def _bundles(db: TriangleVotingDatabase) -> tuple[Tables, tuple]:
     if held is None:
         tables = Tables(db.features, db.main, db.n_i, db.n_j, db.cell_start, db.n_cells_b, db.n_cells_h,
                         db.cell_b, db.cell_h, db.unit_icrs, db.sky_start, db.sky_axis, db.pattern_radius_chord,
-                        db.d_min_chord)
+                        db.d_min_chord, _unit_f64(db))
         held = _TABLES[db] = (tables, tuple(tables))
     return held
 

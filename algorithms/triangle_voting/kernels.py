@@ -47,6 +47,8 @@ class Tables(NamedTuple):
     sky_axis: int
     pr_chord: float  # pattern radius as a chord
     dmin_chord: float  # D_min as a chord
+    unit64: np.ndarray  # float64 (n, 3) ``unit`` as float64 (the same values), the attitude solver's input: one
+    # compilation of ``wahba_rows`` (float64, shared with the final step) instead of two (issue #25)
 
     # features' columns: base and height (chord units), and the record's main-to-n_i and main-to-n_j chords
     # rounded to float32 (:func:`record_sides`: a pre-filter of the side check, which stays exact). One row of
@@ -92,6 +94,7 @@ class Tolerance(NamedTuple):
 # The kernels take both bundles as plain tuples (``tuple(Tables(...))``; a NamedTuple argument costs
 # about 1 us more per call to dispatch) and read them by these field positions (numba constants).
 DB_UNIT = Tables._fields.index("unit")
+DB_UNIT64 = Tables._fields.index("unit64")
 DB_SKY_START = Tables._fields.index("sky_start")
 DB_SKY_AXIS = Tables._fields.index("sky_axis")
 TOL_EPS_CHORD = Tolerance._fields.index("eps_chord")
@@ -293,7 +296,7 @@ def vote(v_cam, db, tol, votes, mark):
     the first-level cache); kept so that callers and tools keep their signature, left as they are.
     """
     (features, main_db, ni_db, nj_db, cell_start, n_cells_b, n_cells_h, cell_b, cell_h, cat_unit, _, _,
-     pr_chord, dmin_chord) = db
+     pr_chord, dmin_chord, _) = db
     sigma_chord, k_sigma, _, _, n_nbr, side_check, vote_neighbours, v_min, n_cand, _, _, _ = tol
     n = v_cam.shape[0]
     eps_b = k_sigma * math.sqrt(2.0) * sigma_chord
@@ -624,7 +627,7 @@ def _extend(v_cam, row, db, tol):
             n_set += 1
     if n_set < 2:
         return n_set
-    A = wahba_rows(v_cam, row, cat_unit)  # ICRS -> camera
+    A = wahba_rows(v_cam, row, db[DB_UNIT64])  # ICRS -> camera (float64 copy: the same values, one compilation)
     radius = radius_chord * math.sqrt(1.0 + 1.0 / n_set)
     new = np.full(n, -1, dtype=np.int64)
     r = np.empty(3)

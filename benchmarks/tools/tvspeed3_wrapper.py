@@ -8,6 +8,7 @@ passes; the bundle look-ups (``_tolerances``, ``_kernel_tables``, ``_finish_tabl
 and the ``Identification``. Warm caches (each call repeated): the interleaved benchmark reads higher.
 """
 
+# ruff: noqa: B023  (each lambda is called at once, inside its loop iteration)
 from __future__ import annotations
 
 import sys
