@@ -301,7 +301,8 @@ def _coverage(attitude, deep_unit, deep_hip, deep_mag, mag_max, found_hip, range
     return predicted, missed
 
 
-@njit(cache=True)
+# inline="always": identify_image takes its body in numba IR (one level of compilation less; see identify_rows)
+@njit(cache=True, inline="always")
 def finish_cone(x_px, y_px, mag, rows, guide_unit, guide_hip, deep_unit, deep_hip, deep_mag, f_px, cx_px, cy_px,
                 width_px, height_px, eps_chord, mag_margin, mag_limit, coverage_mag_margin, max_missed_fraction,
                 assign_all):

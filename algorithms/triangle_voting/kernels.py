@@ -747,7 +747,10 @@ def _any_row(rows):
     return False
 
 
-@njit(cache=True)
+# inline="always": identify_image takes its body in numba IR, so it is not compiled and optimised once more as a
+# level of its own between identify_image and vote (numba re-optimises every linked callee at each level); tools
+# calling it from Python compile it as usual
+@njit(cache=True, inline="always")
 def identify_rows(v_cam, db, tol, votes, mark):
     """The whole identification of one image (``v_cam`` brightest first): ``(rows, work)``, the guide
     row per star or -1 and :func:`vote`'s work counters.
