@@ -409,14 +409,15 @@ class TriangleVoting(Algorithm):
         # one kernel call: brightest first (ties on position, so the result does not depend on input
         # order), only stars bright enough to be guide stars (with a margin), at most max_stars of them;
         # voting, verification (identify_rows) and the final step (finish)
-        status, hip, attitude, accepted, work = identify_image(x, y, mag, _kernel_tables(db), kernel_tol,
+        status, hip, attitude, accepted, work, n_named = identify_image(x, y, mag, _kernel_tables(db), kernel_tol,
                                                                _finish_tables(db), fin_cam)
         if status == 0:
             return Identification(hip)
         counters = dict(zip(WORK_COUNTERS, work.tolist(), strict=True))
         if status == 1:
             return Identification(hip, counters=counters)
-        if accepted and not self._photometry_agrees(db, hip, mag):
+        # the photometry check passes any result of no id or more than min_stars ids: not called for those
+        if accepted and 0 < n_named <= self.min_stars and not self._photometry_agrees(db, hip, mag):
             return Identification(np.full(n, -1, dtype=np.int64), counters=counters)
         return Identification(hip, attitude if accepted else None, counters=counters)
 

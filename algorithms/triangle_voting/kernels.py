@@ -798,7 +798,8 @@ def _brightest_first(x_px, y_px, mag):
 
 @njit(cache=True)
 def identify_image(x_px, y_px, mag, db, tol, fin_db, fin_cam):
-    """``identify`` of one image in one call: ``(status, hip, attitude, accepted, work)``.
+    """``identify`` of one image in one call: ``(status, hip, attitude, accepted, work, n_named)``, ``n_named`` the
+    number of stars with an id (``hip >= 0``; the wrapper's photometry check reads only small results).
 
     The stars brightest first (``np.lexsort((y, x, mag))``) with ``mag <= mag_cut``, at most ``max_stars``
     (-1: all); fewer than 3: ``status`` 0. Then :func:`identify_rows` on their camera vectors (no guide row:
@@ -822,7 +823,8 @@ def identify_image(x_px, y_px, mag, db, tol, fin_db, fin_cam):
     if max_stars >= 0 and m > max_stars:
         m = max_stars
     if m < 3:
-        return 0, np.full(n, -1, dtype=np.int64), np.zeros((3, 3)), False, np.zeros(len(WORK_COUNTERS), dtype=np.int64)
+        no_work = np.zeros(len(WORK_COUNTERS), dtype=np.int64)
+        return 0, np.full(n, -1, dtype=np.int64), np.zeros((3, 3)), False, no_work, 0
     xs = np.empty(m)
     ys = np.empty(m)
     for k in range(m):
@@ -832,11 +834,15 @@ def identify_image(x_px, y_px, mag, db, tol, fin_db, fin_cam):
     no_scratch = np.zeros((0, 0), dtype=np.int32)  # vote's former scratch, no longer read
     rows, work = identify_rows(v_cam, db, tol, no_scratch, no_scratch)
     if not _any_row(rows):
-        return 1, np.full(n, -1, dtype=np.int64), np.zeros((3, 3)), False, work
+        return 1, np.full(n, -1, dtype=np.int64), np.zeros((3, 3)), False, work, 0
     all_rows = np.full(n, -1, dtype=np.int64)
     for k in range(m):
         all_rows[sel[k]] = rows[k]
     hip, attitude, accepted = finish_cone(x_px, y_px, mag, all_rows, unit64, guide_hip, deep_unit, deep_hip, deep_mag,
                                           f_px, cx_px, cy_px, width_px, height_px, eps_chord, mag_margin, mag_limit,
                                           coverage_mag_margin, max_missed_fraction, assign_all)
-    return 2, hip, attitude, accepted, work
+    n_named = 0
+    for k in range(n):
+        if hip[k] >= 0:
+            n_named += 1
+    return 2, hip, attitude, accepted, work, n_named
