@@ -22,6 +22,10 @@ from starid.plugin import Algorithm, Database, Explanation, Identification
 
 from .final import band_order
 from .kernels import (
+    FEAT_BASE,
+    FEAT_HEIGHT,
+    FEAT_SIDE_I,
+    FEAT_SIDE_J,
     WORK_COUNTERS,
     Tables,
     Tolerance,
@@ -44,8 +48,9 @@ SIGMA_FLOOR_PX = 1.0  # smallest centroid noise the windows assume (px)
 class TriangleVotingDatabase(Database):
     """Triangle records indexed on a 2-D (base, height) grid, plus the guide stars.
 
-    Record ``r`` (sorted by grid cell, ``cell = cell_b_index * n_cells_h + cell_h_index``):
-    ``base[r]``, ``height[r]`` (float32, chord units ~ radians), ``main[r]``, ``n_i[r]``,
+    Record ``r`` (sorted by grid cell, ``cell = cell_b_index * n_cells_h + cell_h_index``, then height):
+    ``features[r]`` = (base, height, side_i, side_j) (float32, chord units ~ radians; the columns are also
+    the properties ``base``, ``height``, ``side_i``, ``side_j``), ``main[r]``, ``n_i[r]``,
     ``n_j[r]`` (uint16 rows of the guide arrays). The records of cell ``c`` are
     ``cell_start[c]:cell_start[c + 1]``. ``unit_icrs`` (float32) and ``hip`` (int64) are the
     guide stars, sorted by cell of a uniform ``sky_axis``^3 grid over [-1, 1]^3 (ties by HIP);
@@ -54,8 +59,9 @@ class TriangleVotingDatabase(Database):
     final assignment and the coverage check.
     """
 
-    base: np.ndarray
-    height: np.ndarray
+    #: float32 (m, 4) per record base, height, side_i, side_j: one 16-byte row per record, which ``vote`` reads
+    #: whole (four separate arrays cost four cache lines or more for a grid column's few records)
+    features: np.ndarray
     main: np.ndarray
     n_i: np.ndarray
     n_j: np.ndarray
@@ -72,10 +78,27 @@ class TriangleVotingDatabase(Database):
     d_min_chord: float
     deep: DeepSky
     deep_v_mag: np.ndarray
-    #: per record the float32 chords main-to-``n_i`` and main-to-``n_j`` (``record_sides``), read by
-    #: ``vote`` as an exact pre-filter of its side check; part of the database, so counted in its size
-    side_i: np.ndarray
-    side_j: np.ndarray
+
+    @property
+    def base(self) -> np.ndarray:
+        """float32 (m,) the records' base (a column of ``features``)."""
+        return self.features[:, FEAT_BASE]
+
+    @property
+    def height(self) -> np.ndarray:
+        """float32 (m,) the records' height (a column of ``features``)."""
+        return self.features[:, FEAT_HEIGHT]
+
+    @property
+    def side_i(self) -> np.ndarray:
+        """float32 (m,) per record the chord main-to-``n_i`` (``record_sides``), read by ``vote`` as an exact
+        pre-filter of its side check (a column of ``features``: part of the database, counted in its size)."""
+        return self.features[:, FEAT_SIDE_I]
+
+    @property
+    def side_j(self) -> np.ndarray:
+        """float32 (m,) per record the chord main-to-``n_j`` (a column of ``features``)."""
+        return self.features[:, FEAT_SIDE_J]
 
     def tables(self) -> Tables:
         """The arrays the kernels read, as one bundle (made once per database, see ``_tables``)."""
@@ -98,9 +121,9 @@ def _kernel_tables(db: TriangleVotingDatabase) -> tuple:
 def _bundles(db: TriangleVotingDatabase) -> tuple[Tables, tuple]:
     held = _TABLES.get(db)
     if held is None:
-        tables = Tables(db.base, db.height, db.main, db.n_i, db.n_j, db.cell_start, db.n_cells_b, db.n_cells_h,
+        tables = Tables(db.features, db.main, db.n_i, db.n_j, db.cell_start, db.n_cells_b, db.n_cells_h,
                         db.cell_b, db.cell_h, db.unit_icrs, db.sky_start, db.sky_axis, db.pattern_radius_chord,
-                        db.d_min_chord, db.side_i, db.side_j)
+                        db.d_min_chord, _unit_f64(db))
         held = _TABLES[db] = (tables, tuple(tables))
     return held
 
@@ -361,13 +384,18 @@ class TriangleVoting(Algorithm):
         j_rows = n_j[order].astype(np.uint16)
         unit32 = unit.astype(np.float32)
         side_i, side_j = record_sides(unit32, main_rows, i_rows, j_rows)
+        features = np.empty((order.size, 4), dtype=np.float32)
+        features[:, FEAT_BASE] = base32[order]
+        features[:, FEAT_HEIGHT] = height32[order]
+        features[:, FEAT_SIDE_I] = side_i
+        features[:, FEAT_SIDE_J] = side_j
         return TriangleVotingDatabase(
-            base=base32[order], height=height32[order], main=main_rows, n_i=i_rows, n_j=j_rows,
+            features=features, main=main_rows, n_i=i_rows, n_j=j_rows,
             cell_start=cell_start, unit_icrs=unit32, hip=hip.astype(np.int64),
             sky_start=sky_start, sky_axis=SKY_AXIS,
             cell_b=cell, cell_h=cell, n_cells_b=n_cells_b, n_cells_h=n_cells_h,
             pattern_radius_chord=pr_chord, d_min_chord=dmin_chord,
-            deep=deep, deep_v_mag=deep_v_mag(catalog, deep), side_i=side_i, side_j=side_j)
+            deep=deep, deep_v_mag=deep_v_mag(catalog, deep))
 
     # -- identification ---------------------------------------------------------------------
     def identify(self, database: TriangleVotingDatabase, observation: Observation) -> Identification:
@@ -381,14 +409,15 @@ class TriangleVoting(Algorithm):
         # one kernel call: brightest first (ties on position, so the result does not depend on input
         # order), only stars bright enough to be guide stars (with a margin), at most max_stars of them;
         # voting, verification (identify_rows) and the final step (finish)
-        status, hip, attitude, accepted, work = identify_image(x, y, mag, _kernel_tables(db), kernel_tol,
+        status, hip, attitude, accepted, work, n_named = identify_image(x, y, mag, _kernel_tables(db), kernel_tol,
                                                                _finish_tables(db), fin_cam)
         if status == 0:
             return Identification(hip)
         counters = dict(zip(WORK_COUNTERS, work.tolist(), strict=True))
         if status == 1:
             return Identification(hip, counters=counters)
-        if accepted and not self._photometry_agrees(db, hip, mag):
+        # the photometry check passes any result of no id or more than min_stars ids: not called for those
+        if accepted and 0 < n_named <= self.min_stars and not self._photometry_agrees(db, hip, mag):
             return Identification(np.full(n, -1, dtype=np.int64), counters=counters)
         return Identification(hip, attitude if accepted else None, counters=counters)
 

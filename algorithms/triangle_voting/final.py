@@ -21,6 +21,9 @@ from numba import njit
 
 from starid.kernels import backproject_px, chord_rows, wahba_rows
 
+#: kernels only other kernels call: no Python or C entry point to compile (issue #25, compile time)
+_inner = njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)
+
 #: z bands of the deep sky's order (``z`` in [-1, 1] cut in this many equal bands)
 DEEP_BANDS = 64
 #: widening of every cone search (chord / radians): covers the float32 rows' departure from unit length
@@ -30,13 +33,13 @@ CONE_MARGIN = 1e-5
 MAX_RANGES = 2 * DEEP_BANDS
 
 
-@njit(cache=True)
+@_inner
 def deep_band(z):
     """The z band of a row (``DEEP_BANDS`` equal bands of [-1, 1])."""
     return min(max(int((z + 1.0) * 0.5 * DEEP_BANDS), 0), DEEP_BANDS - 1)
 
 
-@njit(cache=True)
+@_inner
 def ra_key(x, y):
     """A key in [0, 4) increasing with the right ascension ``atan2(y, x)`` taken in [0, 2 pi) (no trigonometry:
     the quadrant plus the share of ``|x| + |y|`` along it)."""
@@ -68,7 +71,7 @@ def band_order(unit: np.ndarray, hip: np.ndarray) -> np.ndarray:
     return np.lexsort((hip, key, band))
 
 
-@njit(cache=True)
+@_inner
 def _first_band(unit, b, lo, hi):
     """First row in ``[lo, hi)`` whose band is ``>= b`` (rows sorted by band)."""
     while lo < hi:
@@ -80,7 +83,7 @@ def _first_band(unit, b, lo, hi):
     return lo
 
 
-@njit(cache=True)
+@_inner
 def _first_key(unit, k, lo, hi, upper):
     """First row in ``[lo, hi)`` whose key is ``>= k`` (``upper``: ``> k``), rows of one band (sorted by key)."""
     while lo < hi:
@@ -144,7 +147,7 @@ def cone_ranges(unit, cx, cy, cz, c_radius, ranges):
     return count
 
 
-@njit(cache=True)
+@_inner
 def z_band(z_centre, c_radius):
     """``(z_lo, z_hi)`` of ``starid.kernels.z_band_rows``: its rows are those with ``z_lo <= z <= z_hi``."""
     half = 2.0 * math.asin(min(1.0, 0.5 * c_radius))
@@ -154,7 +157,7 @@ def z_band(z_centre, c_radius):
     return z_lo, z_hi
 
 
-@njit(cache=True)
+@_inner
 def field_chord_px(f_px, cx_px, cy_px, width_px, height_px):
     """``starid.kernels.field_chord`` of the frame: chord from the boresight to the farthest sensor corner."""
     corners = backproject_px(np.array([0.0, width_px, 0.0, width_px]), np.array([0.0, 0.0, height_px, height_px]),
@@ -165,7 +168,7 @@ def field_chord_px(f_px, cx_px, cy_px, width_px, height_px):
     return c
 
 
-@njit(cache=True)
+@_inner
 def _reproject_assign(A, v_cam, unit, c_fov, eps, out_row, ranges, f_px, cx_px, cy_px, width_px, height_px):
     """``starid.kernels.reproject_assign`` (its ``n_assigned``) over the rows of the cone search."""
     n = v_cam.shape[0]
@@ -205,7 +208,7 @@ def _reproject_assign(A, v_cam, unit, c_fov, eps, out_row, ranges, f_px, cx_px, 
             out_row[i] = -1
 
 
-@njit(cache=True)
+@_inner
 def _assign_all(attitude, v_all, deep_unit, deep_hip, eps_chord, hip, ranges, f_px, cx_px, cy_px, width_px,
                 height_px):
     """``starid.kernels.assign_all`` (``hip`` updated in place) over the cone search; ``v_all`` the stars'
@@ -229,7 +232,7 @@ def _assign_all(attitude, v_all, deep_unit, deep_hip, eps_chord, hip, ranges, f_
         hip[i] = out[i]
 
 
-@njit(cache=True)
+@_inner
 def _deep_mag_of(deep_unit, deep_hip, deep_mag, r_icrs, eps_chord, hip, ranges):
     """V of the deep star ``hip``, which lies within chord ``eps_chord`` of the ICRS direction ``r_icrs``
     (planar_triangle's ``_deep_mag_of``: searched in the z band of chord ``2 eps_chord``)."""
@@ -243,7 +246,7 @@ def _deep_mag_of(deep_unit, deep_hip, deep_mag, r_icrs, eps_chord, hip, ranges):
     return np.inf
 
 
-@njit(cache=True)
+@_inner
 def _rivals(deep_unit, deep_mag, r_icrs, eps_chord, mag_max, ranges):
     """How many deep stars with V <= ``mag_max`` lie within chord ``eps_chord`` of ``r_icrs`` (planar_triangle's
     ``_rivals``)."""
@@ -262,10 +265,11 @@ def _rivals(deep_unit, deep_mag, r_icrs, eps_chord, mag_max, ranges):
     return count
 
 
-@njit(cache=True)
+@_inner
 def _coverage(attitude, deep_unit, deep_hip, deep_mag, mag_max, found_hip, ranges, f_px, cx_px, cy_px, width_px,
               height_px):
-    """``(predicted, missed)`` of planar_triangle's ``coverage`` over the cone search of the field."""
+    """``(predicted, missed)`` of planar_triangle's ``coverage`` over the cone search of the field; ``found_hip``:
+    the identified stars' HIP (-1: none), in any order."""
     c_field = field_chord_px(f_px, cx_px, cy_px, width_px, height_px)
     z_lo, z_hi = z_band(attitude[2, 2], c_field)
     n_ranges = cone_ranges(deep_unit, attitude[2, 0], attitude[2, 1], attitude[2, 2], c_field, ranges)
@@ -287,13 +291,18 @@ def _coverage(attitude, deep_unit, deep_hip, deep_mag, mag_max, found_hip, range
             if not (0.0 <= x < width_px and 0.0 <= y < height_px):
                 continue
             predicted += 1
-            pos = np.searchsorted(found_hip, deep_hip[g])
-            if pos >= found_hip.shape[0] or found_hip[pos] != deep_hip[g]:
+            found = False  # a scan of the few ids (-1: none), not np.sort / np.searchsorted (compile time)
+            for q in range(found_hip.shape[0]):
+                if found_hip[q] == deep_hip[g]:
+                    found = True
+                    break
+            if not found:
                 missed += 1
     return predicted, missed
 
 
-@njit(cache=True)
+# inline="always": identify_image takes its body in numba IR (one level of compilation less; see identify_rows)
+@njit(cache=True, inline="always")
 def finish_cone(x_px, y_px, mag, rows, guide_unit, guide_hip, deep_unit, deep_hip, deep_mag, f_px, cx_px, cy_px,
                 width_px, height_px, eps_chord, mag_margin, mag_limit, coverage_mag_margin, max_missed_fraction,
                 assign_all):
@@ -330,9 +339,12 @@ def finish_cone(x_px, y_px, mag, rows, guide_unit, guide_hip, deep_unit, deep_hi
         if _deep_mag_of(deep_unit, deep_hip, deep_mag, r_icrs, eps_chord, assigned[i], ranges) <= mag[i] + mag_margin:
             hip_all[i] = assigned[i]
     if max_missed_fraction < 1.0:
-        found = np.sort(hip_all[hip_all >= 0])
-        mag_max = min(mag_limit, mag.max()) - coverage_mag_margin
-        predicted, missed = _coverage(attitude, deep_unit, deep_hip, deep_mag, mag_max, found, ranges, f_px, cx_px,
+        faintest_mag = mag[0]  # mag.max() without numpy's reduction machinery (compile time)
+        for i in range(1, n):
+            if mag[i] > faintest_mag or math.isnan(mag[i]):
+                faintest_mag = mag[i]
+        mag_max = min(mag_limit, faintest_mag) - coverage_mag_margin
+        predicted, missed = _coverage(attitude, deep_unit, deep_hip, deep_mag, mag_max, hip_all, ranges, f_px, cx_px,
                                       cy_px, width_px, height_px)
         if not (missed <= 1 or missed <= max_missed_fraction * predicted):
             return np.full(n, -1, dtype=np.int64), attitude, False

@@ -20,6 +20,9 @@ from starid.kernels import backproject_px, chord_rows, verify_pairwise, wahba_ro
 
 from .final import finish_cone
 
+#: kernels only other kernels call: no Python or C entry point to compile (issue #25, compile time)
+_inner = njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)
+
 #: names of the per-image work counters :func:`identify_rows` returns (``Identification.counters``):
 #: image triangles looked up in the grid, catalog records in the grid cells scanned, records within
 #: both the base and the height window, and of those the records whose sides matched too
@@ -29,8 +32,8 @@ WORK_COUNTERS = ("triangles", "records", "matches", "side_matches")
 class Tables(NamedTuple):
     """The database as the kernels read it (see ``TriangleVotingDatabase``)."""
 
-    base: np.ndarray  # float32 (m,) triangle records sorted by 2-D grid cell
-    height: np.ndarray  # float32 (m,)
+    features: np.ndarray  # float32 (m, 4) per record base, height, side_i, side_j (see below); records sorted by
+    # 2-D grid cell, then height
     main: np.ndarray  # uint16 (m,) guide rows: main star (apex) and its two neighbours
     n_i: np.ndarray
     n_j: np.ndarray
@@ -44,8 +47,31 @@ class Tables(NamedTuple):
     sky_axis: int
     pr_chord: float  # pattern radius as a chord
     dmin_chord: float  # D_min as a chord
-    side_i: np.ndarray  # float32 (m,) the record's main-to-n_i and main-to-n_j chords, rounded to float32
-    side_j: np.ndarray  # (:func:`record_sides`): a pre-filter of the side check, which stays exact
+    unit64: np.ndarray  # float64 (n, 3) ``unit`` as float64 (the same values), the attitude solver's input: one
+    # compilation of ``wahba_rows`` (float64, shared with the final step) instead of two (issue #25)
+
+    # features' columns: base and height (chord units), and the record's main-to-n_i and main-to-n_j chords
+    # rounded to float32 (:func:`record_sides`: a pre-filter of the side check, which stays exact). One row of
+    # 16 bytes per record, so the vote's scan of a few records reads one or two cache lines, not four streams.
+    @property
+    def base(self) -> np.ndarray:
+        return self.features[:, FEAT_BASE]
+
+    @property
+    def height(self) -> np.ndarray:
+        return self.features[:, FEAT_HEIGHT]
+
+    @property
+    def side_i(self) -> np.ndarray:
+        return self.features[:, FEAT_SIDE_I]
+
+    @property
+    def side_j(self) -> np.ndarray:
+        return self.features[:, FEAT_SIDE_J]
+
+
+#: columns of ``Tables.features`` (the database's ``features``)
+FEAT_BASE, FEAT_HEIGHT, FEAT_SIDE_I, FEAT_SIDE_J = 0, 1, 2, 3
 
 
 class Tolerance(NamedTuple):
@@ -68,6 +94,7 @@ class Tolerance(NamedTuple):
 # The kernels take both bundles as plain tuples (``tuple(Tables(...))``; a NamedTuple argument costs
 # about 1 us more per call to dispatch) and read them by these field positions (numba constants).
 DB_UNIT = Tables._fields.index("unit")
+DB_UNIT64 = Tables._fields.index("unit64")
 DB_SKY_START = Tables._fields.index("sky_start")
 DB_SKY_AXIS = Tables._fields.index("sky_axis")
 TOL_EPS_CHORD = Tolerance._fields.index("eps_chord")
@@ -122,11 +149,25 @@ def build_triangles(unit, rank, nbr_ptr, nbr_idx, lam, dmin_chord):
             if c != s and chord_rows(unit, s, unit, c) >= dmin_chord:
                 keep[k] = c
                 k += 1
-        keep = keep[:k]
-        order = np.argsort(rank[keep])
-        top = keep[order[:lam]]
-        for i in range(top.size):
-            for j in range(i + 1, top.size):
+        # the lam kept stars of lowest rank, by rank (ranks are unique: np.argsort's order; a bounded
+        # insertion, not np.argsort and fancy indexing, which cost compile time)
+        top = np.empty(lam, dtype=np.int64)
+        n_top = 0
+        for e in range(k):
+            c = keep[e]
+            if n_top == lam:
+                if rank[c] >= rank[top[lam - 1]]:
+                    continue
+                p = lam - 1  # the last one drops out
+            else:
+                p = n_top
+                n_top += 1
+            while p > 0 and rank[top[p - 1]] > rank[c]:
+                top[p] = top[p - 1]
+                p -= 1
+            top[p] = c
+        for i in range(n_top):
+            for j in range(i + 1, n_top):
                 b, h, _ = triangle_features(unit[s], unit[top[i]], unit[top[j]])
                 if b < dmin_chord:
                     continue
@@ -140,7 +181,9 @@ def build_triangles(unit, rank, nbr_ptr, nbr_idx, lam, dmin_chord):
 
 
 #: bound of the float32 rounding of a chord (at most 2, so its error is at most 2 * 2^-24 = 1.2e-7),
-#: doubled: a record whose float32 sides miss the window by more than this misses it exactly too
+#: doubled: a record whose float32 sides miss the window by more than this misses it exactly too; and
+#: one whose float32 side errors are more than this inside the window (and whose two vertex orders
+#: differ by more than twice this) matches exactly too, in the same order
 SIDE_ROUNDING = 2.5e-7
 
 
@@ -161,7 +204,7 @@ def record_sides(unit, main, n_i, n_j):
     return side_i, side_j
 
 
-@njit(cache=True)
+@_inner
 def _grow(arr):
     """A copy of ``arr`` with twice the length (the new half uninitialised)."""
     out = np.empty(2 * arr.size, dtype=arr.dtype)
@@ -170,8 +213,8 @@ def _grow(arr):
     return out
 
 
-@njit(cache=True)
-def _by_base(listed, n, cell_start, cb0, cb1, ch0, ch1, n_cells_h, base_db, height_db, main_db):
+@_inner
+def _by_base(listed, n, cell_start, cb0, cb1, ch0, ch1, n_cells_h, features, main_db):
     """Reorder the records ``listed[:n]`` (ascending, from the cells ``cb0..cb1`` x ``ch0..ch1``) by cell,
     then base, height and main star (stable): the order of the records before they were sorted by height
     within a cell, so the side-matched triangles (the fallback's hypotheses, whose ties go by position)
@@ -193,8 +236,12 @@ def _by_base(listed, n, cell_start, cb0, cb1, ch0, ch1, n_cells_h, base_db, heig
         while p > 0:
             q = listed[p - 1]
             cq = cell[p - 1]
-            after = cq > c or (cq == c and (base_db[q] > base_db[r] or (base_db[q] == base_db[r] and (
-                height_db[q] > height_db[r] or (height_db[q] == height_db[r] and main_db[q] > main_db[r])))))
+            bq = features[q, FEAT_BASE]
+            br = features[r, FEAT_BASE]
+            hq = features[q, FEAT_HEIGHT]
+            hr = features[r, FEAT_HEIGHT]
+            after = cq > c or (cq == c and (bq > br or (bq == br and (
+                hq > hr or (hq == hr and main_db[q] > main_db[r])))))
             if not after:
                 break
             listed[p] = q
@@ -204,7 +251,7 @@ def _by_base(listed, n, cell_start, cb0, cb1, ch0, ch1, n_cells_h, base_db, heig
         cell[p] = c
 
 
-@njit(cache=True)
+@_inner
 def _slot(slots, touched_o, touched_c, o, c, n_guide):
     """The slot of the pair ``(o, c)`` in :func:`vote`'s table: the one holding it, or the empty one
     where it goes (linear probing; ``slots.size`` a power of 2, never full)."""
@@ -217,7 +264,7 @@ def _slot(slots, touched_o, touched_c, o, c, n_guide):
         e = (e + 1) & mask
 
 
-@njit(cache=True)
+@_inner
 def _rehash(touched_o, touched_c, n_touched, n_guide, size):
     """:func:`vote`'s table rebuilt with ``size`` slots for its first ``n_touched`` pairs."""
     slots = np.zeros(size, dtype=np.int64)
@@ -248,8 +295,8 @@ def vote(v_cam, db, tol, votes, mark):
     (3, n_guide); the votes are now tallied in a small table of the pairs touched, which stays in
     the first-level cache); kept so that callers and tools keep their signature, left as they are.
     """
-    (base_db, height_db, main_db, ni_db, nj_db, cell_start, n_cells_b, n_cells_h, cell_b, cell_h, cat_unit, _, _,
-     pr_chord, dmin_chord, side_i_db, side_j_db) = db
+    (features, main_db, ni_db, nj_db, cell_start, n_cells_b, n_cells_h, cell_b, cell_h, cat_unit, _, _,
+     pr_chord, dmin_chord, _) = db
     sigma_chord, k_sigma, _, _, n_nbr, side_check, vote_neighbours, v_min, n_cand, _, _, _ = tol
     n = v_cam.shape[0]
     eps_b = k_sigma * math.sqrt(2.0) * sigma_chord
@@ -337,35 +384,48 @@ def vote(v_cam, db, tol, votes, mark):
                     # (cell, then height): the records below and above the height window are skipped
                     r0 = cell_start[cb * n_cells_h + ch0]
                     r1 = cell_start[cb * n_cells_h + ch1 + 1]
-                    while r0 < r1 and height_db[r0] - height < -eps_h:
+                    while r0 < r1 and features[r0, FEAT_HEIGHT] - height < -eps_h:
                         r0 += 1
-                    while r1 > r0 and height_db[r1 - 1] - height > eps_h:
+                    while r1 > r0 and features[r1 - 1, FEAT_HEIGHT] - height > eps_h:
                         r1 -= 1
                     for r in range(r0, r1):
-                        in_windows = (abs(base_db[r] - base) <= eps_b) & (abs(height_db[r] - height) <= eps_h)
-                        s_i = float(side_i_db[r])
-                        s_j = float(side_j_db[r])
+                        in_windows = ((abs(features[r, FEAT_BASE] - base) <= eps_b)
+                                      & (abs(features[r, FEAT_HEIGHT] - height) <= eps_h))
+                        s_i = float(features[r, FEAT_SIDE_I])
+                        s_j = float(features[r, FEAT_SIDE_J])
                         near = min(max(abs(d_ia - s_i), abs(d_ib - s_j)),
                                    max(abs(d_ia - s_j), abs(d_ib - s_i))) <= eps_side
                         n_matches += in_windows
                         listed[n_near] = r
                         n_near += in_windows & (near | no_side_check)
                 if n_near > 1:  # the records in the order of (cell, base, height, main), as they were stored
-                    _by_base(listed, np.int64(n_near), cell_start, cb0, cb1, ch0, ch1, n_cells_h, base_db, height_db,
-                             main_db)
+                    _by_base(listed, np.int64(n_near), cell_start, cb0, cb1, ch0, ch1, n_cells_h, features, main_db)
                 for e in range(n_near):
                     r = listed[e]
                     c = main_db[r]
                     ci = ni_db[r]
                     cj = nj_db[r]
-                    d_ci = chord_rows(cat_unit, c, cat_unit, ci)
-                    d_cj = chord_rows(cat_unit, c, cat_unit, cj)
-                    e_straight = max(abs(d_ia - d_ci), abs(d_ib - d_cj))
-                    e_swapped = max(abs(d_ia - d_cj), abs(d_ib - d_ci))
-                    if e_swapped < e_straight:
-                        ci, cj = cj, ci
-                        e_straight = e_swapped
-                    sides_match = e_straight <= eps_b
+                    # the side check from the float32 sides when their rounding cannot change its outcome (both
+                    # errors and their difference farther than the rounding from the window and from a tie);
+                    # else exactly, from the guide vectors (three random reads: cold in the interleaved timing)
+                    s_i = float(features[r, FEAT_SIDE_I])
+                    s_j = float(features[r, FEAT_SIDE_J])
+                    e_straight = max(abs(d_ia - s_i), abs(d_ib - s_j))
+                    e_swapped = max(abs(d_ia - s_j), abs(d_ib - s_i))
+                    e_best = min(e_straight, e_swapped)
+                    if abs(e_straight - e_swapped) > 2.0 * SIDE_ROUNDING and abs(e_best - eps_b) > SIDE_ROUNDING:
+                        if e_swapped < e_straight:
+                            ci, cj = cj, ci
+                        sides_match = e_best < eps_b
+                    else:
+                        d_ci = chord_rows(cat_unit, c, cat_unit, ci)
+                        d_cj = chord_rows(cat_unit, c, cat_unit, cj)
+                        e_straight = max(abs(d_ia - d_ci), abs(d_ib - d_cj))
+                        e_swapped = max(abs(d_ia - d_cj), abs(d_ib - d_ci))
+                        if e_swapped < e_straight:
+                            ci, cj = cj, ci
+                            e_straight = e_swapped
+                        sides_match = e_straight <= eps_b
                     if side_check and not sides_match:
                         continue
                     n_votes = 3 if vote_neighbours and sides_match else 1
@@ -450,13 +510,13 @@ def new_scratch(n, n_guide):
     return np.zeros((n, n_guide), dtype=np.int32), np.zeros((3, n_guide), dtype=np.int32)
 
 
-@njit(cache=True)
+@_inner
 def _agree(v_cam, cat_unit, i, ri, j, rj, tol_chord):
     """Whether observed stars ``i``, ``j`` and catalog rows ``ri``, ``rj`` have the same separation."""
     return ri != rj and abs(chord_rows(v_cam, i, v_cam, j) - chord_rows(cat_unit, ri, cat_unit, rj)) <= tol_chord
 
 
-@njit(cache=True)
+@_inner
 def select_candidates(v_cam, cand, cand_votes, cat_unit, tol_chord):
     """Per observed star, the vote candidate best supported by the other stars' candidates.
 
@@ -519,7 +579,7 @@ def sky_cell_of(u, n_axis):
     return (ix * n_axis + iy) * n_axis + iz
 
 
-@njit(cache=True)
+@_inner
 def _nearest_row(r, db, tol_chord):
     """The only catalog row within ``tol_chord`` of unit vector ``r`` (-1 if none or several)."""
     cat_unit, sky_start, n_axis = db[DB_UNIT], db[DB_SKY_START], db[DB_SKY_AXIS]
@@ -547,7 +607,7 @@ def _nearest_row(r, db, tol_chord):
     return found
 
 
-@njit(cache=True)
+@_inner
 def _extend(v_cam, row, db, tol):
     """Extend the consistent set ``row`` (-1 = not in it) by reprojection, in place; returns its size.
 
@@ -567,7 +627,7 @@ def _extend(v_cam, row, db, tol):
             n_set += 1
     if n_set < 2:
         return n_set
-    A = wahba_rows(v_cam, row, cat_unit)  # ICRS -> camera
+    A = wahba_rows(v_cam, row, db[DB_UNIT64])  # ICRS -> camera (float64 copy: the same values, one compilation)
     radius = radius_chord * math.sqrt(1.0 + 1.0 / n_set)
     new = np.full(n, -1, dtype=np.int64)
     r = np.empty(3)
@@ -600,7 +660,7 @@ def _extend(v_cam, row, db, tol):
     return n_set
 
 
-@njit(cache=True)
+@_inner
 def confirm(v_cam, proposed, weight, db, tol, min_stars):
     """Make the verified proposals one consistent set, extend it by reprojection, keep it if large enough.
 
@@ -637,7 +697,7 @@ def confirm(v_cam, proposed, weight, db, tol, min_stars):
     return row
 
 
-@njit(cache=True)
+@_inner
 def best_hypothesis(v_cam, hyp, score, db, tol, min_stars):
     """Fallback when voting and verification found no set: test single matched triangles.
 
@@ -653,7 +713,8 @@ def best_hypothesis(v_cam, hyp, score, db, tol, min_stars):
     rival_size = 0
     row = np.empty(n, dtype=np.int64)
     for h in order[:tol[TOL_MAX_HYPOTHESES]]:
-        row[:] = -1
+        for q in range(n):  # a loop, not row[:] = -1 (slice assignment: compile time)
+            row[q] = -1
         row[hyp[h, 0]] = hyp[h, 1]
         row[hyp[h, 2]] = hyp[h, 3]
         row[hyp[h, 4]] = hyp[h, 5]
@@ -677,7 +738,19 @@ def best_hypothesis(v_cam, hyp, score, db, tol, min_stars):
     return best
 
 
-@njit(cache=True)
+@_inner
+def _any_row(rows):
+    """``rows.max() >= 0`` without numpy's reduction machinery (compile time)."""
+    for k in range(rows.shape[0]):
+        if rows[k] >= 0:
+            return True
+    return False
+
+
+# inline="always": identify_image takes its body in numba IR, so it is not compiled and optimised once more as a
+# level of its own between identify_image and vote (numba re-optimises every linked callee at each level); tools
+# calling it from Python compile it as usual
+@njit(cache=True, inline="always")
 def identify_rows(v_cam, db, tol, votes, mark):
     """The whole identification of one image (``v_cam`` brightest first): ``(rows, work)``, the guide
     row per star or -1 and :func:`vote`'s work counters.
@@ -695,13 +768,13 @@ def identify_rows(v_cam, db, tol, votes, mark):
         if not verified[i]:
             chosen[i] = -1
     rows = confirm(v_cam, chosen, chosen_votes, db, tol, tol[TOL_MIN_STARS])
-    if rows.max() < 0 and tol[TOL_MAX_HYPOTHESES] > 0:
+    if not _any_row(rows) and tol[TOL_MAX_HYPOTHESES] > 0:
         rows = best_hypothesis(v_cam, hyp, score, db, tol, tol[TOL_MIN_STARS] + 1)
     return rows, work
 
 
 
-@njit(cache=True)
+@_inner
 def _brightest_first(x_px, y_px, mag):
     """``np.lexsort((y_px, x_px, mag))``: the stars by magnitude, then x, then y (stable insertion sort,
     the same order for the few dozen stars of an image)."""
@@ -725,7 +798,8 @@ def _brightest_first(x_px, y_px, mag):
 
 @njit(cache=True)
 def identify_image(x_px, y_px, mag, db, tol, fin_db, fin_cam):
-    """``identify`` of one image in one call: ``(status, hip, attitude, accepted, work)``.
+    """``identify`` of one image in one call: ``(status, hip, attitude, accepted, work, n_named)``, ``n_named`` the
+    number of stars with an id (``hip >= 0``; the wrapper's photometry check reads only small results).
 
     The stars brightest first (``np.lexsort((y, x, mag))``) with ``mag <= mag_cut``, at most ``max_stars``
     (-1: all); fewer than 3: ``status`` 0. Then :func:`identify_rows` on their camera vectors (no guide row:
@@ -749,7 +823,8 @@ def identify_image(x_px, y_px, mag, db, tol, fin_db, fin_cam):
     if max_stars >= 0 and m > max_stars:
         m = max_stars
     if m < 3:
-        return 0, np.full(n, -1, dtype=np.int64), np.zeros((3, 3)), False, np.zeros(len(WORK_COUNTERS), dtype=np.int64)
+        no_work = np.zeros(len(WORK_COUNTERS), dtype=np.int64)
+        return 0, np.full(n, -1, dtype=np.int64), np.zeros((3, 3)), False, no_work, 0
     xs = np.empty(m)
     ys = np.empty(m)
     for k in range(m):
@@ -758,12 +833,16 @@ def identify_image(x_px, y_px, mag, db, tol, fin_db, fin_cam):
     v_cam = backproject_px(xs, ys, f_px, cx_px, cy_px)
     no_scratch = np.zeros((0, 0), dtype=np.int32)  # vote's former scratch, no longer read
     rows, work = identify_rows(v_cam, db, tol, no_scratch, no_scratch)
-    if rows.max() < 0:
-        return 1, np.full(n, -1, dtype=np.int64), np.zeros((3, 3)), False, work
+    if not _any_row(rows):
+        return 1, np.full(n, -1, dtype=np.int64), np.zeros((3, 3)), False, work, 0
     all_rows = np.full(n, -1, dtype=np.int64)
     for k in range(m):
         all_rows[sel[k]] = rows[k]
     hip, attitude, accepted = finish_cone(x_px, y_px, mag, all_rows, unit64, guide_hip, deep_unit, deep_hip, deep_mag,
                                           f_px, cx_px, cy_px, width_px, height_px, eps_chord, mag_margin, mag_limit,
                                           coverage_mag_margin, max_missed_fraction, assign_all)
-    return 2, hip, attitude, accepted, work
+    n_named = 0
+    for k in range(n):
+        if hip[k] >= 0:
+            n_named += 1
+    return 2, hip, attitude, accepted, work, n_named
