@@ -258,7 +258,7 @@ def interior_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide
     # the pairings (star -> row, sorted by star) confirm_pattern refused: a trio's pairing found again
     # from another central star (c's two nearest are k1, k2 and k1's are c, k2) is refused again
     failed = np.empty((min(tol.max_centres, m) * out.shape[0], 6), dtype=np.int64)
-    n_failed = 0
+    n_failed = np.int64(0)   # not a literal: one signature of seen_before and remember
     mark = np.zeros(nbr_start.shape[0], dtype=np.int32)   # trio_query_marked's marks, stamp = central star + 1
     found = False
     for c in range(m):
