@@ -168,11 +168,11 @@ def index_image(img_sector, img_level, nz, search, level_start, by_level, mask):
 
 @njit(cache=True, inline="always")
 def _popcount(x):
-    c = 0
-    while x:
-        x &= x - 1
-        c += 1
-    return c
+    """Set bits of a non-negative int64 word (SWAR: no data-dependent branch)."""
+    x = x - ((x >> 1) & 0x5555555555555555)
+    x = (x & 0x3333333333333333) + ((x >> 2) & 0x3333333333333333)
+    x = (x + (x >> 4)) & 0x0F0F0F0F0F0F0F0F
+    return (x * 0x0101010101010101) >> 56
 
 
 @njit(cache=True, inline="always")
@@ -570,6 +570,82 @@ def order_by_count(chars, count_start, by_count):
     count_start[0] = 0
 
 
+class ScanOrder(NamedTuple):
+    """The database strings in the order of the scan, built once per database (:func:`scan_order`).
+
+    ``strings``: the :class:`Strings` re-laid by character count (counting order, guide order
+    within a count), so the scan reads them in memory order; position ``i`` is guide
+    ``guide[i]``; strings of ``c`` characters are positions ``count_start[c]:count_start[c+1]``.
+    When ``n_levels <= 16`` and no string has more than 15 characters in one row (else both
+    empty): ``levels[i]`` (uint16), bit L - 1 set when the string has a character in row L, and
+    ``counts[i]`` (uint64), nibble L - 1 the number of its characters in row L: the level bound
+    and the window sum read these instead of the characters.
+    """
+
+    strings: Strings
+    guide: np.ndarray
+    count_start: np.ndarray
+    levels: np.ndarray
+    counts: np.ndarray
+
+
+def scan_order(chars: Strings, n_sectors: int, n_levels: int) -> ScanOrder:
+    """The :class:`ScanOrder` of the database strings ``chars`` (numpy, in the plugin's kernel arguments)."""
+    n_chars = np.diff(chars.start).astype(np.int64)
+    guide = np.argsort(n_chars, kind="stable").astype(np.int64)
+    count_start = np.zeros(n_sectors + 2, dtype=np.int64)
+    np.cumsum(np.bincount(n_chars, minlength=n_sectors + 1)[:n_sectors + 1], out=count_start[1:])
+    lengths = n_chars[guide]
+    start = np.zeros(guide.size + 1, dtype=np.int32)
+    np.cumsum(lengths, out=start[1:])
+    src = np.arange(int(start[-1]), dtype=np.int64) + np.repeat(chars.start[guide].astype(np.int64) - start[:-1],
+                                                                   lengths)
+    strings = Strings(chars.sector[src], chars.level[src], start)
+    levels = np.zeros(0, dtype=np.uint16)
+    counts = np.zeros(0, dtype=np.uint64)
+    if n_levels <= 16 and src.size:
+        pos = np.repeat(np.arange(guide.size), lengths)
+        per = np.zeros((guide.size, 17), dtype=np.int64)
+        np.add.at(per, (pos, strings.level.astype(np.int64)), 1)
+        if per.max() <= 15:
+            weights = np.uint64(1) << (np.arange(16, dtype=np.uint64) * np.uint64(4))
+            counts = (per[:, 1:].astype(np.uint64) * weights).sum(axis=1, dtype=np.uint64)
+            levels = ((per[:, 1:] > 0) * (1 << np.arange(16))).sum(axis=1).astype(np.uint16)
+    return ScanOrder(strings, guide, count_start, levels, counts)
+
+
+@njit(cache=True, inline="always")
+def _nibble_sum(x):
+    """Sum of the 16 nibbles of a uint64 word, when it is below 256."""
+    lo = np.uint64(0x0F0F0F0F0F0F0F0F)
+    y = (x & lo) + ((x >> np.uint64(4)) & lo)
+    return np.int64((y * np.uint64(0x0101010101010101)) >> np.uint64(56))
+
+
+@njit(cache=True)
+def level_set_masks(img, search, most, set_masks, most_masks):
+    """Per reference star, the level bound and window sum of a string from its :class:`ScanOrder` summaries.
+
+    ``set_masks[h, b]`` (int64 (2, 256)): the OR of ``img.mask[L]`` over the rows L whose bit is
+    set in byte ``b`` of a levels word (h = 0: rows 1..8, h = 1: rows 9..16), so a string's
+    :func:`match_bound` bits are ``set_masks[0, ls & 255] | set_masks[1, ls >> 8]``.
+    ``most_masks[r]`` (uint64, 3): nibble L - 1 all ones when ``most[L] > r``, so the sum of
+    ``most`` over a string's characters is the sum over r of the nibble sums of ``counts & most_masks[r]``.
+    """
+    for h in range(2):
+        set_masks[h, 0] = 0
+        for b in range(1, 256):
+            low = b & -b
+            lv = 1 + 8 * h + _lowest_bit(np.int64(low))
+            set_masks[h, b] = set_masks[h, b ^ low] | (img.mask[lv] if lv <= search.n_levels else 0)
+    for r in range(3):
+        w = np.uint64(0)
+        for lv in range(1, min(search.n_levels, 16) + 1):
+            if most[lv] > r:
+                w |= np.uint64(15) << np.uint64(4 * (lv - 1))
+        most_masks[r] = w
+
+
 @njit(cache=True)
 def refined_roll(row, img_sector, img_level, img_phi, nz, shift, search):
     """Roll (``phi_catalog - phi_image``) of a match: the shift refined by the matched characters.
@@ -606,12 +682,14 @@ def search_at(p, i):
 
 
 @njit(cache=True)
-def identify_kernel(x_px, y_px, params, char_sector, char_level, char_start, guides_unit, trace):
+def identify_kernel(x_px, y_px, params, char_sector, char_level, char_start, scan_guide, count_start, scan_levels,
+                    scan_counts, guides_unit, trace):
     """LPT identification of one image; returns ``(rows, attitude, accepted)``.
 
     ``params``: the sensor :class:`Frame`, the :class:`Acceptance` and the :class:`StringSearch`,
-    packed by ``planar.pack_params``; the next three arrays are the :class:`Strings`' fields
-    (separate arguments: numba types arrays at a call in C, NamedTuples field by field in Python).
+    packed by ``planar.pack_params``; the next seven arrays are the :class:`ScanOrder`'s fields (its
+    :class:`Strings` field by field: separate arguments, as numba types arrays at a call in C,
+    NamedTuples field by field in Python).
 
     For reference stars from the image centre outwards (at most ``max_refs``): its LPT string;
     every database string is compared under every circular shift (:func:`shift_scores`, the
@@ -627,7 +705,7 @@ def identify_kernel(x_px, y_px, params, char_sector, char_level, char_start, gui
     sensor = frame_at(params, np.int64(0))
     acc = acceptance_at(params, np.int64(5))
     search = search_at(params, np.int64(10))
-    chars = Strings(char_sector, char_level, char_start)
+    chars = Strings(char_sector, char_level, char_start)   # in scan order: position i is guide scan_guide[i]
     n = x_px.shape[0]
     rows, unit, usable, order = begin_identify(x_px, y_px, sensor, search.double_px, trace)
     m = search.n_sectors
@@ -669,9 +747,9 @@ def identify_kernel(x_px, y_px, params, char_sector, char_level, char_start, gui
     n_best = search.n_candidates
     best_item = np.empty(n_best, dtype=np.int64)   # guide row * m + shift
     best_sc = np.empty(n_best, dtype=np.int64)
-    count_start = np.zeros(m + 2, dtype=np.int64)
-    by_count = np.empty(n_guide, dtype=np.int64)
-    ordered = False
+    summed = fast and scan_levels.shape[0] == n_guide and n_guide > 0   # ScanOrder's row summaries
+    set_masks = np.zeros((2, 256 if summed else 0), dtype=np.int64)
+    most_masks = np.zeros(3, dtype=np.uint64)
     for t in range(min(search.max_refs, order.shape[0])):
         s = order[t]
         k = reference_pattern(unit, usable, x_px, y_px, s, search.cos_radius, sensor.f_px, nbrs, r_px, phi)
@@ -693,9 +771,8 @@ def identify_kernel(x_px, y_px, params, char_sector, char_level, char_start, gui
         if fast:
             window_counts(image, search, most)
             shift_tables(image, search, tables)
-        if not ordered:
-            order_by_count(chars, count_start, by_count)
-            ordered = True
+        if summed:
+            level_set_masks(image, search, most, set_masks, most_masks)
         # Strings by length (character count), lengths from nz up, then from nz - 1 down: the image's own
         # pattern is most likely among strings of about its length, and finding it first raises the
         # bar for the rest. A database character matches at most 2 sector_tol + 1 image characters
@@ -718,13 +795,37 @@ def identify_kernel(x_px, y_px, params, char_sector, char_level, char_start, gui
                 need = least_needed(best_sc[n_best - 1], length, search.min_score)
             if need > cap:
                 continue
-            for i in range(lo, hi):
-                g = by_count[i]
+            for g in range(lo, hi):   # a position in the scan order (guide scan_guide[g])
                 if found == n_best:
                     need = least_needed(best_sc[n_best - 1], length, search.min_score)
                     if need > cap:
                         break
-                if fast:
+                if summed:
+                    # match_bound and the sum of most over the characters, from the row summaries
+                    ls = np.int64(scan_levels[g])
+                    if nz <= 62:
+                        bound = _popcount(set_masks[0, ls & 255] | set_masks[1, ls >> 8])
+                    else:
+                        bound = match_bound(chars, g, image)
+                    if bound < need:
+                        continue
+                    count_work(trace, 1, 1)
+                    w = scan_counts[g]
+                    total = (_nibble_sum(w & most_masks[0]) + _nibble_sum(w & most_masks[1])
+                             + _nibble_sum(w & most_masks[2]))
+                    if total < need:
+                        continue
+                    if nz - need < total - need:
+                        if not image_groups(chars, g, image, nz - need, pattern, valid, xs, groups):
+                            continue
+                    elif not reaches_groups(chars, g, total - need, most, tables, valid, groups):
+                        continue
+                    if total - need <= BUDGET_MAX:
+                        if not reaches_budget(chars, g, total - need, most, tables, valid, at_most):
+                            continue
+                    elif not reaches_tables(chars, g, need, tables, sum_planes):
+                        continue
+                elif fast:
                     # match_bound and the sum of most over the characters, in one pass
                     bits = 0
                     total = 0
@@ -756,8 +857,8 @@ def identify_kernel(x_px, y_px, params, char_sector, char_level, char_start, gui
                     continue
                 found = keep_best(best_sc, best_item, found, n_best, rank_key(matched, length), g * m + sh)
         for c in range(found):
-            g = best_item[c] // m
-            dense_string(chars, g, row)
+            g = scan_guide[best_item[c] // m]
+            dense_string(chars, best_item[c] // m, row)
             roll = refined_roll(row, img_sector, img_level, img_phi, nz, best_item[c] % m, search)
             A = seed_attitude_roll(unit, s, guides_unit, g, roll)
             ok, A = confirm(unit, rows, A, guides_unit, sensor, acc, unsolved)
