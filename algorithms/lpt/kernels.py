@@ -276,6 +276,17 @@ def shift_scores(chars, g, img, search, sets, planes):
                 elif s >= m:
                     s -= m
                 row[np.uint64(s >> 6)] |= np.int64(1) << (s & 63)
+    return best_shift(sets, nz, nw, planes, sets[nz])
+
+
+@njit(cache=True, inline="always")
+def best_shift(sets, nz, nw, planes, cand):
+    """``(best_score, best_shift)`` of the shift sets ``sets[:nz, :nw]`` (see :func:`shift_scores`).
+
+    The largest number of rows holding one shift, and the smallest such shift (``(0, 0)`` when
+    no row holds any): the rows are summed as bit-sliced counters (``planes``) and the maximum
+    read from the top bit plane down; ``cand`` (``nw`` words) is a work row.
+    """
     n_bits = planes.shape[0]
     for b in range(np.uint64(n_bits)):
         for w in range(np.uint64(nw)):
@@ -292,8 +303,7 @@ def shift_scores(chars, g, img, search, sets, planes):
                 b += np.uint64(1)
             if b > top:
                 top = np.int64(b)
-    cand = sets[nz]            # shifts still reaching the best so far; bits >= m are never set in planes
-    for w in range(nw):
+    for w in range(nw):        # shifts still reaching the best so far; bits >= m are never set in planes
         cand[w] = -1
     best = 0
     for b in range(top - 1, -1, -1):
@@ -310,7 +320,7 @@ def shift_scores(chars, g, img, search, sets, planes):
     first_w = 0
     while cand[first_w] == 0:
         first_w += 1
-    return best, first_w * 64 + _lowest_bit(sets[nz, first_w])
+    return best, first_w * 64 + _lowest_bit(cand[first_w])
 
 
 @njit(cache=True)
@@ -379,6 +389,40 @@ def shift_tables(img, search, tables):
                         xa |= np.int64(1) << s
                     else:
                         xb |= np.int64(1) << (s - 64)
+                r3a |= r2a & xa
+                r3b |= r2b & xb
+                r2a |= r1a & xa
+                r2b |= r1b & xb
+                r1a |= xa
+                r1b |= xb
+            tables[0, lv, j, 0] = r1a
+            tables[0, lv, j, 1] = r1b
+            tables[1, lv, j, 0] = r2a
+            tables[1, lv, j, 1] = r2b
+            tables[2, lv, j, 0] = r3a
+            tables[2, lv, j, 1] = r3b
+
+
+@njit(cache=True)
+def shift_tables_of(img, search, pattern, tables):
+    """:func:`shift_tables` with the shifts of a pair read from ``pattern`` (see :func:`image_groups`), not built."""
+    m = search.n_sectors
+    for lv in range(search.n_levels + 1):
+        a = img.level_start[lv] if lv > 0 else 0
+        b = img.level_start[lv + 1] if lv > 0 else 0
+        for j in range(m):
+            r1a = np.int64(0)
+            r1b = np.int64(0)
+            r2a = np.int64(0)
+            r2b = np.int64(0)
+            r3a = np.int64(0)
+            r3b = np.int64(0)
+            for p in range(a, b):
+                x = j - img.sector[img.by_level[p]]
+                if x < 0:
+                    x += m
+                xa = pattern[x, 0]
+                xb = pattern[x, 1]
                 r3a |= r2a & xa
                 r3b |= r2b & xb
                 r2a |= r1a & xa
@@ -736,6 +780,7 @@ def identify_kernel(x_px, y_px, params, char_sector, char_level, char_start, sca
     valid = np.zeros(2, dtype=np.int64)
     groups = np.zeros((3 * m + 1, 2), dtype=np.int64)
     xs = np.zeros((m, 2), dtype=np.int64)
+    cand = np.zeros(2, dtype=np.int64)
     pattern = np.zeros((m if fast else 0, 2), dtype=np.int64)   # pattern[x]: the shifts x - d, |d| <= sector_tol
     for x_ in range(pattern.shape[0]):
         for d in range(-search.sector_tol, search.sector_tol + 1):
@@ -770,7 +815,7 @@ def identify_kernel(x_px, y_px, params, char_sector, char_level, char_start, sca
         image = ImageString(img_sector, img_level, nz, level_start, by_level, mask)
         if fast:
             window_counts(image, search, most)
-            shift_tables(image, search, tables)
+            shift_tables_of(image, search, pattern, tables)
         if summed:
             level_set_masks(image, search, most, set_masks, most_masks)
         # Strings by length (character count), lengths from nz up, then from nz - 1 down: the image's own
@@ -818,7 +863,13 @@ def identify_kernel(x_px, y_px, params, char_sector, char_level, char_start, sca
                     if nz - need < total - need:
                         if not image_groups(chars, g, image, nz - need, pattern, valid, xs, groups):
                             continue
-                    elif not reaches_groups(chars, g, total - need, most, tables, valid, groups):
+                        # xs holds shift_scores' shift sets: score them at once
+                        matched, sh = best_shift(xs, nz, sets.shape[1], planes, cand)
+                        if matched < need:
+                            continue
+                        found = keep_best(best_sc, best_item, found, n_best, rank_key(matched, length), g * m + sh)
+                        continue
+                    if not reaches_groups(chars, g, total - need, most, tables, valid, groups):
                         continue
                     if total - need <= BUDGET_MAX:
                         if not reaches_budget(chars, g, total - need, most, tables, valid, at_most):
