@@ -404,12 +404,18 @@ def shift_tables(img, search, tables):
 
 
 @njit(cache=True)
-def shift_tables_of(img, search, pattern, tables):
-    """:func:`shift_tables` with the shifts of a pair read from ``pattern`` (see :func:`image_groups`), not built."""
+def shift_tables_of(img, search, most, by_level_x, pattern2, tables):
+    """:func:`shift_tables` with the shifts of a pair read from ``pattern2`` (see :func:`image_groups_at`),
+    written only where they can be non-empty: layers r < ``most[L]`` (:func:`window_counts`) of rows
+    L with ``most[L] > 0``; the scan reads no other entry (a database character of row L matches at
+    most ``most[L]`` image characters)."""
     m = search.n_sectors
-    for lv in range(search.n_levels + 1):
-        a = img.level_start[lv] if lv > 0 else 0
-        b = img.level_start[lv + 1] if lv > 0 else 0
+    for lv in range(1, search.n_levels + 1):
+        a = img.level_start[lv]
+        b = img.level_start[lv + 1]
+        depth = most[lv]
+        if depth == 0:
+            continue
         for j in range(m):
             r1a = np.int64(0)
             r1b = np.int64(0)
@@ -418,11 +424,9 @@ def shift_tables_of(img, search, pattern, tables):
             r3a = np.int64(0)
             r3b = np.int64(0)
             for p in range(a, b):
-                x = j - img.sector[img.by_level[p]]
-                if x < 0:
-                    x += m
-                xa = pattern[x, 0]
-                xb = pattern[x, 1]
+                x = j + by_level_x[p]
+                xa = pattern2[x, 0]
+                xb = pattern2[x, 1]
                 r3a |= r2a & xa
                 r3b |= r2b & xb
                 r2a |= r1a & xa
@@ -431,10 +435,12 @@ def shift_tables_of(img, search, pattern, tables):
                 r1b |= xb
             tables[0, lv, j, 0] = r1a
             tables[0, lv, j, 1] = r1b
-            tables[1, lv, j, 0] = r2a
-            tables[1, lv, j, 1] = r2b
-            tables[2, lv, j, 0] = r3a
-            tables[2, lv, j, 1] = r3b
+            if depth > 1:
+                tables[1, lv, j, 0] = r2a
+                tables[1, lv, j, 1] = r2b
+            if depth > 2:
+                tables[2, lv, j, 0] = r3a
+                tables[2, lv, j, 1] = r3b
 
 
 @njit(cache=True, inline="always")
@@ -457,6 +463,47 @@ def reaches_tables(chars, g, need, tables, planes):
         lv = np.uint64(chars.level[q])
         j = np.uint64(chars.sector[q])
         for r in range(np.uint64(3)):
+            xa = tables[r, lv, j, 0]
+            xb = tables[r, lv, j, 1]
+            if (xa | xb) == 0:
+                break
+            i = np.uint64(0)
+            while (xa | xb) != 0:
+                ca = planes[i, 0] & xa
+                cb = planes[i, 1] & xb
+                planes[i, 0] ^= xa
+                planes[i, 1] ^= xb
+                xa = ca
+                xb = cb
+                i += np.uint64(1)
+    gta = np.int64(0)
+    gtb = np.int64(0)
+    eqa = np.int64(-1)
+    eqb = np.int64(-1)
+    for i in range(n_bits - 1, -1, -1):
+        if (need >> i) & 1:
+            eqa &= planes[i, 0]
+            eqb &= planes[i, 1]
+        else:
+            gta |= eqa & planes[i, 0]
+            gtb |= eqb & planes[i, 1]
+    return (gta | eqa | gtb | eqb) != 0
+
+
+@njit(cache=True, inline="always")
+def reaches_tables_at(chars, g, need, most, tables, planes):
+    """:func:`reaches_tables` reading only the layers r < ``most[L]`` of a character of row L (the
+    others are empty, and :func:`shift_tables_of` does not write them)."""
+    a = np.uint64(chars.start[g])
+    b = np.uint64(chars.start[g + 1])
+    n_bits = planes.shape[0]
+    for i in range(n_bits):
+        planes[i, 0] = 0
+        planes[i, 1] = 0
+    for q in range(a, b):
+        lv = np.uint64(chars.level[q])
+        j = np.uint64(chars.sector[q])
+        for r in range(np.uint64(most[lv])):
             xa = tables[r, lv, j, 0]
             xb = tables[r, lv, j, 1]
             if (xa | xb) == 0:
@@ -510,6 +557,40 @@ def image_groups(chars, g, img, u, pattern, valid, xs, groups):
                 x += m
             xs[t, 0] |= pattern[x, 0]
             xs[t, 1] |= pattern[x, 1]
+    for i in range(u + 1):
+        groups[i, 0] = valid[0]
+        groups[i, 1] = valid[1]
+    e = 0
+    for t in range(nz):
+        groups[e, 0] &= xs[t, 0]
+        groups[e, 1] &= xs[t, 1]
+        e += 1
+        if e > u:
+            e = 0
+    any_a = np.int64(0)
+    any_b = np.int64(0)
+    for i in range(u + 1):
+        any_a |= groups[i, 0]
+        any_b |= groups[i, 1]
+    return (any_a | any_b) != 0
+
+
+@njit(cache=True, inline="always")
+def image_groups_at(chars, g, img, by_level_x, u, pattern2, valid, xs, groups):
+    """:func:`image_groups` without a branch per pair: ``by_level_x[p]`` = m - (sector of ``img.by_level[p]``),
+    and ``pattern2[y]`` (int64 (2 m, 2)) = ``pattern[y mod m]``, read at ``j + by_level_x[p]``."""
+    nz = np.uint64(img.nz)
+    for t in range(nz):
+        xs[t, 0] = 0
+        xs[t, 1] = 0
+    for q in range(np.uint64(chars.start[g]), np.uint64(chars.start[g + 1])):
+        lv = np.uint64(chars.level[q])
+        j = np.uint64(chars.sector[q])
+        for p in range(np.uint64(img.level_start[lv]), np.uint64(img.level_start[lv + 1])):
+            t = np.uint64(img.by_level[p])
+            x = j + np.uint64(by_level_x[p])
+            xs[t, 0] |= pattern2[x, 0]
+            xs[t, 1] |= pattern2[x, 1]
     for i in range(u + 1):
         groups[i, 0] = valid[0]
         groups[i, 1] = valid[1]
@@ -774,7 +855,7 @@ def identify_kernel(x_px, y_px, params, char_sector, char_level, char_start, sca
     planes = np.zeros((n_bits + 1, n_words), dtype=np.int64)
     fast = m <= 128 and search.sector_tol <= 1    # the shift tables' layout (two words, 3 layers)
     most = np.zeros(search.n_levels + 1, dtype=np.int64)
-    tables = np.zeros((3, search.n_levels + 1, m if fast else 0, 2), dtype=np.int64)
+    tables = np.empty((3, search.n_levels + 1, m if fast else 0, 2), dtype=np.int64)   # see shift_tables_of
     sum_planes = np.zeros((n_bits + 3, 2), dtype=np.int64)
     at_most = np.zeros((BUDGET_MAX + 1, 2), dtype=np.int64)
     valid = np.zeros(2, dtype=np.int64)
@@ -786,6 +867,11 @@ def identify_kernel(x_px, y_px, params, char_sector, char_level, char_start, sca
         for d in range(-search.sector_tol, search.sector_tol + 1):
             s_ = (x_ - d) % m
             pattern[x_, s_ >> 6] |= np.int64(1) << (s_ & 63)
+    pattern2 = np.zeros((2 * pattern.shape[0], 2), dtype=np.int64)   # pattern2[y] = pattern[y mod m]
+    for x_ in range(pattern2.shape[0]):
+        pattern2[x_, 0] = pattern[x_ % m, 0]
+        pattern2[x_, 1] = pattern[x_ % m, 1]
+    by_level_x = np.zeros(by_level.shape[0], dtype=np.int64)
     for s_ in range(min(m, 128)):
         valid[s_ >> 6] |= np.int64(1) << (s_ & 63)
     row = np.zeros(m, dtype=np.uint8)
@@ -815,7 +901,9 @@ def identify_kernel(x_px, y_px, params, char_sector, char_level, char_start, sca
         image = ImageString(img_sector, img_level, nz, level_start, by_level, mask)
         if fast:
             window_counts(image, search, most)
-            shift_tables_of(image, search, pattern, tables)
+            for p_ in range(level_start[search.n_levels + 1]):
+                by_level_x[p_] = m - img_sector[by_level[p_]]
+            shift_tables_of(image, search, most, by_level_x, pattern2, tables)
         if summed:
             level_set_masks(image, search, most, set_masks, most_masks)
         # Strings by length (character count), lengths from nz up, then from nz - 1 down: the image's own
@@ -841,10 +929,7 @@ def identify_kernel(x_px, y_px, params, char_sector, char_level, char_start, sca
             if need > cap:
                 continue
             for g in range(lo, hi):   # a position in the scan order (guide scan_guide[g])
-                if found == n_best:
-                    need = least_needed(best_sc[n_best - 1], length, search.min_score)
-                    if need > cap:
-                        break
+                # need changes only when the list does: it is updated after each keep_best below
                 if summed:
                     # match_bound and the sum of most over the characters, from the row summaries
                     ls = np.int64(scan_levels[g])
@@ -861,20 +946,24 @@ def identify_kernel(x_px, y_px, params, char_sector, char_level, char_start, sca
                     if total < need:
                         continue
                     if nz - need < total - need:
-                        if not image_groups(chars, g, image, nz - need, pattern, valid, xs, groups):
+                        if not image_groups_at(chars, g, image, by_level_x, nz - need, pattern2, valid, xs, groups):
                             continue
                         # xs holds shift_scores' shift sets: score them at once
                         matched, sh = best_shift(xs, nz, sets.shape[1], planes, cand)
                         if matched < need:
                             continue
                         found = keep_best(best_sc, best_item, found, n_best, rank_key(matched, length), g * m + sh)
+                        if found == n_best:
+                            need = least_needed(best_sc[n_best - 1], length, search.min_score)
+                            if need > cap:
+                                break
                         continue
                     if not reaches_groups(chars, g, total - need, most, tables, valid, groups):
                         continue
                     if total - need <= BUDGET_MAX:
                         if not reaches_budget(chars, g, total - need, most, tables, valid, at_most):
                             continue
-                    elif not reaches_tables(chars, g, need, tables, sum_planes):
+                    elif not reaches_tables_at(chars, g, need, most, tables, sum_planes):
                         continue
                 elif fast:
                     # match_bound and the sum of most over the characters, in one pass
@@ -897,7 +986,7 @@ def identify_kernel(x_px, y_px, params, char_sector, char_level, char_start, sca
                     if total - need <= BUDGET_MAX:
                         if not reaches_budget(chars, g, total - need, most, tables, valid, at_most):
                             continue
-                    elif not reaches_tables(chars, g, need, tables, sum_planes):
+                    elif not reaches_tables_at(chars, g, need, most, tables, sum_planes):
                         continue
                 else:
                     if match_bound(chars, g, image) < need:
@@ -907,6 +996,10 @@ def identify_kernel(x_px, y_px, params, char_sector, char_level, char_start, sca
                 if matched < need:
                     continue
                 found = keep_best(best_sc, best_item, found, n_best, rank_key(matched, length), g * m + sh)
+                if found == n_best:
+                    need = least_needed(best_sc[n_best - 1], length, search.min_score)
+                    if need > cap:
+                        break
         for c in range(found):
             g = scan_guide[best_item[c] // m]
             dense_string(chars, best_item[c] // m, row)
