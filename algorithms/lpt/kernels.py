@@ -279,7 +279,7 @@ def shift_scores(chars, g, img, search, sets, planes):
     return best_shift(sets, nz, nw, planes, sets[nz])
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def best_shift(sets, nz, nw, planes, cand):
     """``(best_score, best_shift)`` of the shift sets ``sets[:nz, :nw]`` (see :func:`shift_scores`).
 
@@ -930,19 +930,31 @@ def identify_kernel(x_px, y_px, params, char_sector, char_level, char_start, sca
                 continue
             for g in range(lo, hi):   # a position in the scan order (guide scan_guide[g])
                 # need changes only when the list does: it is updated after each keep_best below
-                if summed:
-                    # match_bound and the sum of most over the characters, from the row summaries
-                    ls = np.int64(scan_levels[g])
-                    if nz <= 62:
-                        bound = _popcount(set_masks[0, ls & 255] | set_masks[1, ls >> 8])
+                scored = False
+                if fast:
+                    if summed:
+                        # the level bound and the window sum from the row summaries
+                        ls = np.int64(scan_levels[g])
+                        if nz <= 62:
+                            bound = _popcount(set_masks[0, ls & 255] | set_masks[1, ls >> 8])
+                        else:
+                            bound = match_bound(chars, g, image)
+                        if bound < need:
+                            continue
+                        w = scan_counts[g]
+                        total = (_nibble_sum(w & most_masks[0]) + _nibble_sum(w & most_masks[1])
+                                 + _nibble_sum(w & most_masks[2]))
                     else:
-                        bound = match_bound(chars, g, image)
-                    if bound < need:
-                        continue
+                        # match_bound and the sum of most over the characters, in one pass
+                        bits = 0
+                        total = 0
+                        for q in range(np.uint64(chars.start[g]), np.uint64(chars.start[g + 1])):
+                            lv = chars.level[q]
+                            bits |= mask[lv]
+                            total += most[lv]
+                        if (_popcount(bits) if nz <= 62 else match_bound(chars, g, image)) < need:
+                            continue
                     count_work(trace, 1, 1)
-                    w = scan_counts[g]
-                    total = (_nibble_sum(w & most_masks[0]) + _nibble_sum(w & most_masks[1])
-                             + _nibble_sum(w & most_masks[2]))
                     if total < need:
                         continue
                     if nz - need < total - need:
@@ -950,40 +962,10 @@ def identify_kernel(x_px, y_px, params, char_sector, char_level, char_start, sca
                             continue
                         # xs holds shift_scores' shift sets: score them at once
                         matched, sh = best_shift(xs, nz, sets.shape[1], planes, cand)
-                        if matched < need:
-                            continue
-                        found = keep_best(best_sc, best_item, found, n_best, rank_key(matched, length), g * m + sh)
-                        if found == n_best:
-                            need = least_needed(best_sc[n_best - 1], length, search.min_score)
-                            if need > cap:
-                                break
-                        continue
-                    if not reaches_groups(chars, g, total - need, most, tables, valid, groups):
-                        continue
-                    if total - need <= BUDGET_MAX:
-                        if not reaches_budget(chars, g, total - need, most, tables, valid, at_most):
-                            continue
-                    elif not reaches_tables_at(chars, g, need, most, tables, sum_planes):
-                        continue
-                elif fast:
-                    # match_bound and the sum of most over the characters, in one pass
-                    bits = 0
-                    total = 0
-                    for q in range(np.uint64(chars.start[g]), np.uint64(chars.start[g + 1])):
-                        lv = chars.level[q]
-                        bits |= mask[lv]
-                        total += most[lv]
-                    if (_popcount(bits) if nz <= 62 else match_bound(chars, g, image)) < need:
-                        continue
-                    count_work(trace, 1, 1)
-                    if total < need:
-                        continue
-                    if nz - need < total - need:
-                        if not image_groups(chars, g, image, nz - need, pattern, valid, xs, groups):
-                            continue
+                        scored = True
                     elif not reaches_groups(chars, g, total - need, most, tables, valid, groups):
                         continue
-                    if total - need <= BUDGET_MAX:
+                    elif total - need <= BUDGET_MAX:
                         if not reaches_budget(chars, g, total - need, most, tables, valid, at_most):
                             continue
                     elif not reaches_tables_at(chars, g, need, most, tables, sum_planes):
@@ -992,7 +974,8 @@ def identify_kernel(x_px, y_px, params, char_sector, char_level, char_start, sca
                     if match_bound(chars, g, image) < need:
                         continue
                     count_work(trace, 1, 1)
-                matched, sh = shift_scores(chars, g, image, search, sets, planes)
+                if not scored:
+                    matched, sh = shift_scores(chars, g, image, search, sets, planes)
                 if matched < need:
                     continue
                 found = keep_best(best_sc, best_item, found, n_best, rank_key(matched, length), g * m + sh)
