@@ -28,7 +28,7 @@ from ..lpt_improved.planar import (
     prepare_image,
     select_guides,
 )
-from .kernels import Strings, StringSearch, build_strings, identify_kernel, lpt_string, sparse_strings
+from .kernels import Strings, StringSearch, build_strings, identify_kernel, lpt_string, scan_order, sparse_strings
 
 
 @dataclass(frozen=True, eq=False)
@@ -153,7 +153,9 @@ class LPT(PlanarAlgorithm):
     def _make_kernel_args(self, db: LPTDatabase, cam: Camera) -> tuple:
         eps0_extra = math.pi / self.n_sectors * (1 + self.sector_tol) * math.tan(math.radians(db.radius_deg))
         acc = acceptance(cam, self.sigma_px, self.beta, self.min_matches, self.confirm_fraction, eps0_extra)
-        return (pack_params(camera_frame(cam), acc, self._search(db)), *db.chars, db.guide_unit)
+        order = scan_order(db.chars, self.n_sectors, self.n_levels)
+        return (pack_params(camera_frame(cam), acc, self._search(db)), *order.strings, order.guide, order.count_start,
+                order.levels, order.counts, db.guide_unit)
 
     def _run(self, db: LPTDatabase, observation: Observation):
         trace = new_trace()

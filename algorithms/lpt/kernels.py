@@ -168,11 +168,11 @@ def index_image(img_sector, img_level, nz, search, level_start, by_level, mask):
 
 @njit(cache=True, inline="always")
 def _popcount(x):
-    c = 0
-    while x:
-        x &= x - 1
-        c += 1
-    return c
+    """Set bits of a non-negative int64 word (SWAR: no data-dependent branch)."""
+    x = x - ((x >> 1) & 0x5555555555555555)
+    x = (x & 0x3333333333333333) + ((x >> 2) & 0x3333333333333333)
+    x = (x + (x >> 4)) & 0x0F0F0F0F0F0F0F0F
+    return (x * 0x0101010101010101) >> 56
 
 
 @njit(cache=True, inline="always")
@@ -276,6 +276,17 @@ def shift_scores(chars, g, img, search, sets, planes):
                 elif s >= m:
                     s -= m
                 row[np.uint64(s >> 6)] |= np.int64(1) << (s & 63)
+    return best_shift(sets, nz, nw, planes, sets[nz])
+
+
+@njit(cache=True)
+def best_shift(sets, nz, nw, planes, cand):
+    """``(best_score, best_shift)`` of the shift sets ``sets[:nz, :nw]`` (see :func:`shift_scores`).
+
+    The largest number of rows holding one shift, and the smallest such shift (``(0, 0)`` when
+    no row holds any): the rows are summed as bit-sliced counters (``planes``) and the maximum
+    read from the top bit plane down; ``cand`` (``nw`` words) is a work row.
+    """
     n_bits = planes.shape[0]
     for b in range(np.uint64(n_bits)):
         for w in range(np.uint64(nw)):
@@ -292,8 +303,7 @@ def shift_scores(chars, g, img, search, sets, planes):
                 b += np.uint64(1)
             if b > top:
                 top = np.int64(b)
-    cand = sets[nz]            # shifts still reaching the best so far; bits >= m are never set in planes
-    for w in range(nw):
+    for w in range(nw):        # shifts still reaching the best so far; bits >= m are never set in planes
         cand[w] = -1
     best = 0
     for b in range(top - 1, -1, -1):
@@ -310,7 +320,7 @@ def shift_scores(chars, g, img, search, sets, planes):
     first_w = 0
     while cand[first_w] == 0:
         first_w += 1
-    return best, first_w * 64 + _lowest_bit(sets[nz, first_w])
+    return best, first_w * 64 + _lowest_bit(cand[first_w])
 
 
 @njit(cache=True)
@@ -393,6 +403,46 @@ def shift_tables(img, search, tables):
             tables[2, lv, j, 1] = r3b
 
 
+@njit(cache=True)
+def shift_tables_of(img, search, most, by_level_x, pattern2, tables):
+    """:func:`shift_tables` with the shifts of a pair read from ``pattern2`` (see :func:`image_groups_at`),
+    written only where they can be non-empty: layers r < ``most[L]`` (:func:`window_counts`) of rows
+    L with ``most[L] > 0``; the scan reads no other entry (a database character of row L matches at
+    most ``most[L]`` image characters)."""
+    m = search.n_sectors
+    for lv in range(1, search.n_levels + 1):
+        a = img.level_start[lv]
+        b = img.level_start[lv + 1]
+        depth = most[lv]
+        if depth == 0:
+            continue
+        for j in range(m):
+            r1a = np.int64(0)
+            r1b = np.int64(0)
+            r2a = np.int64(0)
+            r2b = np.int64(0)
+            r3a = np.int64(0)
+            r3b = np.int64(0)
+            for p in range(a, b):
+                x = j + by_level_x[p]
+                xa = pattern2[x, 0]
+                xb = pattern2[x, 1]
+                r3a |= r2a & xa
+                r3b |= r2b & xb
+                r2a |= r1a & xa
+                r2b |= r1b & xb
+                r1a |= xa
+                r1b |= xb
+            tables[0, lv, j, 0] = r1a
+            tables[0, lv, j, 1] = r1b
+            if depth > 1:
+                tables[1, lv, j, 0] = r2a
+                tables[1, lv, j, 1] = r2b
+            if depth > 2:
+                tables[2, lv, j, 0] = r3a
+                tables[2, lv, j, 1] = r3b
+
+
 @njit(cache=True, inline="always")
 def reaches_tables(chars, g, need, tables, planes):
     """Whether guide ``g``'s best score can reach ``need``: false only when :func:`shift_scores` is below it.
@@ -413,6 +463,47 @@ def reaches_tables(chars, g, need, tables, planes):
         lv = np.uint64(chars.level[q])
         j = np.uint64(chars.sector[q])
         for r in range(np.uint64(3)):
+            xa = tables[r, lv, j, 0]
+            xb = tables[r, lv, j, 1]
+            if (xa | xb) == 0:
+                break
+            i = np.uint64(0)
+            while (xa | xb) != 0:
+                ca = planes[i, 0] & xa
+                cb = planes[i, 1] & xb
+                planes[i, 0] ^= xa
+                planes[i, 1] ^= xb
+                xa = ca
+                xb = cb
+                i += np.uint64(1)
+    gta = np.int64(0)
+    gtb = np.int64(0)
+    eqa = np.int64(-1)
+    eqb = np.int64(-1)
+    for i in range(n_bits - 1, -1, -1):
+        if (need >> i) & 1:
+            eqa &= planes[i, 0]
+            eqb &= planes[i, 1]
+        else:
+            gta |= eqa & planes[i, 0]
+            gtb |= eqb & planes[i, 1]
+    return (gta | eqa | gtb | eqb) != 0
+
+
+@njit(cache=True, inline="always")
+def reaches_tables_at(chars, g, need, most, tables, planes):
+    """:func:`reaches_tables` reading only the layers r < ``most[L]`` of a character of row L (the
+    others are empty, and :func:`shift_tables_of` does not write them)."""
+    a = np.uint64(chars.start[g])
+    b = np.uint64(chars.start[g + 1])
+    n_bits = planes.shape[0]
+    for i in range(n_bits):
+        planes[i, 0] = 0
+        planes[i, 1] = 0
+    for q in range(a, b):
+        lv = np.uint64(chars.level[q])
+        j = np.uint64(chars.sector[q])
+        for r in range(np.uint64(most[lv])):
             xa = tables[r, lv, j, 0]
             xb = tables[r, lv, j, 1]
             if (xa | xb) == 0:
@@ -466,6 +557,40 @@ def image_groups(chars, g, img, u, pattern, valid, xs, groups):
                 x += m
             xs[t, 0] |= pattern[x, 0]
             xs[t, 1] |= pattern[x, 1]
+    for i in range(u + 1):
+        groups[i, 0] = valid[0]
+        groups[i, 1] = valid[1]
+    e = 0
+    for t in range(nz):
+        groups[e, 0] &= xs[t, 0]
+        groups[e, 1] &= xs[t, 1]
+        e += 1
+        if e > u:
+            e = 0
+    any_a = np.int64(0)
+    any_b = np.int64(0)
+    for i in range(u + 1):
+        any_a |= groups[i, 0]
+        any_b |= groups[i, 1]
+    return (any_a | any_b) != 0
+
+
+@njit(cache=True, inline="always")
+def image_groups_at(chars, g, img, by_level_x, u, pattern2, valid, xs, groups):
+    """:func:`image_groups` without a branch per pair: ``by_level_x[p]`` = m - (sector of ``img.by_level[p]``),
+    and ``pattern2[y]`` (int64 (2 m, 2)) = ``pattern[y mod m]``, read at ``j + by_level_x[p]``."""
+    nz = np.uint64(img.nz)
+    for t in range(nz):
+        xs[t, 0] = 0
+        xs[t, 1] = 0
+    for q in range(np.uint64(chars.start[g]), np.uint64(chars.start[g + 1])):
+        lv = np.uint64(chars.level[q])
+        j = np.uint64(chars.sector[q])
+        for p in range(np.uint64(img.level_start[lv]), np.uint64(img.level_start[lv + 1])):
+            t = np.uint64(img.by_level[p])
+            x = j + np.uint64(by_level_x[p])
+            xs[t, 0] |= pattern2[x, 0]
+            xs[t, 1] |= pattern2[x, 1]
     for i in range(u + 1):
         groups[i, 0] = valid[0]
         groups[i, 1] = valid[1]
@@ -570,6 +695,82 @@ def order_by_count(chars, count_start, by_count):
     count_start[0] = 0
 
 
+class ScanOrder(NamedTuple):
+    """The database strings in the order of the scan, built once per database (:func:`scan_order`).
+
+    ``strings``: the :class:`Strings` re-laid by character count (counting order, guide order
+    within a count), so the scan reads them in memory order; position ``i`` is guide
+    ``guide[i]``; strings of ``c`` characters are positions ``count_start[c]:count_start[c+1]``.
+    When ``n_levels <= 16`` and no string has more than 15 characters in one row (else both
+    empty): ``levels[i]`` (uint16), bit L - 1 set when the string has a character in row L, and
+    ``counts[i]`` (uint64), nibble L - 1 the number of its characters in row L: the level bound
+    and the window sum read these instead of the characters.
+    """
+
+    strings: Strings
+    guide: np.ndarray
+    count_start: np.ndarray
+    levels: np.ndarray
+    counts: np.ndarray
+
+
+def scan_order(chars: Strings, n_sectors: int, n_levels: int) -> ScanOrder:
+    """The :class:`ScanOrder` of the database strings ``chars`` (numpy, in the plugin's kernel arguments)."""
+    n_chars = np.diff(chars.start).astype(np.int64)
+    guide = np.argsort(n_chars, kind="stable").astype(np.int64)
+    count_start = np.zeros(n_sectors + 2, dtype=np.int64)
+    np.cumsum(np.bincount(n_chars, minlength=n_sectors + 1)[:n_sectors + 1], out=count_start[1:])
+    lengths = n_chars[guide]
+    start = np.zeros(guide.size + 1, dtype=np.int32)
+    np.cumsum(lengths, out=start[1:])
+    src = np.arange(int(start[-1]), dtype=np.int64) + np.repeat(chars.start[guide].astype(np.int64) - start[:-1],
+                                                                   lengths)
+    strings = Strings(chars.sector[src], chars.level[src], start)
+    levels = np.zeros(0, dtype=np.uint16)
+    counts = np.zeros(0, dtype=np.uint64)
+    if n_levels <= 16 and src.size:
+        pos = np.repeat(np.arange(guide.size), lengths)
+        per = np.zeros((guide.size, 17), dtype=np.int64)
+        np.add.at(per, (pos, strings.level.astype(np.int64)), 1)
+        if per.max() <= 15:
+            weights = np.uint64(1) << (np.arange(16, dtype=np.uint64) * np.uint64(4))
+            counts = (per[:, 1:].astype(np.uint64) * weights).sum(axis=1, dtype=np.uint64)
+            levels = ((per[:, 1:] > 0) * (1 << np.arange(16))).sum(axis=1).astype(np.uint16)
+    return ScanOrder(strings, guide, count_start, levels, counts)
+
+
+@njit(cache=True, inline="always")
+def _nibble_sum(x):
+    """Sum of the 16 nibbles of a uint64 word, when it is below 256."""
+    lo = np.uint64(0x0F0F0F0F0F0F0F0F)
+    y = (x & lo) + ((x >> np.uint64(4)) & lo)
+    return np.int64((y * np.uint64(0x0101010101010101)) >> np.uint64(56))
+
+
+@njit(cache=True)
+def level_set_masks(img, search, most, set_masks, most_masks):
+    """Per reference star, the level bound and window sum of a string from its :class:`ScanOrder` summaries.
+
+    ``set_masks[h, b]`` (int64 (2, 256)): the OR of ``img.mask[L]`` over the rows L whose bit is
+    set in byte ``b`` of a levels word (h = 0: rows 1..8, h = 1: rows 9..16), so a string's
+    :func:`match_bound` bits are ``set_masks[0, ls & 255] | set_masks[1, ls >> 8]``.
+    ``most_masks[r]`` (uint64, 3): nibble L - 1 all ones when ``most[L] > r``, so the sum of
+    ``most`` over a string's characters is the sum over r of the nibble sums of ``counts & most_masks[r]``.
+    """
+    for h in range(2):
+        set_masks[h, 0] = 0
+        for b in range(1, 256):
+            low = b & -b
+            lv = 1 + 8 * h + _lowest_bit(np.int64(low))
+            set_masks[h, b] = set_masks[h, b ^ low] | (img.mask[lv] if lv <= search.n_levels else 0)
+    for r in range(3):
+        w = np.uint64(0)
+        for lv in range(1, min(search.n_levels, 16) + 1):
+            if most[lv] > r:
+                w |= np.uint64(15) << np.uint64(4 * (lv - 1))
+        most_masks[r] = w
+
+
 @njit(cache=True)
 def refined_roll(row, img_sector, img_level, img_phi, nz, shift, search):
     """Roll (``phi_catalog - phi_image``) of a match: the shift refined by the matched characters.
@@ -606,12 +807,14 @@ def search_at(p, i):
 
 
 @njit(cache=True)
-def identify_kernel(x_px, y_px, params, char_sector, char_level, char_start, guides_unit, trace):
+def identify_kernel(x_px, y_px, params, char_sector, char_level, char_start, scan_guide, count_start, scan_levels,
+                    scan_counts, guides_unit, trace):
     """LPT identification of one image; returns ``(rows, attitude, accepted)``.
 
     ``params``: the sensor :class:`Frame`, the :class:`Acceptance` and the :class:`StringSearch`,
-    packed by ``planar.pack_params``; the next three arrays are the :class:`Strings`' fields
-    (separate arguments: numba types arrays at a call in C, NamedTuples field by field in Python).
+    packed by ``planar.pack_params``; the next seven arrays are the :class:`ScanOrder`'s fields (its
+    :class:`Strings` field by field: separate arguments, as numba types arrays at a call in C,
+    NamedTuples field by field in Python).
 
     For reference stars from the image centre outwards (at most ``max_refs``): its LPT string;
     every database string is compared under every circular shift (:func:`shift_scores`, the
@@ -627,7 +830,7 @@ def identify_kernel(x_px, y_px, params, char_sector, char_level, char_start, gui
     sensor = frame_at(params, np.int64(0))
     acc = acceptance_at(params, np.int64(5))
     search = search_at(params, np.int64(10))
-    chars = Strings(char_sector, char_level, char_start)
+    chars = Strings(char_sector, char_level, char_start)   # in scan order: position i is guide scan_guide[i]
     n = x_px.shape[0]
     rows, unit, usable, order = begin_identify(x_px, y_px, sensor, search.double_px, trace)
     m = search.n_sectors
@@ -652,26 +855,32 @@ def identify_kernel(x_px, y_px, params, char_sector, char_level, char_start, gui
     planes = np.zeros((n_bits + 1, n_words), dtype=np.int64)
     fast = m <= 128 and search.sector_tol <= 1    # the shift tables' layout (two words, 3 layers)
     most = np.zeros(search.n_levels + 1, dtype=np.int64)
-    tables = np.zeros((3, search.n_levels + 1, m if fast else 0, 2), dtype=np.int64)
+    tables = np.empty((3, search.n_levels + 1, m if fast else 0, 2), dtype=np.int64)   # see shift_tables_of
     sum_planes = np.zeros((n_bits + 3, 2), dtype=np.int64)
     at_most = np.zeros((BUDGET_MAX + 1, 2), dtype=np.int64)
     valid = np.zeros(2, dtype=np.int64)
     groups = np.zeros((3 * m + 1, 2), dtype=np.int64)
     xs = np.zeros((m, 2), dtype=np.int64)
+    cand = np.zeros(2, dtype=np.int64)
     pattern = np.zeros((m if fast else 0, 2), dtype=np.int64)   # pattern[x]: the shifts x - d, |d| <= sector_tol
     for x_ in range(pattern.shape[0]):
         for d in range(-search.sector_tol, search.sector_tol + 1):
             s_ = (x_ - d) % m
             pattern[x_, s_ >> 6] |= np.int64(1) << (s_ & 63)
+    pattern2 = np.zeros((2 * pattern.shape[0], 2), dtype=np.int64)   # pattern2[y] = pattern[y mod m]
+    for x_ in range(pattern2.shape[0]):
+        pattern2[x_, 0] = pattern[x_ % m, 0]
+        pattern2[x_, 1] = pattern[x_ % m, 1]
+    by_level_x = np.zeros(by_level.shape[0], dtype=np.int64)
     for s_ in range(min(m, 128)):
         valid[s_ >> 6] |= np.int64(1) << (s_ & 63)
     row = np.zeros(m, dtype=np.uint8)
     n_best = search.n_candidates
     best_item = np.empty(n_best, dtype=np.int64)   # guide row * m + shift
     best_sc = np.empty(n_best, dtype=np.int64)
-    count_start = np.zeros(m + 2, dtype=np.int64)
-    by_count = np.empty(n_guide, dtype=np.int64)
-    ordered = False
+    summed = fast and scan_levels.shape[0] == n_guide and n_guide > 0   # ScanOrder's row summaries
+    set_masks = np.zeros((2, 256 if summed else 0), dtype=np.int64)
+    most_masks = np.zeros(3, dtype=np.uint64)
     for t in range(min(search.max_refs, order.shape[0])):
         s = order[t]
         k = reference_pattern(unit, usable, x_px, y_px, s, search.cos_radius, sensor.f_px, nbrs, r_px, phi)
@@ -692,10 +901,11 @@ def identify_kernel(x_px, y_px, params, char_sector, char_level, char_start, gui
         image = ImageString(img_sector, img_level, nz, level_start, by_level, mask)
         if fast:
             window_counts(image, search, most)
-            shift_tables(image, search, tables)
-        if not ordered:
-            order_by_count(chars, count_start, by_count)
-            ordered = True
+            for p_ in range(level_start[search.n_levels + 1]):
+                by_level_x[p_] = m - img_sector[by_level[p_]]
+            shift_tables_of(image, search, most, by_level_x, pattern2, tables)
+        if summed:
+            level_set_masks(image, search, most, set_masks, most_masks)
         # Strings by length (character count), lengths from nz up, then from nz - 1 down: the image's own
         # pattern is most likely among strings of about its length, and finding it first raises the
         # bar for the rest. A database character matches at most 2 sector_tol + 1 image characters
@@ -718,46 +928,64 @@ def identify_kernel(x_px, y_px, params, char_sector, char_level, char_start, gui
                 need = least_needed(best_sc[n_best - 1], length, search.min_score)
             if need > cap:
                 continue
-            for i in range(lo, hi):
-                g = by_count[i]
-                if found == n_best:
-                    need = least_needed(best_sc[n_best - 1], length, search.min_score)
-                    if need > cap:
-                        break
+            for g in range(lo, hi):   # a position in the scan order (guide scan_guide[g])
+                # need changes only when the list does: it is updated after each keep_best below
+                scored = False
                 if fast:
-                    # match_bound and the sum of most over the characters, in one pass
-                    bits = 0
-                    total = 0
-                    for q in range(np.uint64(chars.start[g]), np.uint64(chars.start[g + 1])):
-                        lv = chars.level[q]
-                        bits |= mask[lv]
-                        total += most[lv]
-                    if (_popcount(bits) if nz <= 62 else match_bound(chars, g, image)) < need:
-                        continue
+                    if summed:
+                        # the level bound and the window sum from the row summaries
+                        ls = np.int64(scan_levels[g])
+                        if nz <= 62:
+                            bound = _popcount(set_masks[0, ls & 255] | set_masks[1, ls >> 8])
+                        else:
+                            bound = match_bound(chars, g, image)
+                        if bound < need:
+                            continue
+                        w = scan_counts[g]
+                        total = (_nibble_sum(w & most_masks[0]) + _nibble_sum(w & most_masks[1])
+                                 + _nibble_sum(w & most_masks[2]))
+                    else:
+                        # match_bound and the sum of most over the characters, in one pass
+                        bits = 0
+                        total = 0
+                        for q in range(np.uint64(chars.start[g]), np.uint64(chars.start[g + 1])):
+                            lv = chars.level[q]
+                            bits |= mask[lv]
+                            total += most[lv]
+                        if (_popcount(bits) if nz <= 62 else match_bound(chars, g, image)) < need:
+                            continue
                     count_work(trace, 1, 1)
                     if total < need:
                         continue
                     if nz - need < total - need:
-                        if not image_groups(chars, g, image, nz - need, pattern, valid, xs, groups):
+                        if not image_groups_at(chars, g, image, by_level_x, nz - need, pattern2, valid, xs, groups):
                             continue
+                        # xs holds shift_scores' shift sets: score them at once
+                        matched, sh = best_shift(xs, nz, sets.shape[1], planes, cand)
+                        scored = True
                     elif not reaches_groups(chars, g, total - need, most, tables, valid, groups):
                         continue
-                    if total - need <= BUDGET_MAX:
+                    elif total - need <= BUDGET_MAX:
                         if not reaches_budget(chars, g, total - need, most, tables, valid, at_most):
                             continue
-                    elif not reaches_tables(chars, g, need, tables, sum_planes):
+                    elif not reaches_tables_at(chars, g, need, most, tables, sum_planes):
                         continue
                 else:
                     if match_bound(chars, g, image) < need:
                         continue
                     count_work(trace, 1, 1)
-                matched, sh = shift_scores(chars, g, image, search, sets, planes)
+                if not scored:
+                    matched, sh = shift_scores(chars, g, image, search, sets, planes)
                 if matched < need:
                     continue
                 found = keep_best(best_sc, best_item, found, n_best, rank_key(matched, length), g * m + sh)
+                if found == n_best:
+                    need = least_needed(best_sc[n_best - 1], length, search.min_score)
+                    if need > cap:
+                        break
         for c in range(found):
-            g = best_item[c] // m
-            dense_string(chars, g, row)
+            g = scan_guide[best_item[c] // m]
+            dense_string(chars, best_item[c] // m, row)
             roll = refined_roll(row, img_sector, img_level, img_phi, nz, best_item[c] % m, search)
             A = seed_attitude_roll(unit, s, guides_unit, g, roll)
             ok, A = confirm(unit, rows, A, guides_unit, sensor, acc, unsolved)
