@@ -1029,6 +1029,65 @@ def identify_rows(img_v, db, tol):
 
 
 @_inner
+def _key_before(a, b, k0, k1, k2):
+    """Star ``a`` sorts before star ``b`` by ``(k0, k1, k2)`` (the first key first; finite values)."""
+    if k0[a] != k0[b]:
+        return k0[a] < k0[b]
+    if k1[a] != k1[b]:
+        return k1[a] < k1[b]
+    return k2[a] < k2[b]
+
+
+@_inner
+def _stable_sort(items, n, k0, k1, k2):
+    """``items[:n]`` (star indices) sorted in place by ``(k0, k1, k2)``, ties kept in their order:
+    ``items[np.lexsort((k2[items], k1[items], k0[items]))]`` (insertion sort: a few dozen stars)."""
+    for i in range(1, n):
+        cur = items[i]
+        j = i - 1
+        while j >= 0 and _key_before(cur, items[j], k0, k1, k2):
+            items[j + 1] = items[j]
+            j -= 1
+        items[j + 1] = cur
+
+
+@njit(cache=True)
+def choose_stars(x_px, y_px, mag, mag_max, n_chosen, f_px, cx_px, cy_px):
+    """The stars the triangles are built from, in one call (what ``PlanarTriangle._run`` did with
+    ``np.flatnonzero``, three ``np.lexsort`` and the back-projection): those with ``mag <= mag_max``,
+    the ``n_chosen`` brightest of them (ties by x, then y; all when ``n_chosen < 0``).
+
+    Returns ``(order, v_cam, rank)``: ``order`` the chosen stars' indices in the canonical geometric
+    order (by x, then y, then mag, so the answer does not depend on the input order), ``v_cam``
+    their camera-frame unit vectors (pinhole, ``starid.kernels.backproject_px``) and ``rank`` the
+    positions in ``order`` brightest first (ties by x, then y)."""
+    n = x_px.shape[0]
+    usable = np.empty(n, dtype=np.int64)
+    k = 0
+    for i in range(n):
+        if mag[i] <= mag_max:
+            usable[k] = i
+            k += 1
+    if n_chosen >= 0 and k > n_chosen:
+        _stable_sort(usable, k, mag, x_px, y_px)
+        k = n_chosen
+    order = np.empty(k, dtype=np.int64)
+    for a in range(k):
+        order[a] = usable[a]
+    _stable_sort(order, k, x_px, y_px, mag)
+    xo = np.empty(k)
+    yo = np.empty(k)
+    mo = np.empty(k)
+    for a in range(k):
+        xo[a] = x_px[order[a]]
+        yo[a] = y_px[order[a]]
+        mo[a] = mag[order[a]]
+    rank = np.arange(k)
+    _stable_sort(rank, k, mo, xo, yo)
+    return order, backproject_px(xo, yo, f_px, cx_px, cy_px), rank
+
+
+@_inner
 def _sub_triangles(img, idx, size, sub_v):
     """The triangles of ``img`` whose three stars are all in ``idx[:size]`` (sorted star indices),
     renumbered to positions in ``idx``; ``gid`` keeps the row in ``img`` (the cache key)."""
