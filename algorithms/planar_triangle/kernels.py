@@ -30,7 +30,7 @@ from starid.kernels import (
 )
 
 MOMENT_BLOCK = 256  # triangles per block of the moment index (offsets fit uint8)
-HASH_ROOM = 8  # hash-table slots per cached candidate (3 pairs, table at most 3/4 full, power of two)
+HASH_ROOM = 16  # hash-table slots per cached candidate (3 pairs, table at most 3/8 full, power of two)
 EMPTY = np.uint64(0xFFFFFFFFFFFFFFFF)  # an empty hash slot (no star pair lo < hi < 65536 has this key)
 SHIFT = np.uint64(32)  # a slot is (star-pair key << 32) | candidate, one 8-byte read per probe
 LOW = np.uint64(0xFFFFFFFF)
@@ -118,7 +118,7 @@ class MomentCache(NamedTuple):
     keys: np.ndarray  # uint64 (HASH_ROOM x len(buf),) hash tables of the candidates' star pairs: slot =
     # key << SHIFT | candidate (EMPTY: empty slot)
     hstart: np.ndarray  # int64 (M,) triangle g's table is keys[hstart[g]:hstart[g] + hsize[g]]
-    hsize: np.ndarray  # int64 (M,) a power of two >= 4 x its candidates (3 keys each)
+    hsize: np.ndarray  # int64 (M,) a power of two >= 8 x its candidates (3 keys each)
     fill: np.ndarray  # int64 (1,) used length of buf
     hfill: np.ndarray  # int64 (1,) used length of keys
     # the first pivot of a chain (start triangle g0 -> second triangle g1) depends on (g0, g1) alone,
@@ -375,9 +375,9 @@ def _fill_hash(cand, n, tri_stars, keys):
 
 @_inner
 def _hash_size(n):
-    """Slots of a table of ``n`` candidates (3 keys each, at most 3/8 full): a power of two >= 8."""
-    size = 8
-    while size < 4 * n:
+    """Slots of a table of ``n`` candidates (3 keys each, at most 3/8 full: short probes): a power of two >= 16."""
+    size = 16
+    while size < 8 * n:
         size *= 2
     return size
 
