@@ -1062,26 +1062,33 @@ def choose_stars(x_px, y_px, mag, mag_max, n_chosen, f_px, cx_px, cy_px):
     their camera-frame unit vectors (pinhole, ``starid.kernels.backproject_px``) and ``rank`` the
     positions in ``order`` brightest first (ties by x, then y)."""
     n = x_px.shape[0]
-    usable = np.empty(n, dtype=np.int64)
-    k = 0
+    xs = np.empty(n)  # writable copies: the sorts see one array type (observation arrays are read-only)
+    ys = np.empty(n)
+    ms = np.empty(n)
     for i in range(n):
-        if mag[i] <= mag_max:
+        xs[i] = x_px[i]
+        ys[i] = y_px[i]
+        ms[i] = mag[i]
+    usable = np.empty(n, dtype=np.int64)
+    k = np.int64(0)  # not a literal: _stable_sort compiled once
+    for i in range(n):
+        if ms[i] <= mag_max:
             usable[k] = i
             k += 1
     if n_chosen >= 0 and k > n_chosen:
-        _stable_sort(usable, k, mag, x_px, y_px)
+        _stable_sort(usable, k, ms, xs, ys)
         k = n_chosen
     order = np.empty(k, dtype=np.int64)
     for a in range(k):
         order[a] = usable[a]
-    _stable_sort(order, k, x_px, y_px, mag)
+    _stable_sort(order, k, xs, ys, ms)
     xo = np.empty(k)
     yo = np.empty(k)
     mo = np.empty(k)
     for a in range(k):
-        xo[a] = x_px[order[a]]
-        yo[a] = y_px[order[a]]
-        mo[a] = mag[order[a]]
+        xo[a] = xs[order[a]]
+        yo[a] = ys[order[a]]
+        mo[a] = ms[order[a]]
     rank = np.arange(k)
     _stable_sort(rank, k, mo, xo, yo)
     return order, backproject_px(xo, yo, f_px, cx_px, cy_px), rank
