@@ -25,6 +25,7 @@ from .kernels import (
     Rules,
     Tables,
     Tolerance,
+    choose_stars,
     deep_v_mag,
     entry_triangles,
     finish,
@@ -454,6 +455,35 @@ class PlanarTriangle(Algorithm):
             return None
         return max(self.max_stars, self.wide_stars or 0)
 
+    def _held(self, database: PlanarTriangleDatabase, cam: Camera) -> tuple:
+        """What every image of one camera and database shares, built once and kept for the last pair
+        (an identification's images share one; rebuilt for another camera or database object):
+        ``(database, cam, tables, tol, magnitude cut, n_chosen or -1, stages by chosen-star count,
+        index of the small stage or -1, camera frame, Finish rules, Finish rules of the small stage)``."""
+        held = self.__dict__.get("_held_prep")
+        if held is not None and held[0] is database and held[1] is cam:
+            return held
+        tol = self._tolerance(cam)
+        n_chosen = self._n_chosen()
+        small_stage = -1
+        if self.subset_size is not None and self.small_subset_size is not None:
+            n_stages = len(self._stages(1))
+            if n_stages - 1 > 0:  # the last stage is the small one
+                small_stage = n_stages - 1
+        eps = tol.beta * math.sqrt(2.0) * tol.sigma_rad
+        common = (eps, float(self.mag_margin), float(database.mag_limit), float(self.coverage_mag_margin),
+                  float(self.max_missed_fraction))
+        held = (database, cam, database.tables(), tol, database.mag_limit + self.mag_margin,
+                -1 if n_chosen is None else n_chosen, {}, small_stage, camera_frame(cam),
+                Finish(*common, bool(self.assign_all)), Finish(*common, True))
+        object.__setattr__(self, "_held_prep", held)  # a cache, not a parameter (frozen dataclass)
+        return held
+
+    def __getstate__(self):
+        state = self.__dict__.copy()
+        state.pop("_held_prep", None)  # a database and a camera: not part of the algorithm
+        return state
+
     def _run(self, database: PlanarTriangleDatabase, observation: Observation):
         """``(rows per observed star, chain as observed-star indices (L, 3), stage, counters)`` of one
         image; ``stage`` is the subset stage that identified (-1: none; 0 without subsets);
@@ -462,43 +492,43 @@ class PlanarTriangle(Algorithm):
         none = np.full(n, -1, dtype=np.int64), np.zeros((0, 3), dtype=np.int64), -1, None
         if n < 3:
             return none
-        x, y, mag = observation.x_px, observation.y_px, observation.mag
-        # The stars the triangles are built from: those bright enough to be guide stars (with a
-        # margin for magnitude noise), at most ``max_stars`` (``wide_stars``) of them, brightest first.
-        usable = np.flatnonzero(mag <= database.mag_limit + self.mag_margin)
-        n_chosen = self._n_chosen()
-        if n_chosen is not None and usable.size > n_chosen:
-            usable = usable[np.lexsort((y[usable], x[usable], mag[usable]))[:n_chosen]]
-        if usable.size < 3:
-            return none
-        # Canonical order by geometry, so the answer does not depend on the input order.
-        order = usable[np.lexsort((mag[usable], y[usable], x[usable]))]
         cam = observation.camera
-        v_cam = cam.backproject(x[order], y[order])
-        tol = self._tolerance(cam)
+        held = self._held(database, cam)
+        # The stars the triangles are built from: those bright enough to be guide stars (with a
+        # margin for magnitude noise), at most ``max_stars`` (``wide_stars``) of them, brightest first,
+        # in a canonical order by geometry (the answer does not depend on the input order).
+        order, v_cam, rank = choose_stars(observation.x_px, observation.y_px, observation.mag, held[4], held[5],
+                                          cam.f_px, cam.cx_px, cam.cy_px)
+        if order.size < 3:
+            return none
+        if cam.distorted:
+            v_cam = cam.backproject(observation.x_px[order], observation.y_px[order])
+        tables, tol = held[2], held[3]
         if self.subset_size is None:
-            rows, chain, work = identify_rows(v_cam, database.tables(), tol)
+            rows, chain, work = identify_rows(v_cam, tables, tol)
             stage = 0 if rows.max() >= 0 else -1
         else:
-            rank = np.lexsort((y[order], x[order], mag[order]))  # brightest first, ties by position
-            rows, chain, stage, work = identify_subsets(v_cam, rank, database.tables(), tol, self._stages(order.size))
+            stages = held[6].get(order.size)
+            if stages is None:
+                stages = held[6][order.size] = self._stages(order.size)
+            rows, chain, stage, work = identify_subsets(v_cam, rank, tables, tol, stages)
         all_rows = np.full(n, -1, dtype=np.int64)
         all_rows[order] = rows
-        work[9] = work[9] or work[8] + work[1]  # to_r: every query made when none left one finalist
-        return all_rows, order[chain], int(stage), dict(zip(WORK_COUNTERS, work.tolist(), strict=True))
+        counts = work.tolist()
+        if not counts[9]:
+            counts[9] = counts[8] + counts[1]  # to_r: every query made when none left one finalist
+        return all_rows, order[chain], int(stage), dict(zip(WORK_COUNTERS, counts, strict=True))
 
     def identify(self, database: PlanarTriangleDatabase, observation: Observation) -> Identification:
         all_rows, _, stage, counters = self._run(database, observation)
-        if not np.any(all_rows >= 0):
+        if stage < 0:  # no stage identified: every row is -1
             return Identification(np.full(len(observation), -1, dtype=np.int64), counters=counters)
         cam = observation.camera
-        tol = self._tolerance(cam)
-        small = self.small_subset_size is not None and stage == len(self._stages(1)) - 1 and stage > 0
-        rules = Finish(tol.beta * math.sqrt(2.0) * tol.sigma_rad, float(self.mag_margin), float(database.mag_limit),
-                       float(self.coverage_mag_margin), float(self.max_missed_fraction), bool(self.assign_all or small))
+        held = self._held(database, cam)
+        small = stage == held[7]
         hip, attitude, accepted = finish(observation.x_px, observation.y_px, observation.mag, all_rows,
                                          database.guide_unit, database.guide_hip, database.deep, database.deep_v_mag,
-                                         camera_frame(cam), rules)
+                                         held[8], held[10] if small else held[9])
         if accepted and small:
             # last stage (few stars): the attitude must also explain ``small_confirm`` further image stars
             guide = all_rows >= 0

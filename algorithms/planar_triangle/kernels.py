@@ -30,7 +30,7 @@ from starid.kernels import (
 )
 
 MOMENT_BLOCK = 256  # triangles per block of the moment index (offsets fit uint8)
-HASH_ROOM = 8  # hash-table slots per cached candidate (3 pairs, table at most 3/4 full, power of two)
+HASH_ROOM = 16  # hash-table slots per cached candidate (3 pairs, table at most 3/8 full, power of two)
 EMPTY = np.uint64(0xFFFFFFFFFFFFFFFF)  # an empty hash slot (no star pair lo < hi < 65536 has this key)
 SHIFT = np.uint64(32)  # a slot is (star-pair key << 32) | candidate, one 8-byte read per probe
 LOW = np.uint64(0xFFFFFFFF)
@@ -118,7 +118,7 @@ class MomentCache(NamedTuple):
     keys: np.ndarray  # uint64 (HASH_ROOM x len(buf),) hash tables of the candidates' star pairs: slot =
     # key << SHIFT | candidate (EMPTY: empty slot)
     hstart: np.ndarray  # int64 (M,) triangle g's table is keys[hstart[g]:hstart[g] + hsize[g]]
-    hsize: np.ndarray  # int64 (M,) a power of two >= 4 x its candidates (3 keys each)
+    hsize: np.ndarray  # int64 (M,) a power of two >= 8 x its candidates (3 keys each)
     fill: np.ndarray  # int64 (1,) used length of buf
     hfill: np.ndarray  # int64 (1,) used length of keys
     # the first pivot of a chain (start triangle g0 -> second triangle g1) depends on (g0, g1) alone,
@@ -375,9 +375,9 @@ def _fill_hash(cand, n, tri_stars, keys):
 
 @_inner
 def _hash_size(n):
-    """Slots of a table of ``n`` candidates (3 keys each, at most 3/8 full): a power of two >= 8."""
-    size = 8
-    while size < 4 * n:
+    """Slots of a table of ``n`` candidates (3 keys each, at most 3/8 full: short probes): a power of two >= 16."""
+    size = 16
+    while size < 8 * n:
         size *= 2
     return size
 
@@ -1026,6 +1026,72 @@ def identify_rows(img_v, db, tol):
     rows, chain, _, work = identify_subsets(img_v, np.arange(n, dtype=np.int64), db, tol,
                                             np.array([[n, n, 1]], dtype=np.int64))
     return rows, chain, work
+
+
+@_inner
+def _key_before(a, b, k0, k1, k2):
+    """Star ``a`` sorts before star ``b`` by ``(k0, k1, k2)`` (the first key first; finite values)."""
+    if k0[a] != k0[b]:
+        return k0[a] < k0[b]
+    if k1[a] != k1[b]:
+        return k1[a] < k1[b]
+    return k2[a] < k2[b]
+
+
+@_inner
+def _stable_sort(items, n, k0, k1, k2):
+    """``items[:n]`` (star indices) sorted in place by ``(k0, k1, k2)``, ties kept in their order:
+    ``items[np.lexsort((k2[items], k1[items], k0[items]))]`` (insertion sort: a few dozen stars)."""
+    for i in range(1, n):
+        cur = items[i]
+        j = i - 1
+        while j >= 0 and _key_before(cur, items[j], k0, k1, k2):
+            items[j + 1] = items[j]
+            j -= 1
+        items[j + 1] = cur
+
+
+@njit(cache=True)
+def choose_stars(x_px, y_px, mag, mag_max, n_chosen, f_px, cx_px, cy_px):
+    """The stars the triangles are built from, in one call (what ``PlanarTriangle._run`` did with
+    ``np.flatnonzero``, three ``np.lexsort`` and the back-projection): those with ``mag <= mag_max``,
+    the ``n_chosen`` brightest of them (ties by x, then y; all when ``n_chosen < 0``).
+
+    Returns ``(order, v_cam, rank)``: ``order`` the chosen stars' indices in the canonical geometric
+    order (by x, then y, then mag, so the answer does not depend on the input order), ``v_cam``
+    their camera-frame unit vectors (pinhole, ``starid.kernels.backproject_px``) and ``rank`` the
+    positions in ``order`` brightest first (ties by x, then y)."""
+    n = x_px.shape[0]
+    xs = np.empty(n)  # writable copies: the sorts see one array type (observation arrays are read-only)
+    ys = np.empty(n)
+    ms = np.empty(n)
+    for i in range(n):
+        xs[i] = x_px[i]
+        ys[i] = y_px[i]
+        ms[i] = mag[i]
+    usable = np.empty(n, dtype=np.int64)
+    k = np.int64(0)  # not a literal: _stable_sort compiled once
+    for i in range(n):
+        if ms[i] <= mag_max:
+            usable[k] = i
+            k += 1
+    if n_chosen >= 0 and k > n_chosen:
+        _stable_sort(usable, k, ms, xs, ys)
+        k = n_chosen
+    order = np.empty(k, dtype=np.int64)
+    for a in range(k):
+        order[a] = usable[a]
+    _stable_sort(order, k, xs, ys, ms)
+    xo = np.empty(k)
+    yo = np.empty(k)
+    mo = np.empty(k)
+    for a in range(k):
+        xo[a] = xs[order[a]]
+        yo[a] = ys[order[a]]
+        mo[a] = ms[order[a]]
+    rank = np.arange(k)
+    _stable_sort(rank, k, mo, xo, yo)
+    return order, backproject_px(xo, yo, f_px, cx_px, cy_px), rank
 
 
 @_inner
