@@ -192,8 +192,9 @@ def record_sides(unit, main, n_i, n_j):
     """Per record the chords main-to-``n_i`` and main-to-``n_j`` (``chord_rows`` of ``unit``) as float32.
 
     Read sequentially by :func:`vote` in place of two random reads of ``unit`` and two square roots
-    per record in both windows; only a pre-filter (the float32 values are within :data:`SIDE_ROUNDING`
-    of the exact chords), the side check itself is still made from ``unit``.
+    per record in both windows. The float32 values are within :data:`SIDE_ROUNDING` of the exact
+    chords: they decide the side check only where that rounding cannot change its outcome; a record
+    closer than that to the window's edge or to a tie of its two vertex orders is checked from ``unit``.
     """
     m = main.size
     side_i = np.empty(m, dtype=np.float32)
