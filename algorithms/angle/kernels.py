@@ -95,7 +95,7 @@ def support(v_cam, sel, a, b, big_i, big_j, nbr, nbr_chord, nbr_start, guide_uni
     return count
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@njit(cache=True)   # Python too: main's benchmarks/tools/tailspeed2_ia_profile.py times it alone
 def confirm_pattern(v_cam, pat_star, pat_row, guide_unit, c_fov, eps, widen, cam, min_extra, confirm_fraction, rows):
     """Attitude of a matched pattern (Wahba), the other stars by reprojection, and the confirmation.
 
