@@ -95,7 +95,7 @@ def support(v_cam, sel, a, b, big_i, big_j, nbr, nbr_chord, nbr_start, guide_uni
     return count
 
 
-@njit(cache=True)
+@njit(cache=True)   # Python too: main's benchmarks/tools/tailspeed2_ia_profile.py times it alone
 def confirm_pattern(v_cam, pat_star, pat_row, guide_unit, c_fov, eps, widen, cam, min_extra, confirm_fraction, rows):
     """Attitude of a matched pattern (Wahba), the other stars by reprojection, and the confirmation.
 
@@ -189,7 +189,7 @@ def angle_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_un
     return rows, pair, work
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _pairs_to_r(start, stop):
     """Image pairs, in the order ``for a: for b > a``, up to the first whose window holds one catalog pair."""
     m = start.shape[0]
@@ -202,7 +202,7 @@ def _pairs_to_r(start, stop):
     return k
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _triangles_by_ik(v_cam, si, sj, sk, win_ij, win_ik, pairs, guide_unit, eps, scratch, tick, out):
     """pyramid's ``triad_triangles`` of the image triad (i, j, k), the join taken the other way round.
 
@@ -258,7 +258,7 @@ def _triangles_by_ik(v_cam, si, sj, sk, win_ij, win_ik, pairs, guide_unit, eps, 
     return count
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _swap_cached(store, first, count, out):
     """The triangles of triad (a, k, j) from those computed for (a, j, k) (``store[first:first + count]``,
     rows of :func:`_triangles_by_ik`), in ``triad_triangles``' order for (a, k, j): rows
@@ -287,7 +287,7 @@ def _swap_cached(store, first, count, out):
         out[u, 4] = k2
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _keep(store, n_store, tri, count):
     """``store`` with ``tri[:count]`` written from row ``n_store`` on (grown when full)."""
     if n_store + count > store.shape[0]:
@@ -302,7 +302,7 @@ def _keep(store, n_store, tri, count):
     return store
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _search(v_cam, sel, start, stop, pairs, nbr, nbr_chord, nbr_start, guide_unit, tol, cam, work):
     """Steps 2-5 of :func:`angle_kernel`; returns ``(rows, pair)`` and adds to ``work``."""
     n = v_cam.shape[0]

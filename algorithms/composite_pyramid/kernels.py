@@ -45,7 +45,7 @@ class ComTol(NamedTuple):
     fourth_tries: int  # fourth stars tried per candidate (paper: one)
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _third_stars(stars, hits, n_hits, cat, out):
     """Sorted distinct third stars of the hit triangles containing exactly two stars of ``cat``."""
     m = 0

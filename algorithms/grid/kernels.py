@@ -79,7 +79,7 @@ def by_pattern(patterns: np.ndarray, cell_start: np.ndarray) -> tuple[np.ndarray
     return cell[order], start
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def orientation_candidates(r_px, n, buffer_px, half_px, out):
     """Indices (into the nearest-first neighbour list) of neighbours ``buffer_px`` to ``half_px`` away."""
     k = 0
@@ -157,7 +157,7 @@ def build_patterns(unit, nbr, nbr_off, f_px, spec, db_orientations):
     return cells[:total].copy(), np.array(start), np.array(guide), np.array(orient)
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _mark(weight, touched, nt, cell, value):
     if weight[cell] == 0.0:
         touched[nt] = cell
@@ -196,7 +196,7 @@ def image_weights(cells, nc, spec, weight, touched):
     return nt
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def spec_at(p, i):
     """The :class:`GridSpec` packed at ``p[i:i+12]`` by ``planar.pack_params``."""
     return GridSpec(int(p[i]), p[i + 1], p[i + 2], p[i + 3], p[i + 4], p[i + 5], p[i + 6] != 0.0, p[i + 7],

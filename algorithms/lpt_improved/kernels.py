@@ -57,7 +57,7 @@ class Search(NamedTuple):
     pair_filter: bool       # rank only rows whose alignment pair has the image pair's separation
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def log_level(r_px, log_scale):
     """Entry of a feature vector for plane distance ``r_px``: ``ceil(log_scale ln r_px)``, at least 1."""
     v = math.ceil(log_scale * math.log(max(r_px, 1.0)))
@@ -176,7 +176,7 @@ def chord_order(align_chord: np.ndarray, count_start: np.ndarray) -> tuple[np.nd
     return rows, np.ascontiguousarray(align_chord[rows], dtype=np.float32)
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def chord_first(chords, lo, hi, chord, limit, upper):
     """First position in ``chords[lo:hi]`` (ascending) whose ``chords[k] - chord`` is >= ``limit``
     (``upper``: > ``limit``); the difference is monotone in ``chords[k]``, so bisection finds it."""

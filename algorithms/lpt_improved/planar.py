@@ -184,7 +184,7 @@ def acceptance_at(p, i):
     return Acceptance(p[i], p[i + 1], p[i + 2], int(p[i + 3]), p[i + 4])
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def tangent_basis(unit, s):
     """Right-handed orthonormal ``e1, e2`` perpendicular to ``unit[s]`` (``e2 = s x e1``)."""
     sx = float(unit[s, 0])
@@ -228,7 +228,7 @@ def plane_polar(unit, s, rows, n_rows, f_px, r_px, phi):
         phi[k] = p + 2.0 * math.pi if p < 0 else p
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def relative_angle(phi, phi0):
     """``phi - phi0`` wrapped to ``[0, 2 pi)``."""
     d = phi - phi0
@@ -296,7 +296,7 @@ def image_neighbours(unit, usable, x_px, y_px, s, cos_radius, out):
     return k
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def seed_attitude_roll(unit, s, guides_unit, g, roll):
     """Attitude taking guide row ``g`` to image star ``s`` with a roll about it.
 
@@ -378,7 +378,7 @@ def confirm(unit, rows, attitude, guides_unit, sensor, acc, solved_from):
     return True, wahba_rows(unit, rows, guides_unit)
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def polar_buffers(nbr_off):
     """Work arrays ``(r_px, phi)`` long enough for the longest CSR neighbour list (at least 1)."""
     longest = 1
@@ -387,7 +387,7 @@ def polar_buffers(nbr_off):
     return np.empty(longest), np.empty(longest)
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def guide_pattern(unit, nbr, nbr_off, g, f_px, r_px, phi):
     """Neighbour count of guide ``g`` and, when it has any, their :func:`plane_polar` coordinates."""
     start = nbr_off[g]
@@ -413,7 +413,7 @@ def begin_identify(x_px, y_px, sensor, double_px, trace):
     return np.full(n, -1, dtype=np.int64), unit, usable, order
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def no_match(rows):
     """End of every identify kernel when nothing was accepted: ``(rows all -1, identity, False)``."""
     for i in range(rows.shape[0]):
@@ -433,7 +433,7 @@ def reference_pattern(unit, usable, x_px, y_px, s, cos_radius, f_px, nbrs, r_px,
     return k
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def keep_best(best_score, best_item, found, n_best, score, item):
     """Insert ``(score, item)`` into the ``found`` best so far (``best_score`` descending); returns the new count.
 
@@ -501,7 +501,7 @@ def z_index(unit: np.ndarray, n_buckets: int = Z_BUCKETS) -> np.ndarray:
     return np.searchsorted(np.asarray(unit[:, 2], dtype=np.float64), edges, side="left").astype(np.int64)
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def z_first(unit, z_start, z, g_lo):
     """First row, not before ``g_lo``, whose z is >= ``z`` (rows of ``unit`` sorted by z; ``z_start``
     from :func:`z_index`). Starts one bucket early (rounding of the bucket number) and walks."""
@@ -514,7 +514,7 @@ def z_first(unit, z_start, z, g_lo):
     return g
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def settle_pairs(pair_i, pair_g, n_pairs, n_match, out_row):
     """``reproject_assign``'s bookkeeping from the (star, guide row) pairs within the window.
 
@@ -592,7 +592,7 @@ def assign_near(A, v_cam, unit, z_start, c_fov, eps, out_row, pair_i, pair_g, n_
         pg = np.empty(4 * pg.shape[0], dtype=np.int64)
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def predicted_on_sensor(A, unit, c_fov, f_px, cx_px, cy_px, width_px, height_px):
     """``reproject_assign``'s second count: guide rows of the cap whose prediction lands on the sensor
     (the same loop and expressions)."""
@@ -615,14 +615,14 @@ def predicted_on_sensor(A, unit, c_fov, f_px, cx_px, cy_px, width_px, height_px)
     return n_predicted
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def assign_pass(A, unit, guides_unit, z_start, c_fov, eps, rows, work):
     """One reprojection pass (:func:`assign_near`); ``work`` is ``(pair_i, pair_g, n_match)``.
     Returns the number of stars assigned."""
     return assign_near(A, unit, guides_unit, z_start, c_fov, eps, rows, work[0], work[1], work[2])
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def confirm_near(unit, rows, attitude, guides_unit, z_start, sensor, acc, solved_from, work, n_first):
     """:func:`confirm`, pass for pass, with :func:`assign_near` for the assignment.
 
@@ -691,7 +691,7 @@ def confirm_near(unit, rows, attitude, guides_unit, z_start, sensor, acc, solved
     return True, wahba_rows(unit, rows, guides_unit)
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def plane_frame(x0, y0, z0, x1, y1, z1):
     """Right-handed orthonormal ``p1, p2, p3`` with ``p1`` along ``(x0, y0, z0)`` and ``p2`` in the plane
     of the two vectors (Gram-Schmidt), as nine scalars; ``p3`` = 0 when they are parallel."""
@@ -706,7 +706,7 @@ def plane_frame(x0, y0, z0, x1, y1, z1):
     return ax, ay, az, bx, by, bz, ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def pair_attitude(unit, s, o, guides_unit, guide_s, guide_o, A):
     """The rotation Wahba's problem gives for the two pairs ``s -> guide_s``, ``o -> guide_o`` (equal
     weights), written to ``A`` (3 x 3).
@@ -765,7 +765,7 @@ def pair_attitude(unit, s, o, guides_unit, guide_s, guide_o, A):
     return max(ATT_FLOOR, ATT_SCALE / sigma2)
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def band_z(z_centre, c_radius):
     """The z limits of :func:`starid.kernels.z_band_rows`'s band (the same expressions): a row of the
     z-sorted catalog lies in the rows it returns exactly when its z is within ``[z_lo, z_hi]``."""
@@ -774,7 +774,7 @@ def band_z(z_centre, c_radius):
     return math.sin(max(-0.5 * math.pi, dec0 - half)), math.sin(min(0.5 * math.pi, dec0 + half))
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def pair_first_pass(A, tol, v_cam, unit, z_start, c_fov, eps, work):
     """:func:`confirm`'s first pass from the seed Wahba gives for a pair, made with ``A`` when it can be.
 

@@ -121,7 +121,7 @@ def plain(t):
     return tuple(plain(v) if hasattr(v, "_fields") else v for v in t)
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _before(dist, unit, i, j):
     """Strict order of candidate slaves: by distance, exact ties by the unit vector (input-order free)."""
     if dist[i] != dist[j]:
@@ -193,7 +193,7 @@ def build_triangles(unit, neighbours, neighbour_offsets, d_min, d_max, n_slaves,
     return ids, sides
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _grad_var(g0, g1, g2, t, i):
     """``g (I - t_i t_i^T) g^T`` for a gradient row ``g`` and unit vector ``t[i]`` (eqs. 11-12 without sigma^2)."""
     gt = g0 * t[i, 0] + g1 * t[i, 1] + g2 * t[i, 2]
@@ -225,7 +225,7 @@ def projection_sigma(t, i1, i2, i3, a, b, c, w, sigma, scale):
     return scale * sigma * math.sqrt(max(var, 0.0))
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def side_sigma(side, sigma):
     """Standard deviation of one unscaled chord side under eq. 11: ``sigma sqrt(2 - side^2/2)``."""
     return sigma * math.sqrt(max(2.0 - 0.5 * side * side, 0.0))
@@ -245,14 +245,14 @@ def _window(t, i1, i2, i3, sides, kv, mean, w, sigma, scale, beta):
     return kvector_query(kv, p - xi, p + xi)
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _side_excess(sa, sb, sc, k, a, b, c, ta, tb, tc):
     """Largest amount by which one of the three sides misses its tolerance (<= 0: all agree)."""
     x = max(abs(sa[k] - a) - ta, abs(sb[k] - b) - tb)
     return max(x, abs(sc[k] - c) - tc)
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _side_window(sides, sigma, scale, side_beta):
     """The image triangle's three scaled sides and their tolerances, float32 as the database's sides."""
     a = np.float32(sides[0])
@@ -343,7 +343,7 @@ def _side_check_indexed(sides, start, stop, index, sigma, scale, side_beta, out_
     return n_out
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _triple_key(i, j, k, n):
     """Order-free key of a set of three image stars."""
     a, b, c = min(i, j, k), max(min(i, j), min(max(i, j), k)), max(i, j, k)
@@ -583,7 +583,7 @@ def identify_kernel(x_px, y_px, mag, view_t, db_t, tol_t):
     return hip, unit, result, work
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def validate(n, n_guide, n_match, m_tri, m_img, m_cat, tol, min_shared, conflict_fails, result):
     """Sharing-star validation (section 2.3, Table 3) of the first ``n_match`` match records: writes the
     accepted guide row of each of the ``n`` image stars into ``result`` (-1 = none) and returns the support
@@ -700,7 +700,7 @@ def validate(n, n_guide, n_match, m_tri, m_img, m_cat, tol, min_shared, conflict
     return support
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def drop_displaced(unit, result, guide_unit, eps_chord, attitude):
     """Extension (``nearest_check``): ``attitude``, of all pairings in ``result`` (Wahba), predicts each
     paired guide star; a pairing is dropped when its detection lies farther than ``eps_chord`` (the pair
@@ -732,7 +732,7 @@ def drop_displaced(unit, result, guide_unit, eps_chord, attitude):
     return n_found
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def try_hypotheses(unit, view, db, tol, n_match, m_img, m_cat, support, eps_chord, result, work):
     """Extension (``hypotheses``): when sharing-star validation gives no identification, each matched
     triangle alone is a hypothesis, best supported first (then brightest stars: ``unit`` is in brightness

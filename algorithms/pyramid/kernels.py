@@ -55,7 +55,7 @@ class PairTol(NamedTuple):
 # shared pair-angle helpers
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def isolated(v_cam, d_min):
     """True for detections with no other detection within chord ``d_min`` (doubles, coincident)."""
     n = v_cam.shape[0]
@@ -114,7 +114,7 @@ def pair_windows(v_cam, sel, kv, tol):
 # Pyramid
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def triple(u, i, v, j, w, k):
     """Triple product ``u_i . (v_j x w_k)`` of rows of three (n, 3) arrays (float64)."""
     ax, ay, az = float(u[i, 0]), float(u[i, 1]), float(u[i, 2])
@@ -123,7 +123,7 @@ def triple(u, i, v, j, w, k):
     return ax * (by * cz - bz * cy) + ay * (bz * cx - bx * cz) + az * (bx * cy - by * cx)
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _adjacency(pairs, start, stop, head, stamp, tick, nxt, val):
     """Linked lists of the catalog pairs in ``[start, stop)``: partners of each guide row.
 
@@ -287,7 +287,7 @@ WORK_COUNTERS = ("triads", "pair_searches", "pairs_read", "triangles", "confirma
                  "first_in_R")
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def first_query_check(work, rows, first_trio, first_tri):
     """``work[6]`` / ``work[7]``: whether ``rows`` names the three stars of the first triad
     (``first_trio``), and whether its R (the first ``min(work[5], len(first_tri))`` rows of

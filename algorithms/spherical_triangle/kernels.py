@@ -42,7 +42,7 @@ class SphTol(NamedTuple):
     unique: bool  # |R| = 1 required before the direct-match test
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _share_two(stars, p, q):
     """True when catalog triangles ``p`` and ``q`` (rows of ``stars``) have at least two stars in common."""
     n = 0
@@ -57,7 +57,7 @@ def _share_two(stars, p, q):
 WORK_NAMES = ("trios", "queries", "first_R", "first_named", "first_in_R", "to_r")
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def first_query_check(work, rows, first_trio, first_cand, stars):
     """``work[3]`` / ``work[4]``: whether ``rows`` names the three stars of the first queried trio, and
     whether its first R (``first_cand[:work[2]]``, triangles as rows of ``stars``) holds their set."""

@@ -95,7 +95,7 @@ class Settings(NamedTuple):
 # --------------------------------------------------------------------------- hash table
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def hash_slot(key, size):
     """Home slot of ``key`` in a table of ``size`` slots: Fibonacci hashing, then the high 32
     bits scaled to ``[0, size)`` by a multiply-shift (any size up to 2^32, no power of two needed)."""
@@ -175,7 +175,7 @@ def canonical_order(unit, rows, out, dist):
             j -= 1
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def sorted_edges(unit, rows, edges):
     """The six chords among ``unit[rows[0..3]]``, sorted ascending into ``edges``; returns the largest."""
     for p in range(6):
@@ -282,7 +282,7 @@ def binom_sf(k, m, q):
     return min(total, 1.0)
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _match_order(img_edge, img_dist, cat_unit, cat_rows, tol, perm_out, cat_edge):
     """Star-to-star correspondence of an image pattern and a catalogue candidate, or False.
 
@@ -319,7 +319,7 @@ def _match_order(img_edge, img_dist, cat_unit, cat_rows, tol, perm_out, cat_edge
     return best <= tol
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _verify(unit, rows, guide_unit, tol, n_stars, out_row):
     """Attitude from the stars with ``rows >= 0`` (Wahba), then every star by reprojection.
 
@@ -329,9 +329,11 @@ def _verify(unit, rows, guide_unit, tol, n_stars, out_row):
     not exceed ``max_mismatch``, and at least ``min_extra`` must be seen.
     """
     A = wahba_rows(unit, rows, guide_unit)
+    # the sensor size as floats: the signature ptp, angle, lpt_improved and geometric voting compile
+    # (an int64 pair compiled reproject_assign once more, ~1 CPU s, in a process running them too)
     n_seen, n_predicted = reproject_assign(A, unit, guide_unit, tol.c_fov + tol.eps, tol.eps, out_row,
-                                           tol.f_px, tol.cx_px, tol.cy_px, tol.width_px,
-                                           tol.height_px)
+                                           tol.f_px, tol.cx_px, tol.cy_px, float(tol.width_px),
+                                           float(tol.height_px))
     for i in range(rows.shape[0]):   # the pattern's own stars must be confirmed as such
         if rows[i] >= 0 and out_row[i] != rows[i]:
             return False, n_seen
@@ -465,7 +467,8 @@ def identify_kernel(x_px, y_px, mag, table, tol, record):
                         if tol.report_eps > 0:   # refine on every confirmed star, assign again
                             A = wahba_rows(unit, out_row, table.unit)
                             reproject_assign(A, unit, table.unit, tol.c_fov + tol.report_eps, tol.report_eps, result,
-                                             tol.f_px, tol.cx_px, tol.cy_px, tol.width_px, tol.height_px)
+                                             tol.f_px, tol.cx_px, tol.cy_px, float(tol.width_px),
+                                             float(tol.height_px))
                         else:                    # the verification's reprojection is the identification
                             for a in range(n):
                                 result[a] = out_row[a]

@@ -77,7 +77,7 @@ def angular_distance_rad(u, v):
     return 2.0 * math.asin(0.5 * c)
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def chord_to_rad(c):
     """Convert a chord of unit vectors to the angle it subtends, in radians."""
     if c >= 2.0:

@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from .attitude import lu_det3, svd3
 from .order import sort_int_prefix
 
 #: :func:`check_ids` codes
@@ -60,7 +61,9 @@ def check_ids(hip, catalog_hip):
         if hip[i] != -1:
             reported[k] = hip[i]
             k += 1
-    sort_int_prefix(reported, k)    # not reported.sort(): numpy's quicksort costs ~0.7 CPU s to compile
+    # not reported.sort(): numpy's quicksort costs ~0.7 CPU s to compile; np.int64: k is typed
+    # Literal[int](0) at one of its assignments, which compiled sort_int_prefix a second time
+    sort_int_prefix(reported, np.int64(k))
     for i in range(1, k):
         if reported[i] == reported[i - 1]:
             return ID_TWICE, reported[i]
@@ -92,17 +95,27 @@ def attitude_error_terms(hip, v_cam, catalog_hip, unit_icrs, attitude_true):
                 r[k, a] = unit_icrs[row, a]
             k += 1
     B = b.T @ r
-    U, _, Vt = np.linalg.svd(B)
-    d = np.linalg.det(U) * np.linalg.det(Vt)
+    U, Vt = svd3(B)       # np.linalg.svd's and np.linalg.det's LAPACK calls, without numba's wrappers
+    d = lu_det3(U) * lu_det3(Vt)
     D = np.zeros((3, 3))
     D[0, 0] = 1.0
     D[1, 1] = 1.0
     D[2, 2] = d
     A = U @ D @ Vt
-    R = A @ np.ascontiguousarray(attitude_true.T)
-    skew = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
+    At = np.empty((3, 3))     # attitude_true.T, C-ordered (a loop: np.ascontiguousarray compiles its own impl)
+    for a in range(3):
+        for c in range(3):
+            At[a, c] = attitude_true[c, a]
+    R = A @ At
+    skew = np.empty(3)        # not np.array([...]): a reflected list and its constructor to compile
+    skew[0] = R[2, 1] - R[1, 2]
+    skew[1] = R[0, 2] - R[2, 0]
+    skew[2] = R[1, 0] - R[0, 1]
+    trace = 0.0               # numba's np.trace: the diagonal summed in order from 0
+    for a in range(3):
+        trace += R[a, a]
     # numpy's norm of a vector is sqrt(x . x) (BLAS ddot); numba's np.linalg.norm is not, to the last bit
-    return 0.5 * np.sqrt(np.dot(skew, skew)), 0.5 * (np.trace(R) - 1.0)
+    return 0.5 * np.sqrt(np.dot(skew, skew)), 0.5 * (trace - 1.0)
 
 
 def attitude_error_rad(hip, v_cam, catalog_hip, unit_icrs, attitude_true) -> float:

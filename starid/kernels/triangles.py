@@ -46,7 +46,7 @@ class TriangleIndex(NamedTuple):
     stars: np.ndarray
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _solid_angle(ax, ay, az, bx, by, bz, cx, cy, cz):
     """Solid angle of the spherical triangle of three (not necessarily unit) direction vectors."""
     la = math.sqrt(ax * ax + ay * ay + az * az)
@@ -213,7 +213,7 @@ def block_order(area: np.ndarray, moment: np.ndarray) -> np.ndarray:
     return by_area[within[within < n]]
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _sorted3(x, y, z):
     if x > y:
         x, y = y, x
@@ -224,7 +224,7 @@ def _sorted3(x, y, z):
     return x, y, z
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _sides_agree(unit, g0, g1, g2, sides, eps):
     """True when the ascending chords of catalog triangle (g0, g1, g2) are within ``eps`` of ``sides``.
 
@@ -286,13 +286,13 @@ def tri_query(index, a_lo, a_hi, m_lo, m_hi, max_hits, truncate, unit, sides, ep
 PERMS = np.array([[0, 1, 2], [0, 2, 1], [1, 0, 2], [1, 2, 0], [2, 0, 1], [2, 1, 0]], dtype=np.int64)
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _triple(u, i, j, k):
     return (u[i, 0] * (u[j, 1] * u[k, 2] - u[j, 2] * u[k, 1]) + u[i, 1] * (u[j, 2] * u[k, 0] - u[j, 0] * u[k, 2])
             + u[i, 2] * (u[j, 0] * u[k, 1] - u[j, 1] * u[k, 0]))
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def trio_confirm(v_cam, trio, cat, guide_unit, eps, match_sides, c_fov, min_extra, confirm_fraction, cam, rows,
                  trial):
     """The direct-match test of image stars ``trio`` (3 rows of ``v_cam``) against catalog triangle ``cat``.

@@ -62,7 +62,7 @@ def verify_pairwise(v_cam, cand_row, cat_unit, tol_chord, min_support, min_fract
     return active
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def z_bound(unit, z, upper):
     """First row of z-sorted unit vectors whose z is >= ``z`` (``upper``: > ``z``), by bisection."""
     lo = 0
@@ -87,7 +87,7 @@ def z_band_rows(unit, z_centre, c_radius):
     return z_bound(unit, z_lo, np.bool_(False)), z_bound(unit, z_hi, np.bool_(True))   # runtime bools: one signature
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def keep_unique(n_match, out_row):
     """Keep the rows of stars matched exactly once (the others become -1); returns how many."""
     count = 0
