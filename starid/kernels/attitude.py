@@ -3,73 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, types
-
-#: the LAPACK entry points numba's own ``np.linalg.svd`` / ``np.linalg.det`` call (numba's C helpers,
-#: which call scipy's LAPACK): :func:`svd3` and :func:`lu_det3` call them directly, without numba's
-#: generic wrappers around them (~1 CPU s of compilation per process: the finite check over
-#: ``np.nditer``, the Fortran-order copies, error handlers, ``slogdet``), the same calls on the same
-#: data, so the same numbers to the last bit
-_GESDD = types.ExternalFunction("numba_ez_gesdd", types.intc(
-    types.char, types.char, types.intp, types.intp, types.CPointer(types.float64), types.intp,
-    types.CPointer(types.float64), types.CPointer(types.float64), types.intp, types.CPointer(types.float64),
-    types.intp))
-_GETRF = types.ExternalFunction("numba_xxgetrf", types.intc(
-    types.char, types.intp, types.intp, types.CPointer(types.float64), types.intp, types.CPointer(types.int32)))
-_KIND_D = ord("d")
-_JOBZ_A = ord("A")
-
-
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
-def svd3(B):
-    """``U, Vt`` of ``np.linalg.svd(B)`` for a 3x3 float64 ``B``, as numba's ``np.linalg.svd`` returns
-    them (Fortran-ordered views): its LAPACK call (``gesdd``, all vectors) on the same column-major copy
-    of ``B``, its errors (non-finite input, no convergence)."""
-    a = np.empty((3, 3))        # B in column-major order: a's C buffer is B.T's
-    for i in range(3):
-        for j in range(3):
-            if not np.isfinite(B[i, j]):
-                raise np.linalg.LinAlgError("Array must not contain infs or NaNs.")
-            a[j, i] = B[i, j]
-    s = np.empty(3)
-    u = np.empty((3, 3))
-    vt = np.empty((3, 3))
-    r = _GESDD(_KIND_D, _JOBZ_A, 3, 3, a.ctypes, 3, s.ctypes, u.ctypes, 3, vt.ctypes, 3)
-    if r != 0:
-        raise ValueError("Internal algorithm failed to converge.")
-    return u.T, vt.T
-
-
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
-def lu_det3(M):
-    """``np.linalg.det(M)`` of a 3x3 float64 matrix as numba computes it: LAPACK ``getrf`` on a
-    column-major copy, the pivots' sign, ``sign * exp(sum log |U_kk|)`` in the same order."""
-    a = np.empty((3, 3))        # column-major copy: a's C buffer is M.T's
-    for i in range(3):
-        for j in range(3):
-            if not np.isfinite(M[i, j]):
-                raise np.linalg.LinAlgError("Array must not contain infs or NaNs.")
-            a[j, i] = M[i, j]
-    ipiv = np.empty(3, dtype=np.int32)
-    r = _GETRF(_KIND_D, 3, 3, a.ctypes, 3, ipiv.ctypes)
-    if r > 0:
-        return 0.0              # numba's slogdet: (0., -inf); 0. * exp(-inf)
-    if r < 0:
-        raise ValueError("LAPACK getrf: illegal argument")
-    sgn = 1
-    for k in range(3):
-        sgn = sgn + (ipiv[k] != (k + 1))
-    sgn = sgn & 1
-    if sgn == 0:
-        sgn = -1
-    acc = 0.0
-    for k in range(3):
-        v = a[k, k]             # the diagonal of the column-major factor
-        if v < 0.0:
-            sgn = -sgn
-            v = -v
-        acc = acc + np.log(v)
-    return (sgn + 0.0) * np.exp(acc)
+from numba import njit
 
 
 @njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
@@ -105,8 +39,8 @@ def wahba_rows(v, rows, unit):
         for b in range(3):
             big = max(big, abs(B[a, b]))
     if not det > 1e-12 * (big ** 3 + 1e-300):
-        U, Vt = svd3(B)
-        d = lu_det3(U) * lu_det3(Vt)
+        U, _, Vt = np.linalg.svd(B)
+        d = np.linalg.det(U) * np.linalg.det(Vt)
         for a in range(3):
             U[a, 2] *= d
         return U @ Vt

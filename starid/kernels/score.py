@@ -14,7 +14,6 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .attitude import lu_det3, svd3
 from .order import sort_int_prefix
 
 #: :func:`check_ids` codes
@@ -95,8 +94,8 @@ def attitude_error_terms(hip, v_cam, catalog_hip, unit_icrs, attitude_true):
                 r[k, a] = unit_icrs[row, a]
             k += 1
     B = b.T @ r
-    U, Vt = svd3(B)       # np.linalg.svd's and np.linalg.det's LAPACK calls, without numba's wrappers
-    d = lu_det3(U) * lu_det3(Vt)
+    U, _, Vt = np.linalg.svd(B)
+    d = np.linalg.det(U) * np.linalg.det(Vt)
     D = np.zeros((3, 3))
     D[0, 0] = 1.0
     D[1, 1] = 1.0
