@@ -140,3 +140,17 @@ def test_galvizo_reading(catalog, camera):
 def test_bad_parameters(bad):
     with pytest.raises(ConfigError):
         dataclasses.replace(InteriorAngle(), **bad)
+
+
+def test_a_refused_pairing_is_recognised_in_any_star_order():
+    """``seen_before`` keys a pairing star -> row independently of the order of its three stars, and
+    tells a different pairing of the same stars and rows apart."""
+    from starid_algorithms.interior_angle.kernels import remember, seen_before
+
+    failed = np.empty((4, 6), dtype=np.int64)
+    n = remember(np.array([7, 2, 5]), np.array([70, 20, 50]), failed, np.int64(0))
+    assert n == 1
+    for perm in ([0, 1, 2], [1, 2, 0], [2, 0, 1], [2, 1, 0]):
+        assert seen_before(np.array([7, 2, 5])[perm], np.array([70, 20, 50])[perm], failed, np.int64(n))
+    assert not seen_before(np.array([7, 2, 5]), np.array([20, 70, 50]), failed, np.int64(n))
+    assert not seen_before(np.array([7, 2, 5]), np.array([70, 20, 50]), failed, np.int64(0))

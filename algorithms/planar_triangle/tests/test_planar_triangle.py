@@ -411,3 +411,42 @@ def test_wide_field_camera_gets_its_own_triangles(catalog):
         assert np.all((hip == -1) | (hip == obs.truth_hip))
         assert np.count_nonzero(hip >= 0) >= 0.8 * len(obs)
     assert (db.mag_limit, db.fov_db_deg, db.min_area_deg2) == (5.0, 20.0, 0.4)
+
+
+def test_choose_stars_is_numpy_star_choice_with_ties():
+    """``choose_stars`` against the numpy steps it replaced (flatnonzero, three lexsorts, pinhole
+    back-projection), on fields with many tied magnitudes and positions."""
+    from starid_algorithms.planar_triangle.kernels import choose_stars
+
+    from starid.kernels import backproject_px
+
+    rng = np.random.default_rng(3)
+    for trial in range(300):
+        n = int(rng.integers(0, 40))
+        x = rng.integers(0, 6, n).astype(float) * 100.0     # few distinct values: ties everywhere
+        y = rng.integers(0, 6, n).astype(float) * 100.0
+        mag = rng.integers(0, 8, n).astype(float) * 0.5
+        mag_max, n_chosen = 3.0, int(rng.choice([-1, 3, 8, 20]))
+        usable = np.flatnonzero(mag <= mag_max)
+        if n_chosen >= 0 and usable.size > n_chosen:
+            usable = usable[np.lexsort((y[usable], x[usable], mag[usable]))[:n_chosen]]
+        order = usable[np.lexsort((mag[usable], y[usable], x[usable]))]
+        rank = np.lexsort((y[order], x[order], mag[order]))
+        got_order, got_v, got_rank = choose_stars(x, y, mag, mag_max, n_chosen, 500.0, 256.0, 256.0)
+        assert np.array_equal(got_order, order), trial
+        assert np.array_equal(got_rank, rank), trial
+        assert np.array_equal(got_v, backproject_px(x[order], y[order], 500.0, 256.0, 256.0)), trial
+
+
+def test_single_triangle_reading_without_subsets_answers(db, noise_free):
+    """``subset_size=None`` with the default ``small_subset_size`` (a crash in building its stages
+    whenever it found an answer, before issue #25's third planar round) identifies like the paper's reading."""
+    _, trials = noise_free
+    alg = PlanarTriangle(subset_size=None)
+    found = 0
+    for t in range(10):
+        obs = trials.observation(t)
+        hip = alg.identify(db, obs).hip
+        assert np.all((hip == -1) | (hip == obs.truth_hip))
+        found += int(np.any(hip >= 0))
+    assert found >= 8
