@@ -9,6 +9,10 @@ kept), median over images in us. Stages, each called as ``identify`` calls it: `
 (the final step, ``final.py``), ``identify_image`` (the one kernel ``identify`` calls: order,
 back-projection, ``identify_rows``, ``finish_cone``) and ``identify`` (+ the Python wrapper and
 the ``Identification``); tetra's ``identify`` on the same images for scale.
+
+Since branch tvspeed3 the ``scan`` and ``side_checks`` copies read the records' columns as strided
+views of the 16-byte rows and check every side exactly: they no longer describe ``vote`` (which
+reads whole rows and decides most side checks from the float32 chords); the other stages do.
 """
 
 from __future__ import annotations

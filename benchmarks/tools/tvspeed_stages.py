@@ -1,7 +1,7 @@
 """Where triangle_voting's ``vote`` spends its time (issue #25, branch tvspeed).
 
 Describes ``vote`` before branch tvspeed2 (records by cell then height, the hash-table tally); the
-current stages are ``tvspeed2_stages.py``.
+current stages are ``tvspeed2_stages.py`` (and, since branch tvspeed3, ``vote`` itself).
 
     python benchmarks/tools/tvspeed_stages.py [N] [R]
 
