@@ -30,6 +30,7 @@ from .kernels import (
     Tables,
     Tolerance,
     build_triangles,
+    feature_columns,
     identify_image,
     new_scratch,
     record_sides,
@@ -79,26 +80,7 @@ class TriangleVotingDatabase(Database):
     deep: DeepSky
     deep_v_mag: np.ndarray
 
-    @property
-    def base(self) -> np.ndarray:
-        """float32 (m,) the records' base (a column of ``features``)."""
-        return self.features[:, FEAT_BASE]
-
-    @property
-    def height(self) -> np.ndarray:
-        """float32 (m,) the records' height (a column of ``features``)."""
-        return self.features[:, FEAT_HEIGHT]
-
-    @property
-    def side_i(self) -> np.ndarray:
-        """float32 (m,) per record the chord main-to-``n_i`` (``record_sides``), read by ``vote`` as an exact
-        pre-filter of its side check (a column of ``features``: part of the database, counted in its size)."""
-        return self.features[:, FEAT_SIDE_I]
-
-    @property
-    def side_j(self) -> np.ndarray:
-        """float32 (m,) per record the chord main-to-``n_j`` (a column of ``features``)."""
-        return self.features[:, FEAT_SIDE_J]
+    base, height, side_i, side_j = feature_columns()   # the columns of ``features``
 
     def tables(self) -> Tables:
         """The arrays the kernels read, as one bundle (made once per database, see ``_tables``)."""

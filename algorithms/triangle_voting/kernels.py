@@ -29,6 +29,23 @@ _inner = njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)
 WORK_COUNTERS = ("triangles", "records", "matches", "side_matches")
 
 
+#: columns of ``Tables.features`` (the database's ``features``): base and height (chord units), and
+#: the record's main-to-n_i and main-to-n_j chords rounded to float32 (:func:`record_sides`). One row of
+#: 16 bytes per record, so the vote's scan of a few records reads one or two cache lines, not four streams.
+FEAT_BASE, FEAT_HEIGHT, FEAT_SIDE_I, FEAT_SIDE_J = 0, 1, 2, 3
+
+
+def feature_columns() -> tuple[property, property, property, property]:
+    """Read-only properties ``base, height, side_i, side_j``: the columns of ``features``, for a class
+    holding it (``Tables`` and the database), as the four arrays they once were."""
+    def column(k: int, doc: str) -> property:
+        return property(lambda self: self.features[:, k], doc=doc)
+    return (column(FEAT_BASE, "float32 (m,) the records' base (chord units)"),
+            column(FEAT_HEIGHT, "float32 (m,) the records' height (chord units)"),
+            column(FEAT_SIDE_I, "float32 (m,) per record the chord main-to-``n_i`` (``record_sides``)"),
+            column(FEAT_SIDE_J, "float32 (m,) per record the chord main-to-``n_j`` (``record_sides``)"))
+
+
 class Tables(NamedTuple):
     """The database as the kernels read it (see ``TriangleVotingDatabase``)."""
 
@@ -50,28 +67,7 @@ class Tables(NamedTuple):
     unit64: np.ndarray  # float64 (n, 3) ``unit`` as float64 (the same values), the attitude solver's input: one
     # compilation of ``wahba_rows`` (float64, shared with the final step) instead of two (issue #25)
 
-    # features' columns: base and height (chord units), and the record's main-to-n_i and main-to-n_j chords
-    # rounded to float32 (:func:`record_sides`: a pre-filter of the side check, which stays exact). One row of
-    # 16 bytes per record, so the vote's scan of a few records reads one or two cache lines, not four streams.
-    @property
-    def base(self) -> np.ndarray:
-        return self.features[:, FEAT_BASE]
-
-    @property
-    def height(self) -> np.ndarray:
-        return self.features[:, FEAT_HEIGHT]
-
-    @property
-    def side_i(self) -> np.ndarray:
-        return self.features[:, FEAT_SIDE_I]
-
-    @property
-    def side_j(self) -> np.ndarray:
-        return self.features[:, FEAT_SIDE_J]
-
-
-#: columns of ``Tables.features`` (the database's ``features``)
-FEAT_BASE, FEAT_HEIGHT, FEAT_SIDE_I, FEAT_SIDE_J = 0, 1, 2, 3
+    base, height, side_i, side_j = feature_columns()
 
 
 class Tolerance(NamedTuple):
