@@ -27,6 +27,7 @@ from ..lpt_improved.planar import (
     plane_polar,
     prepare_image,
     select_guides,
+    z_index,
 )
 from .kernels import Strings, StringSearch, build_strings, identify_kernel, lpt_string, scan_order, sparse_strings
 
@@ -155,7 +156,7 @@ class LPT(PlanarAlgorithm):
         acc = acceptance(cam, self.sigma_px, self.beta, self.min_matches, self.confirm_fraction, eps0_extra)
         order = scan_order(db.chars, self.n_sectors, self.n_levels)
         return (pack_params(camera_frame(cam), acc, self._search(db)), *order.strings, order.guide, order.count_start,
-                order.levels, order.counts, db.guide_unit)
+                order.levels, order.counts, db.guide_unit, z_index(db.guide_unit))
 
     def _run(self, db: LPTDatabase, observation: Observation):
         trace = new_trace()

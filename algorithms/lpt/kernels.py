@@ -15,12 +15,13 @@ from numba import njit
 from ..lpt_improved.planar import (
     acceptance_at,
     begin_identify,
-    confirm,
+    confirm_near,
     count_work,
     frame_at,
     guide_pattern,
     keep_best,
     no_match,
+    pair_work,
     polar_buffers,
     reference_pattern,
     seed_attitude_roll,
@@ -808,7 +809,7 @@ def search_at(p, i):
 
 @njit(cache=True)
 def identify_kernel(x_px, y_px, params, char_sector, char_level, char_start, scan_guide, count_start, scan_levels,
-                    scan_counts, guides_unit, trace):
+                    scan_counts, guides_unit, z_start, trace):
     """LPT identification of one image; returns ``(rows, attitude, accepted)``.
 
     ``params``: the sensor :class:`Frame`, the :class:`Acceptance` and the :class:`StringSearch`,
@@ -820,7 +821,7 @@ def identify_kernel(x_px, y_px, params, char_sector, char_level, char_start, sca
     every database string is compared under every circular shift (:func:`shift_scores`, the
     whole database, as in the paper); the ``n_candidates`` best guide stars scoring at least
     ``min_score`` (ties: the string with fewer unmatched characters first, then guide order)
-    seed an attitude (reference star to guide star, roll from the shift) that :func:`confirm`
+    seed an attitude (reference star to guide star, roll from the shift) that :func:`confirm_near`
     must accept. Strings are visited by length (see the comment in the scan); a string whose
     :func:`match_bound` cannot reach ``min_score``, or, once the candidate list is full, cannot
     rank above its last, is skipped without trying its shifts: the candidates are exactly those
@@ -839,6 +840,8 @@ def identify_kernel(x_px, y_px, params, char_sector, char_level, char_start, sca
     r_px = np.empty(n)
     phi = np.empty(n)
     unsolved = np.full(n, -2, dtype=np.int64)   # the roll-seeded attitudes come from no assignment
+    work4, _ = pair_work(n)
+    work = (work4[0], work4[1], work4[2])   # confirm_near's (pair_i, pair_g, n_match)
     img = np.zeros(m, dtype=np.int64)
     img_sector = np.empty(m, dtype=np.int64)
     img_level = np.empty(m, dtype=np.int64)
@@ -988,7 +991,7 @@ def identify_kernel(x_px, y_px, params, char_sector, char_level, char_start, sca
             dense_string(chars, best_item[c] // m, row)
             roll = refined_roll(row, img_sector, img_level, img_phi, nz, best_item[c] % m, search)
             A = seed_attitude_roll(unit, s, guides_unit, g, roll)
-            ok, A = confirm(unit, rows, A, guides_unit, sensor, acc, unsolved)
+            ok, A = confirm_near(unit, rows, A, guides_unit, z_start, sensor, acc, unsolved, work, np.int64(-1))
             count_work(trace, 2, 1)
             if ok:
                 trace[0] = s
