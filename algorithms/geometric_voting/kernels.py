@@ -441,7 +441,7 @@ def extend_windows(v_cam, sel, kv, tol, start, stop, b_lo, b_hi):
             stop[b, a] = hi
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def vote_rounds(v_cam, sel, kv, pairs, degree, guide_unit, tol, cam, rule, tally, vtol, work):
     """Voting in rounds: the ``rule.round_voters`` brightest selected stars vote, their choice is
     verified and confirmed (:func:`decide`); if that fails, the next ``rule.round_step`` stars

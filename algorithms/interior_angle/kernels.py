@@ -117,7 +117,7 @@ def trio_query(v_cam, sc, s1, s2, kv, pairs, nbr, nbr_chord, nbr_start, guide_un
                              np.int32(1))
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def trio_query_marked(v_cam, sc, s1, s2, kv, pairs, nbr, nbr_chord, nbr_start, guide_unit, tol, out, mark, stamp):
     """:func:`trio_query`, its partner-list searches filtered: the catalog stars with a pair in the
     second side's window (``t2 +- tol.eps``, widened by :data:`MARK_MARGIN`) get ``mark[g] = stamp``
@@ -174,7 +174,7 @@ def trio_query_marked(v_cam, sc, s1, s2, kv, pairs, nbr, nbr_chord, nbr_start, g
     return count
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _pairing_key(pat_star, pat_row, key):
     """The pairing {pat_star[a] -> pat_row[a]} as (star, row, star, row, star, row), stars ascending."""
     for a in range(3):

@@ -280,7 +280,7 @@ def shift_scores(chars, g, img, search, sets, planes):
     return best_shift(sets, nz, nw, planes, sets[nz])
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def best_shift(sets, nz, nw, planes, cand):
     """``(best_score, best_shift)`` of the shift sets ``sets[:nz, :nw]`` (see :func:`shift_scores`).
 
@@ -404,7 +404,7 @@ def shift_tables(img, search, tables):
             tables[2, lv, j, 1] = r3b
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def shift_tables_of(img, search, most, by_level_x, pattern2, tables):
     """:func:`shift_tables` with the shifts of a pair read from ``pattern2`` (see :func:`image_groups_at`),
     written only where they can be non-empty: layers r < ``most[L]`` (:func:`window_counts`) of rows
@@ -673,7 +673,7 @@ def reaches_budget(chars, g, v, most, tables, valid, at_most):
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def order_by_count(chars, count_start, by_count):
     """Guide rows ordered by their strings' character count, guide order within a count (counting sort).
 
@@ -748,7 +748,7 @@ def _nibble_sum(x):
     return np.int64((y * np.uint64(0x0101010101010101)) >> np.uint64(56))
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def level_set_masks(img, search, most, set_masks, most_masks):
     """Per reference star, the level bound and window sum of a string from its :class:`ScanOrder` summaries.
 
@@ -772,7 +772,7 @@ def level_set_masks(img, search, most, set_masks, most_masks):
         most_masks[r] = w
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def refined_roll(row, img_sector, img_level, img_phi, nz, shift, search):
     """Roll (``phi_catalog - phi_image``) of a match: the shift refined by the matched characters.
 

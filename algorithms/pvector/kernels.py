@@ -103,7 +103,7 @@ def plain(t):
     return tuple(plain(v) if hasattr(v, "_fields") else v for v in t)
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _precedes(a_key, a_x, a_y, b_key, b_x, b_y):
     """Lexicographic (key, x, y) comparison, the geometric tie-break used everywhere."""
     if a_key != b_key:
@@ -113,7 +113,7 @@ def _precedes(a_key, a_x, a_y, b_key, b_x, b_y):
     return a_y < b_y
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _ranks_before(x_px, y_px, a, ka, da, b, kb, db):
     """Neighbour ``a`` (rank key ``ka``, chord ``da``) ranks before ``b``: key, then chord, then position."""
     if ka != kb:
@@ -123,7 +123,7 @@ def _ranks_before(x_px, y_px, a, ka, da, b, kb, db):
     return _precedes(x_px[a], y_px[a], 0.0, x_px[b], y_px[b], 0.0)
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _sort_by(key, x_px, y_px):
     """Order of the stars by ``key``, ties broken on position (insertion sort; images are small)."""
     n = key.shape[0]
@@ -139,7 +139,7 @@ def _sort_by(key, x_px, y_px):
     return order
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def select_neighbours(v, mag, eligible, centre, c_rmin, c_r, brightest, x_px, y_px):
     """The two neighbours of star ``centre`` that form its triangle, or (-1, -1).
 
@@ -168,7 +168,7 @@ def select_neighbours(v, mag, eligible, centre, c_rmin, c_r, brightest, x_px, y_
     return best1, best2
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def select_top(v, mag, eligible, centre, c_rmin, c_r, brightest, x_px, y_px, out):
     """The ``len(out)`` neighbours of star ``centre`` that form its triangles, best first; returns how many.
 
@@ -202,7 +202,7 @@ def select_top(v, mag, eligible, centre, c_rmin, c_r, brightest, x_px, y_px, out
     return m
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def linear_range(values, lo, hi):
     """``[start, stop)`` of ascending ``values`` in ``[lo, hi]`` by a linear scan from the start: the
     search a sorted table without an index gets (``search='linear'``), O(m) per query."""
@@ -216,7 +216,7 @@ def linear_range(values, lo, hi):
     return start, stop
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def triangle_feature(s_len01, s_len02, s_len12, sorted_sides):
     """Feature vector of a triangle from its role-ordered sides (S-N1, S-N2, N1-N2)."""
     d = np.empty(3)
@@ -234,7 +234,7 @@ def triangle_feature(s_len01, s_len02, s_len12, sorted_sides):
     return d
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _argsort_stable(values):
     """Stable ascending order of ``values`` (insertion sort: images are small; the same order as
     ``np.argsort(kind="mergesort")`` without compiling a mergesort)."""
@@ -281,7 +281,7 @@ def _search_right(a, v):
     return lo
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def match_extras(oc, by_c0, c0_sorted, tri_obs, cat_rows, unit, eps, c_band, out_row):
     """Identify the non-triangle observed stars by their chords to the three triangle stars.
 
