@@ -3,8 +3,9 @@
 lpt_improved's kernel changed at stop 38 (its first pass without the SVD, ``assign_near``); its stages
 are in ``benchmarks/tools/lpispeed_profile.py``, and its copy here was removed.
 
-Its lpt stages copy the string scan as it was before the exact string tests (branch lptspeed2); the
-current scan's stages are ``lptspeed2_filters.py``.
+Its lpt copy (``lpt_kernel``) is the string scan as it was before the exact string tests (branch
+lptspeed2) and takes that kernel's arguments; since speed round 3 lpt's kernel takes the scan-ordered
+strings, so only grid is run here. lpt's current stages: ``lptspeed3_stages.py``.
 
     python benchmarks/tools/lptspeed_stages.py 40 5
 
@@ -276,7 +277,7 @@ def main(n, R):
         )
         tr = sim.generate(n)
         obs = [tr.observation(i, truth=False) for i in range(n)]
-        for name, kern in (("grid", grid_kernel), ("lpt", lpt_kernel)):
+        for name, kern in (("grid", grid_kernel),):   # lpt_kernel: the pre-lptspeed2 scan (see above)
             alg = get_algorithm(name)()
             db = alg.build(cat, cam)
             per = []
