@@ -452,43 +452,13 @@ def reaches_tables(chars, g, need, tables, planes):
     database character q matches w_q(s) <= 3 image characters, so score(s) <= sum over q of
     w_q(s), which is the number of :func:`shift_tables` sets (q's row and sector, layers 1..3)
     holding s. Those sums, every shift at once, are added as bit-sliced counters (``planes``,
-    int64 (bits, 2)) and compared with ``need``.
+    int64 (bits, 2)) and compared with ``need``. (:func:`reaches_tables_at` over every layer: the scan
+    calls that one with the layers each row can fill.)
     """
-    a = np.uint64(chars.start[g])
-    b = np.uint64(chars.start[g + 1])
-    n_bits = planes.shape[0]
-    for i in range(n_bits):
-        planes[i, 0] = 0
-        planes[i, 1] = 0
-    for q in range(a, b):
-        lv = np.uint64(chars.level[q])
-        j = np.uint64(chars.sector[q])
-        for r in range(np.uint64(3)):
-            xa = tables[r, lv, j, 0]
-            xb = tables[r, lv, j, 1]
-            if (xa | xb) == 0:
-                break
-            i = np.uint64(0)
-            while (xa | xb) != 0:
-                ca = planes[i, 0] & xa
-                cb = planes[i, 1] & xb
-                planes[i, 0] ^= xa
-                planes[i, 1] ^= xb
-                xa = ca
-                xb = cb
-                i += np.uint64(1)
-    gta = np.int64(0)
-    gtb = np.int64(0)
-    eqa = np.int64(-1)
-    eqb = np.int64(-1)
-    for i in range(n_bits - 1, -1, -1):
-        if (need >> i) & 1:
-            eqa &= planes[i, 0]
-            eqb &= planes[i, 1]
-        else:
-            gta |= eqa & planes[i, 0]
-            gtb |= eqb & planes[i, 1]
-    return (gta | eqa | gtb | eqb) != 0
+    most = np.empty(tables.shape[1], dtype=np.int64)   # every layer of every row (tests, tools)
+    for lv in range(most.shape[0]):
+        most[lv] = tables.shape[0]
+    return reaches_tables_at(chars, g, need, most, tables, planes)
 
 
 @njit(cache=True, inline="always")
@@ -542,38 +512,17 @@ def image_groups(chars, g, img, u, pattern, valid, xs, groups):
     sector_tol``). A shift reaching ``nz - u`` misses at most u image characters, so one of the
     ``u + 1`` groups the characters are dealt into (``groups``, int64 (u + 1, 2)) has all its
     characters matched under it: when every group's intersection is empty, the score stays below.
+    (:func:`image_groups_at`, the scan's form, on tables derived here.)
     """
-    nz = img.nz
     m = pattern.shape[0]
-    for t in range(nz):
-        xs[t, 0] = 0
-        xs[t, 1] = 0
-    for q in range(np.uint64(chars.start[g]), np.uint64(chars.start[g + 1])):
-        lv = np.int64(chars.level[q])
-        j = np.int64(chars.sector[q])
-        for p in range(np.uint64(img.level_start[lv]), np.uint64(img.level_start[lv + 1])):
-            t = img.by_level[p]
-            x = j - img.sector[t]
-            if x < 0:
-                x += m
-            xs[t, 0] |= pattern[x, 0]
-            xs[t, 1] |= pattern[x, 1]
-    for i in range(u + 1):
-        groups[i, 0] = valid[0]
-        groups[i, 1] = valid[1]
-    e = 0
-    for t in range(nz):
-        groups[e, 0] &= xs[t, 0]
-        groups[e, 1] &= xs[t, 1]
-        e += 1
-        if e > u:
-            e = 0
-    any_a = np.int64(0)
-    any_b = np.int64(0)
-    for i in range(u + 1):
-        any_a |= groups[i, 0]
-        any_b |= groups[i, 1]
-    return (any_a | any_b) != 0
+    pattern2 = np.empty((2 * m, 2), dtype=np.int64)   # the forms image_groups_at reads (tests, tools)
+    for y in range(2 * m):
+        pattern2[y, 0] = pattern[y % m, 0]
+        pattern2[y, 1] = pattern[y % m, 1]
+    by_level_x = np.empty(img.by_level.shape[0], dtype=np.int64)
+    for p in range(by_level_x.shape[0]):
+        by_level_x[p] = m - img.sector[img.by_level[p]] if p < img.level_start[img.level_start.shape[0] - 1] else 0
+    return image_groups_at(chars, g, img, by_level_x, u, pattern2, valid, xs, groups)
 
 
 @njit(cache=True, inline="always")
