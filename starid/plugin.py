@@ -158,6 +158,30 @@ class Algorithm(abc.ABC):
             return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
         return {k: v for k, v in vars(self).items() if not k.startswith("_")}
 
+    def kept(self, name: str, key: tuple, build):
+        """``build()``, made once for the objects in ``key`` (compared by identity: a database, a camera)
+        and kept on this algorithm until it is asked for ``name`` with other objects. For the bundles a
+        plugin's ``identify`` would otherwise rebuild in Python for every image of one run (tolerances,
+        kernel arguments). A cache, not a parameter: it is set on frozen dataclasses too and is never
+        pickled (a worker receives the algorithm without it). The key's objects stay referenced, so
+        another object cannot take their identity while the value is kept."""
+        cache = self.__dict__.get("_kept")
+        if cache is None:
+            cache = {}
+            object.__setattr__(self, "_kept", cache)
+        held = cache.get(name)
+        if held is not None and len(held[0]) == len(key) and all(a is b for a, b in zip(held[0], key, strict=True)):
+            return held[1]
+        value = build()
+        cache[name] = (key, value)
+        return value
+
+    def __getstate__(self):
+        state = super().__getstate__()
+        if isinstance(state, dict) and "_kept" in state:  # databases and cameras: not part of the algorithm
+            state = {k: v for k, v in state.items() if k != "_kept"}
+        return state
+
     @abc.abstractmethod
     def build(self, catalog: Catalog, camera: Camera) -> Database:
         """Build the database from the full catalog (choose the guide stars inside)."""

@@ -988,17 +988,7 @@ class PlanarAlgorithm(Algorithm):
         the database and the camera, all frozen, so the last ones are reused while both are the same
         objects (every image of a run): building them in Python cost a few microseconds per image.
         """
-        kept = self.__dict__.get("_kept_args")
-        if kept is not None and kept[0] is database and kept[1] is camera:
-            return kept[2]
-        args = self._make_kernel_args(database, camera)
-        object.__setattr__(self, "_kept_args", (database, camera, args))
-        return args
-
-    def __getstate__(self):
-        state = self.__dict__.copy()
-        state.pop("_kept_args", None)   # a database and camera: not part of the algorithm
-        return state
+        return self.kept("kernel_args", (database, camera), lambda: self._make_kernel_args(database, camera))
 
     def identify(self, database, observation: Observation) -> Identification:
         rows, attitude, ok, trace = self._run(database, observation)

@@ -460,9 +460,9 @@ class PlanarTriangle(Algorithm):
         (an identification's images share one; rebuilt for another camera or database object):
         ``(database, cam, tables, tol, magnitude cut, n_chosen or -1, stages by chosen-star count,
         index of the small stage or -1, camera frame, Finish rules, Finish rules of the small stage)``."""
-        held = self.__dict__.get("_held_prep")
-        if held is not None and held[0] is database and held[1] is cam:
-            return held
+        return self.kept("prep", (database, cam), lambda: self._prep(database, cam))
+
+    def _prep(self, database: PlanarTriangleDatabase, cam: Camera) -> tuple:
         tol = self._tolerance(cam)
         n_chosen = self._n_chosen()
         small_stage = -1
@@ -473,16 +473,9 @@ class PlanarTriangle(Algorithm):
         eps = tol.beta * math.sqrt(2.0) * tol.sigma_rad
         common = (eps, float(self.mag_margin), float(database.mag_limit), float(self.coverage_mag_margin),
                   float(self.max_missed_fraction))
-        held = (database, cam, database.tables(), tol, database.mag_limit + self.mag_margin,
+        return (database, cam, database.tables(), tol, database.mag_limit + self.mag_margin,
                 -1 if n_chosen is None else n_chosen, {}, small_stage, camera_frame(cam),
                 Finish(*common, bool(self.assign_all)), Finish(*common, True))
-        object.__setattr__(self, "_held_prep", held)  # a cache, not a parameter (frozen dataclass)
-        return held
-
-    def __getstate__(self):
-        state = self.__dict__.copy()
-        state.pop("_held_prep", None)  # a database and a camera: not part of the algorithm
-        return state
 
     def _run(self, database: PlanarTriangleDatabase, observation: Observation):
         """``(rows per observed star, chain as observed-star indices (L, 3), stage, counters)`` of one

@@ -424,21 +424,15 @@ class TriangleVoting(Algorithm):
         ``fin_cam`` (the camera's frame, the final step's rules, the magnitude cut and ``max_stars``), kept
         for the last camera (an identification's images share one; building the bundle was ~1.6 us of
         each image)."""
-        held = self.__dict__.get("_held_tolerances")
-        if held is None or held[0] is not cam:
-            tol = self._tolerance(cam)
-            rules = Finish(tol.eps_chord, float(self.mag_margin), float(self.mag_limit),
-                           float(self.coverage_mag_margin), float(self.max_missed_fraction), bool(self.assign_all))
-            fin_cam = (*camera_frame(cam), *rules, float(self.mag_limit + self.mag_margin),
-                       -1 if self.max_stars is None else int(self.max_stars))
-            held = (cam, tol, tuple(tol), fin_cam)
-            object.__setattr__(self, "_held_tolerances", held)  # a cache, not a parameter (frozen dataclass)
-        return held[1], held[2], held[3]
+        return self.kept("tolerances", (cam,), lambda: self._make_tolerances(cam))
 
-    def __getstate__(self):
-        state = self.__dict__.copy()
-        state.pop("_held_tolerances", None)  # a camera: not part of the algorithm
-        return state
+    def _make_tolerances(self, cam: Camera) -> tuple[Tolerance, tuple, tuple]:
+        tol = self._tolerance(cam)
+        rules = Finish(tol.eps_chord, float(self.mag_margin), float(self.mag_limit),
+                       float(self.coverage_mag_margin), float(self.max_missed_fraction), bool(self.assign_all))
+        fin_cam = (*camera_frame(cam), *rules, float(self.mag_limit + self.mag_margin),
+                   -1 if self.max_stars is None else int(self.max_stars))
+        return tol, tuple(tol), fin_cam
 
     def _tolerance(self, cam: Camera) -> Tolerance:
         sigma_chord = self.sigma_window_px / cam.f_px
