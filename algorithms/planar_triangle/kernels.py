@@ -23,7 +23,6 @@ from starid.kernels import (
     chord_rows,
     field_chord,
     kvector_query,
-    sort_rows,
     triple_product,
     verify_pairwise,
     wahba_rows,
@@ -1029,6 +1028,29 @@ def identify_rows(img_v, db, tol):
     return rows, chain, work
 
 
+@_inner
+def _key_before(a, b, k0, k1, k2):
+    """Star ``a`` sorts before star ``b`` by ``(k0, k1, k2)`` (the first key first; finite values)."""
+    if k0[a] != k0[b]:
+        return k0[a] < k0[b]
+    if k1[a] != k1[b]:
+        return k1[a] < k1[b]
+    return k2[a] < k2[b]
+
+
+@_inner
+def _stable_sort(items, n, k0, k1, k2):
+    """``items[:n]`` (star indices) sorted in place by ``(k0, k1, k2)``, ties kept in their order:
+    ``items[np.lexsort((k2[items], k1[items], k0[items]))]`` (insertion sort: a few dozen stars)."""
+    for i in range(1, n):
+        cur = items[i]
+        j = i - 1
+        while j >= 0 and _key_before(cur, items[j], k0, k1, k2):
+            items[j + 1] = items[j]
+            j -= 1
+        items[j + 1] = cur
+
+
 @njit(cache=True)
 def choose_stars(x_px, y_px, mag, mag_max, n_chosen, f_px, cx_px, cy_px):
     """The stars the triangles are built from, in one call (what ``PlanarTriangle._run`` did with
@@ -1040,29 +1062,35 @@ def choose_stars(x_px, y_px, mag, mag_max, n_chosen, f_px, cx_px, cy_px):
     their camera-frame unit vectors (pinhole, ``starid.kernels.backproject_px``) and ``rank`` the
     positions in ``order`` brightest first (ties by x, then y)."""
     n = x_px.shape[0]
-    usable = np.empty(n, dtype=np.int64)
-    k = np.int64(0)  # not a literal: sort_rows compiled once for it
+    xs = np.empty(n)  # writable copies: the sorts see one array type (observation arrays are read-only)
+    ys = np.empty(n)
+    ms = np.empty(n)
     for i in range(n):
-        if mag[i] <= mag_max:
+        xs[i] = x_px[i]
+        ys[i] = y_px[i]
+        ms[i] = mag[i]
+    usable = np.empty(n, dtype=np.int64)
+    k = np.int64(0)  # not a literal: _stable_sort compiled once
+    for i in range(n):
+        if ms[i] <= mag_max:
             usable[k] = i
             k += 1
-    # starid.kernels.sort_rows (stable, by key then x then y): the lexsorts' orders, finite keys
     if n_chosen >= 0 and k > n_chosen:
-        sort_rows(usable, k, mag, x_px, y_px)
+        _stable_sort(usable, k, ms, xs, ys)
         k = n_chosen
     order = np.empty(k, dtype=np.int64)
     for a in range(k):
         order[a] = usable[a]
-    sort_rows(order, k, x_px, y_px, mag)
+    _stable_sort(order, k, xs, ys, ms)
     xo = np.empty(k)
     yo = np.empty(k)
     mo = np.empty(k)
     for a in range(k):
-        xo[a] = x_px[order[a]]
-        yo[a] = y_px[order[a]]
-        mo[a] = mag[order[a]]
+        xo[a] = xs[order[a]]
+        yo[a] = ys[order[a]]
+        mo[a] = ms[order[a]]
     rank = np.arange(k)
-    sort_rows(rank, k, mo, xo, yo)
+    _stable_sort(rank, k, mo, xo, yo)
     return order, backproject_px(xo, yo, f_px, cx_px, cy_px), rank
 
 
