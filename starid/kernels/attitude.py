@@ -5,6 +5,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from .lapack import TRANS, det3_lapack, gemm3, svd3
+
 
 @njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _det3(M):
@@ -39,11 +41,15 @@ def wahba_rows(v, rows, unit):
         for b in range(3):
             big = max(big, abs(B[a, b]))
     if not det > 1e-12 * (big ** 3 + 1e-300):
-        U, _, Vt = np.linalg.svd(B)
-        d = np.linalg.det(U) * np.linalg.det(Vt)
+        # numba's U, _, Vt = np.linalg.svd(B); U[:, 2] *= det U det Vt; U @ Vt, as the same LAPACK / BLAS
+        # calls (starid.kernels.lapack: numba's generic linalg overloads cost ~2 CPU s to compile)
+        u, vt = svd3(B)                   # U = u.T, Vt = vt.T
+        d = det3_lapack(u) * det3_lapack(vt)
         for a in range(3):
-            U[a, 2] *= d
-        return U @ Vt
+            u[2, a] *= d
+        out = np.empty((3, 3))
+        gemm3(TRANS, TRANS, 3, vt, u, out)
+        return out
     X = B / abs(det) ** (1.0 / 3.0)
     for _ in range(50):
         d = _det3(X)

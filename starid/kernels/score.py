@@ -3,8 +3,9 @@
 Twins of :func:`starid.plugin.check_identification` (its array part),
 :func:`starid.scoring.attitude_from_ids` and :func:`starid.scoring.attitude_error_arcsec`, written
 to give the same numbers to the last bit: the same LAPACK SVD and determinants, the same matrix
-products (numba and numpy both call BLAS for ``@``), the same atan2 form of the angle, numpy's
-``arctan2`` (``tests/test_score_kernels.py`` compares them on random and degenerate inputs). They exist for
+products (both BLAS ``dgemm``; here called directly, :mod:`starid.kernels.lapack`, as numba's ``@`` calls
+it), the same atan2 form of the angle, numpy's ``arctan2`` (``tests/test_score_kernels.py`` compares them
+on random and degenerate inputs). They exist for
 speed alone: at ~50 us of numpy overhead per image they were a third of the harness's time
 around ``identify`` (docs/performance.md, "Stop 38").
 """
@@ -14,6 +15,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from .lapack import NOTRANS, TRANS, det3_lapack, dot3, gemm3, svd3
 from .order import sort_int_prefix
 
 #: :func:`check_ids` codes
@@ -93,19 +95,25 @@ def attitude_error_terms(hip, v_cam, catalog_hip, unit_icrs, attitude_true):
                 b[k, a] = v_cam[i, a]
                 r[k, a] = unit_icrs[row, a]
             k += 1
-    B = b.T @ r
-    U, _, Vt = np.linalg.svd(B)
-    d = np.linalg.det(U) * np.linalg.det(Vt)
+    # numba's b.T @ r, svd, det and @, made as the same BLAS / LAPACK calls (starid.kernels.lapack)
+    B = np.empty((3, 3))
+    gemm3(NOTRANS, TRANS, k, r, b, B)                 # B = b.T @ r
+    u, vt = svd3(B)                           # U = u.T, Vt = vt.T
+    d = det3_lapack(u) * det3_lapack(vt)
     D = np.zeros((3, 3))
     D[0, 0] = 1.0
     D[1, 1] = 1.0
     D[2, 2] = d
-    A = U @ D @ Vt
+    UD = np.empty((3, 3))
+    gemm3(NOTRANS, TRANS, 3, D, u, UD)                # U @ D
+    A = np.empty((3, 3))
+    gemm3(TRANS, NOTRANS, 3, vt, UD, A)               # (U @ D) @ Vt
     At = np.empty((3, 3))     # attitude_true.T, C-ordered (a loop: np.ascontiguousarray compiles its own impl)
     for a in range(3):
         for c in range(3):
             At[a, c] = attitude_true[c, a]
-    R = A @ At
+    R = np.empty((3, 3))
+    gemm3(NOTRANS, NOTRANS, 3, At, A, R)                # A @ At
     skew = np.empty(3)        # not np.array([...]): a reflected list and its constructor to compile
     skew[0] = R[2, 1] - R[1, 2]
     skew[1] = R[0, 2] - R[2, 0]
@@ -114,7 +122,7 @@ def attitude_error_terms(hip, v_cam, catalog_hip, unit_icrs, attitude_true):
     for a in range(3):
         trace += R[a, a]
     # numpy's norm of a vector is sqrt(x . x) (BLAS ddot); numba's np.linalg.norm is not, to the last bit
-    return 0.5 * np.sqrt(np.dot(skew, skew)), 0.5 * (trace - 1.0)
+    return 0.5 * np.sqrt(dot3(skew, skew)), 0.5 * (trace - 1.0)
 
 
 def attitude_error_rad(hip, v_cam, catalog_hip, unit_icrs, attitude_true) -> float:
