@@ -6,7 +6,10 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
+from llvmlite import ir
+from numba import njit, types
+from numba.core import cgutils
+from numba.extending import intrinsic
 
 from starid.kernels import (
     Frame,
@@ -16,6 +19,7 @@ from starid.kernels import (
     explained,
     guide_rows_f64,
     kvector_query,
+    kvector_slice,
     refine_explained,
     reproject_assign,
     verify_pairwise,
@@ -114,6 +118,44 @@ class Tolerances(NamedTuple):
     conflict_fails: bool
     stop_first: bool
     lone_triangles: bool
+
+
+@intrinsic
+def _prefetch(typingctx, arr, i):
+    """Ask for the cache line of ``arr[i]`` (1-D) without waiting for it (LLVM's ``prefetch``: read,
+    keep in every cache level). No load, no fault: ``i`` need not be valid, it is clamped by the caller
+    only to stay within the array. It changes no value, only when a later load finds its line."""
+    sig = types.void(arr, types.intp)
+
+    def codegen(context, builder, signature, args):
+        aryty = signature.args[0]
+        ary = context.make_array(aryty)(context, builder, args[0])
+        ptr = cgutils.get_item_pointer(context, builder, aryty, ary, [args[1]], wraparound=False)
+        _emit_prefetch(builder, ptr)
+        return context.get_dummy_value()
+    return sig, codegen
+
+
+@intrinsic
+def _prefetch2(typingctx, arr, i, j):
+    """:func:`_prefetch` of ``arr[i, j]`` (2-D)."""
+    sig = types.void(arr, types.intp, types.intp)
+
+    def codegen(context, builder, signature, args):
+        aryty = signature.args[0]
+        ary = context.make_array(aryty)(context, builder, args[0])
+        ptr = cgutils.get_item_pointer(context, builder, aryty, ary, [args[1], args[2]], wraparound=False)
+        _emit_prefetch(builder, ptr)
+        return context.get_dummy_value()
+    return sig, codegen
+
+
+def _emit_prefetch(builder, ptr):
+    i8p = ir.IntType(8).as_pointer()
+    i32 = ir.IntType(32)
+    fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(ir.VoidType(), [i8p, i32, i32, i32]),
+                                        "llvm.prefetch.p0i8")
+    builder.call(fn, [builder.bitcast(ptr, i8p), i32(0), i32(3), i32(1)])
 
 
 def plain(t):
@@ -234,6 +276,13 @@ def side_sigma(side, sigma):
 @njit(cache=True)
 def _window(t, i1, i2, i3, sides, kv, mean, w, sigma, scale, beta):
     """Sides (eq. 4), projection (eq. 5) and k-vector window [p - xi, p + xi] (eqs. 13-19) of a triangle."""
+    lo, hi = _window_bounds(t, i1, i2, i3, sides, mean, w, sigma, scale, beta)
+    return kvector_query(kv, lo, hi)
+
+
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+def _window_bounds(t, i1, i2, i3, sides, mean, w, sigma, scale, beta):
+    """Sides (eq. 4, written to ``sides``) and the projection window ``(p - xi, p + xi)`` (eqs. 5-14)."""
     a = scale * chord_rows(t, i1, t, i2)
     b = scale * chord_rows(t, i2, t, i3)
     c = scale * chord_rows(t, i1, t, i3)
@@ -242,7 +291,7 @@ def _window(t, i1, i2, i3, sides, kv, mean, w, sigma, scale, beta):
     sides[2] = c
     p = w[0] * (a - mean[0]) + w[1] * (b - mean[1]) + w[2] * (c - mean[2])
     xi = beta * projection_sigma(t, i1, i2, i3, a, b, c, w, sigma, scale)
-    return kvector_query(kv, p - xi, p + xi)
+    return p - xi, p + xi
 
 
 @njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
@@ -297,6 +346,14 @@ def _side_check(sides, start, stop, db_sides, sigma, scale, side_beta, out_cand)
 INDEX_MARGIN = 0.01
 
 
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+def _index_bins(a, ta, index):
+    """The bins of side a (:class:`SideIndex`) within ``a +- (ta + INDEX_MARGIN)``: ``(first, last)``."""
+    i0 = max(int(math.floor((float(a) - float(ta) - INDEX_MARGIN) / index.width)), 0)
+    i1 = min(int(math.floor((float(a) + float(ta) + INDEX_MARGIN) / index.width)), index.offsets.shape[1] - 1)
+    return i0, i1
+
+
 @njit(cache=True)
 def _side_check_indexed(sides, start, stop, index, sigma, scale, side_beta, out_cand):
     """The rows of :func:`_side_check` (the same rows, ascending), read through the :class:`SideIndex`: only
@@ -310,8 +367,7 @@ def _side_check_indexed(sides, start, stop, index, sigma, scale, side_beta, out_
     offsets = index.offsets
     rows = index.rows
     s = index.sides
-    i0 = max(int(math.floor((float(a) - float(ta) - INDEX_MARGIN) / index.width)), 0)
-    i1 = min(int(math.floor((float(a) + float(ta) + INDEX_MARGIN) / index.width)), offsets.shape[1] - 1)
+    i0, i1 = _index_bins(a, ta, index)
     j0 = start >> index.shift
     j1 = ((stop - 1) >> index.shift) + 1
     n_out = 0
@@ -341,6 +397,54 @@ def _side_check_indexed(sides, start, stop, index, sigma, scale, side_beta, out_
             for k in range(n_out):
                 out_cand[k] = found[order[k]]
     return n_out
+
+
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+def _prefetch_slice(k, m, q, n, lo, hi):
+    """Ask for the two k-vector entries :func:`starid.kernels.kvector_slice` reads for ``[lo, hi]``."""
+    if n == 0 or hi < lo:
+        return
+    jb = int(math.floor((lo - q) / m)) - 1
+    jt = int(math.ceil((hi - q) / m)) + 1
+    _prefetch(k, min(max(jb - 1, 0), n - 1))
+    _prefetch(k, min(max(jt - 1, 0), n - 1))
+
+
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+def _bins_of(a, index, sigma, scale, side_beta):
+    """:func:`_index_bins` of a triangle whose scaled side a is ``a`` (float64), as the check computes them."""
+    ta = np.float32(side_beta * scale * side_sigma(a / scale, sigma))
+    return _index_bins(np.float32(a), ta, index)
+
+
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+def _prefetch_offsets(a, start, stop, index, sigma, scale, side_beta):
+    """Ask for the offsets :func:`_side_check_indexed` reads for the window ``[start, stop)`` (stop > start)."""
+    i0, i1 = _bins_of(a, index, sigma, scale, side_beta)
+    j0 = start >> index.shift
+    j1 = ((stop - 1) >> index.shift) + 1
+    _prefetch2(index.offsets, j0, i0)
+    _prefetch2(index.offsets, j0, i1)
+    _prefetch2(index.offsets, j1, i0)
+    _prefetch2(index.offsets, j1, i1)
+
+
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+def _prefetch_entries(a, start, stop, index, sigma, scale, side_beta):
+    """Ask for the entries (rows and sides) :func:`_side_check_indexed` reads for ``[start, stop)``."""
+    i0, i1 = _bins_of(a, index, sigma, scale, side_beta)
+    j0 = start >> index.shift
+    j1 = ((stop - 1) >> index.shift) + 1
+    for i in range(i0, i1 + 1):
+        e0 = np.int64(index.offsets[j0, i])
+        e1 = np.int64(index.offsets[j1, i])
+        if e1 <= e0:
+            continue
+        _prefetch(index.rows, e0)
+        _prefetch(index.rows, e1 - 1)
+        for e in range(e0, e1, 5):      # 5 entries of 12 bytes: no 64-byte line skipped
+            _prefetch2(index.sides, e, 0)
+        _prefetch2(index.sides, e1 - 1, 2)
 
 
 @njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
@@ -469,7 +573,15 @@ def identify_kernel(x_px, y_px, mag, view_t, db_t, tol_t):
                 usable[j] = False
     cand = np.empty(1024, dtype=np.int64)
     n_img_slaves = max(n_slaves, tol.image_slaves)
-    slaves = np.empty(n_img_slaves, dtype=np.int64)
+    # every usable master's slaves (nearest first), then its triangles' windows
+    slave_of = np.empty((n, n_img_slaves), dtype=np.int64)
+    n_slave = np.zeros(n, dtype=np.int64)
+    cap_w = 1
+    for master in range(n):
+        if usable[master]:
+            n_slave[master] = nearest_slaves(dist[master], unit, usable, master, d_min, d_max, n_img_slaves,
+                                             slave_of[master])
+            cap_w += n_slave[master] * (n_slave[master] - 1)     # both vertex orders of every pair
     # match records: image triangle id, image stars (3), guide stars (3)
     m_cap = 256
     m_tri = np.empty(m_cap, dtype=np.int64)
@@ -477,54 +589,106 @@ def identify_kernel(x_px, y_px, mag, view_t, db_t, tol_t):
     m_cat = np.empty((m_cap, 3), dtype=np.int64)
     n_match = np.int64(0)   # not a literal: one signature of try_hypotheses
     sides = np.empty(3)
-    order_img = np.empty(3, dtype=np.int64)
-    for master in range(n):
-        if not usable[master]:
+    kv = db.kv
+    index = db.index
+    n_rows = kv.values.shape[0]
+    # the windows of a batch of masters: image stars (3), triple key, rows [start, stop); sides a, b, c, lo, hi
+    w_int = np.empty((cap_w, 6), dtype=np.int64)
+    w_flt = np.empty((cap_w, 5))
+    # The search runs in passes over all the windows of a batch (every master; one master with stop_first),
+    # each pass asking for the cache lines the next one reads (_prefetch): a window's reads form a chain
+    # (k-vector -> its values -> the index's offsets -> the entries -> the guide rows), which the passes turn
+    # into independent loads across windows. The same windows, rows, records and order as one pass.
+    first = 0
+    while first < n:
+        last = first + 1 if tol.stop_first else n
+        if not usable[first] and tol.stop_first:
+            first = last
             continue
-        k = nearest_slaves(dist[master], unit, usable, master, d_min, d_max, n_img_slaves, slaves)
-        for ia in range(k):
-            for ib in range(ia + 1, k):
-                s1 = slaves[ia]
-                s2 = slaves[ib]
-                d1 = dist[master, s1]
-                d2 = dist[master, s2]
-                if dist[s1, s2] <= 0.0:
-                    continue    # coincident slaves make no triangle
-                tol_swap = side_beta * scale * side_sigma(max(d1, d2) / scale, sigma)
-                n_orders = 2 if (tol.swap_slaves and abs(d2 - d1) <= tol_swap) else 1
-                for o in range(n_orders):
-                    order_img[0] = master
-                    order_img[1] = s1 if o == 0 else s2
-                    order_img[2] = s2 if o == 0 else s1
-                    start, stop = _window(unit, order_img[0], order_img[1], order_img[2],
-                                          sides, db.kv, db.mean, db.axis, sigma, scale, tol.beta)
-                    if stop - start >= cand.shape[0]:
-                        cand = np.empty(2 * (stop - start) + 1, dtype=np.int64)
-                    nc = _side_check_indexed(sides, start, stop, db.index, sigma, scale, side_beta, cand)
-                    work[0] += 1
-                    work[1] += stop - start
-                    work[2] += nc
-                    if nc > tol.max_candidates:
-                        continue    # an uninformative triangle (a window far wider than the catalog's spacing)
-                    if tol.unique_only and nc > 1:
-                        continue    # reading: only a triangle with one catalog match votes
-                    for c in range(nc):
-                        if n_match == m_cap:
-                            m_cap *= 2
-                            new_tri = np.empty(m_cap, dtype=np.int64)
-                            new_img = np.empty((m_cap, 3), dtype=np.int64)
-                            new_cat = np.empty((m_cap, 3), dtype=np.int64)
-                            for r in range(n_match):   # loops, not slice copies: no shape-error code to compile
-                                new_tri[r] = m_tri[r]
-                                for v in range(3):
-                                    new_img[r, v] = m_img[r, v]
-                                    new_cat[r, v] = m_cat[r, v]
-                            m_tri, m_img, m_cat = new_tri, new_img, new_cat
-                        m_tri[n_match] = _triple_key(master, s1, s2, n)
+        nw = 0
+        for master in range(first, last):    # the triangles, in the order of the slave lists
+            if not usable[master]:
+                continue
+            k = n_slave[master]
+            for ia in range(k):
+                for ib in range(ia + 1, k):
+                    s1 = slave_of[master, ia]
+                    s2 = slave_of[master, ib]
+                    d1 = dist[master, s1]
+                    d2 = dist[master, s2]
+                    if dist[s1, s2] <= 0.0:
+                        continue    # coincident slaves make no triangle
+                    tol_swap = side_beta * scale * side_sigma(max(d1, d2) / scale, sigma)
+                    n_orders = 2 if (tol.swap_slaves and abs(d2 - d1) <= tol_swap) else 1
+                    key = _triple_key(master, s1, s2, n)
+                    for o in range(n_orders):
+                        w_int[nw, 0] = master
+                        w_int[nw, 1] = s1 if o == 0 else s2
+                        w_int[nw, 2] = s2 if o == 0 else s1
+                        w_int[nw, 3] = key
+                        lo, hi = _window_bounds(unit, master, w_int[nw, 1], w_int[nw, 2], sides, db.mean, db.axis,
+                                                sigma, scale, tol.beta)
+                        w_flt[nw, 0] = sides[0]
+                        w_flt[nw, 1] = sides[1]
+                        w_flt[nw, 2] = sides[2]
+                        w_flt[nw, 3] = lo
+                        w_flt[nw, 4] = hi
+                        _prefetch_slice(kv.k, kv.m, kv.q, n_rows, lo, hi)
+                        nw += 1
+        for w in range(nw):     # the k-vector's slices (its lines asked for above); ask for their ends' values
+            start, stop = kvector_slice(kv.k, kv.m, kv.q, n_rows, w_flt[w, 3], w_flt[w, 4])
+            _prefetch(kv.values, min(max(start - 1, 0), n_rows - 1))
+            _prefetch(kv.values, min(start, n_rows - 1))
+            _prefetch(kv.values, min(max(stop - 1, 0), n_rows - 1))
+            _prefetch(kv.values, min(stop, n_rows - 1))
+        for w in range(nw):     # the exact windows; ask for the index's offsets they read
+            start, stop = kvector_query(kv, w_flt[w, 3], w_flt[w, 4])
+            w_int[w, 4] = start
+            w_int[w, 5] = stop
+            if stop > start:
+                _prefetch_offsets(w_flt[w, 0], start, stop, index, sigma, scale, side_beta)
+        for w in range(nw):     # ask for the entries the checks read
+            if w_int[w, 5] > w_int[w, 4]:
+                _prefetch_entries(w_flt[w, 0], w_int[w, 4], w_int[w, 5], index, sigma, scale, side_beta)
+        n_new = n_match
+        for w in range(nw):     # the three-side checks; the records hold the database row until the pass below
+            start = w_int[w, 4]
+            stop = w_int[w, 5]
+            sides[0] = w_flt[w, 0]
+            sides[1] = w_flt[w, 1]
+            sides[2] = w_flt[w, 2]
+            if stop - start >= cand.shape[0]:
+                cand = np.empty(2 * (stop - start) + 1, dtype=np.int64)
+            nc = _side_check_indexed(sides, start, stop, index, sigma, scale, side_beta, cand)
+            work[0] += 1
+            work[1] += stop - start
+            work[2] += nc
+            if nc > tol.max_candidates:
+                continue    # an uninformative triangle (a window far wider than the catalog's spacing)
+            if tol.unique_only and nc > 1:
+                continue    # reading: only a triangle with one catalog match votes
+            for c in range(nc):
+                if n_match == m_cap:
+                    m_cap *= 2
+                    new_tri = np.empty(m_cap, dtype=np.int64)
+                    new_img = np.empty((m_cap, 3), dtype=np.int64)
+                    new_cat = np.empty((m_cap, 3), dtype=np.int64)
+                    for r in range(n_match):   # loops, not slice copies: no shape-error code to compile
+                        new_tri[r] = m_tri[r]
                         for v in range(3):
-                            m_img[n_match, v] = order_img[v]
-                            m_cat[n_match, v] = db.ids[cand[c], v]
-                        n_match += 1
+                            new_img[r, v] = m_img[r, v]
+                            new_cat[r, v] = m_cat[r, v]
+                    m_tri, m_img, m_cat = new_tri, new_img, new_cat
+                m_tri[n_match] = w_int[w, 3]
+                for v in range(3):
+                    m_img[n_match, v] = w_int[w, v]
+                m_cat[n_match, 0] = cand[c]
+                _prefetch2(db.ids, cand[c], 0)
+                n_match += 1
+        for r in range(n_new, n_match):     # database rows -> their guide rows
+            row = m_cat[r, 0]
+            for v in range(3):
+                m_cat[r, v] = db.ids[row, v]
         if tol.stop_first and n_match > 0:
             # reading: the search stops at the first master after which validation identifies >= 3 stars
             validate(n, n_guide, n_match, m_tri, m_img, m_cat, tol, tol.min_shared, tol.conflict_fails, result)
@@ -535,6 +699,7 @@ def identify_kernel(x_px, y_px, mag, view_t, db_t, tol_t):
             if found >= 3:
                 break
             result[:] = -1
+        first = last
     if n_match > 0:
         support = validate(n, n_guide, n_match, m_tri, m_img, m_cat, tol, tol.min_shared, tol.conflict_fails, result)
         if tol.lone_triangles:
