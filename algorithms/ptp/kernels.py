@@ -19,7 +19,6 @@ from starid.kernels import (
     explained,
     guide_rows_f64,
     kvector_query,
-    kvector_slice,
     refine_explained,
     reproject_assign,
     verify_pairwise,
@@ -400,14 +399,47 @@ def _side_check_indexed(sides, start, stop, index, sigma, scale, side_beta, out_
 
 
 @njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
-def _prefetch_slice(k, m, q, n, lo, hi):
-    """Ask for the two k-vector entries :func:`starid.kernels.kvector_slice` reads for ``[lo, hi]``."""
-    if n == 0 or hi < lo:
-        return
-    jb = int(math.floor((lo - q) / m)) - 1
-    jt = int(math.ceil((hi - q) / m)) + 1
-    _prefetch(k, min(max(jb - 1, 0), n - 1))
-    _prefetch(k, min(max(jt - 1, 0), n - 1))
+def _slice_ends(m, q, lo, hi):
+    """The two k-vector positions :func:`starid.kernels.kvector_slice` reads for ``[lo, hi]`` (its
+    arithmetic): ``(jb, jt)``."""
+    return int(math.floor((lo - q) / m)) - 1, int(math.ceil((hi - q) / m)) + 1
+
+
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+def _slice_rows(k, n, jb, jt):
+    """:func:`starid.kernels.kvector_slice` from its two positions (:func:`_slice_ends`; ``n > 0``)."""
+    if jb < 1:
+        start = 0
+    elif jb > n:
+        start = n
+    else:
+        start = np.int64(k[jb - 1])
+    if jt < 1:
+        stop = 0
+    elif jt > n:
+        stop = n
+    else:
+        stop = np.int64(k[jt - 1])
+    if stop < start:
+        stop = start
+    return start, stop
+
+
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+def _trim(sorted_values, n, start, stop, lo, hi):
+    """The trimming of :func:`starid.kernels.kvector_range` (its loops, the same rows): the slice
+    ``[start, stop)`` of the ``n`` sorted values cut to those in ``[lo, hi]``."""
+    while start > 0 and sorted_values[start - 1] >= lo:
+        start -= 1
+    while start < n and sorted_values[start] < lo:
+        start += 1
+    while stop < n and sorted_values[stop] <= hi:
+        stop += 1
+    while stop > start and sorted_values[stop - 1] > hi:
+        stop -= 1
+    if stop < start:
+        stop = start
+    return start, stop
 
 
 @njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
@@ -418,21 +450,9 @@ def _bins_of(a, index, sigma, scale, side_beta):
 
 
 @njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
-def _prefetch_offsets(a, start, stop, index, sigma, scale, side_beta):
-    """Ask for the offsets :func:`_side_check_indexed` reads for the window ``[start, stop)`` (stop > start)."""
-    i0, i1 = _bins_of(a, index, sigma, scale, side_beta)
-    j0 = start >> index.shift
-    j1 = ((stop - 1) >> index.shift) + 1
-    _prefetch2(index.offsets, j0, i0)
-    _prefetch2(index.offsets, j0, i1)
-    _prefetch2(index.offsets, j1, i0)
-    _prefetch2(index.offsets, j1, i1)
-
-
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
-def _prefetch_entries(a, start, stop, index, sigma, scale, side_beta):
-    """Ask for the entries (rows and sides) :func:`_side_check_indexed` reads for ``[start, stop)``."""
-    i0, i1 = _bins_of(a, index, sigma, scale, side_beta)
+def _prefetch_entries(start, stop, i0, i1, index):
+    """Ask for the entries (rows and sides) :func:`_side_check_indexed` reads for ``[start, stop)``
+    (``stop > start``) in the bins ``i0 .. i1``."""
     j0 = start >> index.shift
     j1 = ((stop - 1) >> index.shift) + 1
     for i in range(i0, i1 + 1):
@@ -592,8 +612,9 @@ def identify_kernel(x_px, y_px, mag, view_t, db_t, tol_t):
     kv = db.kv
     index = db.index
     n_rows = kv.values.shape[0]
-    # the windows of a batch of masters: image stars (3), triple key, rows [start, stop); sides a, b, c, lo, hi
-    w_int = np.empty((cap_w, 6), dtype=np.int64)
+    # the windows of a batch of masters: image stars (3), triple key, rows [start, stop), bins of side a
+    # [i0, i1]; sides a, b, c, lo, hi
+    w_int = np.empty((cap_w, 8), dtype=np.int64)
     w_flt = np.empty((cap_w, 5))
     # The search runs in passes over all the windows of a batch (every master; one master with stop_first),
     # each pass asking for the cache lines the next one reads (_prefetch): a window's reads form a chain
@@ -633,23 +654,44 @@ def identify_kernel(x_px, y_px, mag, view_t, db_t, tol_t):
                         w_flt[nw, 2] = sides[2]
                         w_flt[nw, 3] = lo
                         w_flt[nw, 4] = hi
-                        _prefetch_slice(kv.k, kv.m, kv.q, n_rows, lo, hi)
+                        jb, jt = _slice_ends(kv.m, kv.q, lo, hi)
+                        w_int[nw, 4] = jb
+                        w_int[nw, 5] = jt
+                        _prefetch(kv.k, min(max(jb - 1, 0), n_rows - 1))
+                        _prefetch(kv.k, min(max(jt - 1, 0), n_rows - 1))
                         nw += 1
-        for w in range(nw):     # the k-vector's slices (its lines asked for above); ask for their ends' values
-            start, stop = kvector_slice(kv.k, kv.m, kv.q, n_rows, w_flt[w, 3], w_flt[w, 4])
+        for w in range(nw):     # the k-vector's slice (its entries asked for above); ask for its ends' values
+            start, stop = _slice_rows(kv.k, n_rows, w_int[w, 4], w_int[w, 5])
+            w_int[w, 4] = start
+            w_int[w, 5] = stop
             _prefetch(kv.values, min(max(start - 1, 0), n_rows - 1))
             _prefetch(kv.values, min(start, n_rows - 1))
             _prefetch(kv.values, min(max(stop - 1, 0), n_rows - 1))
             _prefetch(kv.values, min(stop, n_rows - 1))
-        for w in range(nw):     # the exact windows; ask for the index's offsets they read
-            start, stop = kvector_query(kv, w_flt[w, 3], w_flt[w, 4])
+        for w in range(nw):     # the exact windows (kvector_query's rows); ask for the index's offsets they read
+            lo = w_flt[w, 3]
+            hi = w_flt[w, 4]
+            if n_rows == 0 or hi < lo:
+                start, stop = 0, 0
+            else:
+                start, stop = _trim(kv.values, n_rows, w_int[w, 4], w_int[w, 5], lo, hi)
             w_int[w, 4] = start
             w_int[w, 5] = stop
             if stop > start:
-                _prefetch_offsets(w_flt[w, 0], start, stop, index, sigma, scale, side_beta)
+                i0, i1 = _bins_of(w_flt[w, 0], index, sigma, scale, side_beta)
+                w_int[w, 6] = i0
+                w_int[w, 7] = i1
+                j0 = start >> index.shift
+                j1 = ((stop - 1) >> index.shift) + 1
+                _prefetch2(index.offsets, j0, i0)
+                _prefetch2(index.offsets, j0, i1)
+                _prefetch2(index.offsets, j1, i0)
+                _prefetch2(index.offsets, j1, i1)
         for w in range(nw):     # ask for the entries the checks read
-            if w_int[w, 5] > w_int[w, 4]:
-                _prefetch_entries(w_flt[w, 0], w_int[w, 4], w_int[w, 5], index, sigma, scale, side_beta)
+            start = w_int[w, 4]
+            stop = w_int[w, 5]
+            if stop > start:
+                _prefetch_entries(start, stop, w_int[w, 6], w_int[w, 7], index)
         n_new = n_match
         for w in range(nw):     # the three-side checks; the records hold the database row until the pass below
             start = w_int[w, 4]
