@@ -84,6 +84,77 @@ class Tables(NamedTuple):
     index: SideIndex
 
 
+#: int64 slots at the start of :func:`pack_tables`' byte buffer: the sizes, then the segments' byte offsets.
+PACK_HEADER = 32
+
+
+def pack_tables(tables: Tables, index_dtype) -> tuple[np.ndarray, np.ndarray]:
+    """``tables`` as two arrays, ``(narrow, wide)``: numba unboxes every array of a call's arguments, and for
+    the 10 arrays and 5 numbers of a :class:`Tables` that costs some 15 us of every image when the call finds
+    Python's and numba's objects out of the cache (interleaved with other plugins). ``narrow`` (``index_dtype``)
+    holds the k-vector's k, the guide rows, the index's rows and offsets; ``wide`` (bytes) a header of
+    :data:`PACK_HEADER` int64, then the float32, float64 and int64 arrays and the numbers, each segment at a
+    multiple of 64 bytes. :func:`tables_of` rebuilds the :class:`Tables` (views, no copy) in the kernel."""
+    kv, index = tables.kv, tables.index
+    t, g, e = kv.values.shape[0], tables.guide_unit.shape[0], tables.extra_unit.shape[0]
+    nb1, nbins = index.offsets.shape
+    header = np.zeros(PACK_HEADER, dtype=np.int64)
+    header[:6] = t, g, e, nb1, nbins, index.shift
+    wide_parts = [np.ascontiguousarray(kv.values, dtype=np.float32),
+                  np.ascontiguousarray(tables.guide_unit, dtype=np.float32),
+                  np.ascontiguousarray(tables.extra_unit, dtype=np.float32),
+                  np.ascontiguousarray(index.sides, dtype=np.float32),
+                  np.ascontiguousarray(tables.mean, dtype=np.float64),
+                  np.ascontiguousarray(tables.axis, dtype=np.float64),
+                  np.ascontiguousarray(tables.guide_hip, dtype=np.int64),
+                  np.array([kv.m, kv.q, index.width], dtype=np.float64)]
+    pos = PACK_HEADER * 8
+    chunks = []
+    for slot, part in enumerate(wide_parts):
+        header[6 + slot] = pos
+        raw = part.reshape(-1).view(np.uint8)
+        pad = -raw.shape[0] % 64
+        chunks += [raw, np.zeros(pad, dtype=np.uint8)]
+        pos += raw.shape[0] + pad
+    narrow_parts = [kv.k, tables.ids, index.rows, index.offsets]
+    npos = 0
+    nchunks = []
+    per_line = 64 // np.dtype(index_dtype).itemsize
+    for slot, part in enumerate(narrow_parts):
+        header[14 + slot] = npos
+        flat = np.ascontiguousarray(part, dtype=index_dtype).reshape(-1)
+        if not np.array_equal(flat.astype(np.int64), np.asarray(part).reshape(-1).astype(np.int64)):
+            raise ValueError("pack_tables: a table does not fit index_dtype")
+        pad = -flat.shape[0] % per_line
+        nchunks += [flat, np.zeros(pad, dtype=index_dtype)]
+        npos += flat.shape[0] + pad
+    wide = np.concatenate([header.view(np.uint8)] + chunks)
+    narrow = np.concatenate(nchunks) if nchunks else np.zeros(0, dtype=index_dtype)
+    return np.ascontiguousarray(narrow, dtype=index_dtype), np.ascontiguousarray(wide)
+
+
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+def tables_of(narrow, wide):
+    """The :class:`Tables` of :func:`pack_tables`' two arrays: views into them, the same types as the
+    original arrays (``ids`` in the narrow dtype)."""
+    h = wide[0:PACK_HEADER * 8].view(np.int64)
+    t, g, e, nb1, nbins, shift = h[0], h[1], h[2], h[3], h[4], h[5]
+    values = wide[h[6]:h[6] + 4 * t].view(np.float32)
+    guide_unit = wide[h[7]:h[7] + 12 * g].view(np.float32).reshape((g, 3))
+    extra_unit = wide[h[8]:h[8] + 12 * e].view(np.float32).reshape((e, 3))
+    sides = wide[h[9]:h[9] + 12 * t].view(np.float32).reshape((t, 3))
+    mean = wide[h[10]:h[10] + 24].view(np.float64)
+    axis = wide[h[11]:h[11] + 24].view(np.float64)
+    guide_hip = wide[h[12]:h[12] + 8 * g].view(np.int64)
+    sc = wide[h[13]:h[13] + 24].view(np.float64)
+    k = narrow[h[14]:h[14] + t]
+    ids = narrow[h[15]:h[15] + 3 * t].reshape((t, 3))
+    rows = narrow[h[16]:h[16] + t]
+    offsets = narrow[h[17]:h[17] + nb1 * nbins].reshape((nb1, nbins))
+    return Tables(KVector(values, k, sc[0], sc[1]), ids, mean, axis, guide_unit, guide_hip, extra_unit,
+                  SideIndex(rows, sides, offsets, sc[2], shift))
+
+
 class Tolerances(NamedTuple):
     """The parameters identify uses (see :class:`~starid_algorithms.ptp.PTP`); chords scaled by ``scale``.
 
@@ -510,15 +581,18 @@ WORK_NAMES = ("searches", "window_triangles", "candidates", "hypotheses")
 
 
 @njit(cache=True)
-def identify_kernel(x_px, y_px, mag, view_t, db_t, tol_t):
-    """``(hip, unit, rows, work)``: the catalog id of each detection (-1 = none), the camera-frame unit
-    vectors of the detections that took part, their guide rows (-1 = none) and the work counters
+def identify_kernel(x_px, y_px, mag, view_t, narrow, wide, tol_t):
+    """One int64 array (:func:`unpack_out`: one array to box instead of four, some 8 us of a call that finds
+    Python's objects out of the cache): the catalog id of each detection (-1 = none), the work counters
     (:data:`WORK_NAMES`: k-vector searches, database triangles in their windows, candidates that passed
-    the three-side check, single-triangle hypotheses tried).
+    the three-side check, single-triangle hypotheses tried), the detections that took part (brightest
+    first; their camera-frame unit vectors are ``backproject_px`` of them) and their guide rows (-1 = none).
 
-    ``view_t``, ``db_t`` and ``tol_t`` are a :class:`View`, :class:`Tables` and :class:`Tolerances` as plain
-    tuples (nested the same way: :func:`plain`), rebuilt into the named tuples here: numba's dispatch types
-    a plain tuple in C but a named tuple in Python, about 4 us of every image for these three.
+    ``view_t`` and ``tol_t`` are a :class:`View` and :class:`Tolerances` as plain tuples (nested the same way:
+    :func:`plain`), rebuilt into the named tuples here: numba's dispatch types a plain tuple in C but a named
+    tuple in Python, about 4 us of every image. ``narrow`` and ``wide`` are the :class:`Tables` packed by
+    :func:`pack_tables` (two arrays to unbox instead of ten and five numbers: some 15 us of a call that finds
+    them out of the cache).
 
     The identification runs on the ``tol.max_stars`` brightest detections whose measured magnitude
     is at most ``tol.star_mag_max`` (the flight precaution: a star that cannot be in the database
@@ -556,20 +630,20 @@ def identify_kernel(x_px, y_px, mag, view_t, db_t, tol_t):
     each caller it is linked into, so a level less in the call tree is a cold compile about 2 s shorter.
     """
     view = View(Frame(*view_t[0]), view_t[1])
-    db = Tables(KVector(*db_t[0]), db_t[1], db_t[2], db_t[3], db_t[4], db_t[5], db_t[6], SideIndex(*db_t[7]))
+    db = tables_of(narrow, wide)
     tol = Tolerances(*tol_t)
     n = x_px.shape[0]
     hip = np.full(n, -1, dtype=np.int64)
     work = np.zeros(len(WORK_NAMES), dtype=np.int64)
     if n < 3:
-        return hip, np.empty((0, 3)), np.empty(0, dtype=np.int64), work
+        return _out(hip, work, work[:0], work[:0])
     sel = select_stars(x_px, y_px, mag, tol.max_stars)
     k = 0
     while k < sel.shape[0] and mag[sel[k]] <= tol.star_mag_max:
         k += 1
     sel = sel[:k]
     if k < 3:
-        return hip, np.empty((0, 3)), np.empty(0, dtype=np.int64), work
+        return _out(hip, work, sel[:0], work[:0])
     frame = view.frame
     unit = backproject_px(x_px[sel], y_px[sel], frame.f_px, frame.cx_px, frame.cy_px)
     f_px, cx_px, cy_px = frame.f_px, frame.cx_px, frame.cy_px
@@ -787,7 +861,33 @@ def identify_kernel(x_px, y_px, mag, view_t, db_t, tol_t):
     for s in range(n):
         if result[s] >= 0:
             hip[sel[s]] = db.guide_hip[result[s]]
-    return hip, unit, result, work
+    return _out(hip, work, sel, result)
+
+
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+def _out(hip, work, sel, rows):
+    """:func:`identify_kernel`'s one array: ``hip`` (n), ``work`` (:data:`WORK_NAMES`), k, the k detections
+    that took part (``sel``) and their guide rows (:func:`unpack_out`)."""
+    n = hip.shape[0]
+    k = sel.shape[0]
+    nw = work.shape[0]
+    out = np.empty(n + nw + 1 + 2 * k, dtype=np.int64)
+    for i in range(n):
+        out[i] = hip[i]
+    for i in range(nw):
+        out[n + i] = work[i]
+    out[n + nw] = k
+    for i in range(k):
+        out[n + nw + 1 + i] = sel[i]
+        out[n + nw + 1 + k + i] = rows[i]
+    return out
+
+
+def unpack_out(out: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``(hip, work, sel, rows)`` of :func:`identify_kernel`'s array for ``n`` detections (views)."""
+    nw = len(WORK_NAMES)
+    k = int(out[n + nw])
+    return out[:n], out[n:n + nw], out[n + nw + 1:n + nw + 1 + k], out[n + nw + 1 + k:n + nw + 1 + 2 * k]
 
 
 @njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only

@@ -46,7 +46,7 @@ def main(n: int, repeats: int, skies) -> None:
             a.identify(d, obs[0])
         stages = [(f"stage {lv}", lambda o, lv=lv: search_stage(o.x_px, o.y_px, o.mag, view, tables, tol_t, lv))
                   for lv in range(5)]
-        stages.append(("kernel", lambda o: K.identify_kernel(o.x_px, o.y_px, o.mag, view, tables, tol_t)))
+        stages.append(("kernel", lambda o: K.identify_kernel(o.x_px, o.y_px, o.mag, view, *db.packed, tol_t)))
         stages.append(("identify", lambda o: ptp.identify(db, o)))
         labels = ["setup", "+ windows", "+ three-side checks", "+ match records", "+ validation", "whole kernel",
                   "PTP.identify"]
