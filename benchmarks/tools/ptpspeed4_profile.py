@@ -35,6 +35,7 @@ def main(n: int, repeats: int, skies) -> None:
     ptp = get_algorithm("ptp")()
     db = ptp.build(cat, cam)
     tables, view = db.plain_tables, _view(cam)[1]
+    packed = db.packed if hasattr(K, "pack_tables") else (tables,)    # the base commit: plain tables
     tol_t = K.plain(ptp.tolerances(db))
     print(f"db_mb {db.nbytes / 1e6:.3f}, rows {db.ids.shape[0]}")
     for sky in skies:
@@ -46,7 +47,7 @@ def main(n: int, repeats: int, skies) -> None:
             a.identify(d, obs[0])
         stages = [(f"stage {lv}", lambda o, lv=lv: search_stage(o.x_px, o.y_px, o.mag, view, tables, tol_t, lv))
                   for lv in range(5)]
-        stages.append(("kernel", lambda o: K.identify_kernel(o.x_px, o.y_px, o.mag, view, *db.packed, tol_t)))
+        stages.append(("kernel", lambda o: K.identify_kernel(o.x_px, o.y_px, o.mag, view, *packed, tol_t)))
         stages.append(("identify", lambda o: ptp.identify(db, o)))
         labels = ["setup", "+ windows", "+ three-side checks", "+ match records", "+ validation", "whole kernel",
                   "PTP.identify"]
