@@ -18,6 +18,7 @@ from starid.kernels import (
     DeepSky,
     KVector,
     assign_all,
+    backproject_px,
     camera_frame,
     check_stars,
     deep_sky,
@@ -38,8 +39,10 @@ from .kernels import (
     build_triangles,
     identify_kernel,
     nearest_slaves,
+    pack_tables,
     plain,
     select_stars,
+    unpack_out,
 )
 
 #: Sides and D_ms are chords of unit vectors times this (section 2.1: 5 deg -> 872.8).
@@ -130,6 +133,13 @@ class PTPDatabase(Database):
         """:meth:`tables` as plain tuples (:func:`~starid_algorithms.ptp.kernels.plain`), as
         :func:`~starid_algorithms.ptp.kernels.identify_kernel` takes it."""
         return plain(self._tables)
+
+    @cached_property
+    def packed(self) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`tables` packed into two arrays (:func:`~starid_algorithms.ptp.kernels.pack_tables`), as
+        :func:`~starid_algorithms.ptp.kernels.identify_kernel` takes them: a copy of the same bytes (not
+        counted again in ``nbytes``)."""
+        return pack_tables(self._tables, self.kv.k.dtype)
 
     @cached_property
     def _tables(self) -> Tables:     # built once: saves about 1 us per image
@@ -523,10 +533,14 @@ class PTP(Algorithm):
         identified stars (Wahba) assigns every detection to the deep catalog star predicted within the
         tolerance (``starid.kernels.assign_all``, one-to-one only). Counters: :data:`WORK_NAMES`."""
         (view, view_t), (tol, tol_t) = _view(observation.camera), self._tolerances_pair(database)
-        hip, unit, rows, work = identify_kernel(observation.x_px, observation.y_px, observation.mag, view_t,
-                                                database.plain_tables, tol_t)
+        narrow, wide = database.packed
+        x_px, y_px = observation.x_px, observation.y_px
+        hip, work, sel, rows = unpack_out(identify_kernel(x_px, y_px, observation.mag, view_t, narrow, wide, tol_t),
+                                          x_px.shape[0])
         if tol.assign_all and database.deep.unit.shape[0] > 0 and np.count_nonzero(rows >= 0) >= 3:
-            attitude = wahba_rows(unit, rows, database.guide_unit)
+            frame = view.frame    # the kernel's unit vectors of the detections that took part, the same bits
+            unit = backproject_px(x_px[sel], y_px[sel], frame.f_px, frame.cx_px, frame.cy_px)
+            attitude = wahba_rows(unit, np.ascontiguousarray(rows), database.guide_unit)
             assign_all(attitude, observation.x_px, observation.y_px, view.frame, database.deep,
                        tol.side_beta * math.sqrt(2.0) * tol.sigma_px / view.frame.f_px, hip)
         return Identification(hip, counters=dict(zip(WORK_NAMES, work.tolist(), strict=True)))

@@ -6,7 +6,10 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
+from llvmlite import ir
+from numba import njit, types
+from numba.core import cgutils
+from numba.extending import intrinsic
 
 from starid.kernels import (
     Frame,
@@ -81,6 +84,77 @@ class Tables(NamedTuple):
     index: SideIndex
 
 
+#: int64 slots at the start of :func:`pack_tables`' byte buffer: the sizes, then the segments' byte offsets.
+PACK_HEADER = 32
+
+
+def pack_tables(tables: Tables, index_dtype) -> tuple[np.ndarray, np.ndarray]:
+    """``tables`` as two arrays, ``(narrow, wide)``: numba unboxes every array of a call's arguments, and for
+    the 10 arrays and 5 numbers of a :class:`Tables` that costs some 15 us of every image when the call finds
+    Python's and numba's objects out of the cache (interleaved with other plugins). ``narrow`` (``index_dtype``)
+    holds the k-vector's k, the guide rows, the index's rows and offsets; ``wide`` (bytes) a header of
+    :data:`PACK_HEADER` int64, then the float32, float64 and int64 arrays and the numbers, each segment at a
+    multiple of 64 bytes. :func:`tables_of` rebuilds the :class:`Tables` (views, no copy) in the kernel."""
+    kv, index = tables.kv, tables.index
+    t, g, e = kv.values.shape[0], tables.guide_unit.shape[0], tables.extra_unit.shape[0]
+    nb1, nbins = index.offsets.shape
+    header = np.zeros(PACK_HEADER, dtype=np.int64)
+    header[:6] = t, g, e, nb1, nbins, index.shift
+    wide_parts = [np.ascontiguousarray(kv.values, dtype=np.float32),
+                  np.ascontiguousarray(tables.guide_unit, dtype=np.float32),
+                  np.ascontiguousarray(tables.extra_unit, dtype=np.float32),
+                  np.ascontiguousarray(index.sides, dtype=np.float32),
+                  np.ascontiguousarray(tables.mean, dtype=np.float64),
+                  np.ascontiguousarray(tables.axis, dtype=np.float64),
+                  np.ascontiguousarray(tables.guide_hip, dtype=np.int64),
+                  np.array([kv.m, kv.q, index.width], dtype=np.float64)]
+    pos = PACK_HEADER * 8
+    chunks = []
+    for slot, part in enumerate(wide_parts):
+        header[6 + slot] = pos
+        raw = part.reshape(-1).view(np.uint8)
+        pad = -raw.shape[0] % 64
+        chunks += [raw, np.zeros(pad, dtype=np.uint8)]
+        pos += raw.shape[0] + pad
+    narrow_parts = [kv.k, tables.ids, index.rows, index.offsets]
+    npos = 0
+    nchunks = []
+    per_line = 64 // np.dtype(index_dtype).itemsize
+    for slot, part in enumerate(narrow_parts):
+        header[14 + slot] = npos
+        flat = np.ascontiguousarray(part, dtype=index_dtype).reshape(-1)
+        if not np.array_equal(flat.astype(np.int64), np.asarray(part).reshape(-1).astype(np.int64)):
+            raise ValueError("pack_tables: a table does not fit index_dtype")
+        pad = -flat.shape[0] % per_line
+        nchunks += [flat, np.zeros(pad, dtype=index_dtype)]
+        npos += flat.shape[0] + pad
+    wide = np.concatenate([header.view(np.uint8)] + chunks)
+    narrow = np.concatenate(nchunks) if nchunks else np.zeros(0, dtype=index_dtype)
+    return np.ascontiguousarray(narrow, dtype=index_dtype), np.ascontiguousarray(wide)
+
+
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+def tables_of(narrow, wide):
+    """The :class:`Tables` of :func:`pack_tables`' two arrays: views into them, the same types as the
+    original arrays (``ids`` in the narrow dtype)."""
+    h = wide[0:PACK_HEADER * 8].view(np.int64)
+    t, g, e, nb1, nbins, shift = h[0], h[1], h[2], h[3], h[4], h[5]
+    values = wide[h[6]:h[6] + 4 * t].view(np.float32)
+    guide_unit = wide[h[7]:h[7] + 12 * g].view(np.float32).reshape((g, 3))
+    extra_unit = wide[h[8]:h[8] + 12 * e].view(np.float32).reshape((e, 3))
+    sides = wide[h[9]:h[9] + 12 * t].view(np.float32).reshape((t, 3))
+    mean = wide[h[10]:h[10] + 24].view(np.float64)
+    axis = wide[h[11]:h[11] + 24].view(np.float64)
+    guide_hip = wide[h[12]:h[12] + 8 * g].view(np.int64)
+    sc = wide[h[13]:h[13] + 24].view(np.float64)
+    k = narrow[h[14]:h[14] + t]
+    ids = narrow[h[15]:h[15] + 3 * t].reshape((t, 3))
+    rows = narrow[h[16]:h[16] + t]
+    offsets = narrow[h[17]:h[17] + nb1 * nbins].reshape((nb1, nbins))
+    return Tables(KVector(values, k, sc[0], sc[1]), ids, mean, axis, guide_unit, guide_hip, extra_unit,
+                  SideIndex(rows, sides, offsets, sc[2], shift))
+
+
 class Tolerances(NamedTuple):
     """The parameters identify uses (see :class:`~starid_algorithms.ptp.PTP`); chords scaled by ``scale``.
 
@@ -114,6 +188,44 @@ class Tolerances(NamedTuple):
     conflict_fails: bool
     stop_first: bool
     lone_triangles: bool
+
+
+@intrinsic
+def _prefetch(typingctx, arr, i):
+    """Ask for the cache line of ``arr[i]`` (1-D) without waiting for it (LLVM's ``prefetch``: read,
+    keep in every cache level). No load, no fault: ``i`` need not be valid, it is clamped by the caller
+    only to stay within the array. It changes no value, only when a later load finds its line."""
+    sig = types.void(arr, types.intp)
+
+    def codegen(context, builder, signature, args):
+        aryty = signature.args[0]
+        ary = context.make_array(aryty)(context, builder, args[0])
+        ptr = cgutils.get_item_pointer(context, builder, aryty, ary, [args[1]], wraparound=False)
+        _emit_prefetch(builder, ptr)
+        return context.get_dummy_value()
+    return sig, codegen
+
+
+@intrinsic
+def _prefetch2(typingctx, arr, i, j):
+    """:func:`_prefetch` of ``arr[i, j]`` (2-D)."""
+    sig = types.void(arr, types.intp, types.intp)
+
+    def codegen(context, builder, signature, args):
+        aryty = signature.args[0]
+        ary = context.make_array(aryty)(context, builder, args[0])
+        ptr = cgutils.get_item_pointer(context, builder, aryty, ary, [args[1], args[2]], wraparound=False)
+        _emit_prefetch(builder, ptr)
+        return context.get_dummy_value()
+    return sig, codegen
+
+
+def _emit_prefetch(builder, ptr):
+    i8p = ir.IntType(8).as_pointer()
+    i32 = ir.IntType(32)
+    fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(ir.VoidType(), [i8p, i32, i32, i32]),
+                                        "llvm.prefetch.p0i8")
+    builder.call(fn, [builder.bitcast(ptr, i8p), i32(0), i32(3), i32(1)])
 
 
 def plain(t):
@@ -234,6 +346,13 @@ def side_sigma(side, sigma):
 @njit(cache=True)
 def _window(t, i1, i2, i3, sides, kv, mean, w, sigma, scale, beta):
     """Sides (eq. 4), projection (eq. 5) and k-vector window [p - xi, p + xi] (eqs. 13-19) of a triangle."""
+    lo, hi = _window_bounds(t, i1, i2, i3, sides, mean, w, sigma, scale, beta)
+    return kvector_query(kv, lo, hi)
+
+
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+def _window_bounds(t, i1, i2, i3, sides, mean, w, sigma, scale, beta):
+    """Sides (eq. 4, written to ``sides``) and the projection window ``(p - xi, p + xi)`` (eqs. 5-14)."""
     a = scale * chord_rows(t, i1, t, i2)
     b = scale * chord_rows(t, i2, t, i3)
     c = scale * chord_rows(t, i1, t, i3)
@@ -242,7 +361,7 @@ def _window(t, i1, i2, i3, sides, kv, mean, w, sigma, scale, beta):
     sides[2] = c
     p = w[0] * (a - mean[0]) + w[1] * (b - mean[1]) + w[2] * (c - mean[2])
     xi = beta * projection_sigma(t, i1, i2, i3, a, b, c, w, sigma, scale)
-    return kvector_query(kv, p - xi, p + xi)
+    return p - xi, p + xi
 
 
 @njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
@@ -297,6 +416,14 @@ def _side_check(sides, start, stop, db_sides, sigma, scale, side_beta, out_cand)
 INDEX_MARGIN = 0.01
 
 
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+def _index_bins(a, ta, index):
+    """The bins of side a (:class:`SideIndex`) within ``a +- (ta + INDEX_MARGIN)``: ``(first, last)``."""
+    i0 = max(int(math.floor((float(a) - float(ta) - INDEX_MARGIN) / index.width)), 0)
+    i1 = min(int(math.floor((float(a) + float(ta) + INDEX_MARGIN) / index.width)), index.offsets.shape[1] - 1)
+    return i0, i1
+
+
 @njit(cache=True)
 def _side_check_indexed(sides, start, stop, index, sigma, scale, side_beta, out_cand):
     """The rows of :func:`_side_check` (the same rows, ascending), read through the :class:`SideIndex`: only
@@ -310,8 +437,7 @@ def _side_check_indexed(sides, start, stop, index, sigma, scale, side_beta, out_
     offsets = index.offsets
     rows = index.rows
     s = index.sides
-    i0 = max(int(math.floor((float(a) - float(ta) - INDEX_MARGIN) / index.width)), 0)
-    i1 = min(int(math.floor((float(a) + float(ta) + INDEX_MARGIN) / index.width)), offsets.shape[1] - 1)
+    i0, i1 = _index_bins(a, ta, index)
     j0 = start >> index.shift
     j1 = ((stop - 1) >> index.shift) + 1
     n_out = 0
@@ -341,6 +467,75 @@ def _side_check_indexed(sides, start, stop, index, sigma, scale, side_beta, out_
             for k in range(n_out):
                 out_cand[k] = found[order[k]]
     return n_out
+
+
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+def _slice_ends(m, q, lo, hi):
+    """The two k-vector positions :func:`starid.kernels.kvector_slice` reads for ``[lo, hi]`` (its
+    arithmetic): ``(jb, jt)``."""
+    return int(math.floor((lo - q) / m)) - 1, int(math.ceil((hi - q) / m)) + 1
+
+
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+def _slice_rows(k, n, jb, jt):
+    """:func:`starid.kernels.kvector_slice` from its two positions (:func:`_slice_ends`; ``n > 0``)."""
+    if jb < 1:
+        start = 0
+    elif jb > n:
+        start = n
+    else:
+        start = np.int64(k[jb - 1])
+    if jt < 1:
+        stop = 0
+    elif jt > n:
+        stop = n
+    else:
+        stop = np.int64(k[jt - 1])
+    if stop < start:
+        stop = start
+    return start, stop
+
+
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+def _trim(sorted_values, n, start, stop, lo, hi):
+    """The trimming of :func:`starid.kernels.kvector_range` (its loops, the same rows): the slice
+    ``[start, stop)`` of the ``n`` sorted values cut to those in ``[lo, hi]``."""
+    while start > 0 and sorted_values[start - 1] >= lo:
+        start -= 1
+    while start < n and sorted_values[start] < lo:
+        start += 1
+    while stop < n and sorted_values[stop] <= hi:
+        stop += 1
+    while stop > start and sorted_values[stop - 1] > hi:
+        stop -= 1
+    if stop < start:
+        stop = start
+    return start, stop
+
+
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+def _bins_of(a, index, sigma, scale, side_beta):
+    """:func:`_index_bins` of a triangle whose scaled side a is ``a`` (float64), as the check computes them."""
+    ta = np.float32(side_beta * scale * side_sigma(a / scale, sigma))
+    return _index_bins(np.float32(a), ta, index)
+
+
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+def _prefetch_entries(start, stop, i0, i1, index):
+    """Ask for the entries (rows and sides) :func:`_side_check_indexed` reads for ``[start, stop)``
+    (``stop > start``) in the bins ``i0 .. i1``."""
+    j0 = start >> index.shift
+    j1 = ((stop - 1) >> index.shift) + 1
+    for i in range(i0, i1 + 1):
+        e0 = np.int64(index.offsets[j0, i])
+        e1 = np.int64(index.offsets[j1, i])
+        if e1 <= e0:
+            continue
+        _prefetch(index.rows, e0)
+        _prefetch(index.rows, e1 - 1)
+        for e in range(e0, e1, 5):      # 5 entries of 12 bytes: no 64-byte line skipped
+            _prefetch2(index.sides, e, 0)
+        _prefetch2(index.sides, e1 - 1, 2)
 
 
 @njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
@@ -386,15 +581,18 @@ WORK_NAMES = ("searches", "window_triangles", "candidates", "hypotheses")
 
 
 @njit(cache=True)
-def identify_kernel(x_px, y_px, mag, view_t, db_t, tol_t):
-    """``(hip, unit, rows, work)``: the catalog id of each detection (-1 = none), the camera-frame unit
-    vectors of the detections that took part, their guide rows (-1 = none) and the work counters
+def identify_kernel(x_px, y_px, mag, view_t, narrow, wide, tol_t):
+    """One int64 array (:func:`unpack_out`: one array to box instead of four, some 8 us of a call that finds
+    Python's objects out of the cache): the catalog id of each detection (-1 = none), the work counters
     (:data:`WORK_NAMES`: k-vector searches, database triangles in their windows, candidates that passed
-    the three-side check, single-triangle hypotheses tried).
+    the three-side check, single-triangle hypotheses tried), the detections that took part (brightest
+    first; their camera-frame unit vectors are ``backproject_px`` of them) and their guide rows (-1 = none).
 
-    ``view_t``, ``db_t`` and ``tol_t`` are a :class:`View`, :class:`Tables` and :class:`Tolerances` as plain
-    tuples (nested the same way: :func:`plain`), rebuilt into the named tuples here: numba's dispatch types
-    a plain tuple in C but a named tuple in Python, about 4 us of every image for these three.
+    ``view_t`` and ``tol_t`` are a :class:`View` and :class:`Tolerances` as plain tuples (nested the same way:
+    :func:`plain`), rebuilt into the named tuples here: numba's dispatch types a plain tuple in C but a named
+    tuple in Python, about 4 us of every image. ``narrow`` and ``wide`` are the :class:`Tables` packed by
+    :func:`pack_tables` (two arrays to unbox instead of ten and five numbers: some 15 us of a call that finds
+    them out of the cache).
 
     The identification runs on the ``tol.max_stars`` brightest detections whose measured magnitude
     is at most ``tol.star_mag_max`` (the flight precaution: a star that cannot be in the database
@@ -432,20 +630,20 @@ def identify_kernel(x_px, y_px, mag, view_t, db_t, tol_t):
     each caller it is linked into, so a level less in the call tree is a cold compile about 2 s shorter.
     """
     view = View(Frame(*view_t[0]), view_t[1])
-    db = Tables(KVector(*db_t[0]), db_t[1], db_t[2], db_t[3], db_t[4], db_t[5], db_t[6], SideIndex(*db_t[7]))
+    db = tables_of(narrow, wide)
     tol = Tolerances(*tol_t)
     n = x_px.shape[0]
     hip = np.full(n, -1, dtype=np.int64)
     work = np.zeros(len(WORK_NAMES), dtype=np.int64)
     if n < 3:
-        return hip, np.empty((0, 3)), np.empty(0, dtype=np.int64), work
+        return _out(hip, work, work[:0], work[:0])
     sel = select_stars(x_px, y_px, mag, tol.max_stars)
     k = 0
     while k < sel.shape[0] and mag[sel[k]] <= tol.star_mag_max:
         k += 1
     sel = sel[:k]
     if k < 3:
-        return hip, np.empty((0, 3)), np.empty(0, dtype=np.int64), work
+        return _out(hip, work, sel[:0], work[:0])
     frame = view.frame
     unit = backproject_px(x_px[sel], y_px[sel], frame.f_px, frame.cx_px, frame.cy_px)
     f_px, cx_px, cy_px = frame.f_px, frame.cx_px, frame.cy_px
@@ -469,7 +667,15 @@ def identify_kernel(x_px, y_px, mag, view_t, db_t, tol_t):
                 usable[j] = False
     cand = np.empty(1024, dtype=np.int64)
     n_img_slaves = max(n_slaves, tol.image_slaves)
-    slaves = np.empty(n_img_slaves, dtype=np.int64)
+    # every usable master's slaves (nearest first), then its triangles' windows
+    slave_of = np.empty((n, n_img_slaves), dtype=np.int64)
+    n_slave = np.zeros(n, dtype=np.int64)
+    cap_w = 1
+    for master in range(n):
+        if usable[master]:
+            n_slave[master] = nearest_slaves(dist[master], unit, usable, master, d_min, d_max, n_img_slaves,
+                                             slave_of[master])
+            cap_w += n_slave[master] * (n_slave[master] - 1)     # both vertex orders of every pair
     # match records: image triangle id, image stars (3), guide stars (3)
     m_cap = 256
     m_tri = np.empty(m_cap, dtype=np.int64)
@@ -477,54 +683,128 @@ def identify_kernel(x_px, y_px, mag, view_t, db_t, tol_t):
     m_cat = np.empty((m_cap, 3), dtype=np.int64)
     n_match = np.int64(0)   # not a literal: one signature of try_hypotheses
     sides = np.empty(3)
-    order_img = np.empty(3, dtype=np.int64)
-    for master in range(n):
-        if not usable[master]:
+    kv = db.kv
+    index = db.index
+    n_rows = kv.values.shape[0]
+    # the windows of a batch of masters: image stars (3), triple key, rows [start, stop), bins of side a
+    # [i0, i1]; sides a, b, c, lo, hi
+    w_int = np.empty((cap_w, 8), dtype=np.int64)
+    w_flt = np.empty((cap_w, 5))
+    # The search runs in passes over all the windows of a batch (every master; one master with stop_first),
+    # each pass asking for the cache lines the next one reads (_prefetch): a window's reads form a chain
+    # (k-vector -> its values -> the index's offsets -> the entries -> the guide rows), which the passes turn
+    # into independent loads across windows. The same windows, rows, records and order as one pass.
+    first = 0
+    while first < n:
+        last = first + 1 if tol.stop_first else n
+        if not usable[first] and tol.stop_first:
+            first = last
             continue
-        k = nearest_slaves(dist[master], unit, usable, master, d_min, d_max, n_img_slaves, slaves)
-        for ia in range(k):
-            for ib in range(ia + 1, k):
-                s1 = slaves[ia]
-                s2 = slaves[ib]
-                d1 = dist[master, s1]
-                d2 = dist[master, s2]
-                if dist[s1, s2] <= 0.0:
-                    continue    # coincident slaves make no triangle
-                tol_swap = side_beta * scale * side_sigma(max(d1, d2) / scale, sigma)
-                n_orders = 2 if (tol.swap_slaves and abs(d2 - d1) <= tol_swap) else 1
-                for o in range(n_orders):
-                    order_img[0] = master
-                    order_img[1] = s1 if o == 0 else s2
-                    order_img[2] = s2 if o == 0 else s1
-                    start, stop = _window(unit, order_img[0], order_img[1], order_img[2],
-                                          sides, db.kv, db.mean, db.axis, sigma, scale, tol.beta)
-                    if stop - start >= cand.shape[0]:
-                        cand = np.empty(2 * (stop - start) + 1, dtype=np.int64)
-                    nc = _side_check_indexed(sides, start, stop, db.index, sigma, scale, side_beta, cand)
-                    work[0] += 1
-                    work[1] += stop - start
-                    work[2] += nc
-                    if nc > tol.max_candidates:
-                        continue    # an uninformative triangle (a window far wider than the catalog's spacing)
-                    if tol.unique_only and nc > 1:
-                        continue    # reading: only a triangle with one catalog match votes
-                    for c in range(nc):
-                        if n_match == m_cap:
-                            m_cap *= 2
-                            new_tri = np.empty(m_cap, dtype=np.int64)
-                            new_img = np.empty((m_cap, 3), dtype=np.int64)
-                            new_cat = np.empty((m_cap, 3), dtype=np.int64)
-                            for r in range(n_match):   # loops, not slice copies: no shape-error code to compile
-                                new_tri[r] = m_tri[r]
-                                for v in range(3):
-                                    new_img[r, v] = m_img[r, v]
-                                    new_cat[r, v] = m_cat[r, v]
-                            m_tri, m_img, m_cat = new_tri, new_img, new_cat
-                        m_tri[n_match] = _triple_key(master, s1, s2, n)
+        nw = 0
+        for master in range(first, last):    # the triangles, in the order of the slave lists
+            if not usable[master]:
+                continue
+            k = n_slave[master]
+            for ia in range(k):
+                for ib in range(ia + 1, k):
+                    s1 = slave_of[master, ia]
+                    s2 = slave_of[master, ib]
+                    d1 = dist[master, s1]
+                    d2 = dist[master, s2]
+                    if dist[s1, s2] <= 0.0:
+                        continue    # coincident slaves make no triangle
+                    tol_swap = side_beta * scale * side_sigma(max(d1, d2) / scale, sigma)
+                    n_orders = 2 if (tol.swap_slaves and abs(d2 - d1) <= tol_swap) else 1
+                    key = _triple_key(master, s1, s2, n)
+                    for o in range(n_orders):
+                        w_int[nw, 0] = master
+                        w_int[nw, 1] = s1 if o == 0 else s2
+                        w_int[nw, 2] = s2 if o == 0 else s1
+                        w_int[nw, 3] = key
+                        lo, hi = _window_bounds(unit, master, w_int[nw, 1], w_int[nw, 2], sides, db.mean, db.axis,
+                                                sigma, scale, tol.beta)
+                        w_flt[nw, 0] = sides[0]
+                        w_flt[nw, 1] = sides[1]
+                        w_flt[nw, 2] = sides[2]
+                        w_flt[nw, 3] = lo
+                        w_flt[nw, 4] = hi
+                        jb, jt = _slice_ends(kv.m, kv.q, lo, hi)
+                        w_int[nw, 4] = jb
+                        w_int[nw, 5] = jt
+                        _prefetch(kv.k, min(max(jb - 1, 0), n_rows - 1))
+                        _prefetch(kv.k, min(max(jt - 1, 0), n_rows - 1))
+                        nw += 1
+        for w in range(nw):     # the k-vector's slice (its entries asked for above); ask for its ends' values
+            start, stop = _slice_rows(kv.k, n_rows, w_int[w, 4], w_int[w, 5])
+            w_int[w, 4] = start
+            w_int[w, 5] = stop
+            _prefetch(kv.values, min(max(start - 1, 0), n_rows - 1))
+            _prefetch(kv.values, min(start, n_rows - 1))
+            _prefetch(kv.values, min(max(stop - 1, 0), n_rows - 1))
+            _prefetch(kv.values, min(stop, n_rows - 1))
+        for w in range(nw):     # the exact windows (kvector_query's rows); ask for the index's offsets they read
+            lo = w_flt[w, 3]
+            hi = w_flt[w, 4]
+            if n_rows == 0 or hi < lo:
+                start, stop = 0, 0
+            else:
+                start, stop = _trim(kv.values, n_rows, w_int[w, 4], w_int[w, 5], lo, hi)
+            w_int[w, 4] = start
+            w_int[w, 5] = stop
+            if stop > start:
+                i0, i1 = _bins_of(w_flt[w, 0], index, sigma, scale, side_beta)
+                w_int[w, 6] = i0
+                w_int[w, 7] = i1
+                j0 = start >> index.shift
+                j1 = ((stop - 1) >> index.shift) + 1
+                _prefetch2(index.offsets, j0, i0)
+                _prefetch2(index.offsets, j0, i1)
+                _prefetch2(index.offsets, j1, i0)
+                _prefetch2(index.offsets, j1, i1)
+        for w in range(nw):     # ask for the entries the checks read
+            start = w_int[w, 4]
+            stop = w_int[w, 5]
+            if stop > start:
+                _prefetch_entries(start, stop, w_int[w, 6], w_int[w, 7], index)
+        n_new = n_match
+        for w in range(nw):     # the three-side checks; the records hold the database row until the pass below
+            start = w_int[w, 4]
+            stop = w_int[w, 5]
+            sides[0] = w_flt[w, 0]
+            sides[1] = w_flt[w, 1]
+            sides[2] = w_flt[w, 2]
+            if stop - start >= cand.shape[0]:
+                cand = np.empty(2 * (stop - start) + 1, dtype=np.int64)
+            nc = _side_check_indexed(sides, start, stop, index, sigma, scale, side_beta, cand)
+            work[0] += 1
+            work[1] += stop - start
+            work[2] += nc
+            if nc > tol.max_candidates:
+                continue    # an uninformative triangle (a window far wider than the catalog's spacing)
+            if tol.unique_only and nc > 1:
+                continue    # reading: only a triangle with one catalog match votes
+            for c in range(nc):
+                if n_match == m_cap:
+                    m_cap *= 2
+                    new_tri = np.empty(m_cap, dtype=np.int64)
+                    new_img = np.empty((m_cap, 3), dtype=np.int64)
+                    new_cat = np.empty((m_cap, 3), dtype=np.int64)
+                    for r in range(n_match):   # loops, not slice copies: no shape-error code to compile
+                        new_tri[r] = m_tri[r]
                         for v in range(3):
-                            m_img[n_match, v] = order_img[v]
-                            m_cat[n_match, v] = db.ids[cand[c], v]
-                        n_match += 1
+                            new_img[r, v] = m_img[r, v]
+                            new_cat[r, v] = m_cat[r, v]
+                    m_tri, m_img, m_cat = new_tri, new_img, new_cat
+                m_tri[n_match] = w_int[w, 3]
+                for v in range(3):
+                    m_img[n_match, v] = w_int[w, v]
+                m_cat[n_match, 0] = cand[c]
+                _prefetch2(db.ids, cand[c], 0)
+                n_match += 1
+        for r in range(n_new, n_match):     # database rows -> their guide rows
+            row = m_cat[r, 0]
+            for v in range(3):
+                m_cat[r, v] = db.ids[row, v]
         if tol.stop_first and n_match > 0:
             # reading: the search stops at the first master after which validation identifies >= 3 stars
             validate(n, n_guide, n_match, m_tri, m_img, m_cat, tol, tol.min_shared, tol.conflict_fails, result)
@@ -535,6 +815,7 @@ def identify_kernel(x_px, y_px, mag, view_t, db_t, tol_t):
             if found >= 3:
                 break
             result[:] = -1
+        first = last
     if n_match > 0:
         support = validate(n, n_guide, n_match, m_tri, m_img, m_cat, tol, tol.min_shared, tol.conflict_fails, result)
         if tol.lone_triangles:
@@ -580,7 +861,33 @@ def identify_kernel(x_px, y_px, mag, view_t, db_t, tol_t):
     for s in range(n):
         if result[s] >= 0:
             hip[sel[s]] = db.guide_hip[result[s]]
-    return hip, unit, result, work
+    return _out(hip, work, sel, result)
+
+
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+def _out(hip, work, sel, rows):
+    """:func:`identify_kernel`'s one array: ``hip`` (n), ``work`` (:data:`WORK_NAMES`), k, the k detections
+    that took part (``sel``) and their guide rows (:func:`unpack_out`)."""
+    n = hip.shape[0]
+    k = sel.shape[0]
+    nw = work.shape[0]
+    out = np.empty(n + nw + 1 + 2 * k, dtype=np.int64)
+    for i in range(n):
+        out[i] = hip[i]
+    for i in range(nw):
+        out[n + i] = work[i]
+    out[n + nw] = k
+    for i in range(k):
+        out[n + nw + 1 + i] = sel[i]
+        out[n + nw + 1 + k + i] = rows[i]
+    return out
+
+
+def unpack_out(out: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``(hip, work, sel, rows)`` of :func:`identify_kernel`'s array for ``n`` detections (views)."""
+    nw = len(WORK_NAMES)
+    k = int(out[n + nw])
+    return out[:n], out[n:n + nw], out[n + nw + 1:n + nw + 1 + k], out[n + nw + 1 + k:n + nw + 1 + 2 * k]
 
 
 @njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
