@@ -29,28 +29,57 @@ _inner = njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)
 WORK_COUNTERS = ("triangles", "records", "matches", "side_matches")
 
 
-#: columns of ``Tables.features`` (the database's ``features``): base and height (chord units), and
-#: the record's main-to-n_i and main-to-n_j chords rounded to float32 (:func:`record_sides`). One row of
-#: 16 bytes per record, so the vote's scan of a few records reads one or two cache lines, not four streams.
-FEAT_BASE, FEAT_HEIGHT, FEAT_SIDE_I, FEAT_SIDE_J = 0, 1, 2, 3
+#: columns of ``Tables.features`` (the database's ``features``): the records' base and height (float32, chord
+#: units), the exact values the windows test. ``vote`` reads them only for a record within the rounding of
+#: the compact record (``records``) from a window's edge.
+FEAT_BASE, FEAT_HEIGHT = 0, 1
+#: columns of ``Tables.records``: base, height and the main-to-n_i and main-to-n_j chords (``record_sides``)
+#: rounded to multiples of ``rec_scale_b``, ``rec_scale_h``, ``rec_scale_s`` (uint16): one 8-byte row per record,
+#: the only bytes ``vote``'s scan of a grid column reads for most records (issue #25: in the benchmark's
+#: interleaved timing the records come from memory the other plugins evicted)
+REC_BASE, REC_HEIGHT, REC_SIDE_I, REC_SIDE_J = 0, 1, 2, 3
+#: largest value of a compact record's column (of 65,535), so rounding never overflows
+REC_MAX = 65000
+#: margin of a compact value, in units of its scale: it is within half a unit of the float32 value it rounds
+#: (the rest covers the float64 arithmetic of dividing and rounding)
+REC_MARGIN = 0.501
 
 
-def feature_columns() -> tuple[property, property, property, property]:
-    """Read-only properties ``base, height, side_i, side_j``: the columns of ``features``, for a class
-    holding it (``Tables`` and the database), as the four arrays they once were."""
+def feature_columns(unit_name: str) -> tuple[property, property, property, property]:
+    """Read-only properties ``base, height, side_i, side_j`` for a class holding ``features``, ``main``,
+    ``n_i``, ``n_j`` and the guide unit vectors as ``unit_name``: the columns of ``features`` and the records'
+    float32 side chords (``record_sides``, recomputed on access: the kernels read their compact copies)."""
     def column(k: int, doc: str) -> property:
         return property(lambda self: self.features[:, k], doc=doc)
+
+    def side(k: int, doc: str) -> property:
+        return property(lambda self: record_sides(getattr(self, unit_name), self.main, self.n_i, self.n_j)[k],
+                        doc=doc)
     return (column(FEAT_BASE, "float32 (m,) the records' base (chord units)"),
             column(FEAT_HEIGHT, "float32 (m,) the records' height (chord units)"),
-            column(FEAT_SIDE_I, "float32 (m,) per record the chord main-to-``n_i`` (``record_sides``)"),
-            column(FEAT_SIDE_J, "float32 (m,) per record the chord main-to-``n_j`` (``record_sides``)"))
+            side(0, "float32 (m,) per record the chord main-to-``n_i`` (``record_sides``)"),
+            side(1, "float32 (m,) per record the chord main-to-``n_j`` (``record_sides``)"))
+
+
+def compact_records(base32, height32, side_i32, side_j32):
+    """``(records, scale_b, scale_h, scale_s)``: the four float32 columns as uint16 multiples of a scale per
+    column (sides share one), ``round(value / scale)``; each within ``REC_MARGIN * scale`` of its value."""
+    def scale(*cols):
+        top = max((float(c.max()) for c in cols if c.size), default=0.0)
+        return top / REC_MAX if top > 0.0 else 1.0
+
+    s_b, s_h, s_s = scale(base32), scale(height32), scale(side_i32, side_j32)
+    records = np.empty((base32.size, 4), dtype=np.uint16)
+    for k, (col, s) in enumerate(((base32, s_b), (height32, s_h), (side_i32, s_s), (side_j32, s_s))):
+        records[:, k] = np.rint(col.astype(np.float64) / s)
+    return records, s_b, s_h, s_s
 
 
 class Tables(NamedTuple):
     """The database as the kernels read it (see ``TriangleVotingDatabase``)."""
 
-    features: np.ndarray  # float32 (m, 4) per record base, height, side_i, side_j (see below); records sorted by
-    # 2-D grid cell, then height
+    features: np.ndarray  # float32 (m, 2) per record base, height (exact); records sorted by 2-D grid cell, then height
+    records: np.ndarray  # uint16 (m, 4) per record base, height, side_i, side_j rounded (see REC_BASE)
     main: np.ndarray  # uint16 (m,) guide rows: main star (apex) and its two neighbours
     n_i: np.ndarray
     n_j: np.ndarray
@@ -66,8 +95,11 @@ class Tables(NamedTuple):
     dmin_chord: float  # D_min as a chord
     unit64: np.ndarray  # float64 (n, 3) ``unit`` as float64 (the same values), the attitude solver's input: one
     # compilation of ``wahba_rows`` (float64, shared with the final step) instead of two (issue #25)
+    rec_scale_b: float  # the scales of ``records``' columns (chord units per unit)
+    rec_scale_h: float
+    rec_scale_s: float
 
-    base, height, side_i, side_j = feature_columns()
+    base, height, side_i, side_j = feature_columns("unit")
 
 
 class Tolerance(NamedTuple):
@@ -292,14 +324,21 @@ def vote(v_cam, db, tol, votes, mark):
     (3, n_guide); the votes are now tallied in a small table of the pairs touched, which stays in
     the first-level cache); kept so that callers and tools keep their signature, left as they are.
     """
-    (features, main_db, ni_db, nj_db, cell_start, n_cells_b, n_cells_h, cell_b, cell_h, cat_unit, _, _,
-     pr_chord, dmin_chord, _) = db
+    (features, records, main_db, ni_db, nj_db, cell_start, n_cells_b, n_cells_h, cell_b, cell_h, cat_unit, _, _,
+     pr_chord, dmin_chord, _, s_b, s_h, s_s) = db
     sigma_chord, k_sigma, _, _, n_nbr, side_check, vote_neighbours, v_min, n_cand, _, _, _ = tol
     n = v_cam.shape[0]
     eps_b = k_sigma * math.sqrt(2.0) * sigma_chord
     lo_d = dmin_chord - eps_b
     hi_d = pr_chord + eps_b
-    eps_side = eps_b + SIDE_ROUNDING
+    # the compact records' values are within m_b, m_h, m_s of the float32 ones (the sides also within
+    # SIDE_ROUNDING of the exact chords): a test passed or failed by more than that margin is decided
+    m_b = REC_MARGIN * s_b
+    m_h = REC_MARGIN * s_h
+    m_s = REC_MARGIN * s_s + SIDE_ROUNDING
+    eps_b_in = eps_b - m_b
+    eps_b_out = eps_b + m_b
+    eps_near = eps_b + m_s  # a record whose exact sides match (best error <= eps_b) is within this
     no_side_check = not side_check
     # the votes of (observed star o, catalog row c): tally[e] for the e-th pair touched, (touched_o[e],
     # touched_c[e]); a small open-addressing table (slot: index e + 1, 0 = empty) finds e from the key
@@ -372,26 +411,34 @@ def vote(v_cam, db, tol, votes, mark):
                             grown[q, col] = hyp[q, col]
                     hyp = grown
                 # first pass, branch-free over every record of the cells (about half of them are in both
-                # windows: a branch on that is mispredicted half the time): the records in both windows
-                # whose float32 sides (sequential reads) come within their rounding of a side match,
-                # listed; the second pass checks those sides exactly, from the guide vectors, and votes
+                # windows: a branch on that is mispredicted half the time), reading only the 8-byte compact
+                # records: the records in both windows (decided from the compact values, or for the rare
+                # record within their rounding of a window's edge from the float32 ones) whose compact sides
+                # come within their rounding of a side match, listed; the second pass checks those sides
+                # and votes
                 n_near = 0
+                eps_h_in = eps_h - m_h
+                eps_h_out = eps_h + m_h
                 for cb in range(cb0, cb1 + 1):
                     # the cells (cb, ch0..ch1) are contiguous in the record order and sorted by height
-                    # (cell, then height): the records below and above the height window are skipped
+                    # (cell, then height): the records surely below and above the height window are skipped
                     r0 = cell_start[cb * n_cells_h + ch0]
                     r1 = cell_start[cb * n_cells_h + ch1 + 1]
-                    while r0 < r1 and features[r0, FEAT_HEIGHT] - height < -eps_h:
+                    while r0 < r1 and records[r0, REC_HEIGHT] * s_h - height < -eps_h_out:
                         r0 += 1
-                    while r1 > r0 and features[r1 - 1, FEAT_HEIGHT] - height > eps_h:
+                    while r1 > r0 and records[r1 - 1, REC_HEIGHT] * s_h - height > eps_h_out:
                         r1 -= 1
                     for r in range(r0, r1):
-                        in_windows = ((abs(features[r, FEAT_BASE] - base) <= eps_b)
-                                      & (abs(features[r, FEAT_HEIGHT] - height) <= eps_h))
-                        s_i = float(features[r, FEAT_SIDE_I])
-                        s_j = float(features[r, FEAT_SIDE_J])
+                        e_b = abs(records[r, REC_BASE] * s_b - base)
+                        e_h = abs(records[r, REC_HEIGHT] * s_h - height)
+                        in_windows = (e_b <= eps_b_in) & (e_h <= eps_h_in)
+                        if (e_b <= eps_b_out) & (e_h <= eps_h_out) & (not in_windows):  # rare: at an edge
+                            in_windows = ((abs(features[r, FEAT_BASE] - base) <= eps_b)
+                                          & (abs(features[r, FEAT_HEIGHT] - height) <= eps_h))
+                        s_i = records[r, REC_SIDE_I] * s_s
+                        s_j = records[r, REC_SIDE_J] * s_s
                         near = min(max(abs(d_ia - s_i), abs(d_ib - s_j)),
-                                   max(abs(d_ia - s_j), abs(d_ib - s_i))) <= eps_side
+                                   max(abs(d_ia - s_j), abs(d_ib - s_i))) <= eps_near
                         n_matches += in_windows
                         listed[n_near] = r
                         n_near += in_windows & (near | no_side_check)
@@ -402,15 +449,15 @@ def vote(v_cam, db, tol, votes, mark):
                     c = main_db[r]
                     ci = ni_db[r]
                     cj = nj_db[r]
-                    # the side check from the float32 sides when their rounding cannot change its outcome (both
+                    # the side check from the compact sides when their rounding cannot change its outcome (both
                     # errors and their difference farther than the rounding from the window and from a tie);
                     # else exactly, from the guide vectors (three random reads: cold in the interleaved timing)
-                    s_i = float(features[r, FEAT_SIDE_I])
-                    s_j = float(features[r, FEAT_SIDE_J])
+                    s_i = records[r, REC_SIDE_I] * s_s
+                    s_j = records[r, REC_SIDE_J] * s_s
                     e_straight = max(abs(d_ia - s_i), abs(d_ib - s_j))
                     e_swapped = max(abs(d_ia - s_j), abs(d_ib - s_i))
                     e_best = min(e_straight, e_swapped)
-                    if abs(e_straight - e_swapped) > 2.0 * SIDE_ROUNDING and abs(e_best - eps_b) > SIDE_ROUNDING:
+                    if abs(e_straight - e_swapped) > 2.0 * m_s and abs(e_best - eps_b) > m_s:
                         if e_swapped < e_straight:
                             ci, cj = cj, ci
                         sides_match = e_best < eps_b
