@@ -33,6 +33,7 @@ from .kernels import (
     identify_image,
     new_scratch,
     record_sides,
+    row_columns,
     sky_cell_of,
     vote,
 )
@@ -66,9 +67,9 @@ class TriangleVotingDatabase(Database):
     #: uint16 (m, 4) per record base, height, side_i, side_j rounded: one 8-byte row per record, what ``vote``'s
     #: scan reads (the former 16-byte float32 rows: twice the cache lines, from memory other plugins evicted)
     records: np.ndarray
-    main: np.ndarray
-    n_i: np.ndarray
-    n_j: np.ndarray
+    #: uint16 (m, 3) per record the guide rows of its main star and two neighbours (the properties ``main``,
+    #: ``n_i``, ``n_j``): one row, so a record the vote lists costs one cache line, not three
+    rows: np.ndarray
     cell_start: np.ndarray
     unit_icrs: np.ndarray
     hip: np.ndarray
@@ -87,6 +88,7 @@ class TriangleVotingDatabase(Database):
     rec_scale_s: float
 
     base, height, side_i, side_j = feature_columns("unit_icrs")   # the columns of ``features``, the sides
+    main, n_i, n_j = row_columns()   # the columns of ``rows``
 
     def tables(self) -> Tables:
         """The arrays the kernels read, as one bundle (made once per database, see ``_tables``)."""
@@ -109,7 +111,7 @@ def _kernel_tables(db: TriangleVotingDatabase) -> tuple:
 def _bundles(db: TriangleVotingDatabase) -> tuple[Tables, tuple]:
     held = _TABLES.get(db)
     if held is None:
-        tables = Tables(db.features, db.records, db.main, db.n_i, db.n_j, db.cell_start, db.n_cells_b,
+        tables = Tables(db.features, db.records, db.rows, db.cell_start, db.n_cells_b,
                         db.n_cells_h, db.cell_b, db.cell_h, db.unit_icrs, db.sky_start, db.sky_axis,
                         db.pattern_radius_chord, db.d_min_chord, _unit_f64(db), db.rec_scale_b, db.rec_scale_h,
                         db.rec_scale_s)
@@ -379,7 +381,7 @@ class TriangleVoting(Algorithm):
         records, s_b, s_h, s_s = compact_records(features[:, FEAT_BASE], features[:, FEAT_HEIGHT], side_i, side_j)
         return TriangleVotingDatabase(
             features=features, records=records, rec_scale_b=s_b, rec_scale_h=s_h, rec_scale_s=s_s,
-            main=main_rows, n_i=i_rows, n_j=j_rows,
+            rows=np.ascontiguousarray(np.c_[main_rows, i_rows, j_rows]),
             cell_start=cell_start, unit_icrs=unit32, hip=hip.astype(np.int64),
             sky_start=sky_start, sky_axis=SKY_AXIS,
             cell_b=cell, cell_h=cell, n_cells_b=n_cells_b, n_cells_h=n_cells_h,

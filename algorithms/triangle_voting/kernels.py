@@ -38,11 +38,24 @@ FEAT_BASE, FEAT_HEIGHT = 0, 1
 #: the only bytes ``vote``'s scan of a grid column reads for most records (issue #25: in the benchmark's
 #: interleaved timing the records come from memory the other plugins evicted)
 REC_BASE, REC_HEIGHT, REC_SIDE_I, REC_SIDE_J = 0, 1, 2, 3
+#: columns of ``Tables.rows`` (uint16 guide rows of a record: main star, the apex, and its two neighbours): one
+#: 6-byte row, so a listed record costs one cache line, not one per column
+ROW_MAIN, ROW_I, ROW_J = 0, 1, 2
 #: largest value of a compact record's column (of 65,535), so rounding never overflows
 REC_MAX = 65000
 #: margin of a compact value, in units of its scale: it is within half a unit of the float32 value it rounds
 #: (the rest covers the float64 arithmetic of dividing and rounding)
 REC_MARGIN = 0.501
+
+
+def row_columns() -> tuple[property, property, property]:
+    """Read-only properties ``main, n_i, n_j``: the columns of ``rows``, for a class holding it (``Tables``
+    and the database), as the three arrays they once were."""
+    def column(k: int, doc: str) -> property:
+        return property(lambda self: self.rows[:, k], doc=doc)
+    return (column(ROW_MAIN, "uint16 (m,) the records' main star (guide row)"),
+            column(ROW_I, "uint16 (m,) the records' first neighbour (guide row)"),
+            column(ROW_J, "uint16 (m,) the records' second neighbour (guide row)"))
 
 
 def feature_columns(unit_name: str) -> tuple[property, property, property, property]:
@@ -53,8 +66,8 @@ def feature_columns(unit_name: str) -> tuple[property, property, property, prope
         return property(lambda self: self.features[:, k], doc=doc)
 
     def side(k: int, doc: str) -> property:
-        return property(lambda self: record_sides(getattr(self, unit_name), self.main, self.n_i, self.n_j)[k],
-                        doc=doc)
+        return property(lambda self: record_sides(getattr(self, unit_name), *(np.ascontiguousarray(c) for c in (
+            self.main, self.n_i, self.n_j)))[k], doc=doc)
     return (column(FEAT_BASE, "float32 (m,) the records' base (chord units)"),
             column(FEAT_HEIGHT, "float32 (m,) the records' height (chord units)"),
             side(0, "float32 (m,) per record the chord main-to-``n_i`` (``record_sides``)"),
@@ -80,9 +93,7 @@ class Tables(NamedTuple):
 
     features: np.ndarray  # float32 (m, 2) per record base, height (exact); records sorted by 2-D grid cell, then height
     records: np.ndarray  # uint16 (m, 4) per record base, height, side_i, side_j rounded (see REC_BASE)
-    main: np.ndarray  # uint16 (m,) guide rows: main star (apex) and its two neighbours
-    n_i: np.ndarray
-    n_j: np.ndarray
+    rows: np.ndarray  # uint16 (m, 3) guide rows: main star (apex) and its two neighbours (see ROW_MAIN)
     cell_start: np.ndarray  # int32 records of grid cell c: cell_start[c]:cell_start[c + 1]
     n_cells_b: int
     n_cells_h: int
@@ -100,6 +111,7 @@ class Tables(NamedTuple):
     rec_scale_s: float
 
     base, height, side_i, side_j = feature_columns("unit")
+    main, n_i, n_j = row_columns()
 
 
 class Tolerance(NamedTuple):
@@ -243,7 +255,23 @@ def _grow(arr):
 
 
 @_inner
-def _by_base(listed, n, cell_start, cb0, cb1, ch0, ch1, n_cells_h, features, main_db):
+def _key_after(q, r, records, features, rows_db):
+    """Whether record ``q`` comes after record ``r`` by (base, height, main star), the float32 values: from the
+    compact records where they differ (rounding keeps the order: a larger compact value means a larger value),
+    so the float32 rows (another cache line) are read only on a tie of the compact ones."""
+    if records[q, REC_BASE] != records[r, REC_BASE]:
+        return records[q, REC_BASE] > records[r, REC_BASE]
+    if features[q, FEAT_BASE] != features[r, FEAT_BASE]:
+        return features[q, FEAT_BASE] > features[r, FEAT_BASE]
+    if records[q, REC_HEIGHT] != records[r, REC_HEIGHT]:
+        return records[q, REC_HEIGHT] > records[r, REC_HEIGHT]
+    if features[q, FEAT_HEIGHT] != features[r, FEAT_HEIGHT]:
+        return features[q, FEAT_HEIGHT] > features[r, FEAT_HEIGHT]
+    return rows_db[q, ROW_MAIN] > rows_db[r, ROW_MAIN]
+
+
+@_inner
+def _by_base(listed, n, cell_start, cb0, cb1, ch0, ch1, n_cells_h, records, features, rows_db):
     """Reorder the records ``listed[:n]`` (ascending, from the cells ``cb0..cb1`` x ``ch0..ch1``) by cell,
     then base, height and main star (stable): the order of the records before they were sorted by height
     within a cell, so the side-matched triangles (the fallback's hypotheses, whose ties go by position)
@@ -265,12 +293,7 @@ def _by_base(listed, n, cell_start, cb0, cb1, ch0, ch1, n_cells_h, features, mai
         while p > 0:
             q = listed[p - 1]
             cq = cell[p - 1]
-            bq = features[q, FEAT_BASE]
-            br = features[r, FEAT_BASE]
-            hq = features[q, FEAT_HEIGHT]
-            hr = features[r, FEAT_HEIGHT]
-            after = cq > c or (cq == c and (bq > br or (bq == br and (
-                hq > hr or (hq == hr and main_db[q] > main_db[r])))))
+            after = cq > c or (cq == c and _key_after(q, r, records, features, rows_db))
             if not after:
                 break
             listed[p] = q
@@ -324,7 +347,7 @@ def vote(v_cam, db, tol, votes, mark):
     (3, n_guide); the votes are now tallied in a small table of the pairs touched, which stays in
     the first-level cache); kept so that callers and tools keep their signature, left as they are.
     """
-    (features, records, main_db, ni_db, nj_db, cell_start, n_cells_b, n_cells_h, cell_b, cell_h, cat_unit, _, _,
+    (features, records, rows_db, cell_start, n_cells_b, n_cells_h, cell_b, cell_h, cat_unit, _, _,
      pr_chord, dmin_chord, _, s_b, s_h, s_s) = db
     sigma_chord, k_sigma, _, _, n_nbr, side_check, vote_neighbours, v_min, n_cand, _, _, _ = tol
     n = v_cam.shape[0]
@@ -443,12 +466,13 @@ def vote(v_cam, db, tol, votes, mark):
                         listed[n_near] = r
                         n_near += in_windows & (near | no_side_check)
                 if n_near > 1:  # the records in the order of (cell, base, height, main), as they were stored
-                    _by_base(listed, np.int64(n_near), cell_start, cb0, cb1, ch0, ch1, n_cells_h, features, main_db)
+                    _by_base(listed, np.int64(n_near), cell_start, cb0, cb1, ch0, ch1, n_cells_h, records, features,
+                             rows_db)
                 for e in range(n_near):
                     r = listed[e]
-                    c = main_db[r]
-                    ci = ni_db[r]
-                    cj = nj_db[r]
+                    c = rows_db[r, ROW_MAIN]
+                    ci = rows_db[r, ROW_I]
+                    cj = rows_db[r, ROW_J]
                     # the side check from the compact sides when their rounding cannot change its outcome (both
                     # errors and their difference farther than the rounding from the window and from a tie);
                     # else exactly, from the guide vectors (three random reads: cold in the interleaved timing)
