@@ -20,7 +20,7 @@ from starid.observation import Observation
 from starid.params import check_flag, check_number, check_whole, param
 from starid.plugin import Algorithm, Database, Explanation, Identification
 
-from .final import band_order
+from .final import band_order, deep_index
 from .kernels import (
     FEAT_BASE,
     FEAT_HEIGHT,
@@ -83,6 +83,9 @@ class TriangleVotingDatabase(Database):
     d_min_chord: float
     deep: DeepSky
     deep_v_mag: np.ndarray
+    #: int32 (DEEP_BANDS * KEY_BUCKETS + 1,) first row of ``deep`` of each (z band, right-ascension bucket) cell
+    #: (``final.deep_index``): where the final step's cone searches start
+    deep_index: np.ndarray
     rec_scale_b: float  # the scales of ``records``: base, height, sides (chord units per unit)
     rec_scale_h: float
     rec_scale_s: float
@@ -145,7 +148,7 @@ def _finish_tables(db: TriangleVotingDatabase) -> tuple:
     the deep sky's unit vectors and HIP and its V, as one plain tuple made once per database."""
     held = _FINISH_TABLES.get(db)
     if held is None:
-        held = _FINISH_TABLES[db] = (_unit_f64(db), db.hip, db.deep.unit, db.deep.hip, db.deep_v_mag)
+        held = _FINISH_TABLES[db] = (_unit_f64(db), db.hip, db.deep.unit, db.deep_index, db.deep.hip, db.deep_v_mag)
     return held
 
 
@@ -386,7 +389,7 @@ class TriangleVoting(Algorithm):
             sky_start=sky_start, sky_axis=SKY_AXIS,
             cell_b=cell, cell_h=cell, n_cells_b=n_cells_b, n_cells_h=n_cells_h,
             pattern_radius_chord=pr_chord, d_min_chord=dmin_chord,
-            deep=deep, deep_v_mag=deep_v_mag(catalog, deep))
+            deep=deep, deep_v_mag=deep_v_mag(catalog, deep), deep_index=deep_index(deep.unit))
 
     # -- identification ---------------------------------------------------------------------
     def identify(self, database: TriangleVotingDatabase, observation: Observation) -> Identification:

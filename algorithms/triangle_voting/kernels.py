@@ -13,7 +13,10 @@ import math
 from typing import NamedTuple
 
 import numpy as np
+from llvmlite import ir
 from numba import njit
+from numba.core import cgutils, types
+from numba.extending import intrinsic
 from starid_algorithms.planar_triangle.kernels import argsort_desc
 
 from starid.kernels import backproject_px, chord_rows, verify_pairwise, wahba_rows
@@ -22,6 +25,27 @@ from .final import finish_cone
 
 #: kernels only other kernels call: no Python or C entry point to compile (issue #25, compile time)
 _inner = njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)
+
+@intrinsic
+def _prefetch(typingctx, arr, idx):
+    """Ask the CPU to bring row ``idx`` of array ``arr`` into its caches (x86 ``prefetcht0``; no fault, no
+    result): :func:`vote` names the grid cells and records of the next image triangles while it scans one."""
+    if not isinstance(arr, types.Array) or not isinstance(idx, types.Integer):
+        return None
+
+    def codegen(context, builder, sig, args):
+        ary = context.make_array(sig.args[0])(context, builder, args[0])
+        stride = cgutils.unpack_tuple(builder, ary.strides, sig.args[0].ndim)[0]
+        row = context.cast(builder, args[1], sig.args[1], types.intp)
+        addr = builder.add(builder.ptrtoint(ary.data, stride.type), builder.mul(row, stride))
+        ptr = ir.IntType(8).as_pointer()
+        i32 = ir.IntType(32)
+        fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(ir.VoidType(), [ptr, i32, i32, i32]),
+                                           "llvm.prefetch")
+        builder.call(fn, [builder.inttoptr(addr, ptr), i32(0), i32(3), i32(1)])  # read, keep, data cache
+        return context.get_dummy_value()
+    return types.void(arr, idx), codegen
+
 
 #: names of the per-image work counters :func:`identify_rows` returns (``Identification.counters``):
 #: image triangles looked up in the grid, catalog records in the grid cells scanned, records within
@@ -385,6 +409,13 @@ def vote(v_cam, db, tol, votes, mark):
     n_hyp = 0
     n_records = 0
     n_matches = 0
+    # the image triangles first (in the order they vote: main star, then neighbour pairs), so that the scan
+    # of one can ask the CPU for the grid cells and records of the next ones (``_prefetch``): in the
+    # benchmark's interleaved timing these come from memory the other plugins evicted
+    cap = n * (n_nbr * (n_nbr - 1) // 2)
+    g_obs = np.empty((cap, 3), dtype=np.int64)  # i, a, b
+    g_cells = np.empty((cap, 4), dtype=np.int64)  # cb0, cb1, ch0, ch1
+    g_feat = np.empty((cap, 5))  # base, height, eps_h, d_ia, d_ib
     for i in range(n):
         k = 0
         for j in range(n):
@@ -404,135 +435,166 @@ def vote(v_cam, db, tol, votes, mark):
                 if base < lo_d:
                     continue
                 eps_h = k_sigma * sigma_chord * math.sqrt(1.0 + (1.0 - t) * (1.0 - t) + t * t)
-                d_ia = chord_rows(v_cam, i, v_cam, a)
-                d_ib = chord_rows(v_cam, i, v_cam, b)
-                cb0 = max(int(math.floor((base - eps_b) / cell_b)), 0)
-                cb1 = min(int(math.floor((base + eps_b) / cell_b)), n_cells_b - 1)
-                ch0 = max(int(math.floor((height - eps_h) / cell_h)), 0)
-                ch1 = min(int(math.floor((height + eps_h) / cell_h)), n_cells_h - 1)
+                g_obs[tri, 0] = i
+                g_obs[tri, 1] = a
+                g_obs[tri, 2] = b
+                g_feat[tri, 0] = base
+                g_feat[tri, 1] = height
+                g_feat[tri, 2] = eps_h
+                g_feat[tri, 3] = chord_rows(v_cam, i, v_cam, a)
+                g_feat[tri, 4] = chord_rows(v_cam, i, v_cam, b)
+                g_cells[tri, 0] = max(int(math.floor((base - eps_b) / cell_b)), 0)
+                g_cells[tri, 1] = min(int(math.floor((base + eps_b) / cell_b)), n_cells_b - 1)
+                g_cells[tri, 2] = max(int(math.floor((height - eps_h) / cell_h)), 0)
+                g_cells[tri, 3] = min(int(math.floor((height + eps_h) / cell_h)), n_cells_h - 1)
                 tri += 1
-                n_scan = 0
-                for cb in range(cb0, cb1 + 1):
-                    n_scan += cell_start[cb * n_cells_h + ch1 + 1] - cell_start[cb * n_cells_h + ch0]
-                n_records += n_scan
-                while n_touched + 3 * n_scan > touched_o.size:  # room for every possible vote
-                    touched_o = _grow(touched_o)
-                    touched_c = _grow(touched_c)
-                    tally = _grow(tally)
-                if 2 * touched_o.size > slots.size:  # at most half full
-                    slots = _rehash(touched_o, touched_c, np.int64(n_touched), n_guide, 2 * touched_o.size)
-                if 3 * n_scan > tri_u.size:
-                    tri_u = np.empty(3 * n_scan, dtype=np.int64)
-                    tri_c = np.empty(3 * n_scan, dtype=np.int64)
-                n_tri = 0
-                if n_scan + 1 > listed.size:
-                    listed = np.empty(2 * (n_scan + 1), dtype=np.int64)
-                while n_hyp + n_scan > hyp.shape[0]:
-                    grown = np.empty((2 * hyp.shape[0], 6), dtype=np.int64)
-                    for q in range(n_hyp):
-                        for col in range(6):
-                            grown[q, col] = hyp[q, col]
-                    hyp = grown
-                # first pass, branch-free over every record of the cells (about half of them are in both
-                # windows: a branch on that is mispredicted half the time), reading only the 8-byte compact
-                # records: the records in both windows (decided from the compact values, or for the rare
-                # record within their rounding of a window's edge from the float32 ones) whose compact sides
-                # come within their rounding of a side match, listed; the second pass checks those sides
-                # and votes
-                n_near = 0
-                eps_h_in = eps_h - m_h
-                eps_h_out = eps_h + m_h
-                for cb in range(cb0, cb1 + 1):
-                    # the cells (cb, ch0..ch1) are contiguous in the record order and sorted by height
-                    # (cell, then height): the records surely below and above the height window are skipped
-                    r0 = cell_start[cb * n_cells_h + ch0]
-                    r1 = cell_start[cb * n_cells_h + ch1 + 1]
-                    while r0 < r1 and records[r0, REC_HEIGHT] * s_h - height < -eps_h_out:
-                        r0 += 1
-                    while r1 > r0 and records[r1 - 1, REC_HEIGHT] * s_h - height > eps_h_out:
-                        r1 -= 1
-                    for r in range(r0, r1):
-                        e_b = abs(records[r, REC_BASE] * s_b - base)
-                        e_h = abs(records[r, REC_HEIGHT] * s_h - height)
-                        in_windows = (e_b <= eps_b_in) & (e_h <= eps_h_in)
-                        if (e_b <= eps_b_out) & (e_h <= eps_h_out) & (not in_windows):  # rare: at an edge
-                            in_windows = ((abs(features[r, FEAT_BASE] - base) <= eps_b)
-                                          & (abs(features[r, FEAT_HEIGHT] - height) <= eps_h))
-                        s_i = records[r, REC_SIDE_I] * s_s
-                        s_j = records[r, REC_SIDE_J] * s_s
-                        near = min(max(abs(d_ia - s_i), abs(d_ib - s_j)),
-                                   max(abs(d_ia - s_j), abs(d_ib - s_i))) <= eps_near
-                        n_matches += in_windows
-                        listed[n_near] = r
-                        n_near += in_windows & (near | no_side_check)
-                if n_near > 1:  # the records in the order of (cell, base, height, main), as they were stored
-                    _by_base(listed, np.int64(n_near), cell_start, cb0, cb1, ch0, ch1, n_cells_h, records, features,
-                             rows_db)
-                for e in range(n_near):
-                    r = listed[e]
-                    c = rows_db[r, ROW_MAIN]
-                    ci = rows_db[r, ROW_I]
-                    cj = rows_db[r, ROW_J]
-                    # the side check from the compact sides when their rounding cannot change its outcome (both
-                    # errors and their difference farther than the rounding from the window and from a tie);
-                    # else exactly, from the guide vectors (three random reads: cold in the interleaved timing)
-                    s_i = records[r, REC_SIDE_I] * s_s
-                    s_j = records[r, REC_SIDE_J] * s_s
-                    e_straight = max(abs(d_ia - s_i), abs(d_ib - s_j))
-                    e_swapped = max(abs(d_ia - s_j), abs(d_ib - s_i))
-                    e_best = min(e_straight, e_swapped)
-                    if abs(e_straight - e_swapped) > 2.0 * m_s and abs(e_best - eps_b) > m_s:
-                        if e_swapped < e_straight:
-                            ci, cj = cj, ci
-                        sides_match = e_best < eps_b
-                    else:
-                        d_ci = chord_rows(cat_unit, c, cat_unit, ci)
-                        d_cj = chord_rows(cat_unit, c, cat_unit, cj)
-                        e_straight = max(abs(d_ia - d_ci), abs(d_ib - d_cj))
-                        e_swapped = max(abs(d_ia - d_cj), abs(d_ib - d_ci))
-                        if e_swapped < e_straight:
-                            ci, cj = cj, ci
-                            e_straight = e_swapped
-                        sides_match = e_straight <= eps_b
-                    if side_check and not sides_match:
-                        continue
-                    n_votes = 3 if vote_neighbours and sides_match else 1
-                    if sides_match:
-                        hyp[n_hyp, 0] = i
-                        hyp[n_hyp, 1] = c
-                        hyp[n_hyp, 2] = a
-                        hyp[n_hyp, 3] = ci
-                        hyp[n_hyp, 4] = b
-                        hyp[n_hyp, 5] = cj
-                        n_hyp += 1
-                    obs[0] = i
-                    row[0] = c
-                    obs[1] = a
-                    row[1] = ci
-                    obs[2] = b
-                    row[2] = cj
-                    for u in range(n_votes):
-                        o = obs[u]
-                        c = row[u]
-                        again = False  # at most one vote per observed triangle
-                        for t in range(n_tri):
-                            if tri_u[t] == u and tri_c[t] == c:
-                                again = True
-                                break
-                        if again:
-                            continue
-                        tri_u[n_tri] = u
-                        tri_c[n_tri] = c
-                        n_tri += 1
-                        e = _slot(slots, touched_o, touched_c, o, c, n_guide)
-                        h = slots[e]
-                        if h == 0:
-                            touched_o[n_touched] = o
-                            touched_c[n_touched] = c
-                            tally[n_touched] = 0
-                            n_touched += 1
-                            h = slots[e] = n_touched
-                        tally[h - 1] += 1
+    for g in range(tri):
+        # ahead: the grid cells' bounds two triangles on, the records of the next triangle's cells
+        if g + 2 < tri:
+            for cb in range(g_cells[g + 2, 0], g_cells[g + 2, 1] + 1):
+                _prefetch(cell_start, cb * n_cells_h + g_cells[g + 2, 2])
+                _prefetch(cell_start, cb * n_cells_h + g_cells[g + 2, 3] + 1)
+        if g + 1 < tri:
+            for cb in range(g_cells[g + 1, 0], g_cells[g + 1, 1] + 1):
+                r1 = cell_start[cb * n_cells_h + g_cells[g + 1, 3] + 1]
+                for r in range(cell_start[cb * n_cells_h + g_cells[g + 1, 2]], r1, 8):  # 8 records a cache line
+                    _prefetch(records, r)
+                if r1 > 0:
+                    _prefetch(records, r1 - 1)
+        i = g_obs[g, 0]
+        a = g_obs[g, 1]
+        b = g_obs[g, 2]
+        base = g_feat[g, 0]
+        height = g_feat[g, 1]
+        eps_h = g_feat[g, 2]
+        d_ia = g_feat[g, 3]
+        d_ib = g_feat[g, 4]
+        cb0 = g_cells[g, 0]
+        cb1 = g_cells[g, 1]
+        ch0 = g_cells[g, 2]
+        ch1 = g_cells[g, 3]
+        n_scan = 0
+        for cb in range(cb0, cb1 + 1):
+            n_scan += cell_start[cb * n_cells_h + ch1 + 1] - cell_start[cb * n_cells_h + ch0]
+        n_records += n_scan
+        while n_touched + 3 * n_scan > touched_o.size:  # room for every possible vote
+            touched_o = _grow(touched_o)
+            touched_c = _grow(touched_c)
+            tally = _grow(tally)
+        if 2 * touched_o.size > slots.size:  # at most half full
+            slots = _rehash(touched_o, touched_c, np.int64(n_touched), n_guide, 2 * touched_o.size)
+        if 3 * n_scan > tri_u.size:
+            tri_u = np.empty(3 * n_scan, dtype=np.int64)
+            tri_c = np.empty(3 * n_scan, dtype=np.int64)
+        n_tri = 0
+        if n_scan + 1 > listed.size:
+            listed = np.empty(2 * (n_scan + 1), dtype=np.int64)
+        while n_hyp + n_scan > hyp.shape[0]:
+            grown = np.empty((2 * hyp.shape[0], 6), dtype=np.int64)
+            for q in range(n_hyp):
+                for col in range(6):
+                    grown[q, col] = hyp[q, col]
+            hyp = grown
+        # first pass, branch-free over every record of the cells (about half of them are in both
+        # windows: a branch on that is mispredicted half the time), reading only the 8-byte compact
+        # records: the records in both windows (decided from the compact values, or for the rare
+        # record within their rounding of a window's edge from the float32 ones) whose compact sides
+        # come within their rounding of a side match, listed; the second pass checks those sides
+        # and votes
+        n_near = 0
+        eps_h_in = eps_h - m_h
+        eps_h_out = eps_h + m_h
+        for cb in range(cb0, cb1 + 1):
+            # the cells (cb, ch0..ch1) are contiguous in the record order and sorted by height
+            # (cell, then height): the records surely below and above the height window are skipped
+            r0 = cell_start[cb * n_cells_h + ch0]
+            r1 = cell_start[cb * n_cells_h + ch1 + 1]
+            while r0 < r1 and records[r0, REC_HEIGHT] * s_h - height < -eps_h_out:
+                r0 += 1
+            while r1 > r0 and records[r1 - 1, REC_HEIGHT] * s_h - height > eps_h_out:
+                r1 -= 1
+            for r in range(r0, r1):
+                e_b = abs(records[r, REC_BASE] * s_b - base)
+                e_h = abs(records[r, REC_HEIGHT] * s_h - height)
+                in_windows = (e_b <= eps_b_in) & (e_h <= eps_h_in)
+                if (e_b <= eps_b_out) & (e_h <= eps_h_out) & (not in_windows):  # rare: at an edge
+                    in_windows = ((abs(features[r, FEAT_BASE] - base) <= eps_b)
+                                  & (abs(features[r, FEAT_HEIGHT] - height) <= eps_h))
+                s_i = records[r, REC_SIDE_I] * s_s
+                s_j = records[r, REC_SIDE_J] * s_s
+                near = min(max(abs(d_ia - s_i), abs(d_ib - s_j)),
+                           max(abs(d_ia - s_j), abs(d_ib - s_i))) <= eps_near
+                n_matches += in_windows
+                listed[n_near] = r
+                n_near += in_windows & (near | no_side_check)
+        if n_near > 1:  # the records in the order of (cell, base, height, main), as they were stored
+            _by_base(listed, np.int64(n_near), cell_start, cb0, cb1, ch0, ch1, n_cells_h, records, features,
+                     rows_db)
+        for e in range(n_near):
+            r = listed[e]
+            c = rows_db[r, ROW_MAIN]
+            ci = rows_db[r, ROW_I]
+            cj = rows_db[r, ROW_J]
+            # the side check from the compact sides when their rounding cannot change its outcome (both
+            # errors and their difference farther than the rounding from the window and from a tie);
+            # else exactly, from the guide vectors (three random reads: cold in the interleaved timing)
+            s_i = records[r, REC_SIDE_I] * s_s
+            s_j = records[r, REC_SIDE_J] * s_s
+            e_straight = max(abs(d_ia - s_i), abs(d_ib - s_j))
+            e_swapped = max(abs(d_ia - s_j), abs(d_ib - s_i))
+            e_best = min(e_straight, e_swapped)
+            if abs(e_straight - e_swapped) > 2.0 * m_s and abs(e_best - eps_b) > m_s:
+                if e_swapped < e_straight:
+                    ci, cj = cj, ci
+                sides_match = e_best < eps_b
+            else:
+                d_ci = chord_rows(cat_unit, c, cat_unit, ci)
+                d_cj = chord_rows(cat_unit, c, cat_unit, cj)
+                e_straight = max(abs(d_ia - d_ci), abs(d_ib - d_cj))
+                e_swapped = max(abs(d_ia - d_cj), abs(d_ib - d_ci))
+                if e_swapped < e_straight:
+                    ci, cj = cj, ci
+                    e_straight = e_swapped
+                sides_match = e_straight <= eps_b
+            if side_check and not sides_match:
+                continue
+            n_votes = 3 if vote_neighbours and sides_match else 1
+            if sides_match:
+                hyp[n_hyp, 0] = i
+                hyp[n_hyp, 1] = c
+                hyp[n_hyp, 2] = a
+                hyp[n_hyp, 3] = ci
+                hyp[n_hyp, 4] = b
+                hyp[n_hyp, 5] = cj
+                n_hyp += 1
+            obs[0] = i
+            row[0] = c
+            obs[1] = a
+            row[1] = ci
+            obs[2] = b
+            row[2] = cj
+            for u in range(n_votes):
+                o = obs[u]
+                c = row[u]
+                again = False  # at most one vote per observed triangle
+                for t in range(n_tri):
+                    if tri_u[t] == u and tri_c[t] == c:
+                        again = True
+                        break
+                if again:
+                    continue
+                tri_u[n_tri] = u
+                tri_c[n_tri] = c
+                n_tri += 1
+                e = _slot(slots, touched_o, touched_c, o, c, n_guide)
+                h = slots[e]
+                if h == 0:
+                    touched_o[n_touched] = o
+                    touched_c[n_touched] = c
+                    tally[n_touched] = 0
+                    n_touched += 1
+                    h = slots[e] = n_touched
+                tally[h - 1] += 1
     cand = np.full((n, n_cand), -1, dtype=np.int64)
     cand_votes = np.zeros((n, n_cand), dtype=np.int64)
     for e in range(n_touched):
@@ -873,11 +935,12 @@ def identify_image(x_px, y_px, mag, db, tol, fin_db, fin_cam):
     (-1: all); fewer than 3: ``status`` 0. Then :func:`identify_rows` on their camera vectors (no guide row:
     ``status`` 1, ``work`` its counters) and planar_triangle's ``finish`` on every star (``status`` 2).
     ``db``, ``tol``: the plain tuples of :class:`Tables` and :class:`Tolerance`; ``fin_db`` = (guide unit
-    vectors float64, guide HIP, deep unit, deep HIP, deep V); ``fin_cam`` = (the camera's ``Frame`` fields,
-    the ``Finish`` rules' fields, ``mag_cut``, ``max_stars``), plain tuples (a NamedTuple argument costs
-    about 1 us more per call to dispatch). One call instead of the wrapper's several kernel calls.
+    vectors float64, guide HIP, deep unit, deep index (``final.deep_index``), deep HIP, deep V); ``fin_cam`` =
+    (the camera's ``Frame`` fields, the ``Finish`` rules' fields, ``mag_cut``, ``max_stars``), plain tuples (a
+    NamedTuple argument costs about 1 us more per call to dispatch). One call instead of the wrapper's several
+    kernel calls.
     """
-    unit64, guide_hip, deep_unit, deep_hip, deep_mag = fin_db
+    unit64, guide_hip, deep_unit, deep_index, deep_hip, deep_mag = fin_db
     (f_px, cx_px, cy_px, width_px, height_px, eps_chord, mag_margin, mag_limit, coverage_mag_margin,
      max_missed_fraction, assign_all, mag_cut, max_stars) = fin_cam
     n = x_px.shape[0]
@@ -906,7 +969,8 @@ def identify_image(x_px, y_px, mag, db, tol, fin_db, fin_cam):
     all_rows = np.full(n, -1, dtype=np.int64)
     for k in range(m):
         all_rows[sel[k]] = rows[k]
-    hip, attitude, accepted = finish_cone(x_px, y_px, mag, all_rows, unit64, guide_hip, deep_unit, deep_hip, deep_mag,
+    hip, attitude, accepted = finish_cone(x_px, y_px, mag, all_rows, unit64, guide_hip, deep_unit, deep_index, deep_hip,
+                                          deep_mag,
                                           f_px, cx_px, cy_px, width_px, height_px, eps_chord, mag_margin, mag_limit,
                                           coverage_mag_margin, max_missed_fraction, assign_all)
     n_named = 0
