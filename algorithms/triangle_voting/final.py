@@ -17,12 +17,48 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from llvmlite import ir
 from numba import njit
+from numba.core import cgutils, types
+from numba.extending import intrinsic
 
 from starid.kernels import backproject_px, chord_rows, wahba_rows
 
 #: kernels only other kernels call: no Python or C entry point to compile (issue #25, compile time)
 _inner = njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)
+
+@intrinsic
+def _prefetch(typingctx, arr, idx):
+    """Ask the CPU to bring row ``idx`` of array ``arr`` into its caches (x86 ``prefetcht0``; no fault, no
+    result): ``kernels.vote`` names the grid cells and records of the next image triangles while it scans one, the cone
+    searches the cells and rows they will read."""
+    if not isinstance(arr, types.Array) or not isinstance(idx, types.Integer):
+        return None
+
+    def codegen(context, builder, sig, args):
+        ary = context.make_array(sig.args[0])(context, builder, args[0])
+        stride = cgutils.unpack_tuple(builder, ary.strides, sig.args[0].ndim)[0]
+        row = context.cast(builder, args[1], sig.args[1], types.intp)
+        addr = builder.add(builder.ptrtoint(ary.data, stride.type), builder.mul(row, stride))
+        ptr = ir.IntType(8).as_pointer()
+        i32 = ir.IntType(32)
+        fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(ir.VoidType(), [ptr, i32, i32, i32]),
+                                           "llvm.prefetch")
+        builder.call(fn, [builder.inttoptr(addr, ptr), i32(0), i32(3), i32(1)])  # read, keep, data cache
+        return context.get_dummy_value()
+    return types.void(arr, idx), codegen
+
+
+@_inner
+def _prefetch_rows(arr, ranges, count, per_line):
+    """:func:`_prefetch` every ``per_line``-th row of ``arr`` in the row ranges ``ranges[:count]`` (rows of
+    ``64 / per_line`` bytes or more: one request per cache line), and each range's last row."""
+    for k in range(count):
+        for g in range(ranges[k, 0], ranges[k, 1], per_line):
+            _prefetch(arr, g)
+        if ranges[k, 1] > ranges[k, 0]:
+            _prefetch(arr, ranges[k, 1] - 1)
+
 
 #: z bands of the deep sky's order (``z`` in [-1, 1] cut in this many equal bands)
 DEEP_BANDS = 64
@@ -197,6 +233,16 @@ def cone_ranges_indexed(unit, index, cx, cy, cz, c_radius, ranges):
             wrap = True
     q0 = _key_bucket(k0)
     q1 = _key_bucket(k1)
+    # the index entries of every band first, then the rows where the binary searches start, so that the
+    # bands' cache misses overlap instead of following one another
+    for b in range(b0, b1 + 1):
+        _prefetch(index, b * KEY_BUCKETS + q0)
+        _prefetch(index, b * KEY_BUCKETS + q1)
+        _prefetch(index, (b + 1) * KEY_BUCKETS)
+    if not full:
+        for b in range(b0, b1 + 1):
+            _prefetch(unit, index[b * KEY_BUCKETS + q0])
+            _prefetch(unit, index[b * KEY_BUCKETS + q1])
     count = 0
     for b in range(b0, b1 + 1):
         cell = b * KEY_BUCKETS
@@ -257,6 +303,7 @@ def _reproject_assign(A, v_cam, unit, index, c_fov, eps, out_row, ranges, f_px, 
     b = np.empty((1, 3))
     z_lo, z_hi = z_band(bore[0, 2], c_fov)
     count = cone_ranges_indexed(unit, index, bore[0, 0], bore[0, 1], bore[0, 2], c_fov, ranges)
+    _prefetch_rows(unit, ranges, count, 5)
     for k in range(count):
         for g in range(ranges[k, 0], ranges[k, 1]):
             z = unit[g, 2]
@@ -315,6 +362,8 @@ def _deep_mag_of(deep_unit, deep_index, deep_hip, deep_mag, r_icrs, eps_chord, h
     (planar_triangle's ``_deep_mag_of``: searched in the z band of chord ``2 eps_chord``)."""
     z_lo, z_hi = z_band(float(r_icrs[2]), 2.0 * eps_chord)
     count = cone_ranges_indexed(deep_unit, deep_index, r_icrs[0], r_icrs[1], r_icrs[2], 2.0 * eps_chord, ranges)
+    _prefetch_rows(deep_unit, ranges, count, 5)
+    _prefetch_rows(deep_hip, ranges, count, 8)
     for k in range(count):
         for g in range(ranges[k, 0], ranges[k, 1]):
             z = deep_unit[g, 2]
@@ -329,6 +378,8 @@ def _rivals(deep_unit, deep_index, deep_mag, r_icrs, eps_chord, mag_max, ranges)
     ``_rivals``)."""
     z_lo, z_hi = z_band(float(r_icrs[2]), eps_chord)
     n_ranges = cone_ranges_indexed(deep_unit, deep_index, r_icrs[0], r_icrs[1], r_icrs[2], eps_chord, ranges)
+    _prefetch_rows(deep_mag, ranges, n_ranges, 16)
+    _prefetch_rows(deep_unit, ranges, n_ranges, 5)
     count = 0
     for k in range(n_ranges):
         for g in range(ranges[k, 0], ranges[k, 1]):
@@ -351,6 +402,8 @@ def _coverage(attitude, deep_unit, deep_index, deep_hip, deep_mag, mag_max, foun
     z_lo, z_hi = z_band(attitude[2, 2], c_field)
     n_ranges = cone_ranges_indexed(deep_unit, deep_index, attitude[2, 0], attitude[2, 1], attitude[2, 2], c_field,
                                    ranges)
+    _prefetch_rows(deep_mag, ranges, n_ranges, 16)
+    _prefetch_rows(deep_unit, ranges, n_ranges, 5)
     predicted = 0
     missed = 0
     for k in range(n_ranges):

@@ -13,39 +13,15 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from llvmlite import ir
 from numba import njit
-from numba.core import cgutils, types
-from numba.extending import intrinsic
 from starid_algorithms.planar_triangle.kernels import argsort_desc
 
 from starid.kernels import backproject_px, chord_rows, verify_pairwise, wahba_rows
 
-from .final import finish_cone
+from .final import _prefetch, finish_cone
 
 #: kernels only other kernels call: no Python or C entry point to compile (issue #25, compile time)
 _inner = njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)
-
-@intrinsic
-def _prefetch(typingctx, arr, idx):
-    """Ask the CPU to bring row ``idx`` of array ``arr`` into its caches (x86 ``prefetcht0``; no fault, no
-    result): :func:`vote` names the grid cells and records of the next image triangles while it scans one."""
-    if not isinstance(arr, types.Array) or not isinstance(idx, types.Integer):
-        return None
-
-    def codegen(context, builder, sig, args):
-        ary = context.make_array(sig.args[0])(context, builder, args[0])
-        stride = cgutils.unpack_tuple(builder, ary.strides, sig.args[0].ndim)[0]
-        row = context.cast(builder, args[1], sig.args[1], types.intp)
-        addr = builder.add(builder.ptrtoint(ary.data, stride.type), builder.mul(row, stride))
-        ptr = ir.IntType(8).as_pointer()
-        i32 = ir.IntType(32)
-        fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(ir.VoidType(), [ptr, i32, i32, i32]),
-                                           "llvm.prefetch")
-        builder.call(fn, [builder.inttoptr(addr, ptr), i32(0), i32(3), i32(1)])  # read, keep, data cache
-        return context.get_dummy_value()
-    return types.void(arr, idx), codegen
-
 
 #: names of the per-image work counters :func:`identify_rows` returns (``Identification.counters``):
 #: image triangles looked up in the grid, catalog records in the grid cells scanned, records within
@@ -527,6 +503,8 @@ def vote(v_cam, db, tol, votes, mark):
                 n_matches += in_windows
                 listed[n_near] = r
                 n_near += in_windows & (near | no_side_check)
+        for e in range(n_near):  # their guide rows, read below
+            _prefetch(rows_db, listed[e])
         if n_near > 1:  # the records in the order of (cell, base, height, main), as they were stored
             _by_base(listed, np.int64(n_near), cell_start, cb0, cb1, ch0, ch1, n_cells_h, records, features,
                      rows_db)
@@ -656,6 +634,10 @@ def select_candidates(v_cam, cand, cand_votes, cat_unit, tol_chord):
     is supported. Returns the chosen rows and their votes.
     """
     n, k = cand.shape
+    for i in range(n):  # the candidates' guide vectors, read below in no particular order
+        for s in range(k):
+            if cand[i, s] >= 0:
+                _prefetch(cat_unit, cand[i, s])
     chosen = np.full(n, -1, dtype=np.int64)
     chosen_votes = np.zeros(n, dtype=np.int64)
     # the separations, each computed once (the same values as ``_agree``'s: a chord is the same
