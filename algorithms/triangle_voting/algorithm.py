@@ -399,12 +399,12 @@ class TriangleVoting(Algorithm):
         cam = observation.camera
         x, y, mag = observation.x_px, observation.y_px, observation.mag
         db = database
-        _, kernel_tol, fin_cam = self._tolerances(cam)
+        kernel_db, kernel_tol, fin_db, fin_cam = self._kernel_args(db, cam)
         # one kernel call: brightest first (ties on position, so the result does not depend on input
         # order), only stars bright enough to be guide stars (with a margin), at most max_stars of them;
         # voting, verification (identify_rows) and the final step (finish)
-        status, hip, attitude, accepted, work, n_named = identify_image(x, y, mag, _kernel_tables(db), kernel_tol,
-                                                               _finish_tables(db), fin_cam)
+        status, hip, attitude, accepted, work, n_named = identify_image(x, y, mag, kernel_db, kernel_tol, fin_db,
+                                                                        fin_cam)
         if status == 0:
             return Identification(hip)
         counters = dict(zip(WORK_COUNTERS, work.tolist(), strict=True))
@@ -430,6 +430,14 @@ class TriangleVoting(Algorithm):
             return True
         v_mag = np.array([db.deep_v_mag[np.flatnonzero(db.deep.hip == h)[0]] for h in hip[named]])
         return float(np.mean(v_mag - mag[named])) <= self.mag_margin
+
+    def _kernel_args(self, db: TriangleVotingDatabase, cam: Camera) -> tuple[tuple, tuple, tuple, tuple]:
+        """``identify_image``'s ``db``, ``tol``, ``fin_db`` and ``fin_cam`` for this database and camera, kept for the
+        last pair (one identity check per image instead of three look-ups)."""
+        def make():
+            _, kernel_tol, fin_cam = self._tolerances(cam)
+            return _kernel_tables(db), kernel_tol, _finish_tables(db), fin_cam
+        return self.kept("kernel_args", (db, cam), make)
 
     def _tolerances(self, cam: Camera) -> tuple[Tolerance, tuple, tuple]:
         """``_tolerance(cam)``, the same as the plain tuple the kernels take, and ``identify_image``'s
