@@ -49,7 +49,8 @@ def _prefetch(typingctx, arr, idx):
     return types.void(arr, idx), codegen
 
 
-@_inner
+# inline="always": called for arrays of several dtypes and row sizes (literal); inlined, it adds no signature
+@njit(cache=True, inline="always")
 def _prefetch_rows(arr, ranges, count, per_line):
     """:func:`_prefetch` every ``per_line``-th row of ``arr`` in the row ranges ``ranges[:count]`` (rows of
     ``64 / per_line`` bytes or more: one request per cache line), and each range's last row."""
