@@ -478,28 +478,41 @@ def vote(v_cam, db, tol, votes, mark):
         # come within their rounding of a side match, listed; the second pass checks those sides
         # and votes
         n_near = 0
-        eps_h_in = eps_h - m_h
-        eps_h_out = eps_h + m_h
+        # the tests as integer intervals of the compact values: "surely in" (a value inside passes the float32
+        # test too: the margins leave more than the float64 rounding of these bounds), "not surely out" (rounded
+        # outward), and for the sides "near" (outward: every record whose exact sides match is inside)
+        lb_in = math.ceil((base - eps_b_in) / s_b)
+        hb_in = math.floor((base + eps_b_in) / s_b)
+        lb_out = math.floor((base - eps_b_out) / s_b)
+        hb_out = math.ceil((base + eps_b_out) / s_b)
+        lh_in = math.ceil((height - (eps_h - m_h)) / s_h)
+        hh_in = math.floor((height + (eps_h - m_h)) / s_h)
+        lh_out = math.floor((height - (eps_h + m_h)) / s_h)
+        hh_out = math.ceil((height + (eps_h + m_h)) / s_h)
+        la = math.floor((d_ia - eps_near) / s_s)
+        ha = math.ceil((d_ia + eps_near) / s_s)
+        lb = math.floor((d_ib - eps_near) / s_s)
+        hb = math.ceil((d_ib + eps_near) / s_s)
         for cb in range(cb0, cb1 + 1):
             # the cells (cb, ch0..ch1) are contiguous in the record order and sorted by height
             # (cell, then height): the records surely below and above the height window are skipped
             r0 = cell_start[cb * n_cells_h + ch0]
             r1 = cell_start[cb * n_cells_h + ch1 + 1]
-            while r0 < r1 and records[r0, REC_HEIGHT] * s_h - height < -eps_h_out:
+            while r0 < r1 and np.int64(records[r0, REC_HEIGHT]) < lh_out:
                 r0 += 1
-            while r1 > r0 and records[r1 - 1, REC_HEIGHT] * s_h - height > eps_h_out:
+            while r1 > r0 and np.int64(records[r1 - 1, REC_HEIGHT]) > hh_out:
                 r1 -= 1
             for r in range(r0, r1):
-                e_b = abs(records[r, REC_BASE] * s_b - base)
-                e_h = abs(records[r, REC_HEIGHT] * s_h - height)
-                in_windows = (e_b <= eps_b_in) & (e_h <= eps_h_in)
-                if (e_b <= eps_b_out) & (e_h <= eps_h_out) & (not in_windows):  # rare: at an edge
+                qb = np.int64(records[r, REC_BASE])
+                qh = np.int64(records[r, REC_HEIGHT])
+                qi = np.int64(records[r, REC_SIDE_I])
+                qj = np.int64(records[r, REC_SIDE_J])
+                in_windows = (qb >= lb_in) & (qb <= hb_in) & (qh >= lh_in) & (qh <= hh_in)
+                if (qb >= lb_out) & (qb <= hb_out) & (qh >= lh_out) & (qh <= hh_out) & (not in_windows):  # rare
                     in_windows = ((abs(features[r, FEAT_BASE] - base) <= eps_b)
                                   & (abs(features[r, FEAT_HEIGHT] - height) <= eps_h))
-                s_i = records[r, REC_SIDE_I] * s_s
-                s_j = records[r, REC_SIDE_J] * s_s
-                near = min(max(abs(d_ia - s_i), abs(d_ib - s_j)),
-                           max(abs(d_ia - s_j), abs(d_ib - s_i))) <= eps_near
+                near = (((qi >= la) & (qi <= ha) & (qj >= lb) & (qj <= hb))
+                        | ((qj >= la) & (qj <= ha) & (qi >= lb) & (qi <= hb)))
                 n_matches += in_windows
                 listed[n_near] = r
                 n_near += in_windows & (near | no_side_check)
