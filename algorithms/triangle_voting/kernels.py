@@ -654,12 +654,15 @@ def select_candidates(v_cam, cand, cand_votes, cat_unit, tol_chord):
     chosen = np.full(n, -1, dtype=np.int64)
     chosen_votes = np.zeros(n, dtype=np.int64)
     # the separations, each computed once (the same values as ``_agree``'s: a chord is the same
-    # number whichever row comes first): observed pairs, and candidate pairs on first use (-1 = not yet)
+    # number whichever row comes first): observed pairs, and candidate pairs on first use
     d_obs = np.empty((n, n))
     for i in range(n):
         for j in range(n):
             d_obs[i, j] = chord_rows(v_cam, i, v_cam, j)
-    d_cat = np.full((n * k, n * k), -1.0)
+    # d_cat[p, q] is set when known[p, q]: a byte matrix to clear, not the float64 one (8x fewer cache lines
+    # written per image; those of d_cat are written only where a separation is computed)
+    d_cat = np.empty((n * k, n * k))
+    known = np.zeros((n * k, n * k), dtype=np.uint8)
     for i in range(n):
         best_support = 0
         for s in range(k):
@@ -678,11 +681,14 @@ def select_candidates(v_cam, cand, cand_votes, cat_unit, tol_chord):
                     if c2 == c:
                         continue
                     q = j * k + s2
-                    d = d_cat[p, q]
-                    if d < 0.0:
+                    if known[p, q]:
+                        d = d_cat[p, q]
+                    else:
                         d = chord_rows(cat_unit, c, cat_unit, c2)
                         d_cat[p, q] = d
                         d_cat[q, p] = d
+                        known[p, q] = 1
+                        known[q, p] = 1
                     if abs(d_obs[i, j] - d) <= tol_chord:
                         support += 1
                         break
