@@ -20,20 +20,20 @@ from starid.observation import Observation
 from starid.params import check_flag, check_number, check_whole, param
 from starid.plugin import Algorithm, Database, Explanation, Identification
 
-from .final import band_order
+from .final import band_order, deep_index
 from .kernels import (
     FEAT_BASE,
     FEAT_HEIGHT,
-    FEAT_SIDE_I,
-    FEAT_SIDE_J,
     WORK_COUNTERS,
     Tables,
     Tolerance,
     build_triangles,
+    compact_records,
     feature_columns,
     identify_image,
     new_scratch,
     record_sides,
+    row_columns,
     sky_cell_of,
     vote,
 )
@@ -50,8 +50,10 @@ class TriangleVotingDatabase(Database):
     """Triangle records indexed on a 2-D (base, height) grid, plus the guide stars.
 
     Record ``r`` (sorted by grid cell, ``cell = cell_b_index * n_cells_h + cell_h_index``, then height):
-    ``features[r]`` = (base, height, side_i, side_j) (float32, chord units ~ radians; the columns are also
-    the properties ``base``, ``height``, ``side_i``, ``side_j``), ``main[r]``, ``n_i[r]``,
+    ``features[r]`` = (base, height) (float32, chord units ~ radians; the columns are also the properties
+    ``base``, ``height``), ``records[r]`` the same two and the record's two main-to-neighbour chords (the
+    properties ``side_i``, ``side_j``) as uint16 multiples of ``rec_scale_b``, ``rec_scale_h``, ``rec_scale_s``
+    (``kernels.compact_records``), ``main[r]``, ``n_i[r]``,
     ``n_j[r]`` (uint16 rows of the guide arrays). The records of cell ``c`` are
     ``cell_start[c]:cell_start[c + 1]``. ``unit_icrs`` (float32) and ``hip`` (int64) are the
     guide stars, sorted by cell of a uniform ``sky_axis``^3 grid over [-1, 1]^3 (ties by HIP);
@@ -60,12 +62,14 @@ class TriangleVotingDatabase(Database):
     final assignment and the coverage check.
     """
 
-    #: float32 (m, 4) per record base, height, side_i, side_j: one 16-byte row per record, which ``vote`` reads
-    #: whole (four separate arrays cost four cache lines or more for a grid column's few records)
+    #: float32 (m, 2) per record base, height: ``vote`` reads them only near a window's edge
     features: np.ndarray
-    main: np.ndarray
-    n_i: np.ndarray
-    n_j: np.ndarray
+    #: uint16 (m, 4) per record base, height, side_i, side_j rounded: one 8-byte row per record, what ``vote``'s
+    #: scan reads (the former 16-byte float32 rows: twice the cache lines, from memory other plugins evicted)
+    records: np.ndarray
+    #: uint16 (m, 3) per record the guide rows of its main star and two neighbours (the properties ``main``,
+    #: ``n_i``, ``n_j``): one row, so a record the vote lists costs one cache line, not three
+    rows: np.ndarray
     cell_start: np.ndarray
     unit_icrs: np.ndarray
     hip: np.ndarray
@@ -79,8 +83,15 @@ class TriangleVotingDatabase(Database):
     d_min_chord: float
     deep: DeepSky
     deep_v_mag: np.ndarray
+    #: int32 (DEEP_BANDS * KEY_BUCKETS + 1,) first row of ``deep`` of each (z band, right-ascension bucket) cell
+    #: (``final.deep_index``): where the final step's cone searches start
+    deep_index: np.ndarray
+    rec_scale_b: float  # the scales of ``records``: base, height, sides (chord units per unit)
+    rec_scale_h: float
+    rec_scale_s: float
 
-    base, height, side_i, side_j = feature_columns()   # the columns of ``features``
+    base, height, side_i, side_j = feature_columns("unit_icrs")   # the columns of ``features``, the sides
+    main, n_i, n_j = row_columns()   # the columns of ``rows``
 
     def tables(self) -> Tables:
         """The arrays the kernels read, as one bundle (made once per database, see ``_tables``)."""
@@ -103,9 +114,10 @@ def _kernel_tables(db: TriangleVotingDatabase) -> tuple:
 def _bundles(db: TriangleVotingDatabase) -> tuple[Tables, tuple]:
     held = _TABLES.get(db)
     if held is None:
-        tables = Tables(db.features, db.main, db.n_i, db.n_j, db.cell_start, db.n_cells_b, db.n_cells_h,
-                        db.cell_b, db.cell_h, db.unit_icrs, db.sky_start, db.sky_axis, db.pattern_radius_chord,
-                        db.d_min_chord, _unit_f64(db))
+        tables = Tables(db.features, db.records, db.rows, db.cell_start, db.n_cells_b,
+                        db.n_cells_h, db.cell_b, db.cell_h, db.unit_icrs, db.sky_start, db.sky_axis,
+                        db.pattern_radius_chord, db.d_min_chord, _unit_f64(db), db.rec_scale_b, db.rec_scale_h,
+                        db.rec_scale_s)
         held = _TABLES[db] = (tables, tuple(tables))
     return held
 
@@ -136,7 +148,7 @@ def _finish_tables(db: TriangleVotingDatabase) -> tuple:
     the deep sky's unit vectors and HIP and its V, as one plain tuple made once per database."""
     held = _FINISH_TABLES.get(db)
     if held is None:
-        held = _FINISH_TABLES[db] = (_unit_f64(db), db.hip, db.deep.unit, db.deep.hip, db.deep_v_mag)
+        held = _FINISH_TABLES[db] = (_unit_f64(db), db.hip, db.deep.unit, db.deep_index, db.deep.hip, db.deep_v_mag)
     return held
 
 
@@ -366,18 +378,18 @@ class TriangleVoting(Algorithm):
         j_rows = n_j[order].astype(np.uint16)
         unit32 = unit.astype(np.float32)
         side_i, side_j = record_sides(unit32, main_rows, i_rows, j_rows)
-        features = np.empty((order.size, 4), dtype=np.float32)
+        features = np.empty((order.size, 2), dtype=np.float32)
         features[:, FEAT_BASE] = base32[order]
         features[:, FEAT_HEIGHT] = height32[order]
-        features[:, FEAT_SIDE_I] = side_i
-        features[:, FEAT_SIDE_J] = side_j
+        records, s_b, s_h, s_s = compact_records(features[:, FEAT_BASE], features[:, FEAT_HEIGHT], side_i, side_j)
         return TriangleVotingDatabase(
-            features=features, main=main_rows, n_i=i_rows, n_j=j_rows,
+            features=features, records=records, rec_scale_b=s_b, rec_scale_h=s_h, rec_scale_s=s_s,
+            rows=np.ascontiguousarray(np.c_[main_rows, i_rows, j_rows]),
             cell_start=cell_start, unit_icrs=unit32, hip=hip.astype(np.int64),
             sky_start=sky_start, sky_axis=SKY_AXIS,
             cell_b=cell, cell_h=cell, n_cells_b=n_cells_b, n_cells_h=n_cells_h,
             pattern_radius_chord=pr_chord, d_min_chord=dmin_chord,
-            deep=deep, deep_v_mag=deep_v_mag(catalog, deep))
+            deep=deep, deep_v_mag=deep_v_mag(catalog, deep), deep_index=deep_index(deep.unit))
 
     # -- identification ---------------------------------------------------------------------
     def identify(self, database: TriangleVotingDatabase, observation: Observation) -> Identification:
@@ -387,12 +399,12 @@ class TriangleVoting(Algorithm):
         cam = observation.camera
         x, y, mag = observation.x_px, observation.y_px, observation.mag
         db = database
-        _, kernel_tol, fin_cam = self._tolerances(cam)
+        kernel_db, kernel_tol, fin_db, fin_cam = self._kernel_args(db, cam)
         # one kernel call: brightest first (ties on position, so the result does not depend on input
         # order), only stars bright enough to be guide stars (with a margin), at most max_stars of them;
         # voting, verification (identify_rows) and the final step (finish)
-        status, hip, attitude, accepted, work, n_named = identify_image(x, y, mag, _kernel_tables(db), kernel_tol,
-                                                               _finish_tables(db), fin_cam)
+        status, hip, attitude, accepted, work, n_named = identify_image(x, y, mag, kernel_db, kernel_tol, fin_db,
+                                                                        fin_cam)
         if status == 0:
             return Identification(hip)
         counters = dict(zip(WORK_COUNTERS, work.tolist(), strict=True))
@@ -418,6 +430,14 @@ class TriangleVoting(Algorithm):
             return True
         v_mag = np.array([db.deep_v_mag[np.flatnonzero(db.deep.hip == h)[0]] for h in hip[named]])
         return float(np.mean(v_mag - mag[named])) <= self.mag_margin
+
+    def _kernel_args(self, db: TriangleVotingDatabase, cam: Camera) -> tuple[tuple, tuple, tuple, tuple]:
+        """``identify_image``'s ``db``, ``tol``, ``fin_db`` and ``fin_cam`` for this database and camera, kept for the
+        last pair (one identity check per image instead of three look-ups)."""
+        def make():
+            _, kernel_tol, fin_cam = self._tolerances(cam)
+            return _kernel_tables(db), kernel_tol, _finish_tables(db), fin_cam
+        return self.kept("kernel_args", (db, cam), make)
 
     def _tolerances(self, cam: Camera) -> tuple[Tolerance, tuple, tuple]:
         """``_tolerance(cam)``, the same as the plain tuple the kernels take, and ``identify_image``'s

@@ -17,18 +17,58 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from llvmlite import ir
 from numba import njit
+from numba.core import cgutils, types
+from numba.extending import intrinsic
 
 from starid.kernels import backproject_px, chord_rows, wahba_rows
 
 #: kernels only other kernels call: no Python or C entry point to compile (issue #25, compile time)
 _inner = njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)
 
+@intrinsic
+def _prefetch(typingctx, arr, idx):
+    """Ask the CPU to bring row ``idx`` of array ``arr`` into its caches (x86 ``prefetcht0``; no fault, no
+    result): ``kernels.vote`` names the grid cells and records of the next image triangles while it scans one, the cone
+    searches the cells and rows they will read."""
+    if not isinstance(arr, types.Array) or not isinstance(idx, types.Integer):
+        return None
+
+    def codegen(context, builder, sig, args):
+        ary = context.make_array(sig.args[0])(context, builder, args[0])
+        stride = cgutils.unpack_tuple(builder, ary.strides, sig.args[0].ndim)[0]
+        row = context.cast(builder, args[1], sig.args[1], types.intp)
+        addr = builder.add(builder.ptrtoint(ary.data, stride.type), builder.mul(row, stride))
+        ptr = ir.IntType(8).as_pointer()
+        i32 = ir.IntType(32)
+        fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(ir.VoidType(), [ptr, i32, i32, i32]),
+                                           "llvm.prefetch")
+        builder.call(fn, [builder.inttoptr(addr, ptr), i32(0), i32(3), i32(1)])  # read, keep, data cache
+        return context.get_dummy_value()
+    return types.void(arr, idx), codegen
+
+
+# inline="always": called for arrays of several dtypes and row sizes (literal); inlined, it adds no signature
+@njit(cache=True, inline="always")
+def _prefetch_rows(arr, ranges, count, per_line):
+    """:func:`_prefetch` every ``per_line``-th row of ``arr`` in the row ranges ``ranges[:count]`` (rows of
+    ``64 / per_line`` bytes or more: one request per cache line), and each range's last row."""
+    for k in range(count):
+        for g in range(ranges[k, 0], ranges[k, 1], per_line):
+            _prefetch(arr, g)
+        if ranges[k, 1] > ranges[k, 0]:
+            _prefetch(arr, ranges[k, 1] - 1)
+
+
 #: z bands of the deep sky's order (``z`` in [-1, 1] cut in this many equal bands)
 DEEP_BANDS = 64
 #: widening of every cone search (chord / radians): covers the float32 rows' departure from unit length
 #: (~1e-7) and the rounding of the bounds with a wide margin
 CONE_MARGIN = 1e-5
+#: right-ascension buckets of each z band in :func:`deep_index` (a key ``k`` in [0, 4) is in bucket
+#: ``min(int(k * KEY_BUCKETS / 4), KEY_BUCKETS - 1)``; a power of two, so that product is exact)
+KEY_BUCKETS = 64
 #: most row ranges one cone search returns (two per band: a right-ascension slice may wrap around)
 MAX_RANGES = 2 * DEEP_BANDS
 
@@ -69,6 +109,23 @@ def band_order(unit: np.ndarray, hip: np.ndarray) -> np.ndarray:
     """The rows of a deep sky (float32 unit vectors, HIP) in this module's order: band, then key, then HIP."""
     band, key = deep_keys(unit)
     return np.lexsort((hip, key, band))
+
+
+@_inner
+def _key_bucket(k):
+    """The right-ascension bucket of key ``k`` (:data:`KEY_BUCKETS` equal buckets of [0, 4))."""
+    return min(int(k * (KEY_BUCKETS / 4.0)), KEY_BUCKETS - 1)
+
+
+def deep_index(unit: np.ndarray) -> np.ndarray:
+    """int32 ``(DEEP_BANDS * KEY_BUCKETS + 1,)``: of a deep sky in :func:`band_order`, the first row of each (z band,
+    right-ascension bucket) cell, ``cell = band * KEY_BUCKETS + bucket`` (the rows of a cell are
+    ``index[cell]:index[cell + 1]``). The cone search (:func:`cone_ranges_indexed`) starts its binary searches
+    there instead of over the whole deep sky: the same rows found, a few cache lines read instead of ~35 scattered
+    ones per band (issue #25: in the benchmark's interleaved timing each was a miss)."""
+    band, key = deep_keys(unit)
+    cell = band * KEY_BUCKETS + np.minimum((key * (KEY_BUCKETS / 4.0)).astype(np.int64), KEY_BUCKETS - 1)
+    return np.searchsorted(cell, np.arange(DEEP_BANDS * KEY_BUCKETS + 1)).astype(np.int32)
 
 
 @_inner
@@ -147,6 +204,72 @@ def cone_ranges(unit, cx, cy, cz, c_radius, ranges):
     return count
 
 
+@njit(cache=True)
+def cone_ranges_indexed(unit, index, cx, cy, cz, c_radius, ranges):
+    """:func:`cone_ranges` (the same ranges) with the cells of :func:`deep_index`: a band's rows from the index, and
+    each key's binary search only over its bucket (rows of a lower bucket have a smaller key, of a higher bucket
+    a larger one)."""
+    rho = c_radius + CONE_MARGIN
+    b0 = deep_band(cz - rho)
+    b1 = deep_band(cz + rho)
+    theta = 2.0 * math.asin(min(1.0, 0.5 * rho)) + CONE_MARGIN
+    cos_dec = math.sqrt(max(0.0, 1.0 - cz * cz))
+    full = cos_dec <= math.sin(theta) or theta >= 0.5 * math.pi
+    k0 = 0.0
+    k1 = 4.0
+    wrap = False
+    if not full:
+        half = math.asin(min(1.0, math.sin(theta) / cos_dec)) + CONE_MARGIN
+        ra = math.atan2(cy, cx)
+        a0 = ra - half
+        if a0 < 0.0:
+            a0 += 2.0 * math.pi
+        a1 = a0 + 2.0 * half
+        k0 = ra_key(math.cos(a0), math.sin(a0))
+        if a1 >= 2.0 * math.pi:
+            a1 -= 2.0 * math.pi
+            wrap = True
+        k1 = ra_key(math.cos(a1), math.sin(a1))
+        if not wrap and k1 < k0:  # a1 just below 2 pi whose key rounded to 0
+            wrap = True
+    q0 = _key_bucket(k0)
+    q1 = _key_bucket(k1)
+    # the index entries of every band first, then the rows where the binary searches start, so that the
+    # bands' cache misses overlap instead of following one another
+    for b in range(b0, b1 + 1):
+        _prefetch(index, b * KEY_BUCKETS + q0)
+        _prefetch(index, b * KEY_BUCKETS + q1)
+        _prefetch(index, (b + 1) * KEY_BUCKETS)
+    if not full:
+        for b in range(b0, b1 + 1):
+            _prefetch(unit, index[b * KEY_BUCKETS + q0])
+            _prefetch(unit, index[b * KEY_BUCKETS + q1])
+    count = 0
+    for b in range(b0, b1 + 1):
+        cell = b * KEY_BUCKETS
+        start = np.int64(index[cell])
+        stop = np.int64(index[cell + KEY_BUCKETS])
+        if full:
+            ranges[count, 0] = start
+            ranges[count, 1] = stop
+            count += 1
+        elif wrap:  # [k0, 4) and [0, k1]
+            ranges[count, 0] = _first_key(unit, k0, np.int64(index[cell + q0]), np.int64(index[cell + q0 + 1]),
+                                          np.bool_(False))
+            ranges[count, 1] = stop
+            ranges[count + 1, 0] = start
+            ranges[count + 1, 1] = _first_key(unit, k1, np.int64(index[cell + q1]), np.int64(index[cell + q1 + 1]),
+                                              np.bool_(True))
+            count += 2
+        else:
+            lo = _first_key(unit, k0, np.int64(index[cell + q0]), np.int64(index[cell + q0 + 1]), np.bool_(False))
+            ranges[count, 0] = lo
+            ranges[count, 1] = _first_key(unit, k1, max(lo, np.int64(index[cell + q1])),
+                                          np.int64(index[cell + q1 + 1]), np.bool_(True))
+            count += 1
+    return count
+
+
 @_inner
 def z_band(z_centre, c_radius):
     """``(z_lo, z_hi)`` of ``starid.kernels.z_band_rows``: its rows are those with ``z_lo <= z <= z_hi``."""
@@ -169,7 +292,7 @@ def field_chord_px(f_px, cx_px, cy_px, width_px, height_px):
 
 
 @_inner
-def _reproject_assign(A, v_cam, unit, c_fov, eps, out_row, ranges, f_px, cx_px, cy_px, width_px, height_px):
+def _reproject_assign(A, v_cam, unit, index, c_fov, eps, out_row, ranges, f_px, cx_px, cy_px, width_px, height_px):
     """``starid.kernels.reproject_assign`` (its ``n_assigned``) over the rows of the cone search."""
     n = v_cam.shape[0]
     n_match = np.zeros(n, dtype=np.int64)
@@ -180,7 +303,8 @@ def _reproject_assign(A, v_cam, unit, c_fov, eps, out_row, ranges, f_px, cx_px, 
         bore[0, a] = A[2, a]
     b = np.empty((1, 3))
     z_lo, z_hi = z_band(bore[0, 2], c_fov)
-    count = cone_ranges(unit, bore[0, 0], bore[0, 1], bore[0, 2], c_fov, ranges)
+    count = cone_ranges_indexed(unit, index, bore[0, 0], bore[0, 1], bore[0, 2], c_fov, ranges)
+    _prefetch_rows(unit, ranges, count, 5)
     for k in range(count):
         for g in range(ranges[k, 0], ranges[k, 1]):
             z = unit[g, 2]
@@ -209,14 +333,15 @@ def _reproject_assign(A, v_cam, unit, c_fov, eps, out_row, ranges, f_px, cx_px, 
 
 
 @_inner
-def _assign_all(attitude, v_all, deep_unit, deep_hip, eps_chord, hip, ranges, f_px, cx_px, cy_px, width_px,
+def _assign_all(attitude, v_all, deep_unit, deep_index, deep_hip, eps_chord, hip, ranges, f_px, cx_px, cy_px, width_px,
                 height_px):
     """``starid.kernels.assign_all`` (``hip`` updated in place) over the cone search; ``v_all`` the stars'
     camera vectors (``backproject_px`` of every star)."""
     n = v_all.shape[0]
     rows = np.empty(n, dtype=np.int64)
-    _reproject_assign(attitude, v_all, deep_unit, field_chord_px(f_px, cx_px, cy_px, width_px, height_px) + eps_chord,
-                      eps_chord, rows, ranges, f_px, cx_px, cy_px, width_px, height_px)
+    c_fov = field_chord_px(f_px, cx_px, cy_px, width_px, height_px) + eps_chord
+    _reproject_assign(attitude, v_all, deep_unit, deep_index, c_fov, eps_chord, rows, ranges, f_px, cx_px, cy_px,
+                      width_px, height_px)
     out = np.full(n, -1, dtype=np.int64)
     for i in range(n):
         if rows[i] >= 0:
@@ -233,11 +358,13 @@ def _assign_all(attitude, v_all, deep_unit, deep_hip, eps_chord, hip, ranges, f_
 
 
 @_inner
-def _deep_mag_of(deep_unit, deep_hip, deep_mag, r_icrs, eps_chord, hip, ranges):
+def _deep_mag_of(deep_unit, deep_index, deep_hip, deep_mag, r_icrs, eps_chord, hip, ranges):
     """V of the deep star ``hip``, which lies within chord ``eps_chord`` of the ICRS direction ``r_icrs``
     (planar_triangle's ``_deep_mag_of``: searched in the z band of chord ``2 eps_chord``)."""
     z_lo, z_hi = z_band(float(r_icrs[2]), 2.0 * eps_chord)
-    count = cone_ranges(deep_unit, r_icrs[0], r_icrs[1], r_icrs[2], 2.0 * eps_chord, ranges)
+    count = cone_ranges_indexed(deep_unit, deep_index, r_icrs[0], r_icrs[1], r_icrs[2], 2.0 * eps_chord, ranges)
+    _prefetch_rows(deep_unit, ranges, count, 5)
+    _prefetch_rows(deep_hip, ranges, count, 8)
     for k in range(count):
         for g in range(ranges[k, 0], ranges[k, 1]):
             z = deep_unit[g, 2]
@@ -247,11 +374,13 @@ def _deep_mag_of(deep_unit, deep_hip, deep_mag, r_icrs, eps_chord, hip, ranges):
 
 
 @_inner
-def _rivals(deep_unit, deep_mag, r_icrs, eps_chord, mag_max, ranges):
+def _rivals(deep_unit, deep_index, deep_mag, r_icrs, eps_chord, mag_max, ranges):
     """How many deep stars with V <= ``mag_max`` lie within chord ``eps_chord`` of ``r_icrs`` (planar_triangle's
     ``_rivals``)."""
     z_lo, z_hi = z_band(float(r_icrs[2]), eps_chord)
-    n_ranges = cone_ranges(deep_unit, r_icrs[0], r_icrs[1], r_icrs[2], eps_chord, ranges)
+    n_ranges = cone_ranges_indexed(deep_unit, deep_index, r_icrs[0], r_icrs[1], r_icrs[2], eps_chord, ranges)
+    _prefetch_rows(deep_mag, ranges, n_ranges, 16)
+    _prefetch_rows(deep_unit, ranges, n_ranges, 5)
     count = 0
     for k in range(n_ranges):
         for g in range(ranges[k, 0], ranges[k, 1]):
@@ -266,13 +395,16 @@ def _rivals(deep_unit, deep_mag, r_icrs, eps_chord, mag_max, ranges):
 
 
 @_inner
-def _coverage(attitude, deep_unit, deep_hip, deep_mag, mag_max, found_hip, ranges, f_px, cx_px, cy_px, width_px,
-              height_px):
+def _coverage(attitude, deep_unit, deep_index, deep_hip, deep_mag, mag_max, found_hip, ranges, f_px, cx_px, cy_px,
+              width_px, height_px):
     """``(predicted, missed)`` of planar_triangle's ``coverage`` over the cone search of the field; ``found_hip``:
     the identified stars' HIP (-1: none), in any order."""
     c_field = field_chord_px(f_px, cx_px, cy_px, width_px, height_px)
     z_lo, z_hi = z_band(attitude[2, 2], c_field)
-    n_ranges = cone_ranges(deep_unit, attitude[2, 0], attitude[2, 1], attitude[2, 2], c_field, ranges)
+    n_ranges = cone_ranges_indexed(deep_unit, deep_index, attitude[2, 0], attitude[2, 1], attitude[2, 2], c_field,
+                                   ranges)
+    _prefetch_rows(deep_mag, ranges, n_ranges, 16)
+    _prefetch_rows(deep_unit, ranges, n_ranges, 5)
     predicted = 0
     missed = 0
     for k in range(n_ranges):
@@ -303,11 +435,12 @@ def _coverage(attitude, deep_unit, deep_hip, deep_mag, mag_max, found_hip, range
 
 # inline="always": identify_image takes its body in numba IR (one level of compilation less; see identify_rows)
 @njit(cache=True, inline="always")
-def finish_cone(x_px, y_px, mag, rows, guide_unit, guide_hip, deep_unit, deep_hip, deep_mag, f_px, cx_px, cy_px,
-                width_px, height_px, eps_chord, mag_margin, mag_limit, coverage_mag_margin, max_missed_fraction,
+def finish_cone(x_px, y_px, mag, rows, guide_unit, guide_hip, deep_unit, deep_index, deep_hip, deep_mag, f_px, cx_px,
+                cy_px, width_px, height_px, eps_chord, mag_margin, mag_limit, coverage_mag_margin, max_missed_fraction,
                 assign_all):
-    """planar_triangle's ``finish`` (same steps, same answers) on a deep sky in :func:`band_order`, with the
-    camera frame and the rules as plain numbers. Returns ``(hip int64 (n,), attitude 3x3, accepted)``."""
+    """planar_triangle's ``finish`` (same steps, same answers) on a deep sky in :func:`band_order` with its
+    :func:`deep_index`, with the camera frame and the rules as plain numbers. Returns ``(hip int64 (n,), attitude
+    3x3, accepted)``."""
     n = rows.shape[0]
     hip = np.full(n, -1, dtype=np.int64)
     n_found = 0
@@ -321,8 +454,8 @@ def finish_cone(x_px, y_px, mag, rows, guide_unit, guide_hip, deep_unit, deep_hi
     v_cam = backproject_px(x_px, y_px, f_px, cx_px, cy_px)
     attitude = wahba_rows(v_cam, rows, guide_unit)
     assigned = hip.copy()
-    _assign_all(attitude, v_cam, deep_unit, deep_hip, eps_chord, assigned, ranges, f_px, cx_px, cy_px, width_px,
-                height_px)
+    _assign_all(attitude, v_cam, deep_unit, deep_index, deep_hip, eps_chord, assigned, ranges, f_px, cx_px, cy_px,
+                width_px, height_px)
     hip_all = hip.copy()
     r_icrs = np.empty(3)
     for i in range(n):
@@ -336,7 +469,8 @@ def finish_cone(x_px, y_px, mag, rows, guide_unit, guide_hip, deep_unit, deep_hi
             continue
         for a in range(3):
             r_icrs[a] = attitude[0, a] * v_cam[i, 0] + attitude[1, a] * v_cam[i, 1] + attitude[2, a] * v_cam[i, 2]
-        if _deep_mag_of(deep_unit, deep_hip, deep_mag, r_icrs, eps_chord, assigned[i], ranges) <= mag[i] + mag_margin:
+        v_assigned = _deep_mag_of(deep_unit, deep_index, deep_hip, deep_mag, r_icrs, eps_chord, assigned[i], ranges)
+        if v_assigned <= mag[i] + mag_margin:
             hip_all[i] = assigned[i]
     if max_missed_fraction < 1.0:
         faintest_mag = mag[0]  # mag.max() without numpy's reduction machinery (compile time)
@@ -344,8 +478,8 @@ def finish_cone(x_px, y_px, mag, rows, guide_unit, guide_hip, deep_unit, deep_hi
             if mag[i] > faintest_mag or math.isnan(mag[i]):
                 faintest_mag = mag[i]
         mag_max = min(mag_limit, faintest_mag) - coverage_mag_margin
-        predicted, missed = _coverage(attitude, deep_unit, deep_hip, deep_mag, mag_max, hip_all, ranges, f_px, cx_px,
-                                      cy_px, width_px, height_px)
+        predicted, missed = _coverage(attitude, deep_unit, deep_index, deep_hip, deep_mag, mag_max, hip_all, ranges,
+                                      f_px, cx_px, cy_px, width_px, height_px)
         if not (missed <= 1 or missed <= max_missed_fraction * predicted):
             return np.full(n, -1, dtype=np.int64), attitude, False
     for i in range(n):
@@ -353,7 +487,7 @@ def finish_cone(x_px, y_px, mag, rows, guide_unit, guide_hip, deep_unit, deep_hi
             continue
         for a in range(3):
             r_icrs[a] = attitude[0, a] * v_cam[i, 0] + attitude[1, a] * v_cam[i, 1] + attitude[2, a] * v_cam[i, 2]
-        if _rivals(deep_unit, deep_mag, r_icrs, eps_chord, mag[i] + mag_margin, ranges) > 1:
+        if _rivals(deep_unit, deep_index, deep_mag, r_icrs, eps_chord, mag[i] + mag_margin, ranges) > 1:
             hip[i] = -1
             hip_all[i] = -1
     if assign_all:

@@ -18,7 +18,7 @@ from starid_algorithms.planar_triangle.kernels import argsort_desc
 
 from starid.kernels import backproject_px, chord_rows, verify_pairwise, wahba_rows
 
-from .final import finish_cone
+from .final import _prefetch, finish_cone
 
 #: kernels only other kernels call: no Python or C entry point to compile (issue #25, compile time)
 _inner = njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)
@@ -29,31 +29,71 @@ _inner = njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)
 WORK_COUNTERS = ("triangles", "records", "matches", "side_matches")
 
 
-#: columns of ``Tables.features`` (the database's ``features``): base and height (chord units), and
-#: the record's main-to-n_i and main-to-n_j chords rounded to float32 (:func:`record_sides`). One row of
-#: 16 bytes per record, so the vote's scan of a few records reads one or two cache lines, not four streams.
-FEAT_BASE, FEAT_HEIGHT, FEAT_SIDE_I, FEAT_SIDE_J = 0, 1, 2, 3
+#: columns of ``Tables.features`` (the database's ``features``): the records' base and height (float32, chord
+#: units), the exact values the windows test. ``vote`` reads them only for a record within the rounding of
+#: the compact record (``records``) from a window's edge.
+FEAT_BASE, FEAT_HEIGHT = 0, 1
+#: columns of ``Tables.records``: base, height and the main-to-n_i and main-to-n_j chords (``record_sides``)
+#: rounded to multiples of ``rec_scale_b``, ``rec_scale_h``, ``rec_scale_s`` (uint16): one 8-byte row per record,
+#: the only bytes ``vote``'s scan of a grid column reads for most records (issue #25: in the benchmark's
+#: interleaved timing the records come from memory the other plugins evicted)
+REC_BASE, REC_HEIGHT, REC_SIDE_I, REC_SIDE_J = 0, 1, 2, 3
+#: columns of ``Tables.rows`` (uint16 guide rows of a record: main star, the apex, and its two neighbours): one
+#: 6-byte row, so a listed record costs one cache line, not one per column
+ROW_MAIN, ROW_I, ROW_J = 0, 1, 2
+#: largest value of a compact record's column (of 65,535), so rounding never overflows
+REC_MAX = 65000
+#: margin of a compact value, in units of its scale: it is within half a unit of the float32 value it rounds
+#: (the rest covers the float64 arithmetic of dividing and rounding)
+REC_MARGIN = 0.501
 
 
-def feature_columns() -> tuple[property, property, property, property]:
-    """Read-only properties ``base, height, side_i, side_j``: the columns of ``features``, for a class
-    holding it (``Tables`` and the database), as the four arrays they once were."""
+def row_columns() -> tuple[property, property, property]:
+    """Read-only properties ``main, n_i, n_j``: the columns of ``rows``, for a class holding it (``Tables``
+    and the database), as the three arrays they once were."""
+    def column(k: int, doc: str) -> property:
+        return property(lambda self: self.rows[:, k], doc=doc)
+    return (column(ROW_MAIN, "uint16 (m,) the records' main star (guide row)"),
+            column(ROW_I, "uint16 (m,) the records' first neighbour (guide row)"),
+            column(ROW_J, "uint16 (m,) the records' second neighbour (guide row)"))
+
+
+def feature_columns(unit_name: str) -> tuple[property, property, property, property]:
+    """Read-only properties ``base, height, side_i, side_j`` for a class holding ``features``, ``main``,
+    ``n_i``, ``n_j`` and the guide unit vectors as ``unit_name``: the columns of ``features`` and the records'
+    float32 side chords (``record_sides``, recomputed on access: the kernels read their compact copies)."""
     def column(k: int, doc: str) -> property:
         return property(lambda self: self.features[:, k], doc=doc)
+
+    def side(k: int, doc: str) -> property:
+        return property(lambda self: record_sides(getattr(self, unit_name), *(np.ascontiguousarray(c) for c in (
+            self.main, self.n_i, self.n_j)))[k], doc=doc)
     return (column(FEAT_BASE, "float32 (m,) the records' base (chord units)"),
             column(FEAT_HEIGHT, "float32 (m,) the records' height (chord units)"),
-            column(FEAT_SIDE_I, "float32 (m,) per record the chord main-to-``n_i`` (``record_sides``)"),
-            column(FEAT_SIDE_J, "float32 (m,) per record the chord main-to-``n_j`` (``record_sides``)"))
+            side(0, "float32 (m,) per record the chord main-to-``n_i`` (``record_sides``)"),
+            side(1, "float32 (m,) per record the chord main-to-``n_j`` (``record_sides``)"))
+
+
+def compact_records(base32, height32, side_i32, side_j32):
+    """``(records, scale_b, scale_h, scale_s)``: the four float32 columns as uint16 multiples of a scale per
+    column (sides share one), ``round(value / scale)``; each within ``REC_MARGIN * scale`` of its value."""
+    def scale(*cols):
+        top = max((float(c.max()) for c in cols if c.size), default=0.0)
+        return top / REC_MAX if top > 0.0 else 1.0
+
+    s_b, s_h, s_s = scale(base32), scale(height32), scale(side_i32, side_j32)
+    records = np.empty((base32.size, 4), dtype=np.uint16)
+    for k, (col, s) in enumerate(((base32, s_b), (height32, s_h), (side_i32, s_s), (side_j32, s_s))):
+        records[:, k] = np.rint(col.astype(np.float64) / s)
+    return records, s_b, s_h, s_s
 
 
 class Tables(NamedTuple):
     """The database as the kernels read it (see ``TriangleVotingDatabase``)."""
 
-    features: np.ndarray  # float32 (m, 4) per record base, height, side_i, side_j (see below); records sorted by
-    # 2-D grid cell, then height
-    main: np.ndarray  # uint16 (m,) guide rows: main star (apex) and its two neighbours
-    n_i: np.ndarray
-    n_j: np.ndarray
+    features: np.ndarray  # float32 (m, 2) per record base, height (exact); records sorted by 2-D grid cell, then height
+    records: np.ndarray  # uint16 (m, 4) per record base, height, side_i, side_j rounded (see REC_BASE)
+    rows: np.ndarray  # uint16 (m, 3) guide rows: main star (apex) and its two neighbours (see ROW_MAIN)
     cell_start: np.ndarray  # int32 records of grid cell c: cell_start[c]:cell_start[c + 1]
     n_cells_b: int
     n_cells_h: int
@@ -66,8 +106,12 @@ class Tables(NamedTuple):
     dmin_chord: float  # D_min as a chord
     unit64: np.ndarray  # float64 (n, 3) ``unit`` as float64 (the same values), the attitude solver's input: one
     # compilation of ``wahba_rows`` (float64, shared with the final step) instead of two (issue #25)
+    rec_scale_b: float  # the scales of ``records``' columns (chord units per unit)
+    rec_scale_h: float
+    rec_scale_s: float
 
-    base, height, side_i, side_j = feature_columns()
+    base, height, side_i, side_j = feature_columns("unit")
+    main, n_i, n_j = row_columns()
 
 
 class Tolerance(NamedTuple):
@@ -211,7 +255,23 @@ def _grow(arr):
 
 
 @_inner
-def _by_base(listed, n, cell_start, cb0, cb1, ch0, ch1, n_cells_h, features, main_db):
+def _key_after(q, r, records, features, rows_db):
+    """Whether record ``q`` comes after record ``r`` by (base, height, main star), the float32 values: from the
+    compact records where they differ (rounding keeps the order: a larger compact value means a larger value),
+    so the float32 rows (another cache line) are read only on a tie of the compact ones."""
+    if records[q, REC_BASE] != records[r, REC_BASE]:
+        return records[q, REC_BASE] > records[r, REC_BASE]
+    if features[q, FEAT_BASE] != features[r, FEAT_BASE]:
+        return features[q, FEAT_BASE] > features[r, FEAT_BASE]
+    if records[q, REC_HEIGHT] != records[r, REC_HEIGHT]:
+        return records[q, REC_HEIGHT] > records[r, REC_HEIGHT]
+    if features[q, FEAT_HEIGHT] != features[r, FEAT_HEIGHT]:
+        return features[q, FEAT_HEIGHT] > features[r, FEAT_HEIGHT]
+    return rows_db[q, ROW_MAIN] > rows_db[r, ROW_MAIN]
+
+
+@_inner
+def _by_base(listed, n, cell_start, cb0, cb1, ch0, ch1, n_cells_h, records, features, rows_db):
     """Reorder the records ``listed[:n]`` (ascending, from the cells ``cb0..cb1`` x ``ch0..ch1``) by cell,
     then base, height and main star (stable): the order of the records before they were sorted by height
     within a cell, so the side-matched triangles (the fallback's hypotheses, whose ties go by position)
@@ -233,12 +293,7 @@ def _by_base(listed, n, cell_start, cb0, cb1, ch0, ch1, n_cells_h, features, mai
         while p > 0:
             q = listed[p - 1]
             cq = cell[p - 1]
-            bq = features[q, FEAT_BASE]
-            br = features[r, FEAT_BASE]
-            hq = features[q, FEAT_HEIGHT]
-            hr = features[r, FEAT_HEIGHT]
-            after = cq > c or (cq == c and (bq > br or (bq == br and (
-                hq > hr or (hq == hr and main_db[q] > main_db[r])))))
+            after = cq > c or (cq == c and _key_after(q, r, records, features, rows_db))
             if not after:
                 break
             listed[p] = q
@@ -292,14 +347,21 @@ def vote(v_cam, db, tol, votes, mark):
     (3, n_guide); the votes are now tallied in a small table of the pairs touched, which stays in
     the first-level cache); kept so that callers and tools keep their signature, left as they are.
     """
-    (features, main_db, ni_db, nj_db, cell_start, n_cells_b, n_cells_h, cell_b, cell_h, cat_unit, _, _,
-     pr_chord, dmin_chord, _) = db
+    (features, records, rows_db, cell_start, n_cells_b, n_cells_h, cell_b, cell_h, cat_unit, _, _,
+     pr_chord, dmin_chord, _, s_b, s_h, s_s) = db
     sigma_chord, k_sigma, _, _, n_nbr, side_check, vote_neighbours, v_min, n_cand, _, _, _ = tol
     n = v_cam.shape[0]
     eps_b = k_sigma * math.sqrt(2.0) * sigma_chord
     lo_d = dmin_chord - eps_b
     hi_d = pr_chord + eps_b
-    eps_side = eps_b + SIDE_ROUNDING
+    # the compact records' values are within m_b, m_h, m_s of the float32 ones (the sides also within
+    # SIDE_ROUNDING of the exact chords): a test passed or failed by more than that margin is decided
+    m_b = REC_MARGIN * s_b
+    m_h = REC_MARGIN * s_h
+    m_s = REC_MARGIN * s_s + SIDE_ROUNDING
+    eps_b_in = eps_b - m_b
+    eps_b_out = eps_b + m_b
+    eps_near = eps_b + m_s  # a record whose exact sides match (best error <= eps_b) is within this
     no_side_check = not side_check
     # the votes of (observed star o, catalog row c): tally[e] for the e-th pair touched, (touched_o[e],
     # touched_c[e]); a small open-addressing table (slot: index e + 1, 0 = empty) finds e from the key
@@ -323,6 +385,13 @@ def vote(v_cam, db, tol, votes, mark):
     n_hyp = 0
     n_records = 0
     n_matches = 0
+    # the image triangles first (in the order they vote: main star, then neighbour pairs), so that the scan
+    # of one can ask the CPU for the grid cells and records of the next ones (``_prefetch``): in the
+    # benchmark's interleaved timing these come from memory the other plugins evicted
+    cap = n * (n_nbr * (n_nbr - 1) // 2)
+    g_obs = np.empty((cap, 3), dtype=np.int64)  # i, a, b
+    g_cells = np.empty((cap, 4), dtype=np.int64)  # cb0, cb1, ch0, ch1
+    g_feat = np.empty((cap, 5))  # base, height, eps_h, d_ia, d_ib
     for i in range(n):
         k = 0
         for j in range(n):
@@ -342,126 +411,181 @@ def vote(v_cam, db, tol, votes, mark):
                 if base < lo_d:
                     continue
                 eps_h = k_sigma * sigma_chord * math.sqrt(1.0 + (1.0 - t) * (1.0 - t) + t * t)
-                d_ia = chord_rows(v_cam, i, v_cam, a)
-                d_ib = chord_rows(v_cam, i, v_cam, b)
-                cb0 = max(int(math.floor((base - eps_b) / cell_b)), 0)
-                cb1 = min(int(math.floor((base + eps_b) / cell_b)), n_cells_b - 1)
-                ch0 = max(int(math.floor((height - eps_h) / cell_h)), 0)
-                ch1 = min(int(math.floor((height + eps_h) / cell_h)), n_cells_h - 1)
+                g_obs[tri, 0] = i
+                g_obs[tri, 1] = a
+                g_obs[tri, 2] = b
+                g_feat[tri, 0] = base
+                g_feat[tri, 1] = height
+                g_feat[tri, 2] = eps_h
+                g_feat[tri, 3] = chord_rows(v_cam, i, v_cam, a)
+                g_feat[tri, 4] = chord_rows(v_cam, i, v_cam, b)
+                g_cells[tri, 0] = max(int(math.floor((base - eps_b) / cell_b)), 0)
+                g_cells[tri, 1] = min(int(math.floor((base + eps_b) / cell_b)), n_cells_b - 1)
+                g_cells[tri, 2] = max(int(math.floor((height - eps_h) / cell_h)), 0)
+                g_cells[tri, 3] = min(int(math.floor((height + eps_h) / cell_h)), n_cells_h - 1)
                 tri += 1
-                n_scan = 0
-                for cb in range(cb0, cb1 + 1):
-                    n_scan += cell_start[cb * n_cells_h + ch1 + 1] - cell_start[cb * n_cells_h + ch0]
-                n_records += n_scan
-                while n_touched + 3 * n_scan > touched_o.size:  # room for every possible vote
-                    touched_o = _grow(touched_o)
-                    touched_c = _grow(touched_c)
-                    tally = _grow(tally)
-                if 2 * touched_o.size > slots.size:  # at most half full
-                    slots = _rehash(touched_o, touched_c, np.int64(n_touched), n_guide, 2 * touched_o.size)
-                if 3 * n_scan > tri_u.size:
-                    tri_u = np.empty(3 * n_scan, dtype=np.int64)
-                    tri_c = np.empty(3 * n_scan, dtype=np.int64)
-                n_tri = 0
-                if n_scan + 1 > listed.size:
-                    listed = np.empty(2 * (n_scan + 1), dtype=np.int64)
-                while n_hyp + n_scan > hyp.shape[0]:
-                    grown = np.empty((2 * hyp.shape[0], 6), dtype=np.int64)
-                    for q in range(n_hyp):
-                        for col in range(6):
-                            grown[q, col] = hyp[q, col]
-                    hyp = grown
-                # first pass, branch-free over every record of the cells (about half of them are in both
-                # windows: a branch on that is mispredicted half the time): the records in both windows
-                # whose float32 sides (sequential reads) come within their rounding of a side match,
-                # listed; the second pass checks those sides exactly, from the guide vectors, and votes
-                n_near = 0
-                for cb in range(cb0, cb1 + 1):
-                    # the cells (cb, ch0..ch1) are contiguous in the record order and sorted by height
-                    # (cell, then height): the records below and above the height window are skipped
-                    r0 = cell_start[cb * n_cells_h + ch0]
-                    r1 = cell_start[cb * n_cells_h + ch1 + 1]
-                    while r0 < r1 and features[r0, FEAT_HEIGHT] - height < -eps_h:
-                        r0 += 1
-                    while r1 > r0 and features[r1 - 1, FEAT_HEIGHT] - height > eps_h:
-                        r1 -= 1
-                    for r in range(r0, r1):
-                        in_windows = ((abs(features[r, FEAT_BASE] - base) <= eps_b)
-                                      & (abs(features[r, FEAT_HEIGHT] - height) <= eps_h))
-                        s_i = float(features[r, FEAT_SIDE_I])
-                        s_j = float(features[r, FEAT_SIDE_J])
-                        near = min(max(abs(d_ia - s_i), abs(d_ib - s_j)),
-                                   max(abs(d_ia - s_j), abs(d_ib - s_i))) <= eps_side
-                        n_matches += in_windows
-                        listed[n_near] = r
-                        n_near += in_windows & (near | no_side_check)
-                if n_near > 1:  # the records in the order of (cell, base, height, main), as they were stored
-                    _by_base(listed, np.int64(n_near), cell_start, cb0, cb1, ch0, ch1, n_cells_h, features, main_db)
-                for e in range(n_near):
-                    r = listed[e]
-                    c = main_db[r]
-                    ci = ni_db[r]
-                    cj = nj_db[r]
-                    # the side check from the float32 sides when their rounding cannot change its outcome (both
-                    # errors and their difference farther than the rounding from the window and from a tie);
-                    # else exactly, from the guide vectors (three random reads: cold in the interleaved timing)
-                    s_i = float(features[r, FEAT_SIDE_I])
-                    s_j = float(features[r, FEAT_SIDE_J])
-                    e_straight = max(abs(d_ia - s_i), abs(d_ib - s_j))
-                    e_swapped = max(abs(d_ia - s_j), abs(d_ib - s_i))
-                    e_best = min(e_straight, e_swapped)
-                    if abs(e_straight - e_swapped) > 2.0 * SIDE_ROUNDING and abs(e_best - eps_b) > SIDE_ROUNDING:
-                        if e_swapped < e_straight:
-                            ci, cj = cj, ci
-                        sides_match = e_best < eps_b
-                    else:
-                        d_ci = chord_rows(cat_unit, c, cat_unit, ci)
-                        d_cj = chord_rows(cat_unit, c, cat_unit, cj)
-                        e_straight = max(abs(d_ia - d_ci), abs(d_ib - d_cj))
-                        e_swapped = max(abs(d_ia - d_cj), abs(d_ib - d_ci))
-                        if e_swapped < e_straight:
-                            ci, cj = cj, ci
-                            e_straight = e_swapped
-                        sides_match = e_straight <= eps_b
-                    if side_check and not sides_match:
-                        continue
-                    n_votes = 3 if vote_neighbours and sides_match else 1
-                    if sides_match:
-                        hyp[n_hyp, 0] = i
-                        hyp[n_hyp, 1] = c
-                        hyp[n_hyp, 2] = a
-                        hyp[n_hyp, 3] = ci
-                        hyp[n_hyp, 4] = b
-                        hyp[n_hyp, 5] = cj
-                        n_hyp += 1
-                    obs[0] = i
-                    row[0] = c
-                    obs[1] = a
-                    row[1] = ci
-                    obs[2] = b
-                    row[2] = cj
-                    for u in range(n_votes):
-                        o = obs[u]
-                        c = row[u]
-                        again = False  # at most one vote per observed triangle
-                        for t in range(n_tri):
-                            if tri_u[t] == u and tri_c[t] == c:
-                                again = True
-                                break
-                        if again:
-                            continue
-                        tri_u[n_tri] = u
-                        tri_c[n_tri] = c
-                        n_tri += 1
-                        e = _slot(slots, touched_o, touched_c, o, c, n_guide)
-                        h = slots[e]
-                        if h == 0:
-                            touched_o[n_touched] = o
-                            touched_c[n_touched] = c
-                            tally[n_touched] = 0
-                            n_touched += 1
-                            h = slots[e] = n_touched
-                        tally[h - 1] += 1
+    for g in range(tri):
+        # ahead: the grid cells' bounds two triangles on, the records of the next triangle's cells
+        if g + 2 < tri:
+            for cb in range(g_cells[g + 2, 0], g_cells[g + 2, 1] + 1):
+                _prefetch(cell_start, cb * n_cells_h + g_cells[g + 2, 2])
+                _prefetch(cell_start, cb * n_cells_h + g_cells[g + 2, 3] + 1)
+        if g + 1 < tri:
+            for cb in range(g_cells[g + 1, 0], g_cells[g + 1, 1] + 1):
+                r1 = cell_start[cb * n_cells_h + g_cells[g + 1, 3] + 1]
+                for r in range(cell_start[cb * n_cells_h + g_cells[g + 1, 2]], r1, 8):  # 8 records a cache line
+                    _prefetch(records, r)
+                if r1 > 0:
+                    _prefetch(records, r1 - 1)
+        i = g_obs[g, 0]
+        a = g_obs[g, 1]
+        b = g_obs[g, 2]
+        base = g_feat[g, 0]
+        height = g_feat[g, 1]
+        eps_h = g_feat[g, 2]
+        d_ia = g_feat[g, 3]
+        d_ib = g_feat[g, 4]
+        cb0 = g_cells[g, 0]
+        cb1 = g_cells[g, 1]
+        ch0 = g_cells[g, 2]
+        ch1 = g_cells[g, 3]
+        n_scan = 0
+        for cb in range(cb0, cb1 + 1):
+            n_scan += cell_start[cb * n_cells_h + ch1 + 1] - cell_start[cb * n_cells_h + ch0]
+        n_records += n_scan
+        while n_touched + 3 * n_scan > touched_o.size:  # room for every possible vote
+            touched_o = _grow(touched_o)
+            touched_c = _grow(touched_c)
+            tally = _grow(tally)
+        if 2 * touched_o.size > slots.size:  # at most half full
+            slots = _rehash(touched_o, touched_c, np.int64(n_touched), n_guide, 2 * touched_o.size)
+        if 3 * n_scan > tri_u.size:
+            tri_u = np.empty(3 * n_scan, dtype=np.int64)
+            tri_c = np.empty(3 * n_scan, dtype=np.int64)
+        n_tri = 0
+        if n_scan + 1 > listed.size:
+            listed = np.empty(2 * (n_scan + 1), dtype=np.int64)
+        while n_hyp + n_scan > hyp.shape[0]:
+            grown = np.empty((2 * hyp.shape[0], 6), dtype=np.int64)
+            for q in range(n_hyp):
+                for col in range(6):
+                    grown[q, col] = hyp[q, col]
+            hyp = grown
+        # first pass, branch-free over every record of the cells (about half of them are in both
+        # windows: a branch on that is mispredicted half the time), reading only the 8-byte compact
+        # records: the records in both windows (decided from the compact values, or for the rare
+        # record within their rounding of a window's edge from the float32 ones) whose compact sides
+        # come within their rounding of a side match, listed; the second pass checks those sides
+        # and votes
+        n_near = 0
+        # the tests as integer intervals of the compact values: "surely in" (a value inside passes the float32
+        # test too: the margins leave more than the float64 rounding of these bounds), "not surely out" (rounded
+        # outward), and for the sides "near" (outward: every record whose exact sides match is inside)
+        lb_in = math.ceil((base - eps_b_in) / s_b)
+        hb_in = math.floor((base + eps_b_in) / s_b)
+        lb_out = math.floor((base - eps_b_out) / s_b)
+        hb_out = math.ceil((base + eps_b_out) / s_b)
+        lh_in = math.ceil((height - (eps_h - m_h)) / s_h)
+        hh_in = math.floor((height + (eps_h - m_h)) / s_h)
+        lh_out = math.floor((height - (eps_h + m_h)) / s_h)
+        hh_out = math.ceil((height + (eps_h + m_h)) / s_h)
+        la = math.floor((d_ia - eps_near) / s_s)
+        ha = math.ceil((d_ia + eps_near) / s_s)
+        lb = math.floor((d_ib - eps_near) / s_s)
+        hb = math.ceil((d_ib + eps_near) / s_s)
+        for cb in range(cb0, cb1 + 1):
+            # the cells (cb, ch0..ch1) are contiguous in the record order and sorted by height
+            # (cell, then height): the records surely below and above the height window are skipped
+            r0 = cell_start[cb * n_cells_h + ch0]
+            r1 = cell_start[cb * n_cells_h + ch1 + 1]
+            while r0 < r1 and np.int64(records[r0, REC_HEIGHT]) < lh_out:
+                r0 += 1
+            while r1 > r0 and np.int64(records[r1 - 1, REC_HEIGHT]) > hh_out:
+                r1 -= 1
+            for r in range(r0, r1):
+                qb = np.int64(records[r, REC_BASE])
+                qh = np.int64(records[r, REC_HEIGHT])
+                qi = np.int64(records[r, REC_SIDE_I])
+                qj = np.int64(records[r, REC_SIDE_J])
+                in_windows = (qb >= lb_in) & (qb <= hb_in) & (qh >= lh_in) & (qh <= hh_in)
+                if (qb >= lb_out) & (qb <= hb_out) & (qh >= lh_out) & (qh <= hh_out) & (not in_windows):  # rare
+                    in_windows = ((abs(features[r, FEAT_BASE] - base) <= eps_b)
+                                  & (abs(features[r, FEAT_HEIGHT] - height) <= eps_h))
+                near = (((qi >= la) & (qi <= ha) & (qj >= lb) & (qj <= hb))
+                        | ((qj >= la) & (qj <= ha) & (qi >= lb) & (qi <= hb)))
+                n_matches += in_windows
+                listed[n_near] = r
+                n_near += in_windows & (near | no_side_check)
+        for e in range(n_near):  # their guide rows, read below
+            _prefetch(rows_db, listed[e])
+        if n_near > 1:  # the records in the order of (cell, base, height, main), as they were stored
+            _by_base(listed, np.int64(n_near), cell_start, cb0, cb1, ch0, ch1, n_cells_h, records, features,
+                     rows_db)
+        for e in range(n_near):
+            r = listed[e]
+            c = rows_db[r, ROW_MAIN]
+            ci = rows_db[r, ROW_I]
+            cj = rows_db[r, ROW_J]
+            # the side check from the compact sides when their rounding cannot change its outcome (both
+            # errors and their difference farther than the rounding from the window and from a tie);
+            # else exactly, from the guide vectors (three random reads: cold in the interleaved timing)
+            s_i = records[r, REC_SIDE_I] * s_s
+            s_j = records[r, REC_SIDE_J] * s_s
+            e_straight = max(abs(d_ia - s_i), abs(d_ib - s_j))
+            e_swapped = max(abs(d_ia - s_j), abs(d_ib - s_i))
+            e_best = min(e_straight, e_swapped)
+            if abs(e_straight - e_swapped) > 2.0 * m_s and abs(e_best - eps_b) > m_s:
+                if e_swapped < e_straight:
+                    ci, cj = cj, ci
+                sides_match = e_best < eps_b
+            else:
+                d_ci = chord_rows(cat_unit, c, cat_unit, ci)
+                d_cj = chord_rows(cat_unit, c, cat_unit, cj)
+                e_straight = max(abs(d_ia - d_ci), abs(d_ib - d_cj))
+                e_swapped = max(abs(d_ia - d_cj), abs(d_ib - d_ci))
+                if e_swapped < e_straight:
+                    ci, cj = cj, ci
+                    e_straight = e_swapped
+                sides_match = e_straight <= eps_b
+            if side_check and not sides_match:
+                continue
+            n_votes = 3 if vote_neighbours and sides_match else 1
+            if sides_match:
+                hyp[n_hyp, 0] = i
+                hyp[n_hyp, 1] = c
+                hyp[n_hyp, 2] = a
+                hyp[n_hyp, 3] = ci
+                hyp[n_hyp, 4] = b
+                hyp[n_hyp, 5] = cj
+                n_hyp += 1
+            obs[0] = i
+            row[0] = c
+            obs[1] = a
+            row[1] = ci
+            obs[2] = b
+            row[2] = cj
+            for u in range(n_votes):
+                o = obs[u]
+                c = row[u]
+                again = False  # at most one vote per observed triangle
+                for t in range(n_tri):
+                    if tri_u[t] == u and tri_c[t] == c:
+                        again = True
+                        break
+                if again:
+                    continue
+                tri_u[n_tri] = u
+                tri_c[n_tri] = c
+                n_tri += 1
+                e = _slot(slots, touched_o, touched_c, o, c, n_guide)
+                h = slots[e]
+                if h == 0:
+                    touched_o[n_touched] = o
+                    touched_c[n_touched] = c
+                    tally[n_touched] = 0
+                    n_touched += 1
+                    h = slots[e] = n_touched
+                tally[h - 1] += 1
     cand = np.full((n, n_cand), -1, dtype=np.int64)
     cand_votes = np.zeros((n, n_cand), dtype=np.int64)
     for e in range(n_touched):
@@ -523,15 +647,22 @@ def select_candidates(v_cam, cand, cand_votes, cat_unit, tol_chord):
     is supported. Returns the chosen rows and their votes.
     """
     n, k = cand.shape
+    for i in range(n):  # the candidates' guide vectors, read below in no particular order
+        for s in range(k):
+            if cand[i, s] >= 0:
+                _prefetch(cat_unit, cand[i, s])
     chosen = np.full(n, -1, dtype=np.int64)
     chosen_votes = np.zeros(n, dtype=np.int64)
     # the separations, each computed once (the same values as ``_agree``'s: a chord is the same
-    # number whichever row comes first): observed pairs, and candidate pairs on first use (-1 = not yet)
+    # number whichever row comes first): observed pairs, and candidate pairs on first use
     d_obs = np.empty((n, n))
     for i in range(n):
         for j in range(n):
             d_obs[i, j] = chord_rows(v_cam, i, v_cam, j)
-    d_cat = np.full((n * k, n * k), -1.0)
+    # d_cat[p, q] is set when known[p, q]: a byte matrix to clear, not the float64 one (8x fewer cache lines
+    # written per image; those of d_cat are written only where a separation is computed)
+    d_cat = np.empty((n * k, n * k))
+    known = np.zeros((n * k, n * k), dtype=np.uint8)
     for i in range(n):
         best_support = 0
         for s in range(k):
@@ -550,11 +681,14 @@ def select_candidates(v_cam, cand, cand_votes, cat_unit, tol_chord):
                     if c2 == c:
                         continue
                     q = j * k + s2
-                    d = d_cat[p, q]
-                    if d < 0.0:
+                    if known[p, q]:
+                        d = d_cat[p, q]
+                    else:
                         d = chord_rows(cat_unit, c, cat_unit, c2)
                         d_cat[p, q] = d
                         d_cat[q, p] = d
+                        known[p, q] = 1
+                        known[q, p] = 1
                     if abs(d_obs[i, j] - d) <= tol_chord:
                         support += 1
                         break
@@ -802,11 +936,12 @@ def identify_image(x_px, y_px, mag, db, tol, fin_db, fin_cam):
     (-1: all); fewer than 3: ``status`` 0. Then :func:`identify_rows` on their camera vectors (no guide row:
     ``status`` 1, ``work`` its counters) and planar_triangle's ``finish`` on every star (``status`` 2).
     ``db``, ``tol``: the plain tuples of :class:`Tables` and :class:`Tolerance`; ``fin_db`` = (guide unit
-    vectors float64, guide HIP, deep unit, deep HIP, deep V); ``fin_cam`` = (the camera's ``Frame`` fields,
-    the ``Finish`` rules' fields, ``mag_cut``, ``max_stars``), plain tuples (a NamedTuple argument costs
-    about 1 us more per call to dispatch). One call instead of the wrapper's several kernel calls.
+    vectors float64, guide HIP, deep unit, deep index (``final.deep_index``), deep HIP, deep V); ``fin_cam`` =
+    (the camera's ``Frame`` fields, the ``Finish`` rules' fields, ``mag_cut``, ``max_stars``), plain tuples (a
+    NamedTuple argument costs about 1 us more per call to dispatch). One call instead of the wrapper's several
+    kernel calls.
     """
-    unit64, guide_hip, deep_unit, deep_hip, deep_mag = fin_db
+    unit64, guide_hip, deep_unit, deep_index, deep_hip, deep_mag = fin_db
     (f_px, cx_px, cy_px, width_px, height_px, eps_chord, mag_margin, mag_limit, coverage_mag_margin,
      max_missed_fraction, assign_all, mag_cut, max_stars) = fin_cam
     n = x_px.shape[0]
@@ -835,7 +970,8 @@ def identify_image(x_px, y_px, mag, db, tol, fin_db, fin_cam):
     all_rows = np.full(n, -1, dtype=np.int64)
     for k in range(m):
         all_rows[sel[k]] = rows[k]
-    hip, attitude, accepted = finish_cone(x_px, y_px, mag, all_rows, unit64, guide_hip, deep_unit, deep_hip, deep_mag,
+    hip, attitude, accepted = finish_cone(x_px, y_px, mag, all_rows, unit64, guide_hip, deep_unit, deep_index, deep_hip,
+                                          deep_mag,
                                           f_px, cx_px, cy_px, width_px, height_px, eps_chord, mag_margin, mag_limit,
                                           coverage_mag_margin, max_missed_fraction, assign_all)
     n_named = 0
