@@ -6,10 +6,7 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from llvmlite import ir
-from numba import njit, types
-from numba.core import cgutils
-from numba.extending import intrinsic
+from numba import njit
 
 from starid.kernels import (
     Frame,
@@ -25,6 +22,7 @@ from starid.kernels import (
     wahba_rows,
 )
 from starid.kernels.order import stable_sort_by_key
+from starid.kernels.prefetch import prefetch, prefetch_at
 
 
 class View(NamedTuple):
@@ -188,44 +186,6 @@ class Tolerances(NamedTuple):
     conflict_fails: bool
     stop_first: bool
     lone_triangles: bool
-
-
-@intrinsic
-def _prefetch(typingctx, arr, i):
-    """Ask for the cache line of ``arr[i]`` (1-D) without waiting for it (LLVM's ``prefetch``: read,
-    keep in every cache level). No load, no fault: ``i`` need not be valid, it is clamped by the caller
-    only to stay within the array. It changes no value, only when a later load finds its line."""
-    sig = types.void(arr, types.intp)
-
-    def codegen(context, builder, signature, args):
-        aryty = signature.args[0]
-        ary = context.make_array(aryty)(context, builder, args[0])
-        ptr = cgutils.get_item_pointer(context, builder, aryty, ary, [args[1]], wraparound=False)
-        _emit_prefetch(builder, ptr)
-        return context.get_dummy_value()
-    return sig, codegen
-
-
-@intrinsic
-def _prefetch2(typingctx, arr, i, j):
-    """:func:`_prefetch` of ``arr[i, j]`` (2-D)."""
-    sig = types.void(arr, types.intp, types.intp)
-
-    def codegen(context, builder, signature, args):
-        aryty = signature.args[0]
-        ary = context.make_array(aryty)(context, builder, args[0])
-        ptr = cgutils.get_item_pointer(context, builder, aryty, ary, [args[1], args[2]], wraparound=False)
-        _emit_prefetch(builder, ptr)
-        return context.get_dummy_value()
-    return sig, codegen
-
-
-def _emit_prefetch(builder, ptr):
-    i8p = ir.IntType(8).as_pointer()
-    i32 = ir.IntType(32)
-    fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(ir.VoidType(), [i8p, i32, i32, i32]),
-                                        "llvm.prefetch.p0i8")
-    builder.call(fn, [builder.bitcast(ptr, i8p), i32(0), i32(3), i32(1)])
 
 
 def plain(t):
@@ -531,11 +491,11 @@ def _prefetch_entries(start, stop, i0, i1, index):
         e1 = np.int64(index.offsets[j1, i])
         if e1 <= e0:
             continue
-        _prefetch(index.rows, e0)
-        _prefetch(index.rows, e1 - 1)
+        prefetch(index.rows, e0)
+        prefetch(index.rows, e1 - 1)
         for e in range(e0, e1, 5):      # 5 entries of 12 bytes: no 64-byte line skipped
-            _prefetch2(index.sides, e, 0)
-        _prefetch2(index.sides, e1 - 1, 2)
+            prefetch_at(index.sides, e, 0)
+        prefetch_at(index.sides, e1 - 1, 2)
 
 
 @njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
@@ -691,7 +651,7 @@ def identify_kernel(x_px, y_px, mag, view_t, narrow, wide, tol_t):
     w_int = np.empty((cap_w, 8), dtype=np.int64)
     w_flt = np.empty((cap_w, 5))
     # The search runs in passes over all the windows of a batch (every master; one master with stop_first),
-    # each pass asking for the cache lines the next one reads (_prefetch): a window's reads form a chain
+    # each pass asking for the cache lines the next one reads (starid.kernels.prefetch): a window's reads form a chain
     # (k-vector -> its values -> the index's offsets -> the entries -> the guide rows), which the passes turn
     # into independent loads across windows. The same windows, rows, records and order as one pass.
     first = 0
@@ -731,17 +691,17 @@ def identify_kernel(x_px, y_px, mag, view_t, narrow, wide, tol_t):
                         jb, jt = _slice_ends(kv.m, kv.q, lo, hi)
                         w_int[nw, 4] = jb
                         w_int[nw, 5] = jt
-                        _prefetch(kv.k, min(max(jb - 1, 0), n_rows - 1))
-                        _prefetch(kv.k, min(max(jt - 1, 0), n_rows - 1))
+                        prefetch(kv.k, min(max(jb - 1, 0), n_rows - 1))
+                        prefetch(kv.k, min(max(jt - 1, 0), n_rows - 1))
                         nw += 1
         for w in range(nw):     # the k-vector's slice (its entries asked for above); ask for its ends' values
             start, stop = _slice_rows(kv.k, n_rows, w_int[w, 4], w_int[w, 5])
             w_int[w, 4] = start
             w_int[w, 5] = stop
-            _prefetch(kv.values, min(max(start - 1, 0), n_rows - 1))
-            _prefetch(kv.values, min(start, n_rows - 1))
-            _prefetch(kv.values, min(max(stop - 1, 0), n_rows - 1))
-            _prefetch(kv.values, min(stop, n_rows - 1))
+            prefetch(kv.values, min(max(start - 1, 0), n_rows - 1))
+            prefetch(kv.values, min(start, n_rows - 1))
+            prefetch(kv.values, min(max(stop - 1, 0), n_rows - 1))
+            prefetch(kv.values, min(stop, n_rows - 1))
         for w in range(nw):     # the exact windows (kvector_query's rows); ask for the index's offsets they read
             lo = w_flt[w, 3]
             hi = w_flt[w, 4]
@@ -757,10 +717,10 @@ def identify_kernel(x_px, y_px, mag, view_t, narrow, wide, tol_t):
                 w_int[w, 7] = i1
                 j0 = start >> index.shift
                 j1 = ((stop - 1) >> index.shift) + 1
-                _prefetch2(index.offsets, j0, i0)
-                _prefetch2(index.offsets, j0, i1)
-                _prefetch2(index.offsets, j1, i0)
-                _prefetch2(index.offsets, j1, i1)
+                prefetch_at(index.offsets, j0, i0)
+                prefetch_at(index.offsets, j0, i1)
+                prefetch_at(index.offsets, j1, i0)
+                prefetch_at(index.offsets, j1, i1)
         for w in range(nw):     # ask for the entries the checks read
             start = w_int[w, 4]
             stop = w_int[w, 5]
@@ -799,7 +759,7 @@ def identify_kernel(x_px, y_px, mag, view_t, narrow, wide, tol_t):
                 for v in range(3):
                     m_img[n_match, v] = w_int[w, v]
                 m_cat[n_match, 0] = cand[c]
-                _prefetch2(db.ids, cand[c], 0)
+                prefetch_at(db.ids, cand[c], 0)
                 n_match += 1
         for r in range(n_new, n_match):     # database rows -> their guide rows
             row = m_cat[r, 0]

@@ -17,48 +17,25 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from llvmlite import ir
 from numba import njit
-from numba.core import cgutils, types
-from numba.extending import intrinsic
 
 from starid.kernels import backproject_px, chord_rows, wahba_rows
+from starid.kernels.prefetch import prefetch
 
 #: kernels only other kernels call: no Python or C entry point to compile (issue #25, compile time)
 _inner = njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)
 
-@intrinsic
-def _prefetch(typingctx, arr, idx):
-    """Ask the CPU to bring row ``idx`` of array ``arr`` into its caches (x86 ``prefetcht0``; no fault, no
-    result): ``kernels.vote`` names the grid cells and records of the next image triangles while it scans one, the cone
-    searches the cells and rows they will read."""
-    if not isinstance(arr, types.Array) or not isinstance(idx, types.Integer):
-        return None
-
-    def codegen(context, builder, sig, args):
-        ary = context.make_array(sig.args[0])(context, builder, args[0])
-        stride = cgutils.unpack_tuple(builder, ary.strides, sig.args[0].ndim)[0]
-        row = context.cast(builder, args[1], sig.args[1], types.intp)
-        addr = builder.add(builder.ptrtoint(ary.data, stride.type), builder.mul(row, stride))
-        ptr = ir.IntType(8).as_pointer()
-        i32 = ir.IntType(32)
-        fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(ir.VoidType(), [ptr, i32, i32, i32]),
-                                           "llvm.prefetch")
-        builder.call(fn, [builder.inttoptr(addr, ptr), i32(0), i32(3), i32(1)])  # read, keep, data cache
-        return context.get_dummy_value()
-    return types.void(arr, idx), codegen
-
-
 # inline="always": called for arrays of several dtypes and row sizes (literal); inlined, it adds no signature
 @njit(cache=True, inline="always")
 def _prefetch_rows(arr, ranges, count, per_line):
-    """:func:`_prefetch` every ``per_line``-th row of ``arr`` in the row ranges ``ranges[:count]`` (rows of
-    ``64 / per_line`` bytes or more: one request per cache line), and each range's last row."""
+    """:func:`~starid.kernels.prefetch.prefetch` every ``per_line``-th row of ``arr`` in the row ranges
+    ``ranges[:count]`` (rows of ``64 / per_line`` bytes or more: one request per cache line), and each
+    range's last row."""
     for k in range(count):
         for g in range(ranges[k, 0], ranges[k, 1], per_line):
-            _prefetch(arr, g)
+            prefetch(arr, g)
         if ranges[k, 1] > ranges[k, 0]:
-            _prefetch(arr, ranges[k, 1] - 1)
+            prefetch(arr, ranges[k, 1] - 1)
 
 
 #: z bands of the deep sky's order (``z`` in [-1, 1] cut in this many equal bands)
@@ -237,13 +214,13 @@ def cone_ranges_indexed(unit, index, cx, cy, cz, c_radius, ranges):
     # the index entries of every band first, then the rows where the binary searches start, so that the
     # bands' cache misses overlap instead of following one another
     for b in range(b0, b1 + 1):
-        _prefetch(index, b * KEY_BUCKETS + q0)
-        _prefetch(index, b * KEY_BUCKETS + q1)
-        _prefetch(index, (b + 1) * KEY_BUCKETS)
+        prefetch(index, b * KEY_BUCKETS + q0)
+        prefetch(index, b * KEY_BUCKETS + q1)
+        prefetch(index, (b + 1) * KEY_BUCKETS)
     if not full:
         for b in range(b0, b1 + 1):
-            _prefetch(unit, index[b * KEY_BUCKETS + q0])
-            _prefetch(unit, index[b * KEY_BUCKETS + q1])
+            prefetch(unit, index[b * KEY_BUCKETS + q0])
+            prefetch(unit, index[b * KEY_BUCKETS + q1])
     count = 0
     for b in range(b0, b1 + 1):
         cell = b * KEY_BUCKETS

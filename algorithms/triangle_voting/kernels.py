@@ -17,8 +17,9 @@ from numba import njit
 from starid_algorithms.planar_triangle.kernels import argsort_desc
 
 from starid.kernels import backproject_px, chord_rows, verify_pairwise, wahba_rows
+from starid.kernels.prefetch import prefetch
 
-from .final import _prefetch, finish_cone
+from .final import finish_cone
 
 #: kernels only other kernels call: no Python or C entry point to compile (issue #25, compile time)
 _inner = njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)
@@ -386,7 +387,7 @@ def vote(v_cam, db, tol, votes, mark):
     n_records = 0
     n_matches = 0
     # the image triangles first (in the order they vote: main star, then neighbour pairs), so that the scan
-    # of one can ask the CPU for the grid cells and records of the next ones (``_prefetch``): in the
+    # of one can ask the CPU for the grid cells and records of the next ones (``starid.kernels.prefetch``): in the
     # benchmark's interleaved timing these come from memory the other plugins evicted
     cap = n * (n_nbr * (n_nbr - 1) // 2)
     g_obs = np.empty((cap, 3), dtype=np.int64)  # i, a, b
@@ -428,15 +429,15 @@ def vote(v_cam, db, tol, votes, mark):
         # ahead: the grid cells' bounds two triangles on, the records of the next triangle's cells
         if g + 2 < tri:
             for cb in range(g_cells[g + 2, 0], g_cells[g + 2, 1] + 1):
-                _prefetch(cell_start, cb * n_cells_h + g_cells[g + 2, 2])
-                _prefetch(cell_start, cb * n_cells_h + g_cells[g + 2, 3] + 1)
+                prefetch(cell_start, cb * n_cells_h + g_cells[g + 2, 2])
+                prefetch(cell_start, cb * n_cells_h + g_cells[g + 2, 3] + 1)
         if g + 1 < tri:
             for cb in range(g_cells[g + 1, 0], g_cells[g + 1, 1] + 1):
                 r1 = cell_start[cb * n_cells_h + g_cells[g + 1, 3] + 1]
                 for r in range(cell_start[cb * n_cells_h + g_cells[g + 1, 2]], r1, 8):  # 8 records a cache line
-                    _prefetch(records, r)
+                    prefetch(records, r)
                 if r1 > 0:
-                    _prefetch(records, r1 - 1)
+                    prefetch(records, r1 - 1)
         i = g_obs[g, 0]
         a = g_obs[g, 1]
         b = g_obs[g, 2]
@@ -517,7 +518,7 @@ def vote(v_cam, db, tol, votes, mark):
                 listed[n_near] = r
                 n_near += in_windows & (near | no_side_check)
         for e in range(n_near):  # their guide rows, read below
-            _prefetch(rows_db, listed[e])
+            prefetch(rows_db, listed[e])
         if n_near > 1:  # the records in the order of (cell, base, height, main), as they were stored
             _by_base(listed, np.int64(n_near), cell_start, cb0, cb1, ch0, ch1, n_cells_h, records, features,
                      rows_db)
@@ -650,7 +651,7 @@ def select_candidates(v_cam, cand, cand_votes, cat_unit, tol_chord):
     for i in range(n):  # the candidates' guide vectors, read below in no particular order
         for s in range(k):
             if cand[i, s] >= 0:
-                _prefetch(cat_unit, cand[i, s])
+                prefetch(cat_unit, cand[i, s])
     chosen = np.full(n, -1, dtype=np.int64)
     chosen_votes = np.zeros(n, dtype=np.int64)
     # the separations, each computed once (the same values as ``_agree``'s: a chord is the same
