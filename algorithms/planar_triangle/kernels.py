@@ -932,7 +932,7 @@ def extend_by_distance(img_v, rows, db, tol_chord):
     return out
 
 
-@_inner
+@njit(cache=True)  # the profiling tools call it from Python
 def image_triangles(img_v, db, tol):
     """Step 1: every image triangle within ``fov_rad`` and of area >= ``min_area``, looked up in
     the area-sorted catalog with the k-vector, ``[A - beta sA, A + beta sA]``; triangles with

@@ -409,7 +409,7 @@ def build_triangle_index(unit: np.ndarray, chord_max: float, kind: int, depth: i
                          stars=np.ascontiguousarray(stars[order]))
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@njit(cache=True)   # spherical_triangle's testing.py calls it from Python
 def trio_query(v_cam, a, b, c, index, kind, depth, sigma_rad, beta, fixed_area, fixed_moment, chord_max,
                max_hits, truncate, unit, eps_side, out):
     """:func:`tri_query` for the image triangle of rows ``a, b, c`` of ``v_cam``: 0 when a side is longer
