@@ -73,6 +73,21 @@ def _third_stars(stars, hits, n_hits, cat, out):
     return out[:u].copy()
 
 
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+def _holds(values, e):
+    """``e`` is in the ascending int64 ``values``: ``np.searchsorted`` (side left) and a comparison, as a
+    binary search (numba's searchsorted overload costs ~0.25 CPU s of a cold compile)."""
+    lo = 0
+    hi = values.shape[0]
+    while lo < hi:
+        mid = (lo + hi) >> 1
+        if values[mid] < e:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo < values.shape[0] and values[lo] == e
+
+
 @njit(cache=True)
 def fourth_star(stars, hits, counts, cat, buf):
     """The catalog star of the fourth image star beta: the stars E that complete, with two stars of the
@@ -86,8 +101,7 @@ def fourth_star(stars, hits, counts, cat, buf):
     found = -1
     n = 0
     for e in s0:
-        if np.searchsorted(s1, e) < s1.shape[0] and s1[np.searchsorted(s1, e)] == e \
-                and np.searchsorted(s2, e) < s2.shape[0] and s2[np.searchsorted(s2, e)] == e:
+        if _holds(s1, e) and _holds(s2, e):
             found = e
             n += 1
     return found if n == 1 else -1

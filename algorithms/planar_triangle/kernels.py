@@ -509,7 +509,8 @@ def _signatures(members, length):
     ids = np.empty(3 * length, dtype=np.int64)
     masks = np.empty(3 * length, dtype=np.int64)
     n = _fill_masks(members, length, ids, masks)
-    return np.sort(masks[:n])
+    _sort_prefix(masks, n)  # not np.sort: numba's quicksort costs ~0.5 CPU s of a cold compile
+    return masks[:n]
 
 
 @_inner
@@ -535,6 +536,19 @@ def _fill_masks(members, length, ids, masks):
 
 
 @_inner
+def _sort_prefix(a, n):
+    """``a[:n]`` (int64) sorted ascending in place (insertion sort: a few dozen values at most; equal
+    integers are indistinguishable, so the result is np.sort's)."""
+    for i in range(1, n):
+        v = a[i]
+        j = i - 1
+        while j >= 0 and a[j] > v:
+            a[j + 1] = a[j]
+            j -= 1
+        a[j + 1] = v
+
+
+@_inner
 def _same_signatures(members, length, want, ids, masks):
     """``_signatures(members, length)`` equals ``want`` (sorted), computed in the scratch arrays
     ``ids`` and ``masks`` (at least ``3 * length`` long) without allocating: the pivot calls this
@@ -542,13 +556,7 @@ def _same_signatures(members, length, want, ids, masks):
     n = _fill_masks(members, length, ids, masks)
     if n != want.shape[0]:
         return False
-    for i in range(1, n):  # insertion sort (n <= 3 * length, a few dozen at most)
-        v = masks[i]
-        j = i - 1
-        while j >= 0 and masks[j] > v:
-            masks[j + 1] = masks[j]
-            j -= 1
-        masks[j + 1] = v
+    _sort_prefix(masks, n)
     for i in range(n):
         if masks[i] != want[i]:
             return False
@@ -924,7 +932,7 @@ def extend_by_distance(img_v, rows, db, tol_chord):
     return out
 
 
-@njit(cache=True)
+@njit(cache=True)  # the profiling tools call it from Python
 def image_triangles(img_v, db, tol):
     """Step 1: every image triangle within ``fov_rad`` and of area >= ``min_area``, looked up in
     the area-sorted catalog with the k-vector, ``[A - beta sA, A + beta sA]``; triangles with
@@ -1200,7 +1208,10 @@ def identify_subsets(img_v, bright, db, tol, stages):
                         work[8] += 1
                         if n_fin == 1 and work[9] == 0:  # the queries (starts and pivots) to the first finalist
                             work[9] = work[8] + work[1]
-                        sub_chain = sub_img.tri[tri_chain]
+                        sub_chain = np.empty((tri_chain.shape[0], 3), dtype=np.int64)  # sub_img.tri[tri_chain]
+                        for li in range(tri_chain.shape[0]):
+                            for x in range(3):
+                                sub_chain[li, x] = sub_img.tri[tri_chain[li], x]
                         if n_fin != 1:
                             continue
                         work[3] += 1
@@ -1218,7 +1229,7 @@ def identify_subsets(img_v, bright, db, tol, stages):
                             rows = got
                             found = True
                             break
-                chain = np.empty_like(sub_chain)
+                chain = np.empty((sub_chain.shape[0], 3), dtype=np.int64)
                 for li in range(sub_chain.shape[0]):
                     for x in range(3):
                         chain[li, x] = idx[sub_chain[li, x]]
@@ -1308,8 +1319,16 @@ def coverage(attitude, deep, deep_mag, mag_max, found_hip, frame):
         if not (0.0 <= x < frame.width_px and 0.0 <= y < frame.height_px):
             continue
         predicted += 1
-        pos = np.searchsorted(found_hip, deep.hip[g])
-        if pos >= found_hip.shape[0] or found_hip[pos] != deep.hip[g]:
+        h = deep.hip[g]
+        lo = 0  # np.searchsorted(found_hip, h) (side left) as a loop: its overload compiles slowly
+        hi = found_hip.shape[0]
+        while lo < hi:
+            mid = (lo + hi) >> 1
+            if found_hip[mid] < h:
+                lo = mid + 1
+            else:
+                hi = mid
+        if lo >= found_hip.shape[0] or found_hip[lo] != h:
             missed += 1
     return predicted, missed
 
@@ -1365,9 +1384,23 @@ def finish(x_px, y_px, mag, rows, guide_unit, guide_hip, deep, deep_mag, frame, 
         if _deep_mag_of(deep, deep_mag, r_icrs, rules.eps_chord, assigned[i]) <= mag[i] + rules.mag_margin:
             hip_all[i] = assigned[i]
     if rules.max_missed_fraction < 1.0:
-        found = np.sort(hip_all[hip_all >= 0])
-        mag_max = min(rules.mag_limit, mag.max()) - rules.coverage_mag_margin
-        predicted, missed = coverage(attitude, deep, deep_mag, mag_max, found, frame)
+        # np.sort(hip_all[hip_all >= 0]) and mag.max() as loops (their overloads cost compile time)
+        found = np.empty(n, dtype=np.int64)
+        n_ids = np.int64(0)  # np.int64: _sort_prefix not compiled again for a literal
+        for i in range(n):
+            if hip_all[i] >= 0:
+                found[n_ids] = hip_all[i]
+                n_ids += 1
+        _sort_prefix(found, n_ids)
+        mag_top = mag[0]
+        for i in range(n):
+            if math.isnan(mag[i]):  # np.max propagates NaN
+                mag_top = mag[i]
+                break
+            if mag[i] > mag_top:
+                mag_top = mag[i]
+        mag_max = min(rules.mag_limit, mag_top) - rules.coverage_mag_margin
+        predicted, missed = coverage(attitude, deep, deep_mag, mag_max, found[:n_ids], frame)
         if not (missed <= 1 or missed <= rules.max_missed_fraction * predicted):
             return np.full(n, -1, dtype=np.int64), attitude, False
     # a guide identification is not reported when two stars bright enough to be the detection are

@@ -58,7 +58,7 @@ def _solid_angle(ax, ay, az, bx, by, bz, cx, cy, cz):
     return 2.0 * math.atan2(abs(trip), den)
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _angle(ux, uy, uz, wx, wy, wz):
     """Angle between two (not necessarily unit) vectors (atan2 form, accurate at small angles)."""
     cx = uy * wz - uz * wy
@@ -70,15 +70,20 @@ def _angle(ux, uy, uz, wx, wy, wz):
 @njit(cache=True)
 def tri_features(r1, r2, r3, kind, depth):
     """``(area, moment)`` of the triangle of unit vectors ``r1, r2, r3`` (see the module docstring)."""
-    e1 = r2 - r1
-    e2 = r3 - r1
+    e1 = np.empty(3)  # r2 - r1, r3 - r1 as loops (array expressions compile a ufunc kernel each)
+    e2 = np.empty(3)
+    for x in range(3):
+        e1[x] = r2[x] - r1[x]
+        e2[x] = r3[x] - r1[x]
     if kind == PLANAR:
         cx = e1[1] * e2[2] - e1[2] * e2[1]
         cy = e1[2] * e2[0] - e1[0] * e2[2]
         cz = e1[0] * e2[1] - e1[1] * e2[0]
         area = 0.5 * math.sqrt(cx * cx + cy * cy + cz * cz)
-        d = r3 - r2
-        s2 = e1 @ e1 + e2 @ e2 + d @ d
+        d = np.empty(3)
+        for x in range(3):
+            d[x] = r3[x] - r2[x]
+        s2 = e1 @ e1 + e2 @ e2 + d @ d  # the dot products stay (BLAS sums: the same bits as before)
         return area, area * s2 / 36.0
     area = _solid_angle(r1[0], r1[1], r1[2], r2[0], r2[1], r2[2], r3[0], r3[1], r3[2])
     n = 1 << depth
@@ -138,18 +143,34 @@ def tri_windows(r1, r2, r3, kind, depth, sigma_rad, beta):
     area, moment = tri_features(r1, r2, r3, kind, depth)
     va = 0.0
     vm = 0.0
-    rs = (r1.copy(), r2.copy(), r3.copy())
+    # element writes, not np.array([...]), a tuple of arrays or array expressions: the same arithmetic,
+    # fewer numpy overloads to compile
+    t1 = np.empty(3)
+    t2 = np.empty(3)
+    w = np.empty(3)
     for s in range(3):
-        v = rs[s]
+        if s == 0:
+            v = r1
+        elif s == 1:
+            v = r2
+        else:
+            v = r3
         # tangent basis at v
         if abs(v[2]) < 0.9:
-            t1 = np.array([-v[1], v[0], 0.0])
+            t1[0] = -v[1]
+            t1[1] = v[0]
+            t1[2] = 0.0
         else:
-            t1 = np.array([0.0, -v[2], v[1]])
+            t1[0] = 0.0
+            t1[1] = -v[2]
+            t1[2] = v[1]
         t1 /= math.sqrt(t1 @ t1)
-        t2 = np.array([v[1] * t1[2] - v[2] * t1[1], v[2] * t1[0] - v[0] * t1[2], v[0] * t1[1] - v[1] * t1[0]])
-        for t in (t1, t2):
-            w = v + FD_STEP_RAD * t
+        t2[0] = v[1] * t1[2] - v[2] * t1[1]
+        t2[1] = v[2] * t1[0] - v[0] * t1[2]
+        t2[2] = v[0] * t1[1] - v[1] * t1[0]
+        for ti in range(2):
+            for x in range(3):
+                w[x] = v[x] + FD_STEP_RAD * (t1[x] if ti == 0 else t2[x])
             w /= math.sqrt(w @ w)
             if s == 0:
                 a2, m2 = tri_features(w, r2, r3, kind, depth)
@@ -162,7 +183,7 @@ def tri_windows(r1, r2, r3, kind, depth, sigma_rad, beta):
     return area, moment, beta * sigma_rad * math.sqrt(va), beta * sigma_rad * math.sqrt(vm)
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _chord(u, i, w, j):
     d0 = u[i, 0] - w[j, 0]
     d1 = u[i, 1] - w[j, 1]
@@ -388,7 +409,7 @@ def build_triangle_index(unit: np.ndarray, chord_max: float, kind: int, depth: i
                          stars=np.ascontiguousarray(stars[order]))
 
 
-@njit(cache=True)
+@njit(cache=True)   # spherical_triangle's testing.py calls it from Python
 def trio_query(v_cam, a, b, c, index, kind, depth, sigma_rad, beta, fixed_area, fixed_moment, chord_max,
                max_hits, truncate, unit, eps_side, out):
     """:func:`tri_query` for the image triangle of rows ``a, b, c`` of ``v_cam``: 0 when a side is longer
