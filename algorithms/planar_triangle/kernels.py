@@ -28,6 +28,7 @@ from starid.kernels import (
     wahba_rows,
     z_band_rows,
 )
+from starid.kernels.order import search_left, sort_int_prefix
 
 MOMENT_BLOCK = 256  # triangles per block of the moment index (offsets fit uint8)
 HASH_ROOM = 16  # hash-table slots per cached candidate (3 pairs, table at most 3/8 full, power of two)
@@ -509,7 +510,7 @@ def _signatures(members, length):
     ids = np.empty(3 * length, dtype=np.int64)
     masks = np.empty(3 * length, dtype=np.int64)
     n = _fill_masks(members, length, ids, masks)
-    _sort_prefix(masks, n)  # not np.sort: numba's quicksort costs ~0.5 CPU s of a cold compile
+    sort_int_prefix(masks, n)  # not np.sort: numba's quicksort costs ~0.5 CPU s of a cold compile
     return masks[:n]
 
 
@@ -536,19 +537,6 @@ def _fill_masks(members, length, ids, masks):
 
 
 @_inner
-def _sort_prefix(a, n):
-    """``a[:n]`` (int64) sorted ascending in place (insertion sort: a few dozen values at most; equal
-    integers are indistinguishable, so the result is np.sort's)."""
-    for i in range(1, n):
-        v = a[i]
-        j = i - 1
-        while j >= 0 and a[j] > v:
-            a[j + 1] = a[j]
-            j -= 1
-        a[j + 1] = v
-
-
-@_inner
 def _same_signatures(members, length, want, ids, masks):
     """``_signatures(members, length)`` equals ``want`` (sorted), computed in the scratch arrays
     ``ids`` and ``masks`` (at least ``3 * length`` long) without allocating: the pivot calls this
@@ -556,7 +544,7 @@ def _same_signatures(members, length, want, ids, masks):
     n = _fill_masks(members, length, ids, masks)
     if n != want.shape[0]:
         return False
-    _sort_prefix(masks, n)
+    sort_int_prefix(masks, n)
     for i in range(n):
         if masks[i] != want[i]:
             return False
@@ -1320,14 +1308,7 @@ def coverage(attitude, deep, deep_mag, mag_max, found_hip, frame):
             continue
         predicted += 1
         h = deep.hip[g]
-        lo = 0  # np.searchsorted(found_hip, h) (side left) as a loop: its overload compiles slowly
-        hi = found_hip.shape[0]
-        while lo < hi:
-            mid = (lo + hi) >> 1
-            if found_hip[mid] < h:
-                lo = mid + 1
-            else:
-                hi = mid
+        lo = search_left(found_hip, h)  # np.searchsorted(found_hip, h): its overload compiles slowly
         if lo >= found_hip.shape[0] or found_hip[lo] != h:
             missed += 1
     return predicted, missed
@@ -1386,12 +1367,12 @@ def finish(x_px, y_px, mag, rows, guide_unit, guide_hip, deep, deep_mag, frame, 
     if rules.max_missed_fraction < 1.0:
         # np.sort(hip_all[hip_all >= 0]) and mag.max() as loops (their overloads cost compile time)
         found = np.empty(n, dtype=np.int64)
-        n_ids = np.int64(0)  # np.int64: _sort_prefix not compiled again for a literal
+        n_ids = np.int64(0)  # np.int64: sort_int_prefix not compiled again for a literal
         for i in range(n):
             if hip_all[i] >= 0:
                 found[n_ids] = hip_all[i]
                 n_ids += 1
-        _sort_prefix(found, n_ids)
+        sort_int_prefix(found, n_ids)
         mag_top = mag[0]
         for i in range(n):
             if math.isnan(mag[i]):  # np.max propagates NaN

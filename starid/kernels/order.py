@@ -97,6 +97,22 @@ def order_by(key, x_px, y_px):
     return order
 
 
+@_inner
+def search_left(a, v):
+    """``np.searchsorted(a, v)`` (side left) of an ascending array, as a bisection written out: numba's
+    searchsorted overload costs ~0.3 CPU s of a cold compile, again in every kernel that links it.
+    Kernels only (no Python wrapper)."""
+    lo = 0
+    hi = a.shape[0]
+    while lo < hi:
+        mid = (lo + hi) >> 1
+        if a[mid] < v:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
+
+
 @njit(cache=True)
 def sort_int_prefix(a, n):
     """Sort ``a[:n]`` (integers) ascending in place: the array ``np.sort`` gives (equal integers are

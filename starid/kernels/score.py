@@ -16,25 +16,10 @@ import numpy as np
 from numba import njit
 
 from .lapack import NOTRANS, TRANS, det3_lapack, dot3, gemm3, svd3
-from .order import sort_int_prefix
+from .order import search_left, sort_int_prefix
 
 #: :func:`check_ids` codes
 IDS_OK, ID_NOT_IN_CATALOG, ID_TWICE = 0, 1, 2
-
-
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
-def _search_int(a, v):
-    """``np.searchsorted(a, v)`` of an ascending integer array (a bisection written out: numba's
-    searchsorted costs ~0.3 CPU s to compile, re-optimised in each kernel that inlines it)."""
-    lo = 0
-    hi = a.shape[0]
-    while lo < hi:
-        mid = (lo + hi) >> 1
-        if a[mid] < v:
-            lo = mid + 1
-        else:
-            hi = mid
-    return lo
 
 
 @njit(cache=True)
@@ -49,7 +34,7 @@ def check_ids(hip, catalog_hip):
         if h == -1:
             continue
         k += 1
-        pos = _search_int(catalog_hip, h)
+        pos = search_left(catalog_hip, h)
         if pos >= n_cat:
             pos = n_cat - 1
         if n_cat == 0 or catalog_hip[pos] != h:
@@ -90,7 +75,7 @@ def attitude_error_terms(hip, v_cam, catalog_hip, unit_icrs, attitude_true):
     k = 0
     for i in range(hip.shape[0]):
         if hip[i] != -1:
-            row = _search_int(catalog_hip, hip[i])
+            row = search_left(catalog_hip, hip[i])
             for a in range(3):
                 b[k, a] = v_cam[i, a]
                 r[k, a] = unit_icrs[row, a]
