@@ -566,11 +566,16 @@ def assign_near(A, v_cam, unit, z_start, c_fov, eps, out_row, pair_i, pair_g, n_
     while True:
         n_pairs = np.int64(0)   # not a literal: one signature of settle_pairs
         full = False
+        # every detection's first row first (settle_pairs overwrites out_row at the end): these look-ups
+        # do not depend on one another, so their memory reads overlap when the tables are not in cache
+        for i in range(n):
+            dz = A[0, 2] * v_cam[i, 0] + A[1, 2] * v_cam[i, 1] + A[2, 2] * v_cam[i, 2]
+            out_row[i] = z_first(unit, z_start, dz - reach, g_start)
         for i in range(n):
             dx = A[0, 0] * v_cam[i, 0] + A[1, 0] * v_cam[i, 1] + A[2, 0] * v_cam[i, 2]
             dy = A[0, 1] * v_cam[i, 0] + A[1, 1] * v_cam[i, 1] + A[2, 1] * v_cam[i, 2]
             dz = A[0, 2] * v_cam[i, 0] + A[1, 2] * v_cam[i, 1] + A[2, 2] * v_cam[i, 2]
-            g = z_first(unit, z_start, dz - reach, g_start)
+            g = out_row[i]
             z_hi = dz + reach
             while g < g_stop and unit[g, 2] <= z_hi and not full:
                 if abs(unit[g, 0] - dx) > reach or abs(unit[g, 1] - dy) > reach:
@@ -796,12 +801,16 @@ def pair_first_pass(A, tol, v_cam, unit, z_start, c_fov, eps, work):
     z_hi = band_z(bz - tol, c_fov)[1]
     reach = eps + margin + Z_SLACK
     n_pairs = np.int64(0)   # not a literal: one signature of settle_pairs
+    for i in range(n):   # the first rows first, their reads overlapping (as in assign_near)
+        v0, v1, v2 = np.float64(v_cam[i, 0]), np.float64(v_cam[i, 1]), np.float64(v_cam[i, 2])
+        dz = A[0, 2] * v0 + A[1, 2] * v1 + A[2, 2] * v2
+        out_row[i] = z_first(unit, z_start, dz - reach, np.int64(0))
     for i in range(n):
         v0, v1, v2 = np.float64(v_cam[i, 0]), np.float64(v_cam[i, 1]), np.float64(v_cam[i, 2])
         dx = A[0, 0] * v0 + A[1, 0] * v1 + A[2, 0] * v2
         dy = A[0, 1] * v0 + A[1, 1] * v1 + A[2, 1] * v2
         dz = A[0, 2] * v0 + A[1, 2] * v1 + A[2, 2] * v2
-        g = z_first(unit, z_start, dz - reach, np.int64(0))
+        g = out_row[i]
         while g < unit.shape[0] and unit[g, 2] <= dz + reach:
             ux, uy, uz = np.float64(unit[g, 0]), np.float64(unit[g, 1]), np.float64(unit[g, 2])
             g += 1
