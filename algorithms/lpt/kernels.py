@@ -525,7 +525,7 @@ def image_groups(chars, g, img, u, pattern, valid, xs, groups):
     return image_groups_at(chars, g, img, by_level_x, u, pattern2, valid, xs, groups)
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@njit(cache=True, inline="always")   # one call site, the scan's most frequent test
 def image_groups_at(chars, g, img, by_level_x, u, pattern2, valid, xs, groups):
     """:func:`image_groups` without a branch per pair: ``by_level_x[p]`` = m - (sector of ``img.by_level[p]``),
     and ``pattern2[y]`` (int64 (2 m, 2)) = ``pattern[y mod m]``, read at ``j + by_level_x[p]``."""
@@ -559,7 +559,7 @@ def image_groups_at(chars, g, img, by_level_x, u, pattern2, valid, xs, groups):
     return (any_a | any_b) != 0
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")   # one call site, the scan's second most frequent test
 def reaches_groups(chars, g, v, most, tables, valid, groups):
     """A necessary condition of :func:`reaches_budget` (same arguments): false only when it is false.
 
