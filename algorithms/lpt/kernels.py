@@ -231,7 +231,7 @@ def match_bound(chars, g, img):
     a = chars.start[g]
     b = chars.start[g + 1]
     if img.nz <= 62:
-        bits = 0
+        bits = np.int64(0)   # not a literal: one signature of _popcount
         for q in range(np.uint64(a), np.uint64(b)):
             bits |= img.mask[chars.level[q]]
         return _popcount(bits)
@@ -898,7 +898,7 @@ def identify_kernel(x_px, y_px, params, char_sector, char_level, char_start, sca
                                  + _nibble_sum(w & most_masks[2]))
                     else:
                         # match_bound and the sum of most over the characters, in one pass
-                        bits = 0
+                        bits = np.int64(0)   # not a literal: one signature of _popcount
                         total = 0
                         for q in range(np.uint64(chars.start[g]), np.uint64(chars.start[g + 1])):
                             lv = chars.level[q]
