@@ -167,7 +167,7 @@ def index_image(img_sector, img_level, nz, search, level_start, by_level, mask):
         level_start[lv + 1] = q
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _popcount(x):
     """Set bits of a non-negative int64 word (SWAR: no data-dependent branch)."""
     x = x - ((x >> 1) & 0x5555555555555555)
@@ -176,7 +176,7 @@ def _popcount(x):
     return (x * 0x0101010101010101) >> 56
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _lowest_bit(x):
     """Index of the lowest set bit of a non-zero int64 word."""
     x = x & -x
@@ -201,7 +201,7 @@ def _lowest_bit(x):
     return n
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def rank_key(matched, n_chars):
     """Ranking key of a match: more matched characters first; among equals, fewer unmatched database characters.
 
@@ -210,7 +210,7 @@ def rank_key(matched, n_chars):
     return 1024 * matched - min(n_chars - matched, 1023)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def least_needed(threshold, n_chars, min_score):
     """Smallest score ``>= min_score`` whose :func:`rank_key` is above ``threshold`` (the last of a full list)."""
     need = max(min_score, threshold // 1024 - 1)
@@ -219,7 +219,7 @@ def least_needed(threshold, n_chars, min_score):
     return need
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def match_bound(chars, g, img):
     """Upper bound of guide ``g``'s best score, without trying shifts.
 
@@ -231,7 +231,7 @@ def match_bound(chars, g, img):
     a = chars.start[g]
     b = chars.start[g + 1]
     if img.nz <= 62:
-        bits = 0
+        bits = np.int64(0)   # not a literal: one signature of _popcount
         for q in range(np.uint64(a), np.uint64(b)):
             bits |= img.mask[chars.level[q]]
         return _popcount(bits)
@@ -242,7 +242,7 @@ def match_bound(chars, g, img):
     return min(n_pairs, img.nz)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def shift_scores(chars, g, img, search, sets, planes):
     """Best circular shift of guide ``g``'s string against the image string: ``(best_score, best_shift)``.
 
@@ -461,7 +461,7 @@ def reaches_tables(chars, g, need, tables, planes):
     return reaches_tables_at(chars, g, need, most, tables, planes)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def reaches_tables_at(chars, g, need, most, tables, planes):
     """:func:`reaches_tables` reading only the layers r < ``most[L]`` of a character of row L (the
     others are empty, and :func:`shift_tables_of` does not write them)."""
@@ -525,7 +525,7 @@ def image_groups(chars, g, img, u, pattern, valid, xs, groups):
     return image_groups_at(chars, g, img, by_level_x, u, pattern2, valid, xs, groups)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always")   # one call site, the scan's most frequent test
 def image_groups_at(chars, g, img, by_level_x, u, pattern2, valid, xs, groups):
     """:func:`image_groups` without a branch per pair: ``by_level_x[p]`` = m - (sector of ``img.by_level[p]``),
     and ``pattern2[y]`` (int64 (2 m, 2)) = ``pattern[y mod m]``, read at ``j + by_level_x[p]``."""
@@ -559,7 +559,7 @@ def image_groups_at(chars, g, img, by_level_x, u, pattern2, valid, xs, groups):
     return (any_a | any_b) != 0
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always")   # one call site, the scan's second most frequent test
 def reaches_groups(chars, g, v, most, tables, valid, groups):
     """A necessary condition of :func:`reaches_budget` (same arguments): false only when it is false.
 
@@ -590,7 +590,7 @@ def reaches_groups(chars, g, v, most, tables, valid, groups):
     return (any_a | any_b) != 0
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def reaches_budget(chars, g, v, most, tables, valid, at_most):
     """Whether some shift s has ``sum over g's characters q of w_q(s) >= total - v`` (see :func:`reaches_tables`).
 
@@ -689,7 +689,7 @@ def scan_order(chars: Strings, n_sectors: int, n_levels: int) -> ScanOrder:
     return ScanOrder(strings, guide, count_start, levels, counts)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _nibble_sum(x):
     """Sum of the 16 nibbles of a uint64 word, when it is below 256."""
     lo = np.uint64(0x0F0F0F0F0F0F0F0F)
@@ -898,7 +898,7 @@ def identify_kernel(x_px, y_px, params, char_sector, char_level, char_start, sca
                                  + _nibble_sum(w & most_masks[2]))
                     else:
                         # match_bound and the sum of most over the characters, in one pass
-                        bits = 0
+                        bits = np.int64(0)   # not a literal: one signature of _popcount
                         total = 0
                         for q in range(np.uint64(chars.start[g]), np.uint64(chars.start[g + 1])):
                             lv = chars.level[q]

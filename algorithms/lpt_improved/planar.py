@@ -186,20 +186,23 @@ def acceptance_at(p, i):
 
 @njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def tangent_basis(unit, s):
-    """Right-handed orthonormal ``e1, e2`` perpendicular to ``unit[s]`` (``e2 = s x e1``)."""
+    """Right-handed orthonormal ``e1, e2`` perpendicular to ``unit[s]`` (``e2 = s x e1``), as six scalars
+    ``e1x, e1y, e1z, e2x, e2y, e2z`` (no arrays: nothing to allocate per call, less to compile)."""
     sx = float(unit[s, 0])
     sy = float(unit[s, 1])
     sz = float(unit[s, 2])
     # e1 = normalise(a x s) with a the coordinate axis least aligned with s
     if abs(sx) <= abs(sy) and abs(sx) <= abs(sz):
-        e1 = np.array([0.0, -sz, sy])
+        ax, ay, az = 0.0, -sz, sy
     elif abs(sy) <= abs(sz):
-        e1 = np.array([sz, 0.0, -sx])
+        ax, ay, az = sz, 0.0, -sx
     else:
-        e1 = np.array([-sy, sx, 0.0])
-    e1 /= math.sqrt(e1[0] ** 2 + e1[1] ** 2 + e1[2] ** 2)
-    e2 = np.array([sy * e1[2] - sz * e1[1], sz * e1[0] - sx * e1[2], sx * e1[1] - sy * e1[0]])
-    return e1, e2
+        ax, ay, az = -sy, sx, 0.0
+    norm = math.sqrt(ax ** 2 + ay ** 2 + az ** 2)
+    ax /= norm
+    ay /= norm
+    az /= norm
+    return ax, ay, az, sy * az - sz * ay, sz * ax - sx * az, sx * ay - sy * ax
 
 
 @njit(cache=True)
@@ -211,7 +214,7 @@ def plane_polar(unit, s, rows, n_rows, f_px, r_px, phi):
     shifts every ``phi`` by the same amount; the same code serves catalog (ICRS) and image
     (camera-frame) vectors.
     """
-    e1, e2 = tangent_basis(unit, s)
+    e1x, e1y, e1z, e2x, e2y, e2z = tangent_basis(unit, s)
     sx = float(unit[s, 0])
     sy = float(unit[s, 1])
     sz = float(unit[s, 2])
@@ -221,8 +224,8 @@ def plane_polar(unit, s, rows, n_rows, f_px, r_px, phi):
         vy = float(unit[j, 1])
         vz = float(unit[j, 2])
         d = vx * sx + vy * sy + vz * sz
-        a = vx * e1[0] + vy * e1[1] + vz * e1[2]
-        b = vx * e2[0] + vy * e2[1] + vz * e2[2]
+        a = vx * e1x + vy * e1y + vz * e1z
+        b = vx * e2x + vy * e2y + vz * e2z
         r_px[k] = f_px * math.sqrt(a * a + b * b) / d
         p = math.atan2(b, a)
         phi[k] = p + 2.0 * math.pi if p < 0 else p
@@ -303,16 +306,20 @@ def seed_attitude_roll(unit, s, guides_unit, g, roll):
     The roll is the angle ``delta`` with ``phi_catalog = phi_image + delta``, both measured in
     the :func:`tangent_basis` of their own star (a circular shift of an LPT string).
     """
-    e1s, e2s = tangent_basis(unit, s)
-    e1g, e2g = tangent_basis(guides_unit, g)
+    e1sx, e1sy, e1sz, e2sx, e2sy, e2sz = tangent_basis(unit, s)
+    e1gx, e1gy, e1gz, e2gx, e2gy, e2gz = tangent_basis(guides_unit, g)
+    e1s = (e1sx, e1sy, e1sz)
+    e2s = (e2sx, e2sy, e2sz)
+    e1g = (e1gx, e1gy, e1gz)
+    e2g = (e2gx, e2gy, e2gz)
     c = math.cos(roll)
     sn = math.sin(roll)
-    u1 = c * e1s - sn * e2s
-    u2 = sn * e1s + c * e2s
     A = np.zeros((3, 3))
     for a in range(3):
+        u1 = c * e1s[a] - sn * e2s[a]
+        u2 = sn * e1s[a] + c * e2s[a]
         for b in range(3):
-            A[a, b] = (float(unit[s, a]) * float(guides_unit[g, b]) + u1[a] * e1g[b] + u2[a] * e2g[b])
+            A[a, b] = (float(unit[s, a]) * float(guides_unit[g, b]) + u1 * e1g[b] + u2 * e2g[b])
     return A
 
 
@@ -566,11 +573,16 @@ def assign_near(A, v_cam, unit, z_start, c_fov, eps, out_row, pair_i, pair_g, n_
     while True:
         n_pairs = np.int64(0)   # not a literal: one signature of settle_pairs
         full = False
+        # every detection's first row first (settle_pairs overwrites out_row at the end): these look-ups
+        # do not depend on one another, so their memory reads overlap when the tables are not in cache
+        for i in range(n):
+            dz = A[0, 2] * v_cam[i, 0] + A[1, 2] * v_cam[i, 1] + A[2, 2] * v_cam[i, 2]
+            out_row[i] = z_first(unit, z_start, dz - reach, g_start)
         for i in range(n):
             dx = A[0, 0] * v_cam[i, 0] + A[1, 0] * v_cam[i, 1] + A[2, 0] * v_cam[i, 2]
             dy = A[0, 1] * v_cam[i, 0] + A[1, 1] * v_cam[i, 1] + A[2, 1] * v_cam[i, 2]
             dz = A[0, 2] * v_cam[i, 0] + A[1, 2] * v_cam[i, 1] + A[2, 2] * v_cam[i, 2]
-            g = z_first(unit, z_start, dz - reach, g_start)
+            g = out_row[i]
             z_hi = dz + reach
             while g < g_stop and unit[g, 2] <= z_hi and not full:
                 if abs(unit[g, 0] - dx) > reach or abs(unit[g, 1] - dy) > reach:
@@ -796,12 +808,16 @@ def pair_first_pass(A, tol, v_cam, unit, z_start, c_fov, eps, work):
     z_hi = band_z(bz - tol, c_fov)[1]
     reach = eps + margin + Z_SLACK
     n_pairs = np.int64(0)   # not a literal: one signature of settle_pairs
+    for i in range(n):   # the first rows first, their reads overlapping (as in assign_near)
+        v0, v1, v2 = np.float64(v_cam[i, 0]), np.float64(v_cam[i, 1]), np.float64(v_cam[i, 2])
+        dz = A[0, 2] * v0 + A[1, 2] * v1 + A[2, 2] * v2
+        out_row[i] = z_first(unit, z_start, dz - reach, np.int64(0))
     for i in range(n):
         v0, v1, v2 = np.float64(v_cam[i, 0]), np.float64(v_cam[i, 1]), np.float64(v_cam[i, 2])
         dx = A[0, 0] * v0 + A[1, 0] * v1 + A[2, 0] * v2
         dy = A[0, 1] * v0 + A[1, 1] * v1 + A[2, 1] * v2
         dz = A[0, 2] * v0 + A[1, 2] * v1 + A[2, 2] * v2
-        g = z_first(unit, z_start, dz - reach, np.int64(0))
+        g = out_row[i]
         while g < unit.shape[0] and unit[g, 2] <= dz + reach:
             ux, uy, uz = np.float64(unit[g, 0]), np.float64(unit[g, 1]), np.float64(unit[g, 2])
             g += 1
