@@ -24,8 +24,9 @@ import time
 
 
 def _patch_stages() -> dict:
-    """CPU s in numba's type inference, lowering and LLVM finalisation (optimisation + code generation; it runs inside lowering, whose time includes it), outermost
-    calls only (a nested compile's time counts in the stage that triggered it)."""
+    """CPU s in numba's type inference, lowering and LLVM finalisation (optimisation + code generation;
+    it runs inside lowering, whose time includes it), outermost calls only (a nested compile's time
+    counts in the stage that triggered it)."""
     from numba.core import codegen, typed_passes
 
     stages = {"typing_cpu_s": 0.0, "lowering_cpu_s": 0.0, "llvm_finalize_cpu_s": 0.0}
