@@ -366,7 +366,11 @@ def pick_candidates(v_cam, sel, cand_row, cand_votes, guide_unit, eps):
     return row, got
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+# inlined (numba IR) into vote_rounds, and vote_rounds into voting_kernel: two fewer levels whose modules
+# re-optimise and re-emit every callee linked below them (wahba_rows, reproject_assign, verify_pairwise,
+# rank_votes, ...); the plugin's own kernels cold, core warm: 10.0-10.3 -> 7.2-7.3 CPU s
+# (benchmarks/tools/compilecut3b_one.py geometric_voting @plugins)
+@njit(cache=True, inline="always", no_cfunc_wrapper=True)
 def decide(v_cam, sel, n_voters, start, stop, tally, degree, guide_unit, tol, cam, rule, level, listed, n_listed,
            rows, votes, vtol):
     """Choice, verification and confirmation from the votes of the first ``n_voters`` selected stars.
@@ -441,7 +445,7 @@ def extend_windows(v_cam, sel, kv, tol, start, stop, b_lo, b_hi):
             stop[b, a] = hi
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@njit(cache=True, inline="always", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # inlined: see decide
 def vote_rounds(v_cam, sel, kv, pairs, degree, guide_unit, tol, cam, rule, tally, vtol, work):
     """Voting in rounds: the ``rule.round_voters`` brightest selected stars vote, their choice is
     verified and confirmed (:func:`decide`); if that fails, the next ``rule.round_step`` stars
