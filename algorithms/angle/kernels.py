@@ -57,7 +57,7 @@ class AngleTol(NamedTuple):
     widen: float
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def support(v_cam, sel, a, b, big_i, big_j, nbr, nbr_chord, nbr_start, guide_unit, eps, n_check, need, chirality):
     """Direct-match test of the pairing ``sel[a] -> I``, ``sel[b] -> J``: how many of the next
     ``n_check`` selected stars k (brightness order) have a guide star K within ``eps`` of the right
@@ -95,7 +95,7 @@ def support(v_cam, sel, a, b, big_i, big_j, nbr, nbr_chord, nbr_start, guide_uni
     return count
 
 
-@njit(cache=True)   # Python too: main's benchmarks/tools/tailspeed2_ia_profile.py times it alone
+@njit(cache=True, no_cfunc_wrapper=True)   # Python too: main's benchmarks/tools/tailspeed2_ia_profile.py times it alone
 def confirm_pattern(v_cam, pat_star, pat_row, guide_unit, c_fov, eps, widen, cam, min_extra, confirm_fraction, rows):
     """Attitude of a matched pattern (Wahba), the other stars by reprojection, and the confirmation.
 
@@ -142,7 +142,7 @@ def confirm_pattern(v_cam, pat_star, pat_row, guide_unit, c_fov, eps, widen, cam
 WORK_NAMES = ("pairs", "windows", "candidates", "tests", "confirms", "first_R", "first_named", "first_in_R", "to_r")
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def angle_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_unit, tol, cam):
     """The angle method on one image. Returns ``(rows, pair, work)``.
 
@@ -302,7 +302,10 @@ def _keep(store, n_store, tri, count):
     return store
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+# inlined (numba IR) into angle_kernel, its one caller: one level less whose module re-optimises and re-emits
+# support, confirm_pattern and the core's Wahba and reprojection (the plugin's kernels cold, core warm:
+# 7.5-7.7 -> 7.0-7.2 CPU s). confirm_pattern inlined too (two call sites) cost 0.8 s more.
+@njit(cache=True, inline="always", no_cpython_wrapper=True, no_cfunc_wrapper=True)
 def _search(v_cam, sel, start, stop, pairs, nbr, nbr_chord, nbr_start, guide_unit, tol, cam, work):
     """Steps 2-5 of :func:`angle_kernel`; returns ``(rows, pair)`` and adds to ``work``."""
     n = v_cam.shape[0]

@@ -61,7 +61,7 @@ class InteriorTol(NamedTuple):
     widen: float
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def angle_at(cx, cy, cz, ix, iy, iz, jx, jy, jz):
     """Angle at unit vector c between the great circles to i and j (radians, in [0, pi]).
 
@@ -72,14 +72,14 @@ def angle_at(cx, cy, cz, ix, iy, iz, jx, jy, jz):
     return math.atan2(t, ix * jx + iy * jy + iz * jz - (ix * cx + iy * cy + iz * cz) * (jx * cx + jy * cy + jz * cz))
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def interior_angle(u, c, i, j):
     """:func:`angle_at` of rows ``c``, ``i``, ``j`` of the (n, 3) image vectors ``u`` (float64)."""
     return angle_at(f64(u[c, 0]), f64(u[c, 1]), f64(u[c, 2]), f64(u[i, 0]), f64(u[i, 1]), f64(u[i, 2]), f64(u[j, 0]),
                     f64(u[j, 1]), f64(u[j, 2]))
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def nearest_two(v_cam, sel, c):
     """Positions in ``sel`` of the two stars nearest to ``sel[c]`` (Liebe's choice; ties by position)."""
     best1 = -1
@@ -103,7 +103,7 @@ def nearest_two(v_cam, sel, c):
 MARK_MARGIN = 1e-6
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def trio_query(v_cam, sc, s1, s2, kv, pairs, nbr, nbr_chord, nbr_start, guide_unit, tol, out):
     """Catalog trios (C, C1, C2) matching the image trio (central ``sc``, nearest ``s1``, second ``s2``).
 
@@ -186,7 +186,7 @@ def _pairing_key(pat_star, pat_row, key):
         key[2 * r + 1] = pat_row[a]
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def seen_before(pat_star, pat_row, failed, n_failed):
     """Whether the pairing of ``pat_star`` to ``pat_row`` is one of ``failed[:n_failed]``.
 
@@ -208,7 +208,7 @@ def seen_before(pat_star, pat_row, failed, n_failed):
     return False
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def remember(pat_star, pat_row, failed, n_failed):
     """Store the pairing in ``failed[n_failed]`` (it is about to be confirmed; kept only if refused, as
     an accepted one ends the search); returns the new count."""
@@ -223,7 +223,7 @@ def remember(pat_star, pat_row, failed, n_failed):
 WORK_NAMES = ("centres", "queries", "candidates", "confirms", "first_R", "first_named", "first_in_R")
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def interior_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_unit, tol, cam):
     """The interior-angle method on one image. Returns ``(rows, trio, work)``.
 

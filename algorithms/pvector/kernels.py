@@ -302,7 +302,7 @@ def match_extras(oc, by_c0, c0_sorted, tri_obs, cat_rows, unit, eps, c_band, out
     r0 = cat_rows[0]
     r1 = cat_rows[1]
     r2 = cat_rows[2]
-    g, g_stop = z_band_rows(unit, float(unit[r0, 2]), c_band)
+    g, g_stop = z_band_rows(unit, np.float64(unit[r0, 2]), c_band)   # float64, the signature the core kernels use
     while g < g_stop:
         if g != r0 and g != r1 and g != r2:
             c0 = chord_rows(unit, g, unit, r0)
@@ -334,7 +334,7 @@ def match_extras(oc, by_c0, c0_sorted, tri_obs, cat_rows, unit, eps, c_band, out
     return keep_unique(n_match, out_row)
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def chance_k_min(n_obs, n_guide, eps, tail):
     """Smallest k with P(X >= k) <= ``tail`` for X ~ Poisson(lam), the number of chance distance
     matches a WRONG correspondence collects in :func:`match_extras` (0 when ``tail`` <= 0).
@@ -364,7 +364,7 @@ def chance_k_min(n_obs, n_guide, eps, tail):
 WORK_NAMES = ("searches", "window_triangles", "candidates", "correspondences", "hypotheses")
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def identify_rows(x_in, y_in, mag_in, frame_t, db_t, tol_t):
     """``(hip, attitude, ok, triangle, work)``: catalog id per observed star (-1 = unidentified, input
     order), the ICRS -> camera attitude, whether the image was identified, the input indices of

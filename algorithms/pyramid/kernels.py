@@ -68,7 +68,7 @@ def isolated(v_cam, d_min):
     return ok
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def select_stars(x_px, y_px, mag, v_cam, d_min, max_stars):
     """The usable detections (isolated), brightest first, at most ``max_stars`` of them."""
     order = order_by(mag, x_px, y_px)
@@ -84,7 +84,7 @@ def select_stars(x_px, y_px, mag, v_cam, d_min, max_stars):
     return sel[:m]
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def pair_windows(v_cam, sel, kv, tol):
     """k-vector window ``[start, stop)`` of every pair of selected stars (symmetric (m, m) arrays).
 
@@ -142,7 +142,7 @@ def _adjacency(pairs, start, stop, head, stamp, tick, nxt, val):
             cnt += 1
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def triad_triangles(v_cam, si, sj, sk, win_ij, win_ik, pairs, guide_unit, eps, work, tick, out):
     """Catalog triangles (I, J, K) matching the image triad (i, j, k) (the paper's triangle step).
 
@@ -185,7 +185,7 @@ def triad_triangles(v_cam, si, sj, sk, win_ij, win_ik, pairs, guide_unit, eps, w
     return count
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def neighbours_within(nbr_chord, nbr_start, big_i, lo, hi):
     """Index range of guide row ``big_i``'s neighbours whose chord lies in ``[lo, hi]`` (bisection)."""
     a = nbr_start[big_i]
@@ -208,7 +208,7 @@ def neighbours_within(nbr_chord, nbr_start, big_i, lo, hi):
     return first, x
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def fourth_star(v_cam, sel, tri_pos, tri_rows, nbr, nbr_chord, nbr_start, guide_unit, eps):
     """The pyramid's confirming star: the first selected star r (brightness order) with exactly
     one catalog star R at the right distance (+- ``eps``) from all three triangle stars.
@@ -244,7 +244,7 @@ def fourth_star(v_cam, sel, tri_pos, tri_rows, nbr, nbr_chord, nbr_start, guide_
     return -1, -1
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def _confirm(v_cam, pyr_star, pyr_row, guide_unit, tol, cam, rows):
     """Attitude of the pyramid, the other stars by reprojection, and the confirmation test.
 
@@ -311,7 +311,7 @@ def first_query_check(work, rows, first_trio, first_tri):
             return
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def _window(v_cam, sel, a, b, kv, tol, start, stop, work):
     """True when the k-vector window of selected stars ``a < b`` holds catalog pairs; computed on
     first use (``start[a, b] < 0`` = not yet) exactly as :func:`pair_windows` does (empty when the
@@ -330,7 +330,7 @@ def _window(v_cam, sel, a, b, kv, tol, start, stop, work):
     return stop[a, b] > start[a, b]
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def pyramid_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_unit, guide_hip, tol, cam,
                    unique_triangle, accept_triangle, max_triangles):
     """Pyramid identification of one image. Returns ``(rows, hip, attitude, pyramid, work)``.
@@ -456,7 +456,7 @@ def pyramid_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_
     return rows, _hip(rows, guide_hip), np.zeros((3, 3)), pyramid, work
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def _hip(rows, guide_hip):
     """Catalog id of each detection's guide row (-1 stays -1)."""
     hip = np.full(rows.shape[0], -1, dtype=np.int64)

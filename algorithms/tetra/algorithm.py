@@ -254,10 +254,9 @@ class Tetra(Algorithm):
         if packed.size == 0:
             raise ConfigError("tetra: the catalog yields no 4-star pattern that fits in the image")
         patterns = np.stack([(packed >> s) & 0xFFFF for s in (48, 32, 16, 0)], axis=1).astype(np.int64)
-        keys = pattern_keys(unit, patterns, self.bins)
+        largest = np.empty(len(patterns))
+        keys = pattern_keys(unit, patterns, self.bins, largest)
         size = max(packed.size + 1, math.ceil(packed.size / self.load_factor))
-        largest = np.max([np.linalg.norm(unit[patterns[:, a]] - unit[patterns[:, b]], axis=1) for a, b in PAIRS],
-                         axis=0)
         edges = np.round(np.minimum(largest / max_edge, 1.0) * 65535).astype(np.uint16)
         table_word = np.full(size, EMPTY, dtype=np.uint64)
         row_dtype = np.uint16 if len(unit) <= np.iinfo(np.uint16).max else np.int32

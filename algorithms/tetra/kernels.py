@@ -103,7 +103,7 @@ def hash_slot(key, size):
     return np.int64((h * np.uint64(size)) >> np.uint64(32))
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def table_insert(table_word, table_pattern, keys, edges, patterns):
     """Insert ``patterns[i]`` under ``keys[i]`` (with its quantised largest edge ``edges[i]``) by
     linear probing; returns the longest probe run."""
@@ -124,7 +124,7 @@ def table_insert(table_word, table_pattern, keys, edges, patterns):
     return longest
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def table_lookup(table_word, key, out, n_out):
     """Append to ``out[n_out:]`` the slots holding ``key`` (probe until a free slot); returns the new count."""
     size = table_word.shape[0]
@@ -143,7 +143,7 @@ def table_lookup(table_word, key, out, n_out):
 # --------------------------------------------------------------------------- patterns
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def canonical_order(unit, rows, out, dist):
     """Rows of a 4-star pattern in ascending distance from its centroid (ties: smaller row first).
 
@@ -188,16 +188,18 @@ def sorted_edges(unit, rows, edges):
     return edges[5]
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def ratio_bin(r, bins):
     """Bin of an edge ratio ``r`` in [0, 1] (``r = 1`` falls into the last bin)."""
     b = int(math.floor(r * bins))
     return min(max(b, 0), bins - 1)
 
 
-@njit(cache=True)
-def pattern_keys(unit, patterns, bins):
-    """Canonical order (in place) and hash key of each catalogue pattern ``(p, 4)``."""
+@njit(cache=True, no_cfunc_wrapper=True)
+def pattern_keys(unit, patterns, bins, largest):
+    """Canonical order (in place) and hash key of each catalogue pattern ``(p, 4)``; writes each pattern's
+    largest edge (chord) to ``largest`` (the table's edge check; here rather than with numpy in the build:
+    six fancy-indexed copies of every pattern's vectors cost ~0.4 s per build)."""
     n = patterns.shape[0]
     keys = np.empty(n, dtype=np.uint32)
     edges = np.empty(6)
@@ -208,6 +210,7 @@ def pattern_keys(unit, patterns, bins):
         for k in range(4):
             rows[k] = patterns[i, k]
         emax = sorted_edges(unit, rows, edges)
+        largest[i] = emax
         key = 0
         for p in range(5):
             key = key * bins + ratio_bin(edges[4 - p] / emax, bins)
@@ -218,7 +221,7 @@ def pattern_keys(unit, patterns, bins):
     return keys
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def field_patterns(unit, field_rows, field_offsets, min_edge, max_edge):
     """Every 4-subset of each field's stars whose largest edge lies in ``[min_edge, max_edge]``.
 
@@ -261,7 +264,7 @@ def field_patterns(unit, field_rows, field_offsets, min_edge, max_edge):
 # --------------------------------------------------------------------------- identification
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def binom_sf(k, m, q):
     """P(X >= k) for X ~ Binomial(m, q) (terms by recurrence from the k-th)."""
     if k <= 0:
@@ -345,7 +348,7 @@ def _verify(unit, rows, guide_unit, tol, n_stars, out_row):
     return binom_sf(extra, max(n_predicted - 4, extra), q) <= tol.max_mismatch, n_seen
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def identify_kernel(x_px, y_px, mag, table, tol, record):
     """Tetra identification of one image: ``(hip, row)`` per star (catalog id and guide row, -1 = none).
 

@@ -90,12 +90,15 @@ def test_pattern_key_and_canonical_order_ignore_star_order():
     rng = np.random.default_rng(3)
     unit = rng.normal(size=(4, 3)) * 0.05 + [0, 0, 1]
     unit /= np.linalg.norm(unit, axis=1, keepdims=True)
-    base = pattern_keys(unit, np.array([[0, 1, 2, 3]], dtype=np.int64), 50)
+    largest = np.empty(1)
+    base = pattern_keys(unit, np.array([[0, 1, 2, 3]], dtype=np.int64), 50, largest)
+    chords = [np.linalg.norm(unit[a] - unit[b]) for a in range(4) for b in range(a + 1, 4)]
+    assert largest[0] == max(chords)           # the largest edge, bit for bit as numpy's norm
     ref = np.array([[0, 1, 2, 3]], dtype=np.int64)
-    pattern_keys(unit, ref, 50)
+    pattern_keys(unit, ref, 50, largest)
     for perm in ([3, 2, 1, 0], [1, 3, 0, 2]):
         p = np.array([perm], dtype=np.int64)
-        assert pattern_keys(unit, p, 50)[0] == base[0]
+        assert pattern_keys(unit, p, 50, largest)[0] == base[0]
         assert np.array_equal(p, ref)          # canonical order written in place
     d = np.linalg.norm(unit - unit.mean(axis=0), axis=1)
     out = np.empty(4, dtype=np.int64)
