@@ -4,9 +4,7 @@
   database and runs the harness's warm-up identify (:func:`starid.harness.prepare`, which compiles
   every kernel the plugin calls) on a Table 6 image, with an empty ``NUMBA_CACHE_DIR``, in as many
   processes as the executor would use (the machine's cores, at most 2 here: issue #25's machine)
-  taking disjoint plugins and sharing the on-disk cache, as ``starid`` workers do: each plugin, in
-  Table 6's order, to the next free process, as the executor's ``Dispatcher`` hands out the first
-  chunk of each plugin. Target: at most
+  taking disjoint plugins and sharing the on-disk cache, as ``starid`` workers do. Target: at most
   :data:`COLD_COMPILE_WALL_S` seconds of wall time for all of them.
 * **First command** (:func:`test_first_command_from_a_fresh_clone`): ``git clone`` of this
   checkout, a new venv, ``pip install -e .`` (the README's first command: pip takes the dependencies
@@ -26,11 +24,9 @@ from __future__ import annotations
 
 import json
 import os
-import selectors
 import subprocess
 import sys
 import time
-from collections import deque
 from pathlib import Path
 
 import pytest
@@ -39,8 +35,7 @@ COLD_COMPILE_WALL_S = 40.0
 FIRST_COMMAND_WALL_S = 180.0
 REPO = Path(__file__).resolve().parent.parent
 
-#: one process: build + warm-up identify of each plugin named on its standard input, one JSON line each;
-#: "ready" once set up and after each plugin, so the parent hands the next plugin to the first free process
+#: one process: build + warm-up identify of the plugins named on its command line, one JSON line each
 _PREPARE = r"""
 import json, sys, time
 from starid import SimConfig, Simulator, load_hipparcos
@@ -51,9 +46,7 @@ from starid.registry import algorithm_info
 exp = table6.experiment(trials=1)
 cat = load_hipparcos()
 trials = Simulator(cat, exp.make_camera(), SimConfig(**sim_settings(exp.sim, {"sky": "paper"})), seed=0).generate(1)
-print("ready", flush=True)
-for line in sys.stdin:
-    name = line.strip()
+for name in sys.argv[1:]:
     c0 = time.process_time()
     p = prepare(algorithm_info(name).cls(), cat, trials.camera, trials.warmup, name)
     print(json.dumps({"plugin": name, "build_s": p.build_s, "compile_s": p.compile_s,
@@ -73,38 +66,16 @@ def _names() -> list[str]:
 
 def cold_compile(cache_dir: Path, jobs: int) -> tuple[float, list[dict]]:
     """Wall seconds for ``jobs`` processes (one shared, empty numba cache) to prepare every plugin,
-    each plugin (in :func:`_names`' order) going to the next free process, as the executor's
-    :class:`starid.experiment.warmup.Dispatcher` hands out the first chunk of each plugin; and one
-    record per plugin (with the process that prepared it)."""
+    the plugins dealt out in turn as the executor's first chunks are (:func:`starid.experiment.warmup.schedule`);
+    and one record per plugin."""
     env = {**os.environ, "NUMBA_CACHE_DIR": str(cache_dir)}
-    pending = deque(_names())
-    records: list[dict] = []
+    names = _names()
     t0 = time.perf_counter()
-    procs = [subprocess.Popen([sys.executable, "-c", _PREPARE], env=env, stdin=subprocess.PIPE,
-                              stdout=subprocess.PIPE, text=True) for _ in range(jobs)]
-    with selectors.DefaultSelector() as sel:
-        for k, p in enumerate(procs):
-            sel.register(p.stdout, selectors.EVENT_READ, (k, p))
-        while sel.get_map():
-            for key, _ in sel.select():
-                k, p = key.data
-                line = p.stdout.readline()   # one line at most is waiting: a process writes one, then reads
-                if not line:
-                    sel.unregister(p.stdout)
-                    continue
-                if line.startswith("{"):
-                    records.append({**json.loads(line), "process": k})
-                elif not line.startswith("ready"):
-                    continue
-                if pending:
-                    p.stdin.write(pending.popleft() + "\n")
-                    p.stdin.flush()
-                elif not p.stdin.closed:
-                    p.stdin.close()
-    for p in procs:
-        p.wait()
+    procs = [subprocess.Popen([sys.executable, "-c", _PREPARE, *names[k::jobs]], env=env, stdout=subprocess.PIPE,
+                              text=True) for k in range(jobs)]
+    out = [p.communicate()[0] for p in procs]
     wall_s = time.perf_counter() - t0
-    return wall_s, records
+    return wall_s, [json.loads(line) for text in out for line in text.splitlines() if line.startswith("{")]
 
 
 def test_cold_compile_of_every_plugin(tmp_path):
@@ -114,9 +85,7 @@ def test_cold_compile_of_every_plugin(tmp_path):
           f"load {os.getloadavg()[0]:.1f}")
     for r in sorted(records, key=lambda r: -r["cpu_s"]):
         print(f"  {r['plugin']:18s} compile {r['compile_s']:6.1f} s  build {r['build_s']:5.1f} s  "
-              f"CPU {r['cpu_s']:6.1f} s  process {r['process']} {r['error']}")
-    for k in range(jobs):
-        print(f"  process {k}: CPU {sum(r['cpu_s'] for r in records if r['process'] == k):6.1f} s")
+              f"CPU {r['cpu_s']:6.1f} s {r['error']}")
     assert len(records) == len(_names()) and not any(r["error"] for r in records)
     assert wall_s <= COLD_COMPILE_WALL_S, f"cold compile took {wall_s:.0f} s wall (target {COLD_COMPILE_WALL_S:g} s)"
 
