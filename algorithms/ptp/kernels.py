@@ -21,6 +21,7 @@ from starid.kernels import (
     verify_pairwise,
     wahba_rows,
 )
+from starid.kernels.kvector import kvector_trim
 from starid.kernels.order import stable_sort_by_key
 from starid.kernels.prefetch import prefetch, prefetch_at
 
@@ -457,23 +458,6 @@ def _slice_rows(k, n, jb, jt):
 
 
 @njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
-def _trim(sorted_values, n, start, stop, lo, hi):
-    """The trimming of :func:`starid.kernels.kvector_range` (its loops, the same rows): the slice
-    ``[start, stop)`` of the ``n`` sorted values cut to those in ``[lo, hi]``."""
-    while start > 0 and sorted_values[start - 1] >= lo:
-        start -= 1
-    while start < n and sorted_values[start] < lo:
-        start += 1
-    while stop < n and sorted_values[stop] <= hi:
-        stop += 1
-    while stop > start and sorted_values[stop - 1] > hi:
-        stop -= 1
-    if stop < start:
-        stop = start
-    return start, stop
-
-
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _bins_of(a, index, sigma, scale, side_beta):
     """:func:`_index_bins` of a triangle whose scaled side a is ``a`` (float64), as the check computes them."""
     ta = np.float32(side_beta * scale * side_sigma(a / scale, sigma))
@@ -708,7 +692,7 @@ def identify_kernel(x_px, y_px, mag, view_t, narrow, wide, tol_t):
             if n_rows == 0 or hi < lo:
                 start, stop = 0, 0
             else:
-                start, stop = _trim(kv.values, n_rows, w_int[w, 4], w_int[w, 5], lo, hi)
+                start, stop = kvector_trim(kv.values, n_rows, w_int[w, 4], w_int[w, 5], lo, hi)
             w_int[w, 4] = start
             w_int[w, 5] = stop
             if stop > start:

@@ -130,10 +130,11 @@ def _first_key(unit, k, lo, hi, upper):
     return lo
 
 
-@njit(cache=True)
-def cone_ranges(unit, cx, cy, cz, c_radius, ranges):
-    """Row ranges ``ranges[:count]`` (start, stop) of the deep sky that hold every row within chord
-    ``c_radius`` of the direction ``(cx, cy, cz)`` (unit length); returns ``count``."""
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+def _cone_bounds(cx, cy, cz, c_radius):
+    """``(b0, b1, full, k0, k1, wrap)`` of a cone search around ``(cx, cy, cz)``: its z bands ``b0..b1``;
+    ``full`` when every right ascension is in the cone; else the right-ascension keys ``[k0, k1]``, or
+    ``[k0, 4)`` and ``[0, k1]`` when ``wrap``."""
     rho = c_radius + CONE_MARGIN
     b0 = deep_band(cz - rho)
     b1 = deep_band(cz + rho)
@@ -157,6 +158,14 @@ def cone_ranges(unit, cx, cy, cz, c_radius, ranges):
         k1 = ra_key(math.cos(a1), math.sin(a1))
         if not wrap and k1 < k0:  # a1 just below 2 pi whose key rounded to 0
             wrap = True
+    return b0, b1, full, k0, k1, wrap
+
+
+@njit(cache=True)
+def cone_ranges(unit, cx, cy, cz, c_radius, ranges):
+    """Row ranges ``ranges[:count]`` (start, stop) of the deep sky that hold every row within chord
+    ``c_radius`` of the direction ``(cx, cy, cz)`` (unit length); returns ``count``."""
+    b0, b1, full, k0, k1, wrap = _cone_bounds(cx, cy, cz, c_radius)
     m = unit.shape[0]
     count = 0
     start = _first_band(unit, b0, np.int64(0), m)  # runtime values: one signature
@@ -186,29 +195,7 @@ def cone_ranges_indexed(unit, index, cx, cy, cz, c_radius, ranges):
     """:func:`cone_ranges` (the same ranges) with the cells of :func:`deep_index`: a band's rows from the index, and
     each key's binary search only over its bucket (rows of a lower bucket have a smaller key, of a higher bucket
     a larger one)."""
-    rho = c_radius + CONE_MARGIN
-    b0 = deep_band(cz - rho)
-    b1 = deep_band(cz + rho)
-    theta = 2.0 * math.asin(min(1.0, 0.5 * rho)) + CONE_MARGIN
-    cos_dec = math.sqrt(max(0.0, 1.0 - cz * cz))
-    full = cos_dec <= math.sin(theta) or theta >= 0.5 * math.pi
-    k0 = 0.0
-    k1 = 4.0
-    wrap = False
-    if not full:
-        half = math.asin(min(1.0, math.sin(theta) / cos_dec)) + CONE_MARGIN
-        ra = math.atan2(cy, cx)
-        a0 = ra - half
-        if a0 < 0.0:
-            a0 += 2.0 * math.pi
-        a1 = a0 + 2.0 * half
-        k0 = ra_key(math.cos(a0), math.sin(a0))
-        if a1 >= 2.0 * math.pi:
-            a1 -= 2.0 * math.pi
-            wrap = True
-        k1 = ra_key(math.cos(a1), math.sin(a1))
-        if not wrap and k1 < k0:  # a1 just below 2 pi whose key rounded to 0
-            wrap = True
+    b0, b1, full, k0, k1, wrap = _cone_bounds(cx, cy, cz, c_radius)
     q0 = _key_bucket(k0)
     q1 = _key_bucket(k1)
     # the index entries of every band first, then the rows where the binary searches start, so that the

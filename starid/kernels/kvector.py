@@ -63,6 +63,23 @@ def kvector_slice(k, m, q, n, lo, hi):
     return start, stop
 
 
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+def kvector_trim(sorted_values, n, start, stop, lo, hi):
+    """The slice ``[start, stop)`` of the ``n`` sorted values (a k-vector's slightly wide one) trimmed, or
+    widened where float rounding put a line on the wrong side, to exactly the values in ``[lo, hi]``."""
+    while start > 0 and sorted_values[start - 1] >= lo:
+        start -= 1
+    while start < n and sorted_values[start] < lo:
+        start += 1
+    while stop < n and sorted_values[stop] <= hi:
+        stop += 1
+    while stop > start and sorted_values[stop - 1] > hi:
+        stop -= 1
+    if stop < start:
+        stop = start
+    return start, stop
+
+
 @njit(cache=True)
 def kvector_range(sorted_values, k, m, q, lo, hi):
     """Index range ``[start, stop)`` of ``sorted_values`` lying in ``[lo, hi]``.
@@ -75,18 +92,7 @@ def kvector_range(sorted_values, k, m, q, lo, hi):
     if n == 0 or hi < lo:
         return 0, 0
     start, stop = kvector_slice(k, m, q, n, lo, hi)
-    # Trim (or widen, when float rounding put the line on the wrong side) to the exact range.
-    while start > 0 and sorted_values[start - 1] >= lo:
-        start -= 1
-    while start < n and sorted_values[start] < lo:
-        start += 1
-    while stop < n and sorted_values[stop] <= hi:
-        stop += 1
-    while stop > start and sorted_values[stop - 1] > hi:
-        stop -= 1
-    if stop < start:
-        stop = start
-    return start, stop
+    return kvector_trim(sorted_values, n, start, stop, lo, hi)
 
 
 class KVector(NamedTuple):
