@@ -21,7 +21,7 @@ from starid.kernels import (
     verify_pairwise,
     wahba_rows,
 )
-from starid.kernels.kvector import kvector_trim
+from starid.kernels.kvector import kvector_ends, kvector_rows, kvector_trim
 from starid.kernels.order import stable_sort_by_key
 from starid.kernels.prefetch import prefetch, prefetch_at
 
@@ -431,33 +431,6 @@ def _side_check_indexed(sides, start, stop, index, sigma, scale, side_beta, out_
 
 
 @njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
-def _slice_ends(m, q, lo, hi):
-    """The two k-vector positions :func:`starid.kernels.kvector_slice` reads for ``[lo, hi]`` (its
-    arithmetic): ``(jb, jt)``."""
-    return int(math.floor((lo - q) / m)) - 1, int(math.ceil((hi - q) / m)) + 1
-
-
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
-def _slice_rows(k, n, jb, jt):
-    """:func:`starid.kernels.kvector_slice` from its two positions (:func:`_slice_ends`; ``n > 0``)."""
-    if jb < 1:
-        start = 0
-    elif jb > n:
-        start = n
-    else:
-        start = np.int64(k[jb - 1])
-    if jt < 1:
-        stop = 0
-    elif jt > n:
-        stop = n
-    else:
-        stop = np.int64(k[jt - 1])
-    if stop < start:
-        stop = start
-    return start, stop
-
-
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _bins_of(a, index, sigma, scale, side_beta):
     """:func:`_index_bins` of a triangle whose scaled side a is ``a`` (float64), as the check computes them."""
     ta = np.float32(side_beta * scale * side_sigma(a / scale, sigma))
@@ -672,14 +645,14 @@ def identify_kernel(x_px, y_px, mag, view_t, narrow, wide, tol_t):
                         w_flt[nw, 2] = sides[2]
                         w_flt[nw, 3] = lo
                         w_flt[nw, 4] = hi
-                        jb, jt = _slice_ends(kv.m, kv.q, lo, hi)
+                        jb, jt = kvector_ends(kv.m, kv.q, lo, hi)
                         w_int[nw, 4] = jb
                         w_int[nw, 5] = jt
                         prefetch(kv.k, min(max(jb - 1, 0), n_rows - 1))
                         prefetch(kv.k, min(max(jt - 1, 0), n_rows - 1))
                         nw += 1
         for w in range(nw):     # the k-vector's slice (its entries asked for above); ask for its ends' values
-            start, stop = _slice_rows(kv.k, n_rows, w_int[w, 4], w_int[w, 5])
+            start, stop = kvector_rows(kv.k, n_rows, w_int[w, 4], w_int[w, 5])
             w_int[w, 4] = start
             w_int[w, 5] = stop
             prefetch(kv.values, min(max(start - 1, 0), n_rows - 1))

@@ -32,6 +32,35 @@ def kvector_build(sorted_values: np.ndarray) -> tuple[np.ndarray, float, float]:
     return k, float(m), float(q)
 
 
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+def kvector_ends(m, q, lo, hi):
+    """The two k-vector positions ``(jb, jt)`` :func:`kvector_slice` reads for ``[lo, hi]``: a caller
+    that prefetches ``k[jb - 1]`` and ``k[jt - 1]`` before :func:`kvector_rows` reads them (ptp's passes)
+    gets the same slice."""
+    return int(math.floor((lo - q) / m)) - 1, int(math.ceil((hi - q) / m)) + 1
+
+
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+def kvector_rows(k, n, jb, jt):
+    """:func:`kvector_slice`'s ``[start, stop)`` from the positions of :func:`kvector_ends` (``n > 0``),
+    as int64 whatever ``k``'s integer type."""
+    if jb < 1:
+        start = 0
+    elif jb > n:
+        start = n
+    else:
+        start = np.int64(k[jb - 1])
+    if jt < 1:
+        stop = 0
+    elif jt > n:
+        stop = n
+    else:
+        stop = np.int64(k[jt - 1])
+    if stop < start:
+        stop = start
+    return start, stop
+
+
 @njit(cache=True)
 def kvector_slice(k, m, q, n, lo, hi):
     """Index range ``[start, stop)`` of the ``n`` sorted keys that holds every key in ``[lo, hi]``,
@@ -44,23 +73,8 @@ def kvector_slice(k, m, q, n, lo, hi):
     """
     if n == 0 or hi < lo:
         return 0, 0
-    jb = int(math.floor((lo - q) / m)) - 1
-    jt = int(math.ceil((hi - q) / m)) + 1
-    if jb < 1:
-        start = 0
-    elif jb > n:
-        start = n
-    else:
-        start = k[jb - 1]
-    if jt < 1:
-        stop = 0
-    elif jt > n:
-        stop = n
-    else:
-        stop = k[jt - 1]
-    if stop < start:
-        stop = start
-    return start, stop
+    jb, jt = kvector_ends(m, q, lo, hi)
+    return kvector_rows(k, n, jb, jt)
 
 
 @njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
