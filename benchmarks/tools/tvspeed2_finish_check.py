@@ -79,7 +79,8 @@ def main(n: int, repeats: int) -> int:
             tries.append(truth)
             for rows in tries:
                 for assign_all, missed in ((True, 1.0 / 3.0), (False, 1.0 / 3.0), (True, 1.0)):
-                    a = final.finish_cone(x, y, mag, rows, unit64, db.hip, db.deep.unit, db.deep.hip, db.deep_v_mag,
+                    a = final.finish_cone(x, y, mag, rows, unit64, db.hip, db.deep.unit, db.deep_index, db.deep.hip,
+                                          db.deep_v_mag,
                                           *frame, tol.eps_chord, 1.0, 6.5, 0.75, missed, assign_all)
                     b = ptk.finish(x, y, mag, rows, unit64, db.hip, deep_z, mag_z, frame,
                                    ptk.Finish(tol.eps_chord, 1.0, 6.5, 0.75, missed, assign_all))
