@@ -355,6 +355,17 @@ def window_counts(img, search, most):
         most[lv] = best
 
 
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+def fill_pattern(pattern, m, sector_tol):
+    """``pattern[x]`` (int64 rows of two words, zeros on entry) |= the shifts ``(x - d) mod m``,
+    ``|d| <= sector_tol``: the shifts under which a database character in sector j matches an image
+    character in sector ``j - x``."""
+    for x in range(pattern.shape[0]):
+        for d in range(-sector_tol, sector_tol + 1):
+            s = (x - d) % m
+            pattern[x, s >> 6] |= np.int64(1) << (s & 63)
+
+
 @njit(cache=True)
 def shift_tables(img, search, tables):
     """Per reference star, the shifts under which one database character matches image characters.
@@ -363,45 +374,15 @@ def shift_tables(img, search, tables):
     database character of row L in sector j matches at least r + 1 image characters (those
     within ``level_tol`` rows of L in sectors j - s + d, ``|d| <= sector_tol``). Only for
     ``n_sectors <= 128`` and ``sector_tol <= 1`` (two words, at most 3 characters per window).
+    (:func:`shift_tables_of`, the scan's form, on every layer of every row, with its inputs derived here.)
     """
     m = search.n_sectors
-    tol = search.sector_tol
-    for lv in range(search.n_levels + 1):
-        a = img.level_start[lv] if lv > 0 else 0
-        b = img.level_start[lv + 1] if lv > 0 else 0
-        for j in range(m):
-            r1a = np.int64(0)
-            r1b = np.int64(0)
-            r2a = np.int64(0)
-            r2b = np.int64(0)
-            r3a = np.int64(0)
-            r3b = np.int64(0)
-            for p in range(a, b):
-                base = j - img.sector[img.by_level[p]]
-                xa = np.int64(0)
-                xb = np.int64(0)
-                for d in range(-tol, tol + 1):
-                    s = base - d
-                    if s < 0:
-                        s += m
-                    elif s >= m:
-                        s -= m
-                    if s < 64:
-                        xa |= np.int64(1) << s
-                    else:
-                        xb |= np.int64(1) << (s - 64)
-                r3a |= r2a & xa
-                r3b |= r2b & xb
-                r2a |= r1a & xa
-                r2b |= r1b & xb
-                r1a |= xa
-                r1b |= xb
-            tables[0, lv, j, 0] = r1a
-            tables[0, lv, j, 1] = r1b
-            tables[1, lv, j, 0] = r2a
-            tables[1, lv, j, 1] = r2b
-            tables[2, lv, j, 0] = r3a
-            tables[2, lv, j, 1] = r3b
+    pattern = np.zeros((m, 2), dtype=np.int64)
+    fill_pattern(pattern, m, search.sector_tol)
+    by_level_x, pattern2 = at_forms(img, pattern)
+    most = np.full(search.n_levels + 1, tables.shape[0], dtype=np.int64)   # every layer of every row
+    tables[:, 0] = 0                                                         # row 0: no character
+    shift_tables_of(img, search, most, by_level_x, pattern2, tables)
 
 
 @njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
@@ -514,15 +495,24 @@ def image_groups(chars, g, img, u, pattern, valid, xs, groups):
     characters matched under it: when every group's intersection is empty, the score stays below.
     (:func:`image_groups_at`, the scan's form, on tables derived here.)
     """
+    by_level_x, pattern2 = at_forms(img, pattern)
+    return image_groups_at(chars, g, img, by_level_x, u, pattern2, valid, xs, groups)
+
+
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # tests' and tools' forms only
+def at_forms(img, pattern):
+    """``(by_level_x, pattern2)``, what :func:`image_groups_at` and :func:`shift_tables_of` read, derived from
+    the image and ``pattern`` (int64 (m, 2), the shifts x - d of each x): ``by_level_x[p]`` = m - (sector of
+    ``img.by_level[p]``), ``pattern2[y]`` = ``pattern[y mod m]`` (the scan builds both once per image)."""
     m = pattern.shape[0]
-    pattern2 = np.empty((2 * m, 2), dtype=np.int64)   # the forms image_groups_at reads (tests, tools)
+    pattern2 = np.empty((2 * m, 2), dtype=np.int64)
     for y in range(2 * m):
         pattern2[y, 0] = pattern[y % m, 0]
         pattern2[y, 1] = pattern[y % m, 1]
     by_level_x = np.empty(img.by_level.shape[0], dtype=np.int64)
     for p in range(by_level_x.shape[0]):
         by_level_x[p] = m - img.sector[img.by_level[p]] if p < img.level_start[img.level_start.shape[0] - 1] else 0
-    return image_groups_at(chars, g, img, by_level_x, u, pattern2, valid, xs, groups)
+    return by_level_x, pattern2
 
 
 @njit(cache=True, inline="always")   # one call site, the scan's most frequent test
@@ -814,11 +804,8 @@ def identify_kernel(x_px, y_px, params, char_sector, char_level, char_start, sca
     groups = np.zeros((3 * m + 1, 2), dtype=np.int64)
     xs = np.zeros((m, 2), dtype=np.int64)
     cand = np.zeros(2, dtype=np.int64)
-    pattern = np.zeros((m if fast else 0, 2), dtype=np.int64)   # pattern[x]: the shifts x - d, |d| <= sector_tol
-    for x_ in range(pattern.shape[0]):
-        for d in range(-search.sector_tol, search.sector_tol + 1):
-            s_ = (x_ - d) % m
-            pattern[x_, s_ >> 6] |= np.int64(1) << (s_ & 63)
+    pattern = np.zeros((m if fast else 0, 2), dtype=np.int64)
+    fill_pattern(pattern, m, search.sector_tol)
     pattern2 = np.zeros((2 * pattern.shape[0], 2), dtype=np.int64)   # pattern2[y] = pattern[y mod m]
     for x_ in range(pattern2.shape[0]):
         pattern2[x_, 0] = pattern[x_ % m, 0]
