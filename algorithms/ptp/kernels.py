@@ -99,10 +99,15 @@ def pack_tables(tables: Tables, index_dtype) -> tuple[np.ndarray, np.ndarray]:
     nb1, nbins = index.offsets.shape
     header = np.zeros(PACK_HEADER, dtype=np.int64)
     header[:6] = t, g, e, nb1, nbins, index.shift
+    if t >= 1 << 24:
+        raise ValueError("pack_tables: more rows than a float32 holds exactly")
+    entries = np.empty((t, 4), dtype=np.float32)   # an entry's sides and its row in one 16-byte record
+    entries[:, :3] = index.sides
+    entries[:, 3] = np.asarray(index.rows).astype(np.float32)
     wide_parts = [np.ascontiguousarray(kv.values, dtype=np.float32),
                   np.ascontiguousarray(tables.guide_unit, dtype=np.float32),
                   np.ascontiguousarray(tables.extra_unit, dtype=np.float32),
-                  np.ascontiguousarray(index.sides, dtype=np.float32),
+                  entries,
                   np.ascontiguousarray(tables.mean, dtype=np.float64),
                   np.ascontiguousarray(tables.axis, dtype=np.float64),
                   np.ascontiguousarray(tables.guide_hip, dtype=np.int64),
@@ -115,7 +120,7 @@ def pack_tables(tables: Tables, index_dtype) -> tuple[np.ndarray, np.ndarray]:
         pad = -raw.shape[0] % 64
         chunks += [raw, np.zeros(pad, dtype=np.uint8)]
         pos += raw.shape[0] + pad
-    narrow_parts = [kv.k, tables.ids, index.rows, index.offsets]
+    narrow_parts = [kv.k, tables.ids, index.offsets]
     npos = 0
     nchunks = []
     per_line = 64 // np.dtype(index_dtype).itemsize
@@ -141,17 +146,16 @@ def tables_of(narrow, wide):
     values = wide[h[6]:h[6] + 4 * t].view(np.float32)
     guide_unit = wide[h[7]:h[7] + 12 * g].view(np.float32).reshape((g, 3))
     extra_unit = wide[h[8]:h[8] + 12 * e].view(np.float32).reshape((e, 3))
-    sides = wide[h[9]:h[9] + 12 * t].view(np.float32).reshape((t, 3))
+    entries = wide[h[9]:h[9] + 16 * t].view(np.float32).reshape((t, 4))
     mean = wide[h[10]:h[10] + 24].view(np.float64)
     axis = wide[h[11]:h[11] + 24].view(np.float64)
     guide_hip = wide[h[12]:h[12] + 8 * g].view(np.int64)
     sc = wide[h[13]:h[13] + 24].view(np.float64)
     k = narrow[h[14]:h[14] + t]
     ids = narrow[h[15]:h[15] + 3 * t].reshape((t, 3))
-    rows = narrow[h[16]:h[16] + t]
-    offsets = narrow[h[17]:h[17] + nb1 * nbins].reshape((nb1, nbins))
+    offsets = narrow[h[16]:h[16] + nb1 * nbins].reshape((nb1, nbins))
     return Tables(KVector(values, k, sc[0], sc[1]), ids, mean, axis, guide_unit, guide_hip, extra_unit,
-                  SideIndex(rows, sides, offsets, sc[2], shift))
+                  SideIndex(entries[:, 3], entries, offsets, sc[2], shift))
 
 
 class Tolerances(NamedTuple):
@@ -190,8 +194,46 @@ class Tolerances(NamedTuple):
 
 
 def plain(t):
-    """A named tuple as a plain tuple, its named-tuple fields likewise (for :func:`identify_kernel`)."""
+    """A named tuple as a plain tuple, its named-tuple fields likewise."""
     return tuple(plain(v) if hasattr(v, "_fields") else v for v in t)
+
+
+#: Slots of :func:`params_of`' array: the :class:`View` (the frame's 5 numbers and ``c_fov``), then the
+#: :class:`Tolerances` in field order.
+N_VIEW = 6
+#: Largest ``max_candidates`` the array holds (exact in float64); a window never holds more rows.
+MAX_CANDIDATES_CAP = 1 << 52
+
+
+def params_of(view: View, tol: Tolerances) -> np.ndarray:
+    """``view`` and ``tol`` as one float64 array, :func:`identify_kernel`'s argument: numba unboxes a tuple
+    element by element (33 of them), an array at once, some 5 us of a call that finds its objects out of the
+    cache (interleaved with other plugins). Every value is exact in float64 (:func:`params_view` and
+    :func:`params_tol` rebuild the same numbers, ints and bools)."""
+    values = [*view.frame, view.c_fov, *tol._replace(max_candidates=min(int(tol.max_candidates),
+                                                                         MAX_CANDIDATES_CAP))]
+    out = np.array([float(v) for v in values], dtype=np.float64)
+    for v, f in zip(values, out, strict=True):
+        if isinstance(v, (int, np.integer)) and int(f) != int(v):
+            raise ValueError(f"params_of: {v!r} is not exact in float64")
+    return out
+
+
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+def params_view(p):
+    """The :class:`View` of :func:`params_of`' array."""
+    return View(Frame(p[0], p[1], p[2], p[3], p[4]), p[5])
+
+
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+def params_tol(p):
+    """The :class:`Tolerances` of :func:`params_of`' array (the same types as the named tuple from Python:
+    float64, int64, bool)."""
+    q = p[N_VIEW:]
+    return Tolerances(q[0], q[1], q[2], q[3], np.int64(q[4]), q[5], q[6], q[7] != 0.0, q[8] != 0.0,
+                      np.int64(q[9]), q[10] != 0.0, q[11] != 0.0, q[12], q[13], np.int64(q[14]), np.int64(q[15]),
+                      np.int64(q[16]), q[17], q[18] != 0.0, np.int64(q[19]), np.int64(q[20]), q[21],
+                      q[22] != 0.0, q[23] != 0.0, q[24] != 0.0, q[25] != 0.0, q[26] != 0.0)
 
 
 @njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
@@ -448,11 +490,9 @@ def _prefetch_entries(start, stop, i0, i1, index):
         e1 = np.int64(index.offsets[j1, i])
         if e1 <= e0:
             continue
-        prefetch(index.rows, e0)
-        prefetch(index.rows, e1 - 1)
-        for e in range(e0, e1, 5):      # 5 entries of 12 bytes: no 64-byte line skipped
+        for e in range(e0, e1, 4):      # 4 entries of 16 bytes (sides and row): no 64-byte line skipped
             prefetch_at(index.sides, e, 0)
-        prefetch_at(index.sides, e1 - 1, 2)
+        prefetch_at(index.sides, e1 - 1, 3)
 
 
 @njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
@@ -498,16 +538,17 @@ WORK_NAMES = ("searches", "window_triangles", "candidates", "hypotheses")
 
 
 @njit(cache=True)
-def identify_kernel(x_px, y_px, mag, view_t, narrow, wide, tol_t):
+def identify_kernel(x_px, y_px, mag, params, narrow, wide):
     """One int64 array (:func:`unpack_out`: one array to box instead of four, some 8 us of a call that finds
     Python's objects out of the cache): the catalog id of each detection (-1 = none), the work counters
     (:data:`WORK_NAMES`: k-vector searches, database triangles in their windows, candidates that passed
     the three-side check, single-triangle hypotheses tried), the detections that took part (brightest
     first; their camera-frame unit vectors are ``backproject_px`` of them) and their guide rows (-1 = none).
 
-    ``view_t`` and ``tol_t`` are a :class:`View` and :class:`Tolerances` as plain tuples (nested the same way:
-    :func:`plain`), rebuilt into the named tuples here: numba's dispatch types a plain tuple in C but a named
-    tuple in Python, about 4 us of every image. ``narrow`` and ``wide`` are the :class:`Tables` packed by
+    ``params`` is a :class:`View` and :class:`Tolerances` as one float64 array (:func:`params_of`), rebuilt
+    into the named tuples here: numba's dispatch types a named tuple in Python (about 4 us of every image) and
+    unboxes a plain tuple element by element (5 us more when the call's objects are out of the cache).
+    ``narrow`` and ``wide`` are the :class:`Tables` packed by
     :func:`pack_tables` (two arrays to unbox instead of ten and five numbers: some 15 us of a call that finds
     them out of the cache).
 
@@ -546,9 +587,9 @@ def identify_kernel(x_px, y_px, mag, view_t, narrow, wide, tol_t):
     One function, not a wrapper around a ``match_rows`` kernel: numba re-optimises every callee inside
     each caller it is linked into, so a level less in the call tree is a cold compile about 2 s shorter.
     """
-    view = View(Frame(*view_t[0]), view_t[1])
+    view = params_view(params)
     db = tables_of(narrow, wide)
-    tol = Tolerances(*tol_t)
+    tol = params_tol(params)
     n = x_px.shape[0]
     hip = np.full(n, -1, dtype=np.int64)
     work = np.zeros(len(WORK_NAMES), dtype=np.int64)
