@@ -137,7 +137,7 @@ def pack_tables(tables: Tables, index_dtype) -> tuple[np.ndarray, np.ndarray]:
     return np.ascontiguousarray(narrow, dtype=index_dtype), np.ascontiguousarray(wide)
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def tables_of(narrow, wide):
     """The :class:`Tables` of :func:`pack_tables`' two arrays: views into them, the same types as the
     original arrays (``ids`` in the narrow dtype)."""
@@ -219,13 +219,13 @@ def params_of(view: View, tol: Tolerances) -> np.ndarray:
     return out
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def params_view(p):
     """The :class:`View` of :func:`params_of`' array."""
     return View(Frame(p[0], p[1], p[2], p[3], p[4]), p[5])
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def params_tol(p):
     """The :class:`Tolerances` of :func:`params_of`' array (the same types as the named tuple from Python:
     float64, int64, bool)."""
@@ -236,7 +236,7 @@ def params_tol(p):
                       q[22] != 0.0, q[23] != 0.0, q[24] != 0.0, q[25] != 0.0, q[26] != 0.0)
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _before(dist, unit, i, j):
     """Strict order of candidate slaves: by distance, exact ties by the unit vector (input-order free)."""
     if dist[i] != dist[j]:
@@ -246,7 +246,7 @@ def _before(dist, unit, i, j):
     return unit[i, 1] < unit[j, 1]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def nearest_slaves(dist_row, unit, usable, master, d_min, d_max, n_slaves, out):
     """The ``n_slaves`` usable stars nearest ``master`` with ``d_min <= D_ms <= d_max`` (eq. 2), nearest first.
 
@@ -273,7 +273,7 @@ def nearest_slaves(dist_row, unit, usable, master, d_min, d_max, n_slaves, out):
     return m
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def build_triangles(unit, neighbours, neighbour_offsets, d_min, d_max, n_slaves, scale):
     """Feature triangles of every master star (section 2.1, step 1).
 
@@ -308,14 +308,14 @@ def build_triangles(unit, neighbours, neighbour_offsets, d_min, d_max, n_slaves,
     return ids, sides
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _grad_var(g0, g1, g2, t, i):
     """``g (I - t_i t_i^T) g^T`` for a gradient row ``g`` and unit vector ``t[i]`` (eqs. 11-12 without sigma^2)."""
     gt = g0 * t[i, 0] + g1 * t[i, 1] + g2 * t[i, 2]
     return g0 * g0 + g1 * g1 + g2 * g2 - gt * gt
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def projection_sigma(t, i1, i2, i3, a, b, c, w, sigma, scale):
     """Analytic standard deviation of the projection, eqs. 6-14.
 
@@ -340,20 +340,20 @@ def projection_sigma(t, i1, i2, i3, a, b, c, w, sigma, scale):
     return scale * sigma * math.sqrt(max(var, 0.0))
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def side_sigma(side, sigma):
     """Standard deviation of one unscaled chord side under eq. 11: ``sigma sqrt(2 - side^2/2)``."""
     return sigma * math.sqrt(max(2.0 - 0.5 * side * side, 0.0))
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _window(t, i1, i2, i3, sides, kv, mean, w, sigma, scale, beta):
     """Sides (eq. 4), projection (eq. 5) and k-vector window [p - xi, p + xi] (eqs. 13-19) of a triangle."""
     lo, hi = _window_bounds(t, i1, i2, i3, sides, mean, w, sigma, scale, beta)
     return kvector_query(kv, lo, hi)
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _window_bounds(t, i1, i2, i3, sides, mean, w, sigma, scale, beta):
     """Sides (eq. 4, written to ``sides``) and the projection window ``(p - xi, p + xi)`` (eqs. 5-14)."""
     a = scale * chord_rows(t, i1, t, i2)
@@ -367,14 +367,14 @@ def _window_bounds(t, i1, i2, i3, sides, mean, w, sigma, scale, beta):
     return p - xi, p + xi
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _side_excess(sa, sb, sc, k, a, b, c, ta, tb, tc):
     """Largest amount by which one of the three sides misses its tolerance (<= 0: all agree)."""
     x = max(abs(sa[k] - a) - ta, abs(sb[k] - b) - tb)
     return max(x, abs(sc[k] - c) - tc)
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _side_window(sides, sigma, scale, side_beta):
     """The image triangle's three scaled sides and their tolerances, float32 as the database's sides."""
     a = np.float32(sides[0])
@@ -386,7 +386,7 @@ def _side_window(sides, sigma, scale, side_beta):
     return a, b, c, ta, tb, tc
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _side_check(sides, start, stop, db_sides, sigma, scale, side_beta, out_cand):
     """Database rows in ``[start, stop)`` whose three sides all agree with ``sides``; returns the count.
 
@@ -419,7 +419,7 @@ def _side_check(sides, start, stop, db_sides, sigma, scale, side_beta, out_cand)
 INDEX_MARGIN = 0.01
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _index_bins(a, ta, index):
     """The bins of side a (:class:`SideIndex`) within ``a +- (ta + INDEX_MARGIN)``: ``(first, last)``."""
     i0 = max(int(math.floor((float(a) - float(ta) - INDEX_MARGIN) / index.width)), 0)
@@ -427,7 +427,7 @@ def _index_bins(a, ta, index):
     return i0, i1
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _side_check_indexed(sides, start, stop, index, sigma, scale, side_beta, out_cand):
     """The rows of :func:`_side_check` (the same rows, ascending), read through the :class:`SideIndex`: only
     the entries of the window ``[start, stop)`` whose side a lies in a bin within the tolerance of
@@ -472,14 +472,14 @@ def _side_check_indexed(sides, start, stop, index, sigma, scale, side_beta, out_
     return n_out
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _bins_of(a, index, sigma, scale, side_beta):
     """:func:`_index_bins` of a triangle whose scaled side a is ``a`` (float64), as the check computes them."""
     ta = np.float32(side_beta * scale * side_sigma(a / scale, sigma))
     return _index_bins(np.float32(a), ta, index)
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _prefetch_entries(start, stop, i0, i1, index):
     """Ask for the entries (rows and sides) :func:`_side_check_indexed` reads for ``[start, stop)``
     (``stop > start``) in the bins ``i0 .. i1``."""
@@ -495,14 +495,14 @@ def _prefetch_entries(start, stop, i0, i1, index):
         prefetch_at(index.sides, e1 - 1, 3)
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _triple_key(i, j, k, n):
     """Order-free key of a set of three image stars."""
     a, b, c = min(i, j, k), max(min(i, j), min(max(i, j), k)), max(i, j, k)
     return (a * n + b) * n + c
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def argsort_int(keys):
     """Ascending, stable order of int64 ``keys``: the shared merge sort
     (:func:`starid.kernels.order.stable_sort_by_key`, which compiles in a fraction of the time of
@@ -513,7 +513,7 @@ def argsort_int(keys):
     return order
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def select_stars(x_px, y_px, mag, max_stars):
     """Indices of the ``max_stars`` brightest detections (ties: by x, then y), brightest first."""
     n = x_px.shape[0]
@@ -537,7 +537,7 @@ def select_stars(x_px, y_px, mag, max_stars):
 WORK_NAMES = ("searches", "window_triangles", "candidates", "hypotheses")
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def identify_kernel(x_px, y_px, mag, params, narrow, wide):
     """One int64 array (:func:`unpack_out`: one array to box instead of four, some 8 us of a call that finds
     Python's objects out of the cache): the catalog id of each detection (-1 = none), the work counters
@@ -822,7 +822,7 @@ def identify_kernel(x_px, y_px, mag, params, narrow, wide):
     return _out(hip, work, sel, result)
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _out(hip, work, sel, rows):
     """:func:`identify_kernel`'s one array: ``hip`` (n), ``work`` (:data:`WORK_NAMES`), k, the k detections
     that took part (``sel``) and their guide rows (:func:`unpack_out`)."""
@@ -848,7 +848,7 @@ def unpack_out(out: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray, np.ndar
     return out[:n], out[n:n + nw], out[n + nw + 1:n + nw + 1 + k], out[n + nw + 1 + k:n + nw + 1 + 2 * k]
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def validate(n, n_guide, n_match, m_tri, m_img, m_cat, tol, min_shared, conflict_fails, result):
     """Sharing-star validation (section 2.3, Table 3) of the first ``n_match`` match records: writes the
     accepted guide row of each of the ``n`` image stars into ``result`` (-1 = none) and returns the support
@@ -965,7 +965,7 @@ def validate(n, n_guide, n_match, m_tri, m_img, m_cat, tol, min_shared, conflict
     return support
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def drop_displaced(unit, result, guide_unit, eps_chord, attitude):
     """Extension (``nearest_check``): ``attitude``, of all pairings in ``result`` (Wahba), predicts each
     paired guide star; a pairing is dropped when its detection lies farther than ``eps_chord`` (the pair
@@ -997,7 +997,7 @@ def drop_displaced(unit, result, guide_unit, eps_chord, attitude):
     return n_found
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def try_hypotheses(unit, view, db, tol, n_match, m_img, m_cat, support, eps_chord, result, work):
     """Extension (``hypotheses``): when sharing-star validation gives no identification, each matched
     triangle alone is a hypothesis, best supported first (then brightest stars: ``unit`` is in brightness
