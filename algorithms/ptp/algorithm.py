@@ -138,8 +138,8 @@ class PTPDatabase(Database):
     @cached_property
     def packed(self) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`tables` packed into two arrays (:func:`~starid_algorithms.ptp.kernels.pack_tables`), as
-        :func:`~starid_algorithms.ptp.kernels.identify_kernel` takes them: a copy of the same bytes (not
-        counted again in ``nbytes``)."""
+        :func:`~starid_algorithms.ptp.kernels.identify_kernel` takes them: a copy of the same numbers, the
+        index's rows beside their sides (not counted again in ``nbytes``)."""
         return pack_tables(self._tables, self.kv.k.dtype)
 
     @cached_property

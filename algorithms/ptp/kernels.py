@@ -91,9 +91,12 @@ def pack_tables(tables: Tables, index_dtype) -> tuple[np.ndarray, np.ndarray]:
     """``tables`` as two arrays, ``(narrow, wide)``: numba unboxes every array of a call's arguments, and for
     the 10 arrays and 5 numbers of a :class:`Tables` that costs some 15 us of every image when the call finds
     Python's and numba's objects out of the cache (interleaved with other plugins). ``narrow`` (``index_dtype``)
-    holds the k-vector's k, the guide rows, the index's rows and offsets; ``wide`` (bytes) a header of
+    holds the k-vector's k, the guide rows and the index's offsets; ``wide`` (bytes) a header of
     :data:`PACK_HEADER` int64, then the float32, float64 and int64 arrays and the numbers, each segment at a
-    multiple of 64 bytes. :func:`tables_of` rebuilds the :class:`Tables` (views, no copy) in the kernel."""
+    multiple of 64 bytes. The index's entries are one float32 (t, 4) segment, each entry's sides a, b, c and
+    its row (exact: fewer than 2**24 rows) in one 16-byte record, so a window's bins read one array.
+    :func:`tables_of` rebuilds the :class:`Tables` (views, no copy) in the kernel; its ``index.rows`` is the
+    entries' fourth column (float32)."""
     kv, index = tables.kv, tables.index
     t, g, e = kv.values.shape[0], tables.guide_unit.shape[0], tables.extra_unit.shape[0]
     nb1, nbins = index.offsets.shape
