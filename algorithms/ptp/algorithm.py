@@ -40,6 +40,7 @@ from .kernels import (
     identify_kernel,
     nearest_slaves,
     pack_tables,
+    params_of,
     plain,
     select_stars,
     unpack_out,
@@ -130,15 +131,15 @@ class PTPDatabase(Database):
 
     @cached_property
     def plain_tables(self) -> tuple:
-        """:meth:`tables` as plain tuples (:func:`~starid_algorithms.ptp.kernels.plain`), as
-        :func:`~starid_algorithms.ptp.kernels.identify_kernel` takes it."""
+        """:meth:`tables` as plain tuples (:func:`~starid_algorithms.ptp.kernels.plain`; the profiling tools
+        read it)."""
         return plain(self._tables)
 
     @cached_property
     def packed(self) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`tables` packed into two arrays (:func:`~starid_algorithms.ptp.kernels.pack_tables`), as
-        :func:`~starid_algorithms.ptp.kernels.identify_kernel` takes them: a copy of the same bytes (not
-        counted again in ``nbytes``)."""
+        :func:`~starid_algorithms.ptp.kernels.identify_kernel` takes them: a copy of the same numbers, the
+        index's rows beside their sides (not counted again in ``nbytes``)."""
         return pack_tables(self._tables, self.kv.k.dtype)
 
     @cached_property
@@ -152,21 +153,19 @@ def _view_of(camera: Camera) -> View:
     return View(camera_frame(camera), rad_to_chord(camera.half_diagonal_rad))
 
 
-_last_view: tuple = (None, None, None)
+_last_view: tuple = (None, None)
 
 
-def _view(camera: Camera) -> tuple[View, tuple]:
+def _view(camera: Camera) -> View:
     """The camera as the kernel needs it: the core frame and ``c_fov``, the chord from the boresight to
-    the farthest corner, as a :class:`View` and as plain tuples (the kernel's argument). The last camera's
-    is kept by identity: hashing a ``Camera`` for the lru_cache costs about a microsecond per image, and a
-    run identifies every image with one camera object."""
+    the farthest corner. The last camera's is kept by identity: hashing a ``Camera`` for the lru_cache costs
+    about a microsecond per image, and a run identifies every image with one camera object."""
     global _last_view
-    cam, view, view_t = _last_view
+    cam, view = _last_view
     if cam is not camera:
         view = _view_of(camera)
-        view_t = plain(view)
-        _last_view = (camera, view, view_t)    # one assignment: threads see a consistent triple
-    return view, view_t
+        _last_view = (camera, view)    # one assignment: threads see a consistent pair
+    return view
 
 
 def _chord(deg: float) -> float:
@@ -441,27 +440,36 @@ class PTP(Algorithm):
         return self._tol(self.d_min_deg, self.sigma_floor_px)
 
     @cached_property
-    def _derived_tol_t(self) -> tuple:
-        return plain(self._derived_tol)
+    def _derived_slot(self) -> list:
+        return [(None, None)]
 
     @cached_property
     def _tol_by_database(self) -> dict:
         return {}
 
-    def _tolerances_pair(self, database: PTPDatabase) -> tuple[Tolerances, tuple]:
-        """:meth:`tolerances` and the same as plain tuples (the kernel's argument). An instance that was not
-        :meth:`derived` (e.g. ``get_algorithm("ptp")()`` as the benchmarks time it) keeps both per database
-        setting in a dict of its own: the lru_cache's hash of the whole instance and ``plain`` cost about
-        2 us of every image."""
+    def _tolerances_pair(self, database: PTPDatabase) -> tuple[Tolerances, list]:
+        """:meth:`tolerances` and a one-entry memo of the kernel's parameter array (``[(view, params)]``, see
+        :meth:`_kernel_params`). An instance that was not :meth:`derived` (e.g. ``get_algorithm("ptp")()`` as
+        the benchmarks time it) keeps both per database setting in a dict of its own: the lru_cache's hash
+        of the whole instance costs about 2 us of every image."""
         if self.d_min_deg is not None and self.sigma_floor_px is not None:
-            return self._derived_tol, self._derived_tol_t
+            return self._derived_tol, self._derived_slot
         key = (database.d_min_deg, database.sigma_floor_px)
         pair = self._tol_by_database.get(key)
         if pair is None:
-            tol = _tolerances(self, *key)
-            pair = (tol, plain(tol))
+            pair = (_tolerances(self, *key), [(None, None)])
             self._tol_by_database[key] = pair
         return pair
+
+    def _kernel_params(self, database: PTPDatabase, view: View) -> tuple[Tolerances, np.ndarray]:
+        """:meth:`tolerances` and :func:`~starid_algorithms.ptp.kernels.params_of` of them with ``view``, the
+        array kept for the last view (by identity: one camera object per run)."""
+        tol, slot = self._tolerances_pair(database)
+        last = slot[0]
+        if last[0] is not view:
+            last = (view, params_of(view, tol))
+            slot[0] = last        # one assignment: threads see a consistent pair
+        return tol, last[1]
 
     @cached_property
     def _d_max(self) -> float:
@@ -532,18 +540,36 @@ class PTP(Algorithm):
         """:func:`~starid_algorithms.ptp.kernels.identify_kernel`, then (``assign_all``) the attitude of the
         identified stars (Wahba) assigns every detection to the deep catalog star predicted within the
         tolerance (``starid.kernels.assign_all``, one-to-one only). Counters: :data:`WORK_NAMES`."""
-        (view, view_t), (tol, tol_t) = _view(observation.camera), self._tolerances_pair(database)
-        narrow, wide = database.packed
-        x_px, y_px = observation.x_px, observation.y_px
-        hip, work, sel, rows = unpack_out(identify_kernel(x_px, y_px, observation.mag, view_t, narrow, wide, tol_t),
-                                          x_px.shape[0])
-        if tol.assign_all and database.deep.unit.shape[0] > 0 and np.count_nonzero(rows >= 0) >= 3:
-            frame = view.frame    # the kernel's unit vectors of the detections that took part, the same bits
-            unit = backproject_px(x_px[sel], y_px[sel], frame.f_px, frame.cx_px, frame.cy_px)
-            attitude = wahba_rows(unit, np.ascontiguousarray(rows), database.guide_unit)
-            assign_all(attitude, observation.x_px, observation.y_px, view.frame, database.deep,
-                       tol.side_beta * math.sqrt(2.0) * tol.sigma_px / view.frame.f_px, hip)
-        return Identification(hip, counters=dict(zip(WORK_NAMES, work.tolist(), strict=True)))
+        memo = self._memo[0]
+        if memo[0] is not database or memo[1] is not observation.camera:
+            memo = self._remember(database, observation.camera)
+        tol, params, (narrow, wide), view = memo[2:]
+        x_px = observation.x_px
+        n = x_px.shape[0]
+        out = identify_kernel(x_px, observation.y_px, observation.mag, params, narrow, wide)
+        hip = out[:n]
+        if tol.assign_all:
+            _, _, sel, rows = unpack_out(out, n)
+            if database.deep.unit.shape[0] > 0 and np.count_nonzero(rows >= 0) >= 3:
+                frame = view.frame    # the kernel's unit vectors of the detections that took part, the same bits
+                unit = backproject_px(x_px[sel], observation.y_px[sel], frame.f_px, frame.cx_px, frame.cy_px)
+                attitude = wahba_rows(unit, np.ascontiguousarray(rows), database.guide_unit)
+                assign_all(attitude, observation.x_px, observation.y_px, view.frame, database.deep,
+                           tol.side_beta * math.sqrt(2.0) * tol.sigma_px / view.frame.f_px, hip)
+        return Identification(hip, counters=dict(zip(WORK_NAMES, out[n:n + len(WORK_NAMES)].tolist(), strict=True)))
+
+    @cached_property
+    def _memo(self) -> list:
+        """``[(database, camera, tolerances, params, packed tables, view)]`` of the last call: one identity test
+        per image instead of three lookups (some 5 us of a call whose Python objects are out of the cache)."""
+        return [(None, None)]
+
+    def _remember(self, database: PTPDatabase, camera: Camera) -> tuple:
+        view = _view(camera)
+        tol, params = self._kernel_params(database, view)
+        memo = (database, camera, tol, params, database.packed, view)
+        self._memo[0] = memo      # one assignment: threads see a consistent tuple
+        return memo
 
     def explain(self, database: PTPDatabase, observation: Observation) -> Explanation:
         """The image triangles PTP formed (every master with its nearest slaves) as segments; bold:

@@ -91,18 +91,26 @@ def pack_tables(tables: Tables, index_dtype) -> tuple[np.ndarray, np.ndarray]:
     """``tables`` as two arrays, ``(narrow, wide)``: numba unboxes every array of a call's arguments, and for
     the 10 arrays and 5 numbers of a :class:`Tables` that costs some 15 us of every image when the call finds
     Python's and numba's objects out of the cache (interleaved with other plugins). ``narrow`` (``index_dtype``)
-    holds the k-vector's k, the guide rows, the index's rows and offsets; ``wide`` (bytes) a header of
+    holds the k-vector's k, the guide rows and the index's offsets; ``wide`` (bytes) a header of
     :data:`PACK_HEADER` int64, then the float32, float64 and int64 arrays and the numbers, each segment at a
-    multiple of 64 bytes. :func:`tables_of` rebuilds the :class:`Tables` (views, no copy) in the kernel."""
+    multiple of 64 bytes. The index's entries are one float32 (t, 4) segment, each entry's sides a, b, c and
+    its row (exact: fewer than 2**24 rows) in one 16-byte record, so a window's bins read one array.
+    :func:`tables_of` rebuilds the :class:`Tables` (views, no copy) in the kernel; its ``index.rows`` is the
+    entries' fourth column (float32)."""
     kv, index = tables.kv, tables.index
     t, g, e = kv.values.shape[0], tables.guide_unit.shape[0], tables.extra_unit.shape[0]
     nb1, nbins = index.offsets.shape
     header = np.zeros(PACK_HEADER, dtype=np.int64)
     header[:6] = t, g, e, nb1, nbins, index.shift
+    if t >= 1 << 24:
+        raise ValueError("pack_tables: more rows than a float32 holds exactly")
+    entries = np.empty((t, 4), dtype=np.float32)   # an entry's sides and its row in one 16-byte record
+    entries[:, :3] = index.sides
+    entries[:, 3] = np.asarray(index.rows).astype(np.float32)
     wide_parts = [np.ascontiguousarray(kv.values, dtype=np.float32),
                   np.ascontiguousarray(tables.guide_unit, dtype=np.float32),
                   np.ascontiguousarray(tables.extra_unit, dtype=np.float32),
-                  np.ascontiguousarray(index.sides, dtype=np.float32),
+                  entries,
                   np.ascontiguousarray(tables.mean, dtype=np.float64),
                   np.ascontiguousarray(tables.axis, dtype=np.float64),
                   np.ascontiguousarray(tables.guide_hip, dtype=np.int64),
@@ -115,7 +123,7 @@ def pack_tables(tables: Tables, index_dtype) -> tuple[np.ndarray, np.ndarray]:
         pad = -raw.shape[0] % 64
         chunks += [raw, np.zeros(pad, dtype=np.uint8)]
         pos += raw.shape[0] + pad
-    narrow_parts = [kv.k, tables.ids, index.rows, index.offsets]
+    narrow_parts = [kv.k, tables.ids, index.offsets]
     npos = 0
     nchunks = []
     per_line = 64 // np.dtype(index_dtype).itemsize
@@ -132,7 +140,7 @@ def pack_tables(tables: Tables, index_dtype) -> tuple[np.ndarray, np.ndarray]:
     return np.ascontiguousarray(narrow, dtype=index_dtype), np.ascontiguousarray(wide)
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def tables_of(narrow, wide):
     """The :class:`Tables` of :func:`pack_tables`' two arrays: views into them, the same types as the
     original arrays (``ids`` in the narrow dtype)."""
@@ -141,17 +149,16 @@ def tables_of(narrow, wide):
     values = wide[h[6]:h[6] + 4 * t].view(np.float32)
     guide_unit = wide[h[7]:h[7] + 12 * g].view(np.float32).reshape((g, 3))
     extra_unit = wide[h[8]:h[8] + 12 * e].view(np.float32).reshape((e, 3))
-    sides = wide[h[9]:h[9] + 12 * t].view(np.float32).reshape((t, 3))
+    entries = wide[h[9]:h[9] + 16 * t].view(np.float32).reshape((t, 4))
     mean = wide[h[10]:h[10] + 24].view(np.float64)
     axis = wide[h[11]:h[11] + 24].view(np.float64)
     guide_hip = wide[h[12]:h[12] + 8 * g].view(np.int64)
     sc = wide[h[13]:h[13] + 24].view(np.float64)
     k = narrow[h[14]:h[14] + t]
     ids = narrow[h[15]:h[15] + 3 * t].reshape((t, 3))
-    rows = narrow[h[16]:h[16] + t]
-    offsets = narrow[h[17]:h[17] + nb1 * nbins].reshape((nb1, nbins))
+    offsets = narrow[h[16]:h[16] + nb1 * nbins].reshape((nb1, nbins))
     return Tables(KVector(values, k, sc[0], sc[1]), ids, mean, axis, guide_unit, guide_hip, extra_unit,
-                  SideIndex(rows, sides, offsets, sc[2], shift))
+                  SideIndex(entries[:, 3], entries, offsets, sc[2], shift))
 
 
 class Tolerances(NamedTuple):
@@ -190,11 +197,49 @@ class Tolerances(NamedTuple):
 
 
 def plain(t):
-    """A named tuple as a plain tuple, its named-tuple fields likewise (for :func:`identify_kernel`)."""
+    """A named tuple as a plain tuple, its named-tuple fields likewise."""
     return tuple(plain(v) if hasattr(v, "_fields") else v for v in t)
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+#: Slots of :func:`params_of`' array: the :class:`View` (the frame's 5 numbers and ``c_fov``), then the
+#: :class:`Tolerances` in field order.
+N_VIEW = 6
+#: Largest ``max_candidates`` the array holds (exact in float64); a window never holds more rows.
+MAX_CANDIDATES_CAP = 1 << 52
+
+
+def params_of(view: View, tol: Tolerances) -> np.ndarray:
+    """``view`` and ``tol`` as one float64 array, :func:`identify_kernel`'s argument: numba unboxes a tuple
+    element by element (33 of them), an array at once, some 5 us of a call that finds its objects out of the
+    cache (interleaved with other plugins). Every value is exact in float64 (:func:`params_view` and
+    :func:`params_tol` rebuild the same numbers, ints and bools)."""
+    values = [*view.frame, view.c_fov, *tol._replace(max_candidates=min(int(tol.max_candidates),
+                                                                         MAX_CANDIDATES_CAP))]
+    out = np.array([float(v) for v in values], dtype=np.float64)
+    for v, f in zip(values, out, strict=True):
+        if isinstance(v, (int, np.integer)) and int(f) != int(v):
+            raise ValueError(f"params_of: {v!r} is not exact in float64")
+    return out
+
+
+@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+def params_view(p):
+    """The :class:`View` of :func:`params_of`' array."""
+    return View(Frame(p[0], p[1], p[2], p[3], p[4]), p[5])
+
+
+@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+def params_tol(p):
+    """The :class:`Tolerances` of :func:`params_of`' array (the same types as the named tuple from Python:
+    float64, int64, bool)."""
+    q = p[N_VIEW:]
+    return Tolerances(q[0], q[1], q[2], q[3], np.int64(q[4]), q[5], q[6], q[7] != 0.0, q[8] != 0.0,
+                      np.int64(q[9]), q[10] != 0.0, q[11] != 0.0, q[12], q[13], np.int64(q[14]), np.int64(q[15]),
+                      np.int64(q[16]), q[17], q[18] != 0.0, np.int64(q[19]), np.int64(q[20]), q[21],
+                      q[22] != 0.0, q[23] != 0.0, q[24] != 0.0, q[25] != 0.0, q[26] != 0.0)
+
+
+@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _before(dist, unit, i, j):
     """Strict order of candidate slaves: by distance, exact ties by the unit vector (input-order free)."""
     if dist[i] != dist[j]:
@@ -204,7 +249,7 @@ def _before(dist, unit, i, j):
     return unit[i, 1] < unit[j, 1]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def nearest_slaves(dist_row, unit, usable, master, d_min, d_max, n_slaves, out):
     """The ``n_slaves`` usable stars nearest ``master`` with ``d_min <= D_ms <= d_max`` (eq. 2), nearest first.
 
@@ -231,7 +276,7 @@ def nearest_slaves(dist_row, unit, usable, master, d_min, d_max, n_slaves, out):
     return m
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def build_triangles(unit, neighbours, neighbour_offsets, d_min, d_max, n_slaves, scale):
     """Feature triangles of every master star (section 2.1, step 1).
 
@@ -266,14 +311,14 @@ def build_triangles(unit, neighbours, neighbour_offsets, d_min, d_max, n_slaves,
     return ids, sides
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _grad_var(g0, g1, g2, t, i):
     """``g (I - t_i t_i^T) g^T`` for a gradient row ``g`` and unit vector ``t[i]`` (eqs. 11-12 without sigma^2)."""
     gt = g0 * t[i, 0] + g1 * t[i, 1] + g2 * t[i, 2]
     return g0 * g0 + g1 * g1 + g2 * g2 - gt * gt
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def projection_sigma(t, i1, i2, i3, a, b, c, w, sigma, scale):
     """Analytic standard deviation of the projection, eqs. 6-14.
 
@@ -298,20 +343,20 @@ def projection_sigma(t, i1, i2, i3, a, b, c, w, sigma, scale):
     return scale * sigma * math.sqrt(max(var, 0.0))
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def side_sigma(side, sigma):
     """Standard deviation of one unscaled chord side under eq. 11: ``sigma sqrt(2 - side^2/2)``."""
     return sigma * math.sqrt(max(2.0 - 0.5 * side * side, 0.0))
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _window(t, i1, i2, i3, sides, kv, mean, w, sigma, scale, beta):
     """Sides (eq. 4), projection (eq. 5) and k-vector window [p - xi, p + xi] (eqs. 13-19) of a triangle."""
     lo, hi = _window_bounds(t, i1, i2, i3, sides, mean, w, sigma, scale, beta)
     return kvector_query(kv, lo, hi)
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _window_bounds(t, i1, i2, i3, sides, mean, w, sigma, scale, beta):
     """Sides (eq. 4, written to ``sides``) and the projection window ``(p - xi, p + xi)`` (eqs. 5-14)."""
     a = scale * chord_rows(t, i1, t, i2)
@@ -325,14 +370,14 @@ def _window_bounds(t, i1, i2, i3, sides, mean, w, sigma, scale, beta):
     return p - xi, p + xi
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _side_excess(sa, sb, sc, k, a, b, c, ta, tb, tc):
     """Largest amount by which one of the three sides misses its tolerance (<= 0: all agree)."""
     x = max(abs(sa[k] - a) - ta, abs(sb[k] - b) - tb)
     return max(x, abs(sc[k] - c) - tc)
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _side_window(sides, sigma, scale, side_beta):
     """The image triangle's three scaled sides and their tolerances, float32 as the database's sides."""
     a = np.float32(sides[0])
@@ -344,7 +389,7 @@ def _side_window(sides, sigma, scale, side_beta):
     return a, b, c, ta, tb, tc
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _side_check(sides, start, stop, db_sides, sigma, scale, side_beta, out_cand):
     """Database rows in ``[start, stop)`` whose three sides all agree with ``sides``; returns the count.
 
@@ -377,7 +422,7 @@ def _side_check(sides, start, stop, db_sides, sigma, scale, side_beta, out_cand)
 INDEX_MARGIN = 0.01
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _index_bins(a, ta, index):
     """The bins of side a (:class:`SideIndex`) within ``a +- (ta + INDEX_MARGIN)``: ``(first, last)``."""
     i0 = max(int(math.floor((float(a) - float(ta) - INDEX_MARGIN) / index.width)), 0)
@@ -385,7 +430,7 @@ def _index_bins(a, ta, index):
     return i0, i1
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _side_check_indexed(sides, start, stop, index, sigma, scale, side_beta, out_cand):
     """The rows of :func:`_side_check` (the same rows, ascending), read through the :class:`SideIndex`: only
     the entries of the window ``[start, stop)`` whose side a lies in a bin within the tolerance of
@@ -430,14 +475,14 @@ def _side_check_indexed(sides, start, stop, index, sigma, scale, side_beta, out_
     return n_out
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _bins_of(a, index, sigma, scale, side_beta):
     """:func:`_index_bins` of a triangle whose scaled side a is ``a`` (float64), as the check computes them."""
     ta = np.float32(side_beta * scale * side_sigma(a / scale, sigma))
     return _index_bins(np.float32(a), ta, index)
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _prefetch_entries(start, stop, i0, i1, index):
     """Ask for the entries (rows and sides) :func:`_side_check_indexed` reads for ``[start, stop)``
     (``stop > start``) in the bins ``i0 .. i1``."""
@@ -448,21 +493,19 @@ def _prefetch_entries(start, stop, i0, i1, index):
         e1 = np.int64(index.offsets[j1, i])
         if e1 <= e0:
             continue
-        prefetch(index.rows, e0)
-        prefetch(index.rows, e1 - 1)
-        for e in range(e0, e1, 5):      # 5 entries of 12 bytes: no 64-byte line skipped
+        for e in range(e0, e1, 4):      # 4 entries of 16 bytes (sides and row): no 64-byte line skipped
             prefetch_at(index.sides, e, 0)
-        prefetch_at(index.sides, e1 - 1, 2)
+        prefetch_at(index.sides, e1 - 1, 3)
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _triple_key(i, j, k, n):
     """Order-free key of a set of three image stars."""
     a, b, c = min(i, j, k), max(min(i, j), min(max(i, j), k)), max(i, j, k)
     return (a * n + b) * n + c
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def argsort_int(keys):
     """Ascending, stable order of int64 ``keys``: the shared merge sort
     (:func:`starid.kernels.order.stable_sort_by_key`, which compiles in a fraction of the time of
@@ -473,7 +516,7 @@ def argsort_int(keys):
     return order
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def select_stars(x_px, y_px, mag, max_stars):
     """Indices of the ``max_stars`` brightest detections (ties: by x, then y), brightest first."""
     n = x_px.shape[0]
@@ -497,17 +540,18 @@ def select_stars(x_px, y_px, mag, max_stars):
 WORK_NAMES = ("searches", "window_triangles", "candidates", "hypotheses")
 
 
-@njit(cache=True)
-def identify_kernel(x_px, y_px, mag, view_t, narrow, wide, tol_t):
+@njit(cache=True, error_model="numpy")
+def identify_kernel(x_px, y_px, mag, params, narrow, wide):
     """One int64 array (:func:`unpack_out`: one array to box instead of four, some 8 us of a call that finds
     Python's objects out of the cache): the catalog id of each detection (-1 = none), the work counters
     (:data:`WORK_NAMES`: k-vector searches, database triangles in their windows, candidates that passed
     the three-side check, single-triangle hypotheses tried), the detections that took part (brightest
     first; their camera-frame unit vectors are ``backproject_px`` of them) and their guide rows (-1 = none).
 
-    ``view_t`` and ``tol_t`` are a :class:`View` and :class:`Tolerances` as plain tuples (nested the same way:
-    :func:`plain`), rebuilt into the named tuples here: numba's dispatch types a plain tuple in C but a named
-    tuple in Python, about 4 us of every image. ``narrow`` and ``wide`` are the :class:`Tables` packed by
+    ``params`` is a :class:`View` and :class:`Tolerances` as one float64 array (:func:`params_of`), rebuilt
+    into the named tuples here: numba's dispatch types a named tuple in Python (about 4 us of every image) and
+    unboxes a plain tuple element by element (5 us more when the call's objects are out of the cache).
+    ``narrow`` and ``wide`` are the :class:`Tables` packed by
     :func:`pack_tables` (two arrays to unbox instead of ten and five numbers: some 15 us of a call that finds
     them out of the cache).
 
@@ -546,9 +590,9 @@ def identify_kernel(x_px, y_px, mag, view_t, narrow, wide, tol_t):
     One function, not a wrapper around a ``match_rows`` kernel: numba re-optimises every callee inside
     each caller it is linked into, so a level less in the call tree is a cold compile about 2 s shorter.
     """
-    view = View(Frame(*view_t[0]), view_t[1])
+    view = params_view(params)
     db = tables_of(narrow, wide)
-    tol = Tolerances(*tol_t)
+    tol = params_tol(params)
     n = x_px.shape[0]
     hip = np.full(n, -1, dtype=np.int64)
     work = np.zeros(len(WORK_NAMES), dtype=np.int64)
@@ -781,7 +825,7 @@ def identify_kernel(x_px, y_px, mag, view_t, narrow, wide, tol_t):
     return _out(hip, work, sel, result)
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _out(hip, work, sel, rows):
     """:func:`identify_kernel`'s one array: ``hip`` (n), ``work`` (:data:`WORK_NAMES`), k, the k detections
     that took part (``sel``) and their guide rows (:func:`unpack_out`)."""
@@ -807,7 +851,7 @@ def unpack_out(out: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray, np.ndar
     return out[:n], out[n:n + nw], out[n + nw + 1:n + nw + 1 + k], out[n + nw + 1 + k:n + nw + 1 + 2 * k]
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def validate(n, n_guide, n_match, m_tri, m_img, m_cat, tol, min_shared, conflict_fails, result):
     """Sharing-star validation (section 2.3, Table 3) of the first ``n_match`` match records: writes the
     accepted guide row of each of the ``n`` image stars into ``result`` (-1 = none) and returns the support
@@ -924,7 +968,7 @@ def validate(n, n_guide, n_match, m_tri, m_img, m_cat, tol, min_shared, conflict
     return support
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def drop_displaced(unit, result, guide_unit, eps_chord, attitude):
     """Extension (``nearest_check``): ``attitude``, of all pairings in ``result`` (Wahba), predicts each
     paired guide star; a pairing is dropped when its detection lies farther than ``eps_chord`` (the pair
@@ -956,7 +1000,7 @@ def drop_displaced(unit, result, guide_unit, eps_chord, attitude):
     return n_found
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def try_hypotheses(unit, view, db, tol, n_match, m_img, m_cat, support, eps_chord, result, work):
     """Extension (``hypotheses``): when sharing-star validation gives no identification, each matched
     triangle alone is a hypothesis, best supported first (then brightest stars: ``unit`` is in brightness
