@@ -425,105 +425,126 @@ def vote(v_cam, db, tol, votes, mark):
                 g_cells[tri, 2] = max(int(math.floor((height - eps_h) / cell_h)), 0)
                 g_cells[tri, 3] = min(int(math.floor((height + eps_h) / cell_h)), n_cells_h - 1)
                 tri += 1
-    for g in range(tri):
-        # ahead: the grid cells' bounds two triangles on, the records of the next triangle's cells
-        if g + 2 < tri:
-            for cb in range(g_cells[g + 2, 0], g_cells[g + 2, 1] + 1):
-                prefetch(cell_start, cb * n_cells_h + g_cells[g + 2, 2])
-                prefetch(cell_start, cb * n_cells_h + g_cells[g + 2, 3] + 1)
-        if g + 1 < tri:
-            for cb in range(g_cells[g + 1, 0], g_cells[g + 1, 1] + 1):
-                r1 = cell_start[cb * n_cells_h + g_cells[g + 1, 3] + 1]
-                for r in range(cell_start[cb * n_cells_h + g_cells[g + 1, 2]], r1, 8):  # 8 records a cache line
-                    prefetch(records, r)
-                if r1 > 0:
-                    prefetch(records, r1 - 1)
-        i = g_obs[g, 0]
-        a = g_obs[g, 1]
-        b = g_obs[g, 2]
-        base = g_feat[g, 0]
-        height = g_feat[g, 1]
-        eps_h = g_feat[g, 2]
-        d_ia = g_feat[g, 3]
-        d_ib = g_feat[g, 4]
-        cb0 = g_cells[g, 0]
-        cb1 = g_cells[g, 1]
-        ch0 = g_cells[g, 2]
-        ch1 = g_cells[g, 3]
-        n_scan = 0
-        for cb in range(cb0, cb1 + 1):
-            n_scan += cell_start[cb * n_cells_h + ch1 + 1] - cell_start[cb * n_cells_h + ch0]
-        n_records += n_scan
-        while n_touched + 3 * n_scan > touched_o.size:  # room for every possible vote
+    # each triangle in two steps, one loop turn apart: step 1 (turn g) scans the triangle's grid cells and lists
+    # its records near a match, and asks for their guide rows; step 2 (turn g + 1, after the next triangle's
+    # step 1) checks their sides and votes. The guide rows then arrive while the next scan runs, instead of
+    # each costing a wait (in the benchmark's interleaved timing they come from memory the other plugins
+    # evicted). The triangles' step 2 come in the same order, so the votes and hypotheses are the same.
+    listed_prev = np.empty(256, dtype=np.int64)  # the records step 1 listed for the previous triangle
+    n_prev = 0
+    n_near = 0
+    for g in range(tri + 1):
+        if g < tri:
+            # ahead: the grid cells' bounds two triangles on, the records of the next triangle's cells
+            if g + 2 < tri:
+                for cb in range(g_cells[g + 2, 0], g_cells[g + 2, 1] + 1):
+                    prefetch(cell_start, cb * n_cells_h + g_cells[g + 2, 2])
+                    prefetch(cell_start, cb * n_cells_h + g_cells[g + 2, 3] + 1)
+            if g + 1 < tri:
+                for cb in range(g_cells[g + 1, 0], g_cells[g + 1, 1] + 1):
+                    r1 = cell_start[cb * n_cells_h + g_cells[g + 1, 3] + 1]
+                    for r in range(cell_start[cb * n_cells_h + g_cells[g + 1, 2]], r1, 8):  # 8 records a line
+                        prefetch(records, r)
+                    if r1 > 0:
+                        prefetch(records, r1 - 1)
+            base = g_feat[g, 0]
+            height = g_feat[g, 1]
+            eps_h = g_feat[g, 2]
+            d_ia = g_feat[g, 3]
+            d_ib = g_feat[g, 4]
+            cb0 = g_cells[g, 0]
+            cb1 = g_cells[g, 1]
+            ch0 = g_cells[g, 2]
+            ch1 = g_cells[g, 3]
+            n_scan = 0
+            for cb in range(cb0, cb1 + 1):
+                n_scan += cell_start[cb * n_cells_h + ch1 + 1] - cell_start[cb * n_cells_h + ch0]
+            n_records += n_scan
+            if n_scan + 1 > listed.size:
+                listed = np.empty(2 * (n_scan + 1), dtype=np.int64)
+            # first pass, branch-free over every record of the cells (about half of them are in both
+            # windows: a branch on that is mispredicted half the time), reading only the 8-byte compact
+            # records: the records in both windows (decided from the compact values, or for the rare
+            # record within their rounding of a window's edge from the float32 ones) whose compact sides
+            # come within their rounding of a side match, listed; the second pass checks those sides
+            # and votes
+            n_near = 0
+            # the tests as integer intervals of the compact values: "surely in" (a value inside passes the float32
+            # test too: the margins leave more than the float64 rounding of these bounds), "not surely out"
+            # (rounded outward), and for the sides "near" (outward: every record whose exact sides match is inside)
+            lb_in = math.ceil((base - eps_b_in) / s_b)
+            hb_in = math.floor((base + eps_b_in) / s_b)
+            lb_out = math.floor((base - eps_b_out) / s_b)
+            hb_out = math.ceil((base + eps_b_out) / s_b)
+            lh_in = math.ceil((height - (eps_h - m_h)) / s_h)
+            hh_in = math.floor((height + (eps_h - m_h)) / s_h)
+            lh_out = math.floor((height - (eps_h + m_h)) / s_h)
+            hh_out = math.ceil((height + (eps_h + m_h)) / s_h)
+            la = math.floor((d_ia - eps_near) / s_s)
+            ha = math.ceil((d_ia + eps_near) / s_s)
+            lb = math.floor((d_ib - eps_near) / s_s)
+            hb = math.ceil((d_ib + eps_near) / s_s)
+            for cb in range(cb0, cb1 + 1):
+                # the cells (cb, ch0..ch1) are contiguous in the record order and sorted by height
+                # (cell, then height): the records surely below and above the height window are skipped
+                r0 = cell_start[cb * n_cells_h + ch0]
+                r1 = cell_start[cb * n_cells_h + ch1 + 1]
+                while r0 < r1 and np.int64(records[r0, REC_HEIGHT]) < lh_out:
+                    r0 += 1
+                while r1 > r0 and np.int64(records[r1 - 1, REC_HEIGHT]) > hh_out:
+                    r1 -= 1
+                for r in range(r0, r1):
+                    qb = np.int64(records[r, REC_BASE])
+                    qh = np.int64(records[r, REC_HEIGHT])
+                    qi = np.int64(records[r, REC_SIDE_I])
+                    qj = np.int64(records[r, REC_SIDE_J])
+                    in_windows = (qb >= lb_in) & (qb <= hb_in) & (qh >= lh_in) & (qh <= hh_in)
+                    if (qb >= lb_out) & (qb <= hb_out) & (qh >= lh_out) & (qh <= hh_out) & (not in_windows):  # rare
+                        in_windows = ((abs(features[r, FEAT_BASE] - base) <= eps_b)
+                                      & (abs(features[r, FEAT_HEIGHT] - height) <= eps_h))
+                    near = (((qi >= la) & (qi <= ha) & (qj >= lb) & (qj <= hb))
+                            | ((qj >= la) & (qj <= ha) & (qi >= lb) & (qi <= hb)))
+                    n_matches += in_windows
+                    listed[n_near] = r
+                    n_near += in_windows & (near | no_side_check)
+            for e in range(n_near):  # their guide rows, read in the next turn's second pass
+                prefetch(rows_db, listed[e])
+        if g == 0:
+            listed_prev, listed = listed, listed_prev
+            n_prev = n_near
+            continue
+        # second pass of the previous triangle gp = g - 1 (its records listed one turn ago)
+        gp = g - 1
+        i = g_obs[gp, 0]
+        a = g_obs[gp, 1]
+        b = g_obs[gp, 2]
+        d_ia = g_feat[gp, 3]
+        d_ib = g_feat[gp, 4]
+        cb0 = g_cells[gp, 0]
+        cb1 = g_cells[gp, 1]
+        ch0 = g_cells[gp, 2]
+        ch1 = g_cells[gp, 3]
+        while n_touched + 3 * n_prev > touched_o.size:  # room for every possible vote
             touched_o = _grow(touched_o)
             touched_c = _grow(touched_c)
             tally = _grow(tally)
         if 2 * touched_o.size > slots.size:  # at most half full
             slots = _rehash(touched_o, touched_c, np.int64(n_touched), n_guide, 2 * touched_o.size)
-        if 3 * n_scan > tri_u.size:
-            tri_u = np.empty(3 * n_scan, dtype=np.int64)
-            tri_c = np.empty(3 * n_scan, dtype=np.int64)
+        if 3 * n_prev > tri_u.size:
+            tri_u = np.empty(3 * n_prev, dtype=np.int64)
+            tri_c = np.empty(3 * n_prev, dtype=np.int64)
         n_tri = 0
-        if n_scan + 1 > listed.size:
-            listed = np.empty(2 * (n_scan + 1), dtype=np.int64)
-        while n_hyp + n_scan > hyp.shape[0]:
+        while n_hyp + n_prev > hyp.shape[0]:
             grown = np.empty((2 * hyp.shape[0], 6), dtype=np.int64)
             for q in range(n_hyp):
                 for col in range(6):
                     grown[q, col] = hyp[q, col]
             hyp = grown
-        # first pass, branch-free over every record of the cells (about half of them are in both
-        # windows: a branch on that is mispredicted half the time), reading only the 8-byte compact
-        # records: the records in both windows (decided from the compact values, or for the rare
-        # record within their rounding of a window's edge from the float32 ones) whose compact sides
-        # come within their rounding of a side match, listed; the second pass checks those sides
-        # and votes
-        n_near = 0
-        # the tests as integer intervals of the compact values: "surely in" (a value inside passes the float32
-        # test too: the margins leave more than the float64 rounding of these bounds), "not surely out" (rounded
-        # outward), and for the sides "near" (outward: every record whose exact sides match is inside)
-        lb_in = math.ceil((base - eps_b_in) / s_b)
-        hb_in = math.floor((base + eps_b_in) / s_b)
-        lb_out = math.floor((base - eps_b_out) / s_b)
-        hb_out = math.ceil((base + eps_b_out) / s_b)
-        lh_in = math.ceil((height - (eps_h - m_h)) / s_h)
-        hh_in = math.floor((height + (eps_h - m_h)) / s_h)
-        lh_out = math.floor((height - (eps_h + m_h)) / s_h)
-        hh_out = math.ceil((height + (eps_h + m_h)) / s_h)
-        la = math.floor((d_ia - eps_near) / s_s)
-        ha = math.ceil((d_ia + eps_near) / s_s)
-        lb = math.floor((d_ib - eps_near) / s_s)
-        hb = math.ceil((d_ib + eps_near) / s_s)
-        for cb in range(cb0, cb1 + 1):
-            # the cells (cb, ch0..ch1) are contiguous in the record order and sorted by height
-            # (cell, then height): the records surely below and above the height window are skipped
-            r0 = cell_start[cb * n_cells_h + ch0]
-            r1 = cell_start[cb * n_cells_h + ch1 + 1]
-            while r0 < r1 and np.int64(records[r0, REC_HEIGHT]) < lh_out:
-                r0 += 1
-            while r1 > r0 and np.int64(records[r1 - 1, REC_HEIGHT]) > hh_out:
-                r1 -= 1
-            for r in range(r0, r1):
-                qb = np.int64(records[r, REC_BASE])
-                qh = np.int64(records[r, REC_HEIGHT])
-                qi = np.int64(records[r, REC_SIDE_I])
-                qj = np.int64(records[r, REC_SIDE_J])
-                in_windows = (qb >= lb_in) & (qb <= hb_in) & (qh >= lh_in) & (qh <= hh_in)
-                if (qb >= lb_out) & (qb <= hb_out) & (qh >= lh_out) & (qh <= hh_out) & (not in_windows):  # rare
-                    in_windows = ((abs(features[r, FEAT_BASE] - base) <= eps_b)
-                                  & (abs(features[r, FEAT_HEIGHT] - height) <= eps_h))
-                near = (((qi >= la) & (qi <= ha) & (qj >= lb) & (qj <= hb))
-                        | ((qj >= la) & (qj <= ha) & (qi >= lb) & (qi <= hb)))
-                n_matches += in_windows
-                listed[n_near] = r
-                n_near += in_windows & (near | no_side_check)
-        for e in range(n_near):  # their guide rows, read below
-            prefetch(rows_db, listed[e])
-        if n_near > 1:  # the records in the order of (cell, base, height, main), as they were stored
-            _by_base(listed, np.int64(n_near), cell_start, cb0, cb1, ch0, ch1, n_cells_h, records, features,
+        if n_prev > 1:  # the records in the order of (cell, base, height, main), as they were stored
+            _by_base(listed_prev, np.int64(n_prev), cell_start, cb0, cb1, ch0, ch1, n_cells_h, records, features,
                      rows_db)
-        for e in range(n_near):
-            r = listed[e]
+        for e in range(n_prev):
+            r = listed_prev[e]
             c = rows_db[r, ROW_MAIN]
             ci = rows_db[r, ROW_I]
             cj = rows_db[r, ROW_J]
@@ -587,6 +608,8 @@ def vote(v_cam, db, tol, votes, mark):
                     n_touched += 1
                     h = slots[e] = n_touched
                 tally[h - 1] += 1
+        listed_prev, listed = listed, listed_prev
+        n_prev = n_near
     cand = np.full((n, n_cand), -1, dtype=np.int64)
     cand_votes = np.zeros((n, n_cand), dtype=np.int64)
     for e in range(n_touched):
@@ -928,8 +951,60 @@ def _brightest_first(x_px, y_px, mag):
     return order
 
 
+#: positions in :func:`identify_flat`'s ``params`` of its three bundles' scalars: ``Tables``' (in their order),
+#: ``Tolerance``'s, ``identify_image``'s ``fin_cam``'s
+PARAMS_DB = tuple(k for k, f in enumerate(Tables._fields) if f in (
+    "n_cells_b", "n_cells_h", "cell_b", "cell_h", "sky_axis", "pr_chord", "dmin_chord", "rec_scale_b", "rec_scale_h",
+    "rec_scale_s"))
+assert PARAMS_DB == (4, 5, 6, 7, 10, 11, 12, 14, 15, 16)  # the order identify_flat rebuilds
+PARAMS_TOL = len(PARAMS_DB)
+PARAMS_CAM = PARAMS_TOL + len(Tolerance._fields)
+#: length of ``fin_cam`` (the camera's ``Frame`` fields, the ``Finish`` rules' fields, ``mag_cut``, ``max_stars``)
+N_FIN_CAM = 13
+
+
+def flat_params(db: tuple, tol: tuple, fin_cam: tuple) -> np.ndarray:
+    """:func:`identify_flat`'s ``params``: the scalars of the plain tuples ``db`` (``Tables``), ``tol``
+    (``Tolerance``) and ``fin_cam`` as one float64 array (every value exact: floats, small integers, flags 0 / 1)."""
+    values = [db[k] for k in PARAMS_DB] + list(tol) + list(fin_cam)
+    if len(fin_cam) != N_FIN_CAM or any(isinstance(v, np.ndarray) for v in values):
+        raise ValueError("flat_params: not the bundles identify_image takes")
+    params = np.array([float(v) for v in values])
+    if any(float(v) != v for v in values):
+        raise ValueError("flat_params: a value not exact as float64")
+    return params
+
+
+@njit(cache=True)
+def identify_flat(x_px, y_px, mag, features, records, rows, cell_start, unit, sky_start, unit64, guide_hip, deep_unit,
+                  deep_index, deep_hip, deep_mag, p):
+    """:func:`identify_image` with its bundles' arrays as arguments of their own and their scalars in one float64
+    array ``p`` (:func:`flat_params`): the same values, the same tuples rebuilt (the same types: one compilation
+    of the kernels below), the same result. What ``identify`` calls: the entry converts 15 arrays and one array of
+    35 numbers instead of 4 tuples of 13 arrays and 35 Python numbers (issue #25: in the benchmark's interleaved
+    timing, with every object cold, the entry of ``identify_image`` took ~20-30 us against ~4 us warm)."""
+    db = (features, records, rows, cell_start, int(p[0]), int(p[1]), p[2], p[3], unit, sky_start, int(p[4]), p[5],
+          p[6], unit64, p[7], p[8], p[9])
+    t = PARAMS_TOL
+    tol = (p[t], p[t + 1], p[t + 2], p[t + 3], int(p[t + 4]), p[t + 5] != 0.0, p[t + 6] != 0.0, int(p[t + 7]),
+           int(p[t + 8]), int(p[t + 9]), int(p[t + 10]), int(p[t + 11]))
+    c = PARAMS_CAM
+    fin_cam = (p[c], p[c + 1], p[c + 2], p[c + 3], p[c + 4], p[c + 5], p[c + 6], p[c + 7], p[c + 8], p[c + 9],
+               p[c + 10] != 0.0, p[c + 11], int(p[c + 12]))
+    return _identify_image(x_px, y_px, mag, db, tol, (unit64, guide_hip, deep_unit, deep_index, deep_hip, deep_mag),
+                           fin_cam)
+
+
 @njit(cache=True)
 def identify_image(x_px, y_px, mag, db, tol, fin_db, fin_cam):
+    """:func:`_identify_image` from Python with the plain tuples (the tools call it; ``identify`` calls
+    :func:`identify_flat`)."""
+    return _identify_image(x_px, y_px, mag, db, tol, fin_db, fin_cam)
+
+
+# inline="always": identify_flat (and identify_image) take its body in numba IR, as identify_rows'
+@njit(cache=True, inline="always")
+def _identify_image(x_px, y_px, mag, db, tol, fin_db, fin_cam):
     """``identify`` of one image in one call: ``(status, hip, attitude, accepted, work, n_named)``, ``n_named`` the
     number of stars with an id (``hip >= 0``; the wrapper's photometry check reads only small results).
 
