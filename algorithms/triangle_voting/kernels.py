@@ -683,10 +683,17 @@ def select_candidates(v_cam, cand, cand_votes, cat_unit, tol_chord):
     for i in range(n):
         for j in range(n):
             d_obs[i, j] = chord_rows(v_cam, i, v_cam, j)
-    # d_cat[p, q] is set when known[p, q]: a byte matrix to clear, not the float64 one (8x fewer cache lines
-    # written per image; those of d_cat are written only where a separation is computed)
-    d_cat = np.empty((n * k, n * k))
-    known = np.zeros((n * k, n * k), dtype=np.uint8)
+    # the candidates' guide vectors as float64 rows of one small array (n k x 3, hot), in place of a cache of
+    # their separations (an (n k)^2 float64 matrix and its byte mask: in the benchmark's interleaved timing
+    # mostly cache lines written cold); each separation is computed from them with chord_rows' arithmetic
+    # (float64 of the float32 components), so the same numbers
+    cu = np.empty((n * k, 3))
+    for i in range(n):
+        for s in range(k):
+            c = cand[i, s]
+            if c >= 0:
+                for ax in range(3):
+                    cu[i * k + s, ax] = float(cat_unit[c, ax])
     for i in range(n):
         best_support = 0
         for s in range(k):
@@ -704,15 +711,7 @@ def select_candidates(v_cam, cand, cand_votes, cat_unit, tol_chord):
                         break
                     if c2 == c:
                         continue
-                    q = j * k + s2
-                    if known[p, q]:
-                        d = d_cat[p, q]
-                    else:
-                        d = chord_rows(cat_unit, c, cat_unit, c2)
-                        d_cat[p, q] = d
-                        d_cat[q, p] = d
-                        known[p, q] = 1
-                        known[q, p] = 1
+                    d = chord_rows(cu, p, cu, j * k + s2)
                     if abs(d_obs[i, j] - d) <= tol_chord:
                         support += 1
                         break
