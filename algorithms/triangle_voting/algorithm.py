@@ -403,10 +403,10 @@ class TriangleVoting(Algorithm):
         # one kernel call: brightest first (ties on position, so the result does not depend on input
         # order), only stars bright enough to be guide stars (with a margin), at most max_stars of them;
         # voting, verification (identify_rows) and the final step (finish)
-        status, hip, attitude, accepted, work, n_named = identify_flat(x, y, mag, *self._flat_args(db, cam))
+        status, hip, attitude, accepted, w0, w1, w2, w3, n_named = identify_flat(x, y, mag, *self._flat_args(db, cam))
         if status == 0:
             return Identification(hip)
-        counters = dict(zip(WORK_COUNTERS, work.tolist(), strict=True))
+        counters = dict(zip(WORK_COUNTERS, (w0, w1, w2, w3), strict=True))
         if status == 1:
             return Identification(hip, counters=counters)
         # the photometry check passes any result of no id or more than min_stars ids: not called for those

@@ -785,11 +785,30 @@ def _extend(v_cam, row, db, tol):
     radius = radius_chord * math.sqrt(1.0 + 1.0 / n_set)
     new = np.full(n, -1, dtype=np.int64)
     r = np.empty(3)
+    # every star's reprojected direction first, and a request for its sky cell's bounds, then for that cell's guide
+    # vectors: the searches below then find them in cache instead of waiting for each in turn (in the benchmark's
+    # interleaved timing they come from memory the other plugins evicted)
+    sky_start, n_axis = db[DB_SKY_START], db[DB_SKY_AXIS]
+    w = 2.0 / n_axis
+    dirs = np.empty((n, 3))
+    home = np.empty(n, dtype=np.int64)
     for i in range(n):
         if row[i] >= 0:
             continue
         for p in range(3):
-            r[p] = A[0, p] * v_cam[i, 0] + A[1, p] * v_cam[i, 1] + A[2, p] * v_cam[i, 2]
+            dirs[i, p] = A[0, p] * v_cam[i, 0] + A[1, p] * v_cam[i, 1] + A[2, p] * v_cam[i, 2]
+        home[i] = ((min(max(int((dirs[i, 0] + 1.0) / w), 0), n_axis - 1) * n_axis
+                    + min(max(int((dirs[i, 1] + 1.0) / w), 0), n_axis - 1)) * n_axis
+                   + min(max(int((dirs[i, 2] + 1.0) / w), 0), n_axis - 1))
+        prefetch(sky_start, home[i])
+    for i in range(n):
+        if row[i] < 0 and sky_start[home[i] + 1] > sky_start[home[i]]:
+            prefetch(cat_unit, sky_start[home[i]])
+    for i in range(n):
+        if row[i] >= 0:
+            continue
+        for p in range(3):
+            r[p] = dirs[i, p]
         c = _nearest_row(r, db, radius)
         if c < 0:
             continue
@@ -981,7 +1000,9 @@ def identify_flat(x_px, y_px, mag, features, records, rows, cell_start, unit, sk
     array ``p`` (:func:`flat_params`): the same values, the same tuples rebuilt (the same types: one compilation
     of the kernels below), the same result. What ``identify`` calls: the entry converts 15 arrays and one array of
     35 numbers instead of 4 tuples of 13 arrays and 35 Python numbers (issue #25: in the benchmark's interleaved
-    timing, with every object cold, the entry of ``identify_image`` took ~20-30 us against ~4 us warm)."""
+    timing, with every object cold, the entry of ``identify_image`` took ~20-30 us against ~4 us warm). Returns
+    ``identify_image``'s result with ``work`` as its four counters: ``(status, hip, attitude, accepted, triangles,
+    records, matches, side_matches, n_named)``."""
     db = (features, records, rows, cell_start, int(p[0]), int(p[1]), p[2], p[3], unit, sky_start, int(p[4]), p[5],
           p[6], unit64, p[7], p[8], p[9])
     t = PARAMS_TOL
@@ -990,8 +1011,10 @@ def identify_flat(x_px, y_px, mag, features, records, rows, cell_start, unit, sk
     c = PARAMS_CAM
     fin_cam = (p[c], p[c + 1], p[c + 2], p[c + 3], p[c + 4], p[c + 5], p[c + 6], p[c + 7], p[c + 8], p[c + 9],
                p[c + 10] != 0.0, p[c + 11], int(p[c + 12]))
-    return _identify_image(x_px, y_px, mag, db, tol, (unit64, guide_hip, deep_unit, deep_index, deep_hip, deep_mag),
-                           fin_cam)
+    status, hip, attitude, accepted, work, n_named = _identify_image(
+        x_px, y_px, mag, db, tol, (unit64, guide_hip, deep_unit, deep_index, deep_hip, deep_mag), fin_cam)
+    # the work counters as four numbers (one array fewer to convert for Python)
+    return status, hip, attitude, accepted, work[0], work[1], work[2], work[3], n_named
 
 
 @njit(cache=True)
