@@ -363,6 +363,12 @@ def vote(v_cam, db, tol, votes, mark):
     eps_b_in = eps_b - m_b
     eps_b_out = eps_b + m_b
     eps_near = eps_b + m_s  # a record whose exact sides match (best error <= eps_b) is within this
+    inv_b = 1.0 / s_b  # the windows in units of the compact records' scales
+    inv_h = 1.0 / s_h
+    inv_s = 1.0 / s_s
+    e_b_in = eps_b_in * inv_b
+    e_b_out = eps_b_out * inv_b
+    e_near = eps_near * inv_s
     no_side_check = not side_check
     # the votes of (observed star o, catalog row c): tally[e] for the e-th pair touched, (touched_o[e],
     # touched_c[e]); a small open-addressing table (slot: index e + 1, 0 = empty) finds e from the key
@@ -472,18 +478,26 @@ def vote(v_cam, db, tol, votes, mark):
             # the tests as integer intervals of the compact values: "surely in" (a value inside passes the float32
             # test too: the margins leave more than the float64 rounding of these bounds), "not surely out"
             # (rounded outward), and for the sides "near" (outward: every record whose exact sides match is inside)
-            lb_in = math.ceil((base - eps_b_in) / s_b)
-            hb_in = math.floor((base + eps_b_in) / s_b)
-            lb_out = math.floor((base - eps_b_out) / s_b)
-            hb_out = math.ceil((base + eps_b_out) / s_b)
-            lh_in = math.ceil((height - (eps_h - m_h)) / s_h)
-            hh_in = math.floor((height + (eps_h - m_h)) / s_h)
-            lh_out = math.floor((height - (eps_h + m_h)) / s_h)
-            hh_out = math.ceil((height + (eps_h + m_h)) / s_h)
-            la = math.floor((d_ia - eps_near) / s_s)
-            ha = math.ceil((d_ia + eps_near) / s_s)
-            lb = math.floor((d_ib - eps_near) / s_s)
-            hb = math.ceil((d_ib + eps_near) / s_s)
+            # (in units of the scales, by multiplying with their reciprocals: no division; the rounding of these
+            # products, ~1e-11 units, is far inside the margins' 0.001 units of slack, so the bounds still hold)
+            q_base = base * inv_b
+            q_height = height * inv_h
+            q_ia = d_ia * inv_s
+            q_ib = d_ib * inv_s
+            e_h_in = (eps_h - m_h) * inv_h
+            e_h_out = (eps_h + m_h) * inv_h
+            lb_in = math.ceil(q_base - e_b_in)
+            hb_in = math.floor(q_base + e_b_in)
+            lb_out = math.floor(q_base - e_b_out)
+            hb_out = math.ceil(q_base + e_b_out)
+            lh_in = math.ceil(q_height - e_h_in)
+            hh_in = math.floor(q_height + e_h_in)
+            lh_out = math.floor(q_height - e_h_out)
+            hh_out = math.ceil(q_height + e_h_out)
+            la = math.floor(q_ia - e_near)
+            ha = math.ceil(q_ia + e_near)
+            lb = math.floor(q_ib - e_near)
+            hb = math.ceil(q_ib + e_near)
             for cb in range(cb0, cb1 + 1):
                 # the cells (cb, ch0..ch1) are contiguous in the record order and sorted by height
                 # (cell, then height): the records surely below and above the height window are skipped
