@@ -30,7 +30,8 @@ from .kernels import (
     build_triangles,
     compact_records,
     feature_columns,
-    identify_image,
+    flat_params,
+    identify_flat,
     new_scratch,
     record_sides,
     row_columns,
@@ -399,15 +400,13 @@ class TriangleVoting(Algorithm):
         cam = observation.camera
         x, y, mag = observation.x_px, observation.y_px, observation.mag
         db = database
-        kernel_db, kernel_tol, fin_db, fin_cam = self._kernel_args(db, cam)
         # one kernel call: brightest first (ties on position, so the result does not depend on input
         # order), only stars bright enough to be guide stars (with a margin), at most max_stars of them;
         # voting, verification (identify_rows) and the final step (finish)
-        status, hip, attitude, accepted, work, n_named = identify_image(x, y, mag, kernel_db, kernel_tol, fin_db,
-                                                                        fin_cam)
+        status, hip, attitude, accepted, w0, w1, w2, w3, n_named = identify_flat(x, y, mag, *self._flat_args(db, cam))
         if status == 0:
             return Identification(hip)
-        counters = dict(zip(WORK_COUNTERS, work.tolist(), strict=True))
+        counters = dict(zip(WORK_COUNTERS, (w0, w1, w2, w3), strict=True))
         if status == 1:
             return Identification(hip, counters=counters)
         # the photometry check passes any result of no id or more than min_stars ids: not called for those
@@ -438,6 +437,16 @@ class TriangleVoting(Algorithm):
             _, kernel_tol, fin_cam = self._tolerances(cam)
             return _kernel_tables(db), kernel_tol, _finish_tables(db), fin_cam
         return self.kept("kernel_args", (db, cam), make)
+
+    def _flat_args(self, db: TriangleVotingDatabase, cam: Camera) -> tuple:
+        """``identify_flat``'s arguments after the stars: the arrays of ``_kernel_args``' four bundles and their
+        scalars as one float64 array (``kernels.flat_params``), kept for the last (database, camera)."""
+        def make():
+            kdb, ktol, fin_db, fin_cam = self._kernel_args(db, cam)
+            unit64, guide_hip, deep_unit, deep_index, deep_hip, deep_mag = fin_db
+            return (db.features, db.records, db.rows, db.cell_start, db.unit_icrs, db.sky_start, unit64, guide_hip,
+                    deep_unit, deep_index, deep_hip, deep_mag, flat_params(kdb, ktol, fin_cam))
+        return self.kept("flat_args", (db, cam), make)
 
     def _tolerances(self, cam: Camera) -> tuple[Tolerance, tuple, tuple]:
         """``_tolerance(cam)``, the same as the plain tuple the kernels take, and ``identify_image``'s

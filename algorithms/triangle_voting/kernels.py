@@ -363,6 +363,12 @@ def vote(v_cam, db, tol, votes, mark):
     eps_b_in = eps_b - m_b
     eps_b_out = eps_b + m_b
     eps_near = eps_b + m_s  # a record whose exact sides match (best error <= eps_b) is within this
+    inv_b = 1.0 / s_b  # the windows in units of the compact records' scales
+    inv_h = 1.0 / s_h
+    inv_s = 1.0 / s_s
+    e_b_in = eps_b_in * inv_b
+    e_b_out = eps_b_out * inv_b
+    e_near = eps_near * inv_s
     no_side_check = not side_check
     # the votes of (observed star o, catalog row c): tally[e] for the e-th pair touched, (touched_o[e],
     # touched_c[e]); a small open-addressing table (slot: index e + 1, 0 = empty) finds e from the key
@@ -425,105 +431,134 @@ def vote(v_cam, db, tol, votes, mark):
                 g_cells[tri, 2] = max(int(math.floor((height - eps_h) / cell_h)), 0)
                 g_cells[tri, 3] = min(int(math.floor((height + eps_h) / cell_h)), n_cells_h - 1)
                 tri += 1
-    for g in range(tri):
-        # ahead: the grid cells' bounds two triangles on, the records of the next triangle's cells
-        if g + 2 < tri:
-            for cb in range(g_cells[g + 2, 0], g_cells[g + 2, 1] + 1):
-                prefetch(cell_start, cb * n_cells_h + g_cells[g + 2, 2])
-                prefetch(cell_start, cb * n_cells_h + g_cells[g + 2, 3] + 1)
-        if g + 1 < tri:
-            for cb in range(g_cells[g + 1, 0], g_cells[g + 1, 1] + 1):
-                r1 = cell_start[cb * n_cells_h + g_cells[g + 1, 3] + 1]
-                for r in range(cell_start[cb * n_cells_h + g_cells[g + 1, 2]], r1, 8):  # 8 records a cache line
-                    prefetch(records, r)
-                if r1 > 0:
-                    prefetch(records, r1 - 1)
-        i = g_obs[g, 0]
-        a = g_obs[g, 1]
-        b = g_obs[g, 2]
-        base = g_feat[g, 0]
-        height = g_feat[g, 1]
-        eps_h = g_feat[g, 2]
-        d_ia = g_feat[g, 3]
-        d_ib = g_feat[g, 4]
-        cb0 = g_cells[g, 0]
-        cb1 = g_cells[g, 1]
-        ch0 = g_cells[g, 2]
-        ch1 = g_cells[g, 3]
-        n_scan = 0
-        for cb in range(cb0, cb1 + 1):
-            n_scan += cell_start[cb * n_cells_h + ch1 + 1] - cell_start[cb * n_cells_h + ch0]
-        n_records += n_scan
-        while n_touched + 3 * n_scan > touched_o.size:  # room for every possible vote
+    # each triangle in two steps, one loop turn apart: step 1 (turn g) scans the triangle's grid cells and lists
+    # its records near a match, and asks for their guide rows; step 2 (turn g + 1, after the next triangle's
+    # step 1) checks their sides and votes. The guide rows then arrive while the next scan runs, instead of
+    # each costing a wait (in the benchmark's interleaved timing they come from memory the other plugins
+    # evicted). The triangles' step 2 come in the same order, so the votes and hypotheses are the same.
+    listed_prev = np.empty(256, dtype=np.int64)  # the records step 1 listed for the previous triangle
+    n_prev = 0
+    n_near = 0
+    for g in range(tri + 1):
+        if g < tri:
+            # ahead: the grid cells' bounds two triangles on, the records of the next triangle's cells
+            if g + 2 < tri:
+                for cb in range(g_cells[g + 2, 0], g_cells[g + 2, 1] + 1):
+                    prefetch(cell_start, cb * n_cells_h + g_cells[g + 2, 2])
+                    prefetch(cell_start, cb * n_cells_h + g_cells[g + 2, 3] + 1)
+            if g + 1 < tri:
+                for cb in range(g_cells[g + 1, 0], g_cells[g + 1, 1] + 1):
+                    r1 = cell_start[cb * n_cells_h + g_cells[g + 1, 3] + 1]
+                    for r in range(cell_start[cb * n_cells_h + g_cells[g + 1, 2]], r1, 8):  # 8 records a line
+                        prefetch(records, r)
+                    if r1 > 0:
+                        prefetch(records, r1 - 1)
+            base = g_feat[g, 0]
+            height = g_feat[g, 1]
+            eps_h = g_feat[g, 2]
+            d_ia = g_feat[g, 3]
+            d_ib = g_feat[g, 4]
+            cb0 = g_cells[g, 0]
+            cb1 = g_cells[g, 1]
+            ch0 = g_cells[g, 2]
+            ch1 = g_cells[g, 3]
+            n_scan = 0
+            for cb in range(cb0, cb1 + 1):
+                n_scan += cell_start[cb * n_cells_h + ch1 + 1] - cell_start[cb * n_cells_h + ch0]
+            n_records += n_scan
+            if n_scan + 1 > listed.size:
+                listed = np.empty(2 * (n_scan + 1), dtype=np.int64)
+            # first pass, branch-free over every record of the cells (about half of them are in both
+            # windows: a branch on that is mispredicted half the time), reading only the 8-byte compact
+            # records: the records in both windows (decided from the compact values, or for the rare
+            # record within their rounding of a window's edge from the float32 ones) whose compact sides
+            # come within their rounding of a side match, listed; the second pass checks those sides
+            # and votes
+            n_near = 0
+            # the tests as integer intervals of the compact values: "surely in" (a value inside passes the float32
+            # test too: the margins leave more than the float64 rounding of these bounds), "not surely out"
+            # (rounded outward), and for the sides "near" (outward: every record whose exact sides match is inside)
+            # (in units of the scales, by multiplying with their reciprocals: no division; the rounding of these
+            # products, ~1e-11 units, is far inside the margins' 0.001 units of slack, so the bounds still hold)
+            q_base = base * inv_b
+            q_height = height * inv_h
+            q_ia = d_ia * inv_s
+            q_ib = d_ib * inv_s
+            e_h_in = (eps_h - m_h) * inv_h
+            e_h_out = (eps_h + m_h) * inv_h
+            lb_in = math.ceil(q_base - e_b_in)
+            hb_in = math.floor(q_base + e_b_in)
+            lb_out = math.floor(q_base - e_b_out)
+            hb_out = math.ceil(q_base + e_b_out)
+            lh_in = math.ceil(q_height - e_h_in)
+            hh_in = math.floor(q_height + e_h_in)
+            lh_out = math.floor(q_height - e_h_out)
+            hh_out = math.ceil(q_height + e_h_out)
+            la = math.floor(q_ia - e_near)
+            ha = math.ceil(q_ia + e_near)
+            lb = math.floor(q_ib - e_near)
+            hb = math.ceil(q_ib + e_near)
+            for cb in range(cb0, cb1 + 1):
+                # the cells (cb, ch0..ch1) are contiguous in the record order and sorted by height
+                # (cell, then height): the records surely below and above the height window are skipped
+                r0 = cell_start[cb * n_cells_h + ch0]
+                r1 = cell_start[cb * n_cells_h + ch1 + 1]
+                while r0 < r1 and np.int64(records[r0, REC_HEIGHT]) < lh_out:
+                    r0 += 1
+                while r1 > r0 and np.int64(records[r1 - 1, REC_HEIGHT]) > hh_out:
+                    r1 -= 1
+                for r in range(r0, r1):
+                    qb = np.int64(records[r, REC_BASE])
+                    qh = np.int64(records[r, REC_HEIGHT])
+                    qi = np.int64(records[r, REC_SIDE_I])
+                    qj = np.int64(records[r, REC_SIDE_J])
+                    in_windows = (qb >= lb_in) & (qb <= hb_in) & (qh >= lh_in) & (qh <= hh_in)
+                    if (qb >= lb_out) & (qb <= hb_out) & (qh >= lh_out) & (qh <= hh_out) & (not in_windows):  # rare
+                        in_windows = ((abs(features[r, FEAT_BASE] - base) <= eps_b)
+                                      & (abs(features[r, FEAT_HEIGHT] - height) <= eps_h))
+                    near = (((qi >= la) & (qi <= ha) & (qj >= lb) & (qj <= hb))
+                            | ((qj >= la) & (qj <= ha) & (qi >= lb) & (qi <= hb)))
+                    n_matches += in_windows
+                    listed[n_near] = r
+                    n_near += in_windows & (near | no_side_check)
+            for e in range(n_near):  # their guide rows, read in the next turn's second pass
+                prefetch(rows_db, listed[e])
+        if g == 0:
+            listed_prev, listed = listed, listed_prev
+            n_prev = n_near
+            continue
+        # second pass of the previous triangle gp = g - 1 (its records listed one turn ago)
+        gp = g - 1
+        i = g_obs[gp, 0]
+        a = g_obs[gp, 1]
+        b = g_obs[gp, 2]
+        d_ia = g_feat[gp, 3]
+        d_ib = g_feat[gp, 4]
+        cb0 = g_cells[gp, 0]
+        cb1 = g_cells[gp, 1]
+        ch0 = g_cells[gp, 2]
+        ch1 = g_cells[gp, 3]
+        while n_touched + 3 * n_prev > touched_o.size:  # room for every possible vote
             touched_o = _grow(touched_o)
             touched_c = _grow(touched_c)
             tally = _grow(tally)
         if 2 * touched_o.size > slots.size:  # at most half full
             slots = _rehash(touched_o, touched_c, np.int64(n_touched), n_guide, 2 * touched_o.size)
-        if 3 * n_scan > tri_u.size:
-            tri_u = np.empty(3 * n_scan, dtype=np.int64)
-            tri_c = np.empty(3 * n_scan, dtype=np.int64)
+        if 3 * n_prev > tri_u.size:
+            tri_u = np.empty(3 * n_prev, dtype=np.int64)
+            tri_c = np.empty(3 * n_prev, dtype=np.int64)
         n_tri = 0
-        if n_scan + 1 > listed.size:
-            listed = np.empty(2 * (n_scan + 1), dtype=np.int64)
-        while n_hyp + n_scan > hyp.shape[0]:
+        while n_hyp + n_prev > hyp.shape[0]:
             grown = np.empty((2 * hyp.shape[0], 6), dtype=np.int64)
             for q in range(n_hyp):
                 for col in range(6):
                     grown[q, col] = hyp[q, col]
             hyp = grown
-        # first pass, branch-free over every record of the cells (about half of them are in both
-        # windows: a branch on that is mispredicted half the time), reading only the 8-byte compact
-        # records: the records in both windows (decided from the compact values, or for the rare
-        # record within their rounding of a window's edge from the float32 ones) whose compact sides
-        # come within their rounding of a side match, listed; the second pass checks those sides
-        # and votes
-        n_near = 0
-        # the tests as integer intervals of the compact values: "surely in" (a value inside passes the float32
-        # test too: the margins leave more than the float64 rounding of these bounds), "not surely out" (rounded
-        # outward), and for the sides "near" (outward: every record whose exact sides match is inside)
-        lb_in = math.ceil((base - eps_b_in) / s_b)
-        hb_in = math.floor((base + eps_b_in) / s_b)
-        lb_out = math.floor((base - eps_b_out) / s_b)
-        hb_out = math.ceil((base + eps_b_out) / s_b)
-        lh_in = math.ceil((height - (eps_h - m_h)) / s_h)
-        hh_in = math.floor((height + (eps_h - m_h)) / s_h)
-        lh_out = math.floor((height - (eps_h + m_h)) / s_h)
-        hh_out = math.ceil((height + (eps_h + m_h)) / s_h)
-        la = math.floor((d_ia - eps_near) / s_s)
-        ha = math.ceil((d_ia + eps_near) / s_s)
-        lb = math.floor((d_ib - eps_near) / s_s)
-        hb = math.ceil((d_ib + eps_near) / s_s)
-        for cb in range(cb0, cb1 + 1):
-            # the cells (cb, ch0..ch1) are contiguous in the record order and sorted by height
-            # (cell, then height): the records surely below and above the height window are skipped
-            r0 = cell_start[cb * n_cells_h + ch0]
-            r1 = cell_start[cb * n_cells_h + ch1 + 1]
-            while r0 < r1 and np.int64(records[r0, REC_HEIGHT]) < lh_out:
-                r0 += 1
-            while r1 > r0 and np.int64(records[r1 - 1, REC_HEIGHT]) > hh_out:
-                r1 -= 1
-            for r in range(r0, r1):
-                qb = np.int64(records[r, REC_BASE])
-                qh = np.int64(records[r, REC_HEIGHT])
-                qi = np.int64(records[r, REC_SIDE_I])
-                qj = np.int64(records[r, REC_SIDE_J])
-                in_windows = (qb >= lb_in) & (qb <= hb_in) & (qh >= lh_in) & (qh <= hh_in)
-                if (qb >= lb_out) & (qb <= hb_out) & (qh >= lh_out) & (qh <= hh_out) & (not in_windows):  # rare
-                    in_windows = ((abs(features[r, FEAT_BASE] - base) <= eps_b)
-                                  & (abs(features[r, FEAT_HEIGHT] - height) <= eps_h))
-                near = (((qi >= la) & (qi <= ha) & (qj >= lb) & (qj <= hb))
-                        | ((qj >= la) & (qj <= ha) & (qi >= lb) & (qi <= hb)))
-                n_matches += in_windows
-                listed[n_near] = r
-                n_near += in_windows & (near | no_side_check)
-        for e in range(n_near):  # their guide rows, read below
-            prefetch(rows_db, listed[e])
-        if n_near > 1:  # the records in the order of (cell, base, height, main), as they were stored
-            _by_base(listed, np.int64(n_near), cell_start, cb0, cb1, ch0, ch1, n_cells_h, records, features,
+        if n_prev > 1:  # the records in the order of (cell, base, height, main), as they were stored
+            _by_base(listed_prev, np.int64(n_prev), cell_start, cb0, cb1, ch0, ch1, n_cells_h, records, features,
                      rows_db)
-        for e in range(n_near):
-            r = listed[e]
+        for e in range(n_prev):
+            r = listed_prev[e]
             c = rows_db[r, ROW_MAIN]
             ci = rows_db[r, ROW_I]
             cj = rows_db[r, ROW_J]
@@ -587,6 +622,8 @@ def vote(v_cam, db, tol, votes, mark):
                     n_touched += 1
                     h = slots[e] = n_touched
                 tally[h - 1] += 1
+        listed_prev, listed = listed, listed_prev
+        n_prev = n_near
     cand = np.full((n, n_cand), -1, dtype=np.int64)
     cand_votes = np.zeros((n, n_cand), dtype=np.int64)
     for e in range(n_touched):
@@ -660,10 +697,17 @@ def select_candidates(v_cam, cand, cand_votes, cat_unit, tol_chord):
     for i in range(n):
         for j in range(n):
             d_obs[i, j] = chord_rows(v_cam, i, v_cam, j)
-    # d_cat[p, q] is set when known[p, q]: a byte matrix to clear, not the float64 one (8x fewer cache lines
-    # written per image; those of d_cat are written only where a separation is computed)
-    d_cat = np.empty((n * k, n * k))
-    known = np.zeros((n * k, n * k), dtype=np.uint8)
+    # the candidates' guide vectors as float64 rows of one small array (n k x 3, hot), in place of a cache of
+    # their separations (an (n k)^2 float64 matrix and its byte mask: in the benchmark's interleaved timing
+    # mostly cache lines written cold); each separation is computed from them with chord_rows' arithmetic
+    # (float64 of the float32 components), so the same numbers
+    cu = np.empty((n * k, 3))
+    for i in range(n):
+        for s in range(k):
+            c = cand[i, s]
+            if c >= 0:
+                for ax in range(3):
+                    cu[i * k + s, ax] = float(cat_unit[c, ax])
     for i in range(n):
         best_support = 0
         for s in range(k):
@@ -681,15 +725,7 @@ def select_candidates(v_cam, cand, cand_votes, cat_unit, tol_chord):
                         break
                     if c2 == c:
                         continue
-                    q = j * k + s2
-                    if known[p, q]:
-                        d = d_cat[p, q]
-                    else:
-                        d = chord_rows(cat_unit, c, cat_unit, c2)
-                        d_cat[p, q] = d
-                        d_cat[q, p] = d
-                        known[p, q] = 1
-                        known[q, p] = 1
+                    d = chord_rows(cu, p, cu, j * k + s2)
                     if abs(d_obs[i, j] - d) <= tol_chord:
                         support += 1
                         break
@@ -763,11 +799,30 @@ def _extend(v_cam, row, db, tol):
     radius = radius_chord * math.sqrt(1.0 + 1.0 / n_set)
     new = np.full(n, -1, dtype=np.int64)
     r = np.empty(3)
+    # every star's reprojected direction first, and a request for its sky cell's bounds, then for that cell's guide
+    # vectors: the searches below then find them in cache instead of waiting for each in turn (in the benchmark's
+    # interleaved timing they come from memory the other plugins evicted)
+    sky_start, n_axis = db[DB_SKY_START], db[DB_SKY_AXIS]
+    w = 2.0 / n_axis
+    dirs = np.empty((n, 3))
+    home = np.empty(n, dtype=np.int64)
     for i in range(n):
         if row[i] >= 0:
             continue
         for p in range(3):
-            r[p] = A[0, p] * v_cam[i, 0] + A[1, p] * v_cam[i, 1] + A[2, p] * v_cam[i, 2]
+            dirs[i, p] = A[0, p] * v_cam[i, 0] + A[1, p] * v_cam[i, 1] + A[2, p] * v_cam[i, 2]
+        home[i] = ((min(max(int((dirs[i, 0] + 1.0) / w), 0), n_axis - 1) * n_axis
+                    + min(max(int((dirs[i, 1] + 1.0) / w), 0), n_axis - 1)) * n_axis
+                   + min(max(int((dirs[i, 2] + 1.0) / w), 0), n_axis - 1))
+        prefetch(sky_start, home[i])
+    for i in range(n):
+        if row[i] < 0 and sky_start[home[i] + 1] > sky_start[home[i]]:
+            prefetch(cat_unit, sky_start[home[i]])
+    for i in range(n):
+        if row[i] >= 0:
+            continue
+        for p in range(3):
+            r[p] = dirs[i, p]
         c = _nearest_row(r, db, radius)
         if c < 0:
             continue
@@ -928,8 +983,64 @@ def _brightest_first(x_px, y_px, mag):
     return order
 
 
+#: positions in :func:`identify_flat`'s ``params`` of its three bundles' scalars: ``Tables``' (in their order),
+#: ``Tolerance``'s, ``identify_image``'s ``fin_cam``'s
+PARAMS_DB = tuple(k for k, f in enumerate(Tables._fields) if f in (
+    "n_cells_b", "n_cells_h", "cell_b", "cell_h", "sky_axis", "pr_chord", "dmin_chord", "rec_scale_b", "rec_scale_h",
+    "rec_scale_s"))
+assert PARAMS_DB == (4, 5, 6, 7, 10, 11, 12, 14, 15, 16)  # the order identify_flat rebuilds
+PARAMS_TOL = len(PARAMS_DB)
+PARAMS_CAM = PARAMS_TOL + len(Tolerance._fields)
+#: length of ``fin_cam`` (the camera's ``Frame`` fields, the ``Finish`` rules' fields, ``mag_cut``, ``max_stars``)
+N_FIN_CAM = 13
+
+
+def flat_params(db: tuple, tol: tuple, fin_cam: tuple) -> np.ndarray:
+    """:func:`identify_flat`'s ``params``: the scalars of the plain tuples ``db`` (``Tables``), ``tol``
+    (``Tolerance``) and ``fin_cam`` as one float64 array (every value exact: floats, small integers, flags 0 / 1)."""
+    values = [db[k] for k in PARAMS_DB] + list(tol) + list(fin_cam)
+    if len(fin_cam) != N_FIN_CAM or any(isinstance(v, np.ndarray) for v in values):
+        raise ValueError("flat_params: not the bundles identify_image takes")
+    params = np.array([float(v) for v in values])
+    if any(float(v) != v for v in values):
+        raise ValueError("flat_params: a value not exact as float64")
+    return params
+
+
+@njit(cache=True)
+def identify_flat(x_px, y_px, mag, features, records, rows, cell_start, unit, sky_start, unit64, guide_hip, deep_unit,
+                  deep_index, deep_hip, deep_mag, p):
+    """:func:`identify_image` with its bundles' arrays as arguments of their own and their scalars in one float64
+    array ``p`` (:func:`flat_params`): the same values, the same tuples rebuilt (the same types: one compilation
+    of the kernels below), the same result. What ``identify`` calls: the entry converts 15 arrays and one array of
+    35 numbers instead of 4 tuples of 13 arrays and 35 Python numbers (issue #25: in the benchmark's interleaved
+    timing, with every object cold, the entry of ``identify_image`` took ~20-30 us against ~4 us warm). Returns
+    ``identify_image``'s result with ``work`` as its four counters: ``(status, hip, attitude, accepted, triangles,
+    records, matches, side_matches, n_named)``."""
+    db = (features, records, rows, cell_start, int(p[0]), int(p[1]), p[2], p[3], unit, sky_start, int(p[4]), p[5],
+          p[6], unit64, p[7], p[8], p[9])
+    t = PARAMS_TOL
+    tol = (p[t], p[t + 1], p[t + 2], p[t + 3], int(p[t + 4]), p[t + 5] != 0.0, p[t + 6] != 0.0, int(p[t + 7]),
+           int(p[t + 8]), int(p[t + 9]), int(p[t + 10]), int(p[t + 11]))
+    c = PARAMS_CAM
+    fin_cam = (p[c], p[c + 1], p[c + 2], p[c + 3], p[c + 4], p[c + 5], p[c + 6], p[c + 7], p[c + 8], p[c + 9],
+               p[c + 10] != 0.0, p[c + 11], int(p[c + 12]))
+    status, hip, attitude, accepted, work, n_named = _identify_image(
+        x_px, y_px, mag, db, tol, (unit64, guide_hip, deep_unit, deep_index, deep_hip, deep_mag), fin_cam)
+    # the work counters as four numbers (one array fewer to convert for Python)
+    return status, hip, attitude, accepted, work[0], work[1], work[2], work[3], n_named
+
+
 @njit(cache=True)
 def identify_image(x_px, y_px, mag, db, tol, fin_db, fin_cam):
+    """:func:`_identify_image` from Python with the plain tuples (the tools call it; ``identify`` calls
+    :func:`identify_flat`)."""
+    return _identify_image(x_px, y_px, mag, db, tol, fin_db, fin_cam)
+
+
+# inline="always": identify_flat (and identify_image) take its body in numba IR, as identify_rows'
+@njit(cache=True, inline="always")
+def _identify_image(x_px, y_px, mag, db, tol, fin_db, fin_cam):
     """``identify`` of one image in one call: ``(status, hip, attitude, accepted, work, n_named)``, ``n_named`` the
     number of stars with an id (``hip >= 0``; the wrapper's photometry check reads only small results).
 
