@@ -23,6 +23,7 @@ from starid.kernels import (
 )
 from starid.kernels.kvector import kvector_ends, kvector_rows, kvector_trim
 from starid.kernels.order import stable_sort_by_key
+from starid.kernels.params import exact_float64
 from starid.kernels.prefetch import prefetch, prefetch_at
 
 
@@ -215,11 +216,7 @@ def params_of(view: View, tol: Tolerances) -> np.ndarray:
     :func:`params_tol` rebuild the same numbers, ints and bools)."""
     values = [*view.frame, view.c_fov, *tol._replace(max_candidates=min(int(tol.max_candidates),
                                                                          MAX_CANDIDATES_CAP))]
-    out = np.array([float(v) for v in values], dtype=np.float64)
-    for v, f in zip(values, out, strict=True):
-        if isinstance(v, (int, np.integer)) and int(f) != int(v):
-            raise ValueError(f"params_of: {v!r} is not exact in float64")
-    return out
+    return exact_float64(values, "ptp's kernel parameters")
 
 
 @njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only

@@ -17,6 +17,7 @@ from numba import njit
 from starid_algorithms.planar_triangle.kernels import argsort_desc
 
 from starid.kernels import backproject_px, chord_rows, verify_pairwise, wahba_rows
+from starid.kernels.params import exact_float64
 from starid.kernels.prefetch import prefetch
 
 from .final import finish_cone
@@ -998,13 +999,9 @@ N_FIN_CAM = 13
 def flat_params(db: tuple, tol: tuple, fin_cam: tuple) -> np.ndarray:
     """:func:`identify_flat`'s ``params``: the scalars of the plain tuples ``db`` (``Tables``), ``tol``
     (``Tolerance``) and ``fin_cam`` as one float64 array (every value exact: floats, small integers, flags 0 / 1)."""
-    values = [db[k] for k in PARAMS_DB] + list(tol) + list(fin_cam)
-    if len(fin_cam) != N_FIN_CAM or any(isinstance(v, np.ndarray) for v in values):
-        raise ValueError("flat_params: not the bundles identify_image takes")
-    params = np.array([float(v) for v in values])
-    if any(float(v) != v for v in values):
-        raise ValueError("flat_params: a value not exact as float64")
-    return params
+    if len(fin_cam) != N_FIN_CAM:
+        raise ValueError("flat_params: not the fin_cam identify_image takes")
+    return exact_float64([db[k] for k in PARAMS_DB] + list(tol) + list(fin_cam), "triangle voting's kernel parameters")
 
 
 @njit(cache=True)
