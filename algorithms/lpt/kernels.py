@@ -798,8 +798,8 @@ def confirm_seed(unit, rows, attitude, guides_unit, z_start, sensor, acc, solved
                 break
         if not stale:
             n_two = 0
-            i0 = -1
-            i1 = -1
+            i0 = np.int64(-1)   # not literals: one signature of pair_attitude
+            i1 = np.int64(-1)
             if it == 0:
                 for i in range(n):
                     if rows[i] >= 0:
