@@ -745,18 +745,38 @@ def refined_roll(row, img_sector, img_level, img_phi, nz, shift, search):
 
 
 @njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
-def confirm_seed(unit, rows, attitude, guides_unit, z_start, sensor, acc, solved_from, work, A0):
-    """``planar.confirm_near`` from a seed attitude (``n_first`` = -1), pass for pass, without the
-    two-star Wahba when its attitude is not needed; returns ``(accepted, attitude)``.
+def seed_pass(unit, rows, A, A0, tol, pair, guides_unit, z_start, c_fov, eps, work):
+    """One pass of :func:`confirm_seed`: ``(n_seen, A, lazy)``. When ``tol > 0``, ``A`` stands for
+    ``wahba_rows(unit, pair, guides_unit)`` (two stars), not yet solved, and ``A0`` is
+    ``planar.pair_attitude`` of that pair within ``tol`` of it: the pass is made from ``A0`` by
+    ``planar.pair_first_pass`` (``lazy`` true, ``A`` returned unsolved) or, when that is undecided,
+    the two-star attitude is solved and the pass made with it."""
+    if tol > 0:
+        n_seen = pair_first_pass(A0, tol, unit, guides_unit, z_start, c_fov, eps, work)
+        if n_seen >= 0:
+            first = work[3]
+            for i in range(rows.shape[0]):
+                rows[i] = first[i]
+            return n_seen, A, True
+        A = wahba_rows(unit, pair, guides_unit)
+    return assign_pass(A, unit, guides_unit, z_start, c_fov, eps, rows, (work[0], work[1], work[2])), A, False
 
-    When the seed's pass assigns exactly two stars, ``confirm_near`` solves Wahba's problem for them
-    (``wahba_rows`` on a rank-2 ``B``: LAPACK's SVD) only to make the next pass with that attitude. Here
-    that pass is made with ``planar.pair_attitude`` (the same rotation in exact arithmetic, within its
-    bound of the SVD's) by ``planar.pair_first_pass``, which gives the pass's assignment to the last row
-    when every test clears its threshold by more than the bound, and -1 otherwise (then the SVD and the
-    real pass are made, as in ``confirm_near``). The two-star attitude is otherwise used only as the
-    attitude of the last pass when the loop stops right after it and the match is not rejected (the
-    prediction count): it is solved then, from the same rows. So ``rows`` and an accepted attitude are
+
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+def confirm_seed(unit, rows, attitude, guides_unit, z_start, sensor, acc, solved_from, work, A0):
+    """``planar.confirm_near`` from a seed attitude (``n_first`` = -1), pass for pass, without a
+    two-star Wahba whose attitude is not needed; returns ``(accepted, attitude)``.
+
+    When a pass assigns exactly two stars (nearly always the seed's pass of a wrong candidate: the
+    reference star and one chance neighbour), ``confirm_near`` solves Wahba's problem for them
+    (``wahba_rows`` on a rank-2 ``B``: LAPACK's SVD, the most expensive step of a rejection) to make the
+    next pass with that attitude. Here that pass is made from ``planar.pair_attitude`` (the same
+    rotation in exact arithmetic, within its bound of the SVD's) by ``planar.pair_first_pass``, which
+    gives the pass's assignment to the last row when every test clears its threshold by more than the
+    bound, and -1 otherwise (then the SVD and the real pass are made, as in ``confirm_near``; this is
+    how ``lpt_improved``'s ``confirm_pair_near`` makes its first pass). The two-star attitude is
+    otherwise needed only as the last pass's attitude for the prediction count, when the match is not
+    rejected: it is solved then, from the same two rows. So ``rows`` and an accepted attitude are
     ``confirm_near``'s; a rejected one's attitude may differ (the kernel does not read it).
     ``work`` is ``planar.pair_work``'s four arrays, ``A0`` a 3 x 3 work array.
     """
@@ -768,25 +788,19 @@ def confirm_seed(unit, rows, attitude, guides_unit, z_start, sensor, acc, solved
     A_last = A
     eps_last = eps
     solved = solved_from.copy()
+    pair = np.full(n, -1, dtype=np.int64)        # the two stars a lazy A solves (tol > 0)
+    pair_last = np.full(n, -1, dtype=np.int64)   # the two stars a lazy A_last solves (lazy_last)
     stale = False
-    tol = -1.0     # > 0: A (and, after the next pass, A_last) stand for wahba_rows(unit, solved, guides_unit)
+    tol = -1.0
     lazy_last = False
     for it in range(5):
-        n_seen = -1
-        lazy_last = False
-        if tol > 0:
-            n_seen = pair_first_pass(A0, tol, unit, guides_unit, z_start, acc.c_fov + eps, eps, work)
-            if n_seen >= 0:
-                first = work[3]
-                for i in range(n):
-                    rows[i] = first[i]
-                lazy_last = True
-            else:
-                A = wahba_rows(unit, solved, guides_unit)
-            tol = -1.0
-        if n_seen < 0:
-            n_seen = assign_pass(A, unit, guides_unit, z_start, acc.c_fov + eps, eps, rows,
-                                 (work[0], work[1], work[2]))
+        n_seen, A, lazy_last = seed_pass(unit, rows, A, A0, tol, pair, guides_unit, z_start, acc.c_fov + eps, eps,
+                                         work)
+        if lazy_last:
+            for i in range(n):
+                pair_last[i] = pair[i]
+        else:
+            tol = -1.0   # A is solved
         A_last = A
         eps_last = eps
         if n_seen < 2:
@@ -800,14 +814,17 @@ def confirm_seed(unit, rows, attitude, guides_unit, z_start, sensor, acc, solved
             n_two = 0
             i0 = np.int64(-1)   # not literals: one signature of pair_attitude
             i1 = np.int64(-1)
-            if it == 0:
-                for i in range(n):
-                    if rows[i] >= 0:
-                        n_two += 1
-                        i0, i1 = i1, i
+            for i in range(n):
+                if rows[i] >= 0:
+                    n_two += 1
+                    i0, i1 = i1, i
+            tol = -1.0
             if n_two == 2:
                 tol = pair_attitude(unit, i0, i1, guides_unit, rows[i0], rows[i1], A0)
-            if tol <= 0:
+            if tol > 0:
+                for i in range(n):
+                    pair[i] = rows[i]
+            else:
                 A = wahba_rows(unit, rows, guides_unit)
             for i in range(n):   # a loop: an array slice assignment compiles its shape-mismatch message
                 solved[i] = rows[i]
@@ -817,13 +834,14 @@ def confirm_seed(unit, rows, attitude, guides_unit, z_start, sensor, acc, solved
             break
         n_prev = n_seen
         eps = acc.eps
-    if tol > 0:   # the loop ended with the two-star attitude still to be used
-        A = wahba_rows(unit, solved, guides_unit)
     if not stale:
-        n_seen = assign_pass(A, unit, guides_unit, z_start, acc.c_fov + eps, eps, rows, (work[0], work[1], work[2]))
+        n_seen, A, lazy_last = seed_pass(unit, rows, A, A0, tol, pair, guides_unit, z_start, acc.c_fov + eps, eps,
+                                         work)
+        if lazy_last:
+            for i in range(n):
+                pair_last[i] = pair[i]
         A_last = A
         eps_last = eps
-        lazy_last = False
     keep = verify_pairwise(unit, rows, guides_unit, acc.eps, np.int64(2), 0.5)
     n_keep = 0
     for i in range(n):
@@ -833,8 +851,8 @@ def confirm_seed(unit, rows, attitude, guides_unit, z_start, sensor, acc, solved
             n_keep += 1
     reject = n_keep < acc.min_matches
     if not reject:
-        if lazy_last:   # the last pass was made from the two-star attitude: solve it now
-            A_last = wahba_rows(unit, solved, guides_unit)
+        if lazy_last:   # the last pass was made from a two-star attitude: solve it now
+            A_last = wahba_rows(unit, pair_last, guides_unit)
         n_pred = predicted_on_sensor(A_last, guides_unit, acc.c_fov + eps_last, sensor.f_px, sensor.cx_px,
                                      sensor.cy_px, sensor.width_px, sensor.height_px)
         reject = n_keep < acc.fraction * n_pred
