@@ -745,24 +745,6 @@ def refined_roll(row, img_sector, img_level, img_phi, nz, shift, search):
 
 
 @njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
-def seed_pass(unit, rows, A, A0, tol, pair, guides_unit, z_start, c_fov, eps, work):
-    """One pass of :func:`confirm_seed`: ``(n_seen, A, lazy)``. When ``tol > 0``, ``A`` stands for
-    ``wahba_rows(unit, pair, guides_unit)`` (two stars), not yet solved, and ``A0`` is
-    ``planar.pair_attitude`` of that pair within ``tol`` of it: the pass is made from ``A0`` by
-    ``planar.pair_first_pass`` (``lazy`` true, ``A`` returned unsolved) or, when that is undecided,
-    the two-star attitude is solved and the pass made with it."""
-    if tol > 0:
-        n_seen = pair_first_pass(A0, tol, unit, guides_unit, z_start, c_fov, eps, work)
-        if n_seen >= 0:
-            first = work[3]
-            for i in range(rows.shape[0]):
-                rows[i] = first[i]
-            return n_seen, A, True
-        A = wahba_rows(unit, pair, guides_unit)
-    return assign_pass(A, unit, guides_unit, z_start, c_fov, eps, rows, (work[0], work[1], work[2])), A, False
-
-
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def confirm_seed(unit, rows, attitude, guides_unit, z_start, sensor, acc, solved_from, work, A0):
     """``planar.confirm_near`` from a seed attitude (``n_first`` = -1), pass for pass, without a
     two-star Wahba whose attitude is not needed; returns ``(accepted, attitude)``.
@@ -788,21 +770,37 @@ def confirm_seed(unit, rows, attitude, guides_unit, z_start, sensor, acc, solved
     A_last = A
     eps_last = eps
     solved = solved_from.copy()
-    pair = np.full(n, -1, dtype=np.int64)        # the two stars a lazy A solves (tol > 0)
-    pair_last = np.full(n, -1, dtype=np.int64)   # the two stars a lazy A_last solves (lazy_last)
+    pair = np.empty(n, dtype=np.int64)        # the two stars a lazy A solves (tol > 0)
+    pair_last = np.empty(n, dtype=np.int64)   # the two stars a lazy A_last solves (lazy_last)
     stale = False
     tol = -1.0
     lazy_last = False
-    for it in range(5):
-        n_seen, A, lazy_last = seed_pass(unit, rows, A, A0, tol, pair, guides_unit, z_start, acc.c_fov + eps, eps,
-                                         work)
-        if lazy_last:
-            for i in range(n):
-                pair_last[i] = pair[i]
-        else:
-            tol = -1.0   # A is solved
+    # confirm_near's passes (at most 5) and its last pass after them as one loop, so that the pass is
+    # written once: ``final`` marks that last pass, made only when the assignment is not stale
+    it = 0
+    final = False
+    while True:
+        # the pass: from pair_attitude when A is a two-star attitude not yet solved
+        n_seen = -1
+        lazy_last = False
+        if tol > 0:
+            n_seen = pair_first_pass(A0, tol, unit, guides_unit, z_start, acc.c_fov + eps, eps, work)
+            if n_seen >= 0:
+                first = work[3]
+                for i in range(n):
+                    rows[i] = first[i]
+                    pair_last[i] = pair[i]
+                lazy_last = True
+            else:
+                A = wahba_rows(unit, pair, guides_unit)
+                tol = -1.0
+        if n_seen < 0:
+            n_seen = assign_pass(A, unit, guides_unit, z_start, acc.c_fov + eps, eps, rows,
+                                 (work[0], work[1], work[2]))
         A_last = A
         eps_last = eps
+        if final:
+            break
         if n_seen < 2:
             return False, A
         stale = True
@@ -831,17 +829,14 @@ def confirm_seed(unit, rows, attitude, guides_unit, z_start, sensor, acc, solved
         elif it > 0 or acc.eps0 == acc.eps:
             break
         if it > 0 and n_seen <= n_prev and eps == acc.eps:
+            final = True
+        else:
+            n_prev = n_seen
+            eps = acc.eps
+            it += 1
+            final = it == 5
+        if final and stale:
             break
-        n_prev = n_seen
-        eps = acc.eps
-    if not stale:
-        n_seen, A, lazy_last = seed_pass(unit, rows, A, A0, tol, pair, guides_unit, z_start, acc.c_fov + eps, eps,
-                                         work)
-        if lazy_last:
-            for i in range(n):
-                pair_last[i] = pair[i]
-        A_last = A
-        eps_last = eps
     keep = verify_pairwise(unit, rows, guides_unit, acc.eps, np.int64(2), 0.5)
     n_keep = 0
     for i in range(n):
