@@ -879,7 +879,7 @@ def identify_kernel(x_px, y_px, params, char_sector, char_level, char_start, sca
     every database string is compared under every circular shift (:func:`shift_scores`, the
     whole database, as in the paper); the ``n_candidates`` best guide stars scoring at least
     ``min_score`` (ties: the string with fewer unmatched characters first, then guide order)
-    seed an attitude (reference star to guide star, roll from the shift) that :func:`confirm_near`
+    seed an attitude (reference star to guide star, roll from the shift) that :func:`confirm_seed`
     must accept. Strings are visited by length (see the comment in the scan); a string whose
     :func:`match_bound` cannot reach ``min_score``, or, once the candidate list is full, cannot
     rank above its last, is skipped without trying its shifts: the candidates are exactly those
