@@ -11,7 +11,7 @@ identifies the image, as ``benchmarks/test_ratios.py`` times them) or a number o
 buffer that large, one read per cache line), the base and branch calls alternating in order per image.
 Per image and variant each stage's minimum over the ROUNDS (every one cold) is kept, which drops
 preemption by other jobs; prints the medians over the images of the kernel time, the per-reference
-tables, the scan and the verification (``confirm_near`` / ``confirm_cells``, with the seed attitudes),
+tables, the scan and the verification (``confirm_near`` / ``confirm_seed``, with the seed attitudes),
 the verifications per image, the verification's us per verification, the branch / base ratios, and
 whether both found the same trace (reference star, guide, score, counters).
 """
