@@ -85,7 +85,10 @@ PATCHES = [
     ("        for c in range(found):\n            g = scan_guide",
      "        c2 = cycles()\n        trace[12] += c2 - c1\n        for c in range(found):\n            g = scan_guide"),
     ("            count_work(trace, 2, 1)\n            if ok:",
-     "            count_work(trace, 2, 1)\n            trace[13] += cycles() - c2\n            if ok:"),
+     # each candidate's own time (stop 42: this slot used to add the time since the first candidate after every
+     # candidate, so candidate k counted k times and the verification read several times too high)
+     "            count_work(trace, 2, 1)\n            c3 = cycles()\n            trace[13] += c3 - c2\n"
+     "            c2 = c3\n            if ok:"),
 ]
 
 

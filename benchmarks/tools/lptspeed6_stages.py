@@ -3,7 +3,7 @@
     python benchmarks/tools/lptspeed6_stages.py SKY N ROUNDS EVICT
 
 The kernels module copied with the cycle counter read around its stages (``lptspeed3_stages.PATCHES``,
-with the verification's slot corrected as in ``lptspeed6_verify.FIX_13``) and around the set-up: the
+its verification slot counts each candidate once since stop 42) and around the set-up: the
 parameters and ``begin_identify``, the work arrays, the reference patterns (neighbours, LPT string,
 its index) and the whole call inside the kernel. Table 6's images of SKY (seed 0), N x ROUNDS; before
 each call EVICT: ``none`` (warm), ``others`` (every other registered plugin identifies the image, as
@@ -27,7 +27,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from lptspeed3_stages import CYCLES, PATCHES, cycles_per_us  # noqa: E402
-from lptspeed6_verify import FIX_13, walk  # noqa: E402
+from lptspeed6_verify import walk  # noqa: E402
 
 from benchmarks.test_ratios import NAMES, TABLE6_SIM  # noqa: E402
 from starid import SKIES, Camera, SimConfig, Simulator, load_hipparcos  # noqa: E402
@@ -56,7 +56,7 @@ def stage_kernels(package: str):
     src = (Path(sys.modules[f"{package}.lpt.kernels"].__file__)).read_text()
     src = src.replace("from ..lpt_improved.planar import", f"from {package}.lpt_improved.planar import")
     src = src.replace("from numba import njit\n", "from numba import njit\n" + CYCLES, 1)
-    for old, new in [*((o, n.replace("trace[13] += cycles() - c2", FIX_13)) for o, n in PATCHES), *SETUP]:
+    for old, new in [*PATCHES, *SETUP]:
         if old not in src:
             sys.exit(f"the kernel changed; patch not found:\n{old}")
         src = src.replace(old, new, 1)

@@ -45,7 +45,6 @@ def timed_copy(kernels_py: Path, package: str, name: str):
     src = src.replace("from ..lpt_improved.planar import", f"from {package}.lpt_improved.planar import")
     src = src.replace("from numba import njit\n", "from numba import njit\n" + CYCLES, 1)
     for old, new in PATCHES:
-        new = new.replace("trace[13] += cycles() - c2", FIX_13)
         if old not in src:
             sys.exit(f"{kernels_py}: patch not found:\n{old}")
         src = src.replace(old, new, 1)
@@ -56,10 +55,6 @@ def timed_copy(kernels_py: Path, package: str, name: str):
     spec.loader.exec_module(mod)
     return mod
 
-
-#: ``lptspeed3_stages.PATCHES`` add ``cycles() - c2`` to the verification's slot after every candidate
-#: with ``c2`` read once before the first: candidate k's time counted k times. Here each adds its own.
-FIX_13 = "c3 = cycles()\n            trace[13] += c3 - c2\n            c2 = c3"
 
 
 @njit(cache=True)
