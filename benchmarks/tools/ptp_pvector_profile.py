@@ -2,6 +2,10 @@
 the ``Identification`` built, and, inside ptp's kernel, the share of each stage (measured by switching the
 later stages off on the same images; an estimate, the stages' work is input-dependent).
 
+Superseded: it calls ``identify_kernel`` with the tuple arguments ptp had before stop 42 (branch
+ptpspeed5 passes one parameter array) and runs on that code only (``git checkout ab5f4bd``);
+``ptpspeed5_split.py`` profiles ptp's current kernel.
+
     python benchmarks/tools/ptp_pvector_profile.py N R
 
 Table 6's two skies at 1 px / 0.5 Mv (seed 0), N images each identified R times; medians over images of

@@ -3,6 +3,10 @@ with the second index, :class:`~starid_algorithms.ptp.kernels.SideIndex`): the k
 stage by stage on Table 6's images (1 px / 0.5 Mv, seed 0), timed as the minimum of R repeats per image,
 median over N images, in microseconds.
 
+Superseded: it calls ``identify_kernel`` with the tuple arguments ptp had before stop 42 (branch
+ptpspeed5 passes one parameter array) and runs on that code only (``git checkout ab5f4bd``);
+``ptpspeed5_split.py`` profiles the current kernel.
+
     python benchmarks/tools/ptpspeed3_profile.py N R
 
 Stages (each includes the ones above): setup (selection, unit vectors, distances, slave lists, the

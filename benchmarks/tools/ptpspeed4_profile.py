@@ -3,6 +3,10 @@ fifth speed round): every registered plugin identifies the image in turn before 
 ptp's tables are read from the memory the others evicted ("interleaved"), against the minimum of R
 repeats of the same call ("warm"). Table 6's images (1 px / 0.5 Mv, seed 0), median over N images, µs.
 
+Superseded: it calls ``identify_kernel`` with the tuple arguments ptp had before stop 42 (branch
+ptpspeed5 passes one parameter array) and runs on that code only (``git checkout ab5f4bd``);
+``ptpspeed5_split.py`` profiles the current kernel.
+
     python benchmarks/tools/ptpspeed4_profile.py N R [paper|real|both]
 
 Stages (each includes the ones above; the search loop rebuilt in one pass, window by window, by

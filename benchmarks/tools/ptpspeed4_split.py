@@ -1,5 +1,9 @@
 """Where ptp's kernel time goes, interleaved and warm, by switching stages off (issue #25, fifth speed round).
 
+Superseded: it calls ``identify_kernel`` with the tuple arguments ptp had before stop 42 (branch
+ptpspeed5 passes one parameter array) and runs on that code only (``git checkout ab5f4bd``);
+``ptpspeed5_split.py`` profiles the current kernel.
+
     python benchmarks/tools/ptpspeed4_split.py N SKY
 
 Table 6's images (1 px / 0.5 Mv, seed 0), N of them in the sky SKY (paper or real). Before each timed call
