@@ -56,7 +56,7 @@ def main(plugin: str, target: str, repeats: int, profile: bool) -> None:
         with event.install_listener("numba:llvm_lock", rec):
             fresh.compile(sig)
         out.append((time.process_time() - c0, rec.s))
-    print(f"{target}: " + ", ".join(f"{c:.2f} CPU s (LLVM {l:.2f})" for c, l in out))
+    print(f"{target}: " + ", ".join(f"{c:.2f} CPU s (LLVM {llvm:.2f})" for c, llvm in out))
     if repeats:
         times = fresh.get_metadata(sig)["pipeline_times"]["nopython"]
         rows = sorted(((v.init + v.run + v.finalize, k) for k, v in times.items()), reverse=True)
