@@ -411,6 +411,12 @@ def guide_pattern(unit, nbr, nbr_off, g, f_px, r_px, phi):
     return n
 
 
+#: :func:`prepare_image` inlined by numba into its one kernel caller, :func:`begin_identify`: one kernel fewer to
+#: compile and to optimise again in every kernel above it (``prepare_image`` itself is compiled only when Python
+#: calls it, for ``explain``)
+_prepare_image_inline = njit(inline="always", no_cpython_wrapper=True, no_cfunc_wrapper=True)(prepare_image.py_func)
+
+
 @njit(cache=True, no_cfunc_wrapper=True)
 def begin_identify(x_px, y_px, sensor, double_px, trace):
     """Start of every identify kernel: ``trace`` reset to -1, ``(rows, unit, usable, order)``.
@@ -421,7 +427,7 @@ def begin_identify(x_px, y_px, sensor, double_px, trace):
     n = x_px.shape[0]
     for t in range(trace.shape[0]):
         trace[t] = -1 if t < TRACE_WORK else 0   # the work counters (slots TRACE_WORK...) start at 0
-    unit, usable, order = prepare_image(x_px, y_px, sensor, double_px)
+    unit, usable, order = _prepare_image_inline(x_px, y_px, sensor, double_px)
     if n < 3:
         order = order[:0]
     return np.full(n, -1, dtype=np.int64), unit, usable, order
