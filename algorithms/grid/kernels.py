@@ -90,7 +90,7 @@ def orientation_candidates(r_px, n, buffer_px, half_px, out):
     return k
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def grid_cells(r_px, phi, n, o, spec, out):
     """Occupied cells of the pattern oriented on neighbour ``o`` (Padgett's grid).
 
@@ -119,7 +119,7 @@ def grid_cells(r_px, phi, n, o, spec, out):
     return m
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def build_patterns(unit, nbr, nbr_off, f_px, spec, db_orientations):
     """Grid patterns of every guide star, one per orientation choice (``db_orientations``; Padgett: 1).
 
@@ -167,7 +167,7 @@ def _mark(weight, touched, nt, cell, value):
     return nt
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def image_weights(cells, nc, spec, weight, touched):
     """Credit of every grid cell for one image pattern (modified grid: soft neighbour credit).
 
@@ -203,7 +203,7 @@ def spec_at(p, i):
                     int(p[i + 8]), int(p[i + 9]), int(p[i + 10]), p[i + 11])
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def identify_kernel(x_px, y_px, params, patterns, cell_start, start, guide, orient, guides_unit, trace):
     """Grid identification of one image; returns ``(rows, attitude, accepted)``.
 

@@ -64,7 +64,7 @@ def log_level(r_px, log_scale):
     return max(int(v), 1)
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def feature_vector(r_px, phi, n, align, n_sectors, log_scale, out):
     """Luo et al.'s feature (their eqs. 7-8) of the neighbours ``align..n-1`` relative to ``phi[align]``.
 
@@ -89,7 +89,7 @@ def feature_vector(r_px, phi, n, align, n_sectors, log_scale, out):
     return nz
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def build_features(unit, nbr, nbr_off, f_px, n_sectors, log_scale, db_alignments, max_value):
     """Feature rows of every guide star, one per alignment choice (``db_alignments``; paper: 1).
 
@@ -119,7 +119,7 @@ def build_features(unit, nbr, nbr_off, f_px, n_sectors, log_scale, db_alignments
     return feature, count, guide, align
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def sad_search(table, vec, nz_idx, nz, count_tol, n_best, best_row, best_sad, count_tol_above, acc, chord,
                chord_tol):
     """The ``n_best`` rows of smallest sum of absolute differences to ``vec`` (Luo et al. eq. 9).
@@ -190,7 +190,7 @@ def chord_first(chords, lo, hi, chord, limit, upper):
     return lo
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def sad_search_pairs(table, vec, nz_idx, nz, count_tol, n_best, best_row, best_sad, count_tol_above, chord, chord_tol,
                      by_chord, chords):
     """:func:`sad_search` with ``pair_filter`` (``chord_tol >= 0``), the same rows in the same order.
@@ -236,14 +236,14 @@ def sad_search_pairs(table, vec, nz_idx, nz, count_tol, n_best, best_row, best_s
     return found
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def search_at(p, i):
     """The :class:`Search` packed at ``p[i:i+10]`` by ``planar.pack_params``."""
     return Search(int(p[i]), p[i + 1], p[i + 2], int(p[i + 3]), int(p[i + 4]), int(p[i + 5]), int(p[i + 6]),
                   int(p[i + 7]), p[i + 8], p[i + 9] != 0.0)
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def identify_kernel(x_px, y_px, params, columns, total, count_start, guide, align, align_chord, guides_unit, z_start,
                     by_chord, chords, trace):
     """Improved-LPT identification of one image; returns ``(rows, attitude, accepted)``.

@@ -172,13 +172,13 @@ def pack_params(*bundles) -> np.ndarray:
     return np.array([v for b in bundles for v in b], dtype=np.float64)
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def frame_at(p, i):
     """The :class:`starid.kernels.Frame` packed at ``p[i:i+5]`` by :func:`pack_params`."""
     return Frame(p[i], p[i + 1], p[i + 2], p[i + 3], p[i + 4])
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def acceptance_at(p, i):
     """The :class:`Acceptance` packed at ``p[i:i+5]`` by :func:`pack_params`."""
     return Acceptance(p[i], p[i + 1], p[i + 2], int(p[i + 3]), p[i + 4])
@@ -205,7 +205,7 @@ def tangent_basis(unit, s):
     return ax, ay, az, sy * az - sz * ay, sz * ax - sx * az, sx * ay - sy * ax
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def plane_polar(unit, s, rows, n_rows, f_px, r_px, phi):
     """Polar coordinates of ``unit[rows[:n_rows]]`` in the plane tangent at ``unit[s]`` (notes 1.4).
 
@@ -242,7 +242,7 @@ def relative_angle(phi, phi0):
     return d
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def prepare_image(x_px, y_px, sensor, double_px):
     """Back-projected unit vectors, the usable mask and the reference order of one image.
 
@@ -278,7 +278,7 @@ def prepare_image(x_px, y_px, sensor, double_px):
     return unit, usable, order
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def image_neighbours(unit, usable, x_px, y_px, s, cos_radius, out):
     """Usable stars within the angle whose cosine is ``cos_radius`` of star ``s``, nearest first.
 
@@ -323,7 +323,7 @@ def seed_attitude_roll(unit, s, guides_unit, g, roll):
     return A
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def confirm(unit, rows, attitude, guides_unit, sensor, acc, solved_from):
     """Accept or reject a seed attitude by reprojection; fills ``rows`` (guide row per star or -1).
 
@@ -396,15 +396,28 @@ def polar_buffers(nbr_off):
 
 @njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def guide_pattern(unit, nbr, nbr_off, g, f_px, r_px, phi):
-    """Neighbour count of guide ``g`` and, when it has any, their :func:`plane_polar` coordinates."""
+    """Neighbour count of guide ``g`` and, when it has any, their :func:`plane_polar` coordinates.
+
+    The rows are copied to int64 first: :func:`plane_polar` is then compiled for the image's int64
+    neighbour lists only, not a second time for the catalogue's int32 ones (0.3-0.4 CPU s of a cold
+    compile; the copy is one short allocation per guide star of a database build)."""
     start = nbr_off[g]
     n = nbr_off[g + 1] - start
     if n > 0:
-        plane_polar(unit, g, nbr[start:], n, f_px, r_px, phi)
+        rows = np.empty(n, dtype=np.int64)
+        for k in range(n):
+            rows[k] = nbr[start + k]
+        plane_polar(unit, g, rows, n, f_px, r_px, phi)
     return n
 
 
-@njit(cache=True)
+#: :func:`prepare_image` inlined by numba into its one kernel caller, :func:`begin_identify`: one kernel fewer to
+#: compile and to optimise again in every kernel above it (``prepare_image`` itself is compiled only when Python
+#: calls it, for ``explain``)
+_prepare_image_inline = njit(inline="always", no_cpython_wrapper=True, no_cfunc_wrapper=True)(prepare_image.py_func)
+
+
+@njit(cache=True, no_cfunc_wrapper=True)
 def begin_identify(x_px, y_px, sensor, double_px, trace):
     """Start of every identify kernel: ``trace`` reset to -1, ``(rows, unit, usable, order)``.
 
@@ -414,10 +427,21 @@ def begin_identify(x_px, y_px, sensor, double_px, trace):
     n = x_px.shape[0]
     for t in range(trace.shape[0]):
         trace[t] = -1 if t < TRACE_WORK else 0   # the work counters (slots TRACE_WORK...) start at 0
-    unit, usable, order = prepare_image(x_px, y_px, sensor, double_px)
+    unit, usable, order = _prepare_image_inline(x_px, y_px, sensor, double_px)
     if n < 3:
         order = order[:0]
     return np.full(n, -1, dtype=np.int64), unit, usable, order
+
+
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+def identity3():
+    """``np.eye(3)``, written out: numba's ``np.eye`` compiles its own overload (with ``min`` and its
+    ``None`` handler, ~0.2 CPU s cold) that no other kernel of these plugins needs."""
+    A = np.empty((3, 3))
+    for i in range(3):
+        for j in range(3):
+            A[i, j] = 1.0 if i == j else 0.0
+    return A
 
 
 @njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
@@ -425,10 +449,10 @@ def no_match(rows):
     """End of every identify kernel when nothing was accepted: ``(rows all -1, identity, False)``."""
     for i in range(rows.shape[0]):
         rows[i] = -1
-    return rows, np.eye(3), False
+    return rows, identity3(), False
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def reference_pattern(unit, usable, x_px, y_px, s, cos_radius, f_px, nbrs, r_px, phi):
     """Neighbours of reference star ``s`` (:func:`image_neighbours` into ``nbrs``) and their polar coordinates.
 
@@ -459,7 +483,7 @@ def keep_best(best_score, best_item, found, n_best, score, item):
     return found + 1 if found < n_best else found
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def confirm_pair(unit, rows, seed, s, o, guide_s, guide_o, guides_unit, sensor, acc):
     """Seed an attitude on two matched stars (``s`` -> ``guide_s``, ``o`` -> ``guide_o``, Wahba) and :func:`confirm` it.
 
@@ -470,7 +494,7 @@ def confirm_pair(unit, rows, seed, s, o, guide_s, guide_o, guides_unit, sensor, 
     """
     if abs(chord_rows(unit, s, unit, o) - chord_rows(guides_unit, guide_s, guides_unit, guide_o)) > \
             SEPARATION_TOL * acc.eps0:
-        return False, np.eye(3)
+        return False, identity3()
     seed[s] = guide_s
     seed[o] = guide_o
     A = wahba_rows(unit, seed, guides_unit)
@@ -545,7 +569,7 @@ def settle_pairs(pair_i, pair_g, n_pairs, n_match, out_row):
     return keep_unique(n_match, out_row)
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def assign_near(A, v_cam, unit, z_start, c_fov, eps, out_row, pair_i, pair_g, n_match):
     """``starid.kernels.reproject_assign``'s assignment (``out_row`` and the count), without the prediction count.
 
@@ -628,15 +652,9 @@ def predicted_on_sensor(A, unit, c_fov, f_px, cx_px, cy_px, width_px, height_px)
 
 
 @njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
-def assign_pass(A, unit, guides_unit, z_start, c_fov, eps, rows, work):
-    """One reprojection pass (:func:`assign_near`); ``work`` is ``(pair_i, pair_g, n_match)``.
-    Returns the number of stars assigned."""
-    return assign_near(A, unit, guides_unit, z_start, c_fov, eps, rows, work[0], work[1], work[2])
-
-
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def confirm_near(unit, rows, attitude, guides_unit, z_start, sensor, acc, solved_from, work, n_first):
-    """:func:`confirm`, pass for pass, with :func:`assign_near` for the assignment.
+    """:func:`confirm`, pass for pass, with :func:`assign_near` for the assignment (called directly: a
+    wrapper level between them made numba re-optimise assign_near once more).
 
     ``n_first`` >= 0: ``rows`` already hold the first pass's assignment (``n_first`` stars, at
     least 2, not ``solved_from``'s), as it is from ``attitude``; that pass's attitude is then never
@@ -660,7 +678,8 @@ def confirm_near(unit, rows, attitude, guides_unit, z_start, sensor, acc, solved
         if it == 0 and n_first >= 0:
             n_seen = n_first
         else:
-            n_seen = assign_pass(A, unit, guides_unit, z_start, acc.c_fov + eps, eps, rows, work)
+            n_seen = assign_near(A, unit, guides_unit, z_start, acc.c_fov + eps, eps, rows, work[0], work[1],
+                                 work[2])
             A_last = A
             eps_last = eps
         if n_seen < 2:
@@ -681,7 +700,8 @@ def confirm_near(unit, rows, attitude, guides_unit, z_start, sensor, acc, solved
         n_prev = n_seen
         eps = acc.eps
     if not stale:
-        n_seen = assign_pass(A, unit, guides_unit, z_start, acc.c_fov + eps, eps, rows, work)
+        n_seen = assign_near(A, unit, guides_unit, z_start, acc.c_fov + eps, eps, rows, work[0], work[1],
+                                 work[2])
         A_last = A
         eps_last = eps
     keep = verify_pairwise(unit, rows, guides_unit, acc.eps, np.int64(2), 0.5)
@@ -842,7 +862,7 @@ def pair_first_pass(A, tol, v_cam, unit, z_start, c_fov, eps, work):
     return settle_pairs(pair_i, pair_g, n_pairs, n_match, out_row)
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def pair_work(n):
     """Work arrays of :func:`confirm_pair_near`: ``(pair_i, pair_g, n_match, out_row), A0 (3 x 3)``."""
     cap = 4 * n + 16
@@ -850,7 +870,7 @@ def pair_work(n):
             np.empty(n, dtype=np.int64)), np.empty((3, 3))
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def confirm_pair_near(unit, rows, seed, s, o, guide_s, guide_o, guides_unit, z_start, sensor, acc, work, A0):
     """:func:`confirm_pair`, the same answer, cheaper.
 
@@ -865,7 +885,7 @@ def confirm_pair_near(unit, rows, seed, s, o, guide_s, guide_o, guides_unit, z_s
     """
     if abs(chord_rows(unit, s, unit, o) - chord_rows(guides_unit, guide_s, guides_unit, guide_o)) > \
             SEPARATION_TOL * acc.eps0:
-        return False, np.eye(3)
+        return False, identity3()
     seed[s] = guide_s
     seed[o] = guide_o
     n_first = np.int64(-1)
@@ -879,7 +899,7 @@ def confirm_pair_near(unit, rows, seed, s, o, guide_s, guide_o, guides_unit, z_s
         if n_first < 2 or n_first == 2 and first[s] == guide_s and first[o] == guide_o:
             seed[s] = -1
             seed[o] = -1
-            return False, np.eye(3)
+            return False, identity3()
         for i in range(rows.shape[0]):   # a loop, not rows[:] = first (see confirm)
             rows[i] = first[i]
     else:
@@ -924,7 +944,7 @@ def trace_counters(trace: np.ndarray, skip=()) -> dict | None:
     return {k: v for k, v in zip(WORK_COUNTERS, values, strict=False) if k not in skip}
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def rows_to_hip(rows, hip):
     """Catalog ids of guide ``rows`` (-1 stays -1)."""
     out = np.full(rows.shape[0], -1, dtype=np.int64)

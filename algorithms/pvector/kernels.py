@@ -124,10 +124,23 @@ def _ranks_before(x_px, y_px, a, ka, da, b, kb, db):
 
 
 @njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+def _identity3():
+    """``np.eye(3)``, written out: numba's ``np.eye`` compiles its own overload (with ``min`` and its
+    ``None`` handler, ~0.2 CPU s cold) that no other kernel of this plugin needs."""
+    A = np.empty((3, 3))
+    for i in range(3):
+        for j in range(3):
+            A[i, j] = 1.0 if i == j else 0.0
+    return A
+
+
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _sort_by(key, x_px, y_px):
     """Order of the stars by ``key``, ties broken on position (insertion sort; images are small)."""
     n = key.shape[0]
-    order = np.arange(n)
+    order = np.empty(n, dtype=np.int64)   # np.arange(n), a loop: one numpy overload less to compile
+    for i in range(n):
+        order[i] = i
     for i in range(1, n):
         j = i
         while j > 0 and _precedes(key[order[j]], x_px[order[j]], y_px[order[j]],
@@ -239,7 +252,9 @@ def _argsort_stable(values):
     """Stable ascending order of ``values`` (insertion sort: images are small; the same order as
     ``np.argsort(kind="mergesort")`` without compiling a mergesort)."""
     n = values.shape[0]
-    order = np.arange(n)
+    order = np.empty(n, dtype=np.int64)   # np.arange(n), a loop: one numpy overload less to compile
+    for i in range(n):
+        order[i] = i
     for i in range(1, n):
         j = i
         while j > 0 and values[order[j]] < values[order[j - 1]]:
@@ -404,7 +419,7 @@ def identify_rows(x_in, y_in, mag_in, frame_t, db_t, tol_t):
     tri_found = np.full(3, -1, dtype=np.int64)
     work = np.zeros(len(WORK_NAMES), dtype=np.int64)
     if x_px.shape[0] < 3:
-        return out, np.eye(3), False, tri_found, work
+        return out, _identity3(), False, tri_found, work
     # only the max_stars brightest detections take part (ties by position)
     sel = _sort_by(mag, x_px, y_px)[:min(x_px.shape[0], tol.max_stars)]
     n = sel.shape[0]
@@ -632,4 +647,4 @@ def identify_rows(x_in, y_in, mag_in, frame_t, db_t, tol_t):
             for j in range(3):
                 tri_found[j] = canon[hyp_obs[h, j]]
             return out, attitude, True, tri_found, work
-    return out, np.eye(3), False, tri_found, work
+    return out, _identity3(), False, tri_found, work
