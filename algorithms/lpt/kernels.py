@@ -12,22 +12,17 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from starid.kernels import verify_pairwise, wahba_rows
-
 from ..lpt_improved.planar import (
     acceptance_at,
-    assign_pass,
     begin_identify,
+    confirm_near,
     count_work,
     frame_at,
     guide_pattern,
     keep_best,
     no_match,
-    pair_attitude,
-    pair_first_pass,
     pair_work,
     polar_buffers,
-    predicted_on_sensor,
     reference_pattern,
     seed_attitude_roll,
 )
@@ -744,120 +739,6 @@ def refined_roll(row, img_sector, img_level, img_phi, nz, shift, search):
     return base + (total / count if count else 0.5 * width)
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
-def confirm_seed(unit, rows, attitude, guides_unit, z_start, sensor, acc, solved_from, work, A0):
-    """``planar.confirm_near`` from a seed attitude (``n_first`` = -1), pass for pass, without a
-    two-star Wahba whose attitude is not needed; returns ``(accepted, attitude)``.
-
-    When a pass assigns exactly two stars (nearly always the seed's pass of a wrong candidate: the
-    reference star and one chance neighbour), ``confirm_near`` solves Wahba's problem for them
-    (``wahba_rows`` on a rank-2 ``B``: LAPACK's SVD, the most expensive step of a rejection) to make the
-    next pass with that attitude. Here that pass is made from ``planar.pair_attitude`` (the same
-    rotation in exact arithmetic, within its bound of the SVD's) by ``planar.pair_first_pass``, which
-    gives the pass's assignment to the last row when every test clears its threshold by more than the
-    bound, and -1 otherwise (then the SVD and the real pass are made, as in ``confirm_near``; this is
-    how ``lpt_improved``'s ``confirm_pair_near`` makes its first pass). The two-star attitude is
-    otherwise needed only as the last pass's attitude for the prediction count, when the match is not
-    rejected: it is solved then, from the same two rows. So ``rows`` and an accepted attitude are
-    ``confirm_near``'s; a rejected one's attitude may differ (the kernel does not read it).
-    ``work`` is ``planar.pair_work``'s four arrays, ``A0`` a 3 x 3 work array.
-    """
-    n = unit.shape[0]
-    A = attitude
-    eps = acc.eps0
-    n_prev = -1
-    n_seen = 0
-    A_last = A
-    eps_last = eps
-    solved = solved_from.copy()
-    pair = np.empty(n, dtype=np.int64)        # the two stars a lazy A solves (tol > 0)
-    pair_last = np.empty(n, dtype=np.int64)   # the two stars a lazy A_last solves (lazy_last)
-    stale = False
-    tol = -1.0
-    lazy_last = False
-    # confirm_near's passes (at most 5) and its last pass after them as one loop, so that the pass is
-    # written once: ``final`` marks that last pass, made only when the assignment is not stale
-    it = 0
-    final = False
-    while True:
-        # the pass: from pair_attitude when A is a two-star attitude not yet solved
-        n_seen = -1
-        lazy_last = False
-        if tol > 0:
-            n_seen = pair_first_pass(A0, tol, unit, guides_unit, z_start, acc.c_fov + eps, eps, work)
-            if n_seen >= 0:
-                first = work[3]
-                for i in range(n):
-                    rows[i] = first[i]
-                    pair_last[i] = pair[i]
-                lazy_last = True
-            else:
-                A = wahba_rows(unit, pair, guides_unit)
-                tol = -1.0
-        if n_seen < 0:
-            n_seen = assign_pass(A, unit, guides_unit, z_start, acc.c_fov + eps, eps, rows,
-                                 (work[0], work[1], work[2]))
-        A_last = A
-        eps_last = eps
-        if final:
-            break
-        if n_seen < 2:
-            return False, A
-        stale = True
-        for i in range(n):
-            if rows[i] != solved[i]:
-                stale = False
-                break
-        if not stale:
-            n_two = 0
-            i0 = np.int64(-1)   # not literals: one signature of pair_attitude
-            i1 = np.int64(-1)
-            for i in range(n):
-                if rows[i] >= 0:
-                    n_two += 1
-                    i0, i1 = i1, i
-            tol = -1.0
-            if n_two == 2:
-                tol = pair_attitude(unit, i0, i1, guides_unit, rows[i0], rows[i1], A0)
-            if tol > 0:
-                for i in range(n):
-                    pair[i] = rows[i]
-            else:
-                A = wahba_rows(unit, rows, guides_unit)
-            for i in range(n):   # a loop: an array slice assignment compiles its shape-mismatch message
-                solved[i] = rows[i]
-        elif it > 0 or acc.eps0 == acc.eps:
-            break
-        if it > 0 and n_seen <= n_prev and eps == acc.eps:
-            final = True
-        else:
-            n_prev = n_seen
-            eps = acc.eps
-            it += 1
-            final = it == 5
-        if final and stale:
-            break
-    keep = verify_pairwise(unit, rows, guides_unit, acc.eps, np.int64(2), 0.5)
-    n_keep = 0
-    for i in range(n):
-        if not keep[i]:
-            rows[i] = -1
-        else:
-            n_keep += 1
-    reject = n_keep < acc.min_matches
-    if not reject:
-        if lazy_last:   # the last pass was made from a two-star attitude: solve it now
-            A_last = wahba_rows(unit, pair_last, guides_unit)
-        n_pred = predicted_on_sensor(A_last, guides_unit, acc.c_fov + eps_last, sensor.f_px, sensor.cx_px,
-                                     sensor.cy_px, sensor.width_px, sensor.height_px)
-        reject = n_keep < acc.fraction * n_pred
-    if reject:
-        for i in range(n):
-            rows[i] = -1
-        return False, A
-    return True, wahba_rows(unit, rows, guides_unit)
-
-
 @njit(cache=True)
 def search_at(p, i):
     """The :class:`StringSearch` packed at ``p[i:i+11]`` by ``planar.pack_params``."""
@@ -879,7 +760,7 @@ def identify_kernel(x_px, y_px, params, char_sector, char_level, char_start, sca
     every database string is compared under every circular shift (:func:`shift_scores`, the
     whole database, as in the paper); the ``n_candidates`` best guide stars scoring at least
     ``min_score`` (ties: the string with fewer unmatched characters first, then guide order)
-    seed an attitude (reference star to guide star, roll from the shift) that :func:`confirm_seed`
+    seed an attitude (reference star to guide star, roll from the shift) that :func:`confirm_near`
     must accept. Strings are visited by length (see the comment in the scan); a string whose
     :func:`match_bound` cannot reach ``min_score``, or, once the candidate list is full, cannot
     rank above its last, is skipped without trying its shifts: the candidates are exactly those
@@ -899,7 +780,6 @@ def identify_kernel(x_px, y_px, params, char_sector, char_level, char_start, sca
     phi = np.empty(n)
     unsolved = np.full(n, -2, dtype=np.int64)   # the roll-seeded attitudes come from no assignment
     work4, _ = pair_work(n)
-    A0 = np.empty((3, 3))   # confirm_seed's work
     img = np.zeros(m, dtype=np.int64)
     img_sector = np.empty(m, dtype=np.int64)
     img_level = np.empty(m, dtype=np.int64)
@@ -1046,7 +926,7 @@ def identify_kernel(x_px, y_px, params, char_sector, char_level, char_start, sca
             dense_string(chars, best_item[c] // m, row)
             roll = refined_roll(row, img_sector, img_level, img_phi, nz, best_item[c] % m, search)
             A = seed_attitude_roll(unit, s, guides_unit, g, roll)
-            ok, A = confirm_seed(unit, rows, A, guides_unit, z_start, sensor, acc, unsolved, work4, A0)
+            ok, A = confirm_near(unit, rows, A, guides_unit, z_start, sensor, acc, unsolved, work4, np.int64(-1))
             count_work(trace, 2, 1)
             if ok:
                 trace[0] = s

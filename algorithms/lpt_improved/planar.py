@@ -654,16 +654,25 @@ def predicted_on_sensor(A, unit, c_fov, f_px, cx_px, cy_px, width_px, height_px)
 @njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def confirm_near(unit, rows, attitude, guides_unit, z_start, sensor, acc, solved_from, work, n_first):
     """:func:`confirm`, pass for pass, with :func:`assign_near` for the assignment (called directly: a
-    wrapper level between them made numba re-optimise assign_near once more).
+    wrapper level between them made numba re-optimise assign_near once more), and no two-star Wahba
+    whose attitude is not needed.
 
     ``n_first`` >= 0: ``rows`` already hold the first pass's assignment (``n_first`` stars, at
     least 2, not ``solved_from``'s), as it is from ``attitude``; that pass's attitude is then never
     used again (the next step solves Wahba from the assignment), so ``attitude`` may be any
     rotation that gave the same assignment (:func:`pair_first_pass`). -1: make the first pass.
-    The number of guide stars the attitude puts on the sensor (:func:`predicted_on_sensor`, one walk
-    of the band) is needed only by the last test, and only when enough stars were kept to reach it;
-    it is counted then, for the attitude and window of the last pass, as :func:`confirm` had it.
-    Returns ``(accepted, attitude)``, the same as :func:`confirm`.
+    When a pass assigns exactly two stars (nearly always a wrong candidate's: the reference star and
+    one chance neighbour), :func:`confirm` solves Wahba for them (``wahba_rows`` on a rank-2 ``B``:
+    LAPACK's SVD, the most expensive step of a rejection) to make the next pass. Here that pass is
+    made from :func:`pair_attitude` by :func:`pair_first_pass` when every test is decided, as
+    :func:`confirm_pair_near` makes its first pass; otherwise the SVD and the real pass are made.
+    The two-star attitude is solved later only if the last pass was made that way and the match is
+    not rejected (the prediction count needs it). The number of guide stars the attitude puts on the
+    sensor (:func:`predicted_on_sensor`, one walk of the band) is needed only by the last test, and
+    only when enough stars were kept to reach it; it is counted then, for the attitude and window of
+    the last pass, as :func:`confirm` had it. ``work`` is :func:`pair_work`'s four arrays. Returns
+    ``(accepted, attitude)``: ``rows`` and an accepted attitude are :func:`confirm`'s; a rejected
+    match's attitude may differ (no caller reads it).
     """
     n = unit.shape[0]
     A = attitude
@@ -673,15 +682,42 @@ def confirm_near(unit, rows, attitude, guides_unit, z_start, sensor, acc, solved
     A_last = A
     eps_last = eps
     solved = solved_from.copy()
+    P = np.empty((3, 3))                      # a two-star attitude from pair_attitude
+    pair = np.empty(n, dtype=np.int64)        # the two stars P stands for (tol > 0)
+    pair_last = np.empty(n, dtype=np.int64)   # the two stars of the last pass's attitude (lazy_last)
     stale = False
-    for it in range(5):
-        if it == 0 and n_first >= 0:
+    tol = -1.0
+    lazy_last = False
+    # the passes (at most 5) and the last pass after them as one loop, so that the pass is written
+    # once: ``final`` marks that last pass, made only when the assignment is not stale
+    it = 0
+    final = False
+    given = n_first >= 0
+    while True:
+        if given:   # the first pass's assignment came with the call
             n_seen = n_first
+            given = False
         else:
-            n_seen = assign_near(A, unit, guides_unit, z_start, acc.c_fov + eps, eps, rows, work[0], work[1],
-                                 work[2])
+            n_seen = -1
+            lazy_last = False
+            if tol > 0:   # from the two-star attitude P, when every test is decided
+                n_seen = pair_first_pass(P, tol, unit, guides_unit, z_start, acc.c_fov + eps, eps, work)
+                if n_seen >= 0:
+                    first = work[3]
+                    for i in range(n):
+                        rows[i] = first[i]
+                        pair_last[i] = pair[i]
+                    lazy_last = True
+                else:
+                    A = wahba_rows(unit, pair, guides_unit)
+                    tol = -1.0
+            if n_seen < 0:
+                n_seen = assign_near(A, unit, guides_unit, z_start, acc.c_fov + eps, eps, rows, work[0], work[1],
+                                     work[2])
             A_last = A
             eps_last = eps
+        if final:
+            break
         if n_seen < 2:
             return False, A
         stale = True
@@ -690,20 +726,34 @@ def confirm_near(unit, rows, attitude, guides_unit, z_start, sensor, acc, solved
                 stale = False
                 break
         if not stale:
-            A = wahba_rows(unit, rows, guides_unit)
+            n_two = 0
+            i0 = np.int64(-1)   # not literals: one signature of pair_attitude
+            i1 = np.int64(-1)
+            for i in range(n):
+                if rows[i] >= 0:
+                    n_two += 1
+                    i0, i1 = i1, i
+            tol = -1.0
+            if n_two == 2:
+                tol = pair_attitude(unit, i0, i1, guides_unit, rows[i0], rows[i1], P)
+            if tol > 0:
+                for i in range(n):
+                    pair[i] = rows[i]
+            else:
+                A = wahba_rows(unit, rows, guides_unit)
             for i in range(n):   # a loop: an array slice assignment compiles its shape-mismatch message (~2 CPU s)
                 solved[i] = rows[i]
         elif it > 0 or acc.eps0 == acc.eps:
             break
         if it > 0 and n_seen <= n_prev and eps == acc.eps:
+            final = True
+        else:
+            n_prev = n_seen
+            eps = acc.eps
+            it += 1
+            final = it == 5
+        if final and stale:
             break
-        n_prev = n_seen
-        eps = acc.eps
-    if not stale:
-        n_seen = assign_near(A, unit, guides_unit, z_start, acc.c_fov + eps, eps, rows, work[0], work[1],
-                                 work[2])
-        A_last = A
-        eps_last = eps
     keep = verify_pairwise(unit, rows, guides_unit, acc.eps, np.int64(2), 0.5)
     n_keep = 0
     for i in range(n):
@@ -713,6 +763,8 @@ def confirm_near(unit, rows, attitude, guides_unit, z_start, sensor, acc, solved
             n_keep += 1
     reject = n_keep < acc.min_matches
     if not reject:
+        if lazy_last:   # the last pass was made from a two-star attitude: solve it now
+            A_last = wahba_rows(unit, pair_last, guides_unit)
         n_pred = predicted_on_sensor(A_last, guides_unit, acc.c_fov + eps_last, sensor.f_px, sensor.cx_px,
                                      sensor.cy_px, sensor.width_px, sensor.height_px)
         reject = n_keep < acc.fraction * n_pred
@@ -904,8 +956,7 @@ def confirm_pair_near(unit, rows, seed, s, o, guide_s, guide_o, guides_unit, z_s
             rows[i] = first[i]
     else:
         A = wahba_rows(unit, seed, guides_unit)
-    ok, A = confirm_near(unit, rows, A, guides_unit, z_start, sensor, acc, seed, (work[0], work[1], work[2]),
-                         n_first)
+    ok, A = confirm_near(unit, rows, A, guides_unit, z_start, sensor, acc, seed, work, n_first)
     seed[s] = -1
     seed[o] = -1
     return ok, A

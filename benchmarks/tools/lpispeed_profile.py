@@ -354,8 +354,7 @@ def li_kernel_new(x_px, y_px, params, columns, total, count_start, guide, align,
                 if n_first < 0:
                     A = wahba_rows(unit, seed, guides_unit)
                     st[7] += 1
-                ok, A = confirm_near(unit, rows, A, guides_unit, z_start, sensor, acc, seed,
-                                     (work[0], work[1], work[2]), n_first)
+                ok, A = confirm_near(unit, rows, A, guides_unit, z_start, sensor, acc, seed, work, n_first)
                 seed[s] = -1
                 seed[o] = -1
                 st[4] += cycles() - t4
