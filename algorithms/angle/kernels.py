@@ -12,7 +12,7 @@ from typing import NamedTuple
 
 import numpy as np
 from numba import njit
-from starid_algorithms.pyramid.kernels import _adjacency, neighbours_within, pair_windows, select_stars, triple
+from starid_algorithms.pyramid.kernels import _adjacency, _neighbours_within, pair_windows, select_stars, triple
 
 from starid.kernels import backproject_px, chord_rows, reproject_assign, wahba_rows
 
@@ -57,8 +57,8 @@ class AngleTol(NamedTuple):
     widen: float
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
-def support(v_cam, sel, a, b, big_i, big_j, nbr, nbr_chord, nbr_start, guide_unit, eps, n_check, need, chirality):
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+def _support(v_cam, sel, a, b, big_i, big_j, nbr, nbr_chord, nbr_start, guide_unit, eps, n_check, need, chirality):
     """Direct-match test of the pairing ``sel[a] -> I``, ``sel[b] -> J``: how many of the next
     ``n_check`` selected stars k (brightness order) have a guide star K within ``eps`` of the right
     distance from both I and J (and, with ``chirality``, the same sign of the triple product).
@@ -81,7 +81,7 @@ def support(v_cam, sel, a, b, big_i, big_j, nbr, nbr_chord, nbr_start, guide_uni
         ci = chord_rows(v_cam, sa, v_cam, sk)
         cj = chord_rows(v_cam, sb, v_cam, sk)
         t_obs = triple(v_cam, sa, v_cam, sb, v_cam, sk)
-        lo, hi = neighbours_within(nbr_chord, nbr_start, big_i, ci - eps, ci + eps)
+        lo, hi = _neighbours_within(nbr_chord, nbr_start, big_i, ci - eps, ci + eps)
         for e in range(lo, hi):
             big_k = np.int64(nbr[e])
             if big_k == big_j or abs(chord_rows(guide_unit, big_j, guide_unit, big_k) - cj) > eps:
@@ -95,8 +95,8 @@ def support(v_cam, sel, a, b, big_i, big_j, nbr, nbr_chord, nbr_start, guide_uni
     return count
 
 
-@njit(cache=True, no_cfunc_wrapper=True)   # Python too: main's benchmarks/tools/tailspeed2_ia_profile.py times it alone
-def confirm_pattern(v_cam, pat_star, pat_row, guide_unit, c_fov, eps, widen, cam, min_extra, confirm_fraction, rows):
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+def _confirm_pattern(v_cam, pat_star, pat_row, guide_unit, c_fov, eps, widen, cam, min_extra, confirm_fraction, rows):
     """Attitude of a matched pattern (Wahba), the other stars by reprojection, and the confirmation.
 
     ``reproject_assign`` identifies every detection within the radius of exactly one predicted
@@ -348,7 +348,7 @@ def _search(v_cam, sel, start, stop, pairs, nbr, nbr_chord, nbr_start, guide_uni
                     s_best = -1
                     for o in range(2):
                         work[3] += 1
-                        s = support(v_cam, sel, a, b, np.int64(pairs[p, o]), np.int64(pairs[p, 1 - o]), nbr,
+                        s = _support(v_cam, sel, a, b, np.int64(pairs[p, o]), np.int64(pairs[p, 1 - o]), nbr,
                                     nbr_chord, nbr_start, guide_unit, tol.eps_match, tol.n_check, np.int64(-1),
                                     tol.chirality)
                         if s >= s_best:
@@ -359,7 +359,7 @@ def _search(v_cam, sel, start, stop, pairs, nbr, nbr_chord, nbr_start, guide_uni
                     pat_row[0] = pairs[p, best]
                     pat_row[1] = pairs[p, 1 - best]
                     work[4] += 1
-                    if confirm_pattern(v_cam, pat_star, pat_row, guide_unit, tol.c_fov, tol.eps_match, tol.widen, cam,
+                    if _confirm_pattern(v_cam, pat_star, pat_row, guide_unit, tol.c_fov, tol.eps_match, tol.widen, cam,
                                        tol.min_extra, tol.confirm_fraction, rows):
                         pair[0] = pat_star[0]
                         pair[1] = pat_star[1]
@@ -402,16 +402,32 @@ def _search(v_cam, sel, start, stop, pairs, nbr, nbr_chord, nbr_start, guide_uni
                     big_i = tri[t, 0]
                     big_j = tri[t, 1]
                     work[3] += 1
-                    if support(v_cam, sel, a, b, big_i, big_j, nbr, nbr_chord, nbr_start, guide_unit, tol.eps_match,
+                    if _support(v_cam, sel, a, b, big_i, big_j, nbr, nbr_chord, nbr_start, guide_unit, tol.eps_match,
                                tol.n_check, tol.min_support, tol.chirality) < tol.min_support:
                         continue
                     pat_row[0] = big_i
                     pat_row[1] = big_j
                     work[4] += 1
-                    if confirm_pattern(v_cam, pat_star, pat_row, guide_unit, tol.c_fov, tol.eps_match, tol.widen, cam,
+                    if _confirm_pattern(v_cam, pat_star, pat_row, guide_unit, tol.c_fov, tol.eps_match, tol.widen, cam,
                                        tol.min_extra, tol.confirm_fraction, rows):
                         pair[0] = pat_star[0]
                         pair[1] = pat_star[1]
                         return rows, pair
     rows[:] = -1
     return rows, pair
+
+
+@njit(cache=True)
+def support(v_cam, sel, a, b, big_i, big_j, nbr, nbr_chord, nbr_start, guide_unit, eps, n_check, need, chirality):
+    """:func:`_support` from Python (tests and tools); the kernels call that one, so this entry point
+    is compiled only when Python calls it."""
+    return _support(v_cam, sel, a, b, big_i, big_j, nbr, nbr_chord, nbr_start, guide_unit, eps, n_check, need,
+                    chirality)
+
+
+@njit(cache=True)
+def confirm_pattern(v_cam, pat_star, pat_row, guide_unit, c_fov, eps, widen, cam, min_extra, confirm_fraction, rows):
+    """:func:`_confirm_pattern` from Python (tests and tools); the kernels call that one, so this entry point
+    is compiled only when Python calls it."""
+    return _confirm_pattern(v_cam, pat_star, pat_row, guide_unit, c_fov, eps, widen, cam, min_extra, confirm_fraction,
+                            rows)

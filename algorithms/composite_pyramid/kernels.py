@@ -81,8 +81,8 @@ def _holds(values, e):
     return lo < values.shape[0] and values[lo] == e
 
 
-@njit(cache=True)
-def fourth_star(stars, hits, counts, cat, buf):
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+def _fourth_star(stars, hits, counts, cat, buf):
     """The catalog star of the fourth image star beta: the stars E that complete, with two stars of the
     candidate ``cat``, a catalog triangle in the window of each of the three image trios (b1, b2, beta),
     (b1, b3, beta), (b2, b3, beta) (``hits[q, :counts[q]]``). Returns E when exactly one, else -1."""
@@ -196,7 +196,7 @@ def composite_kernel(x_px, y_px, mag, index, guide_unit, tol, cam):
                             # no hit completes a pair of the candidate: this beta fails, skip its other queries
                             if counts[q] <= 0 or _third_stars(stars, hits[q], counts[q], cat, buf).shape[0] == 0:
                                 break
-                        if fourth_star(stars, hits, counts, cat, buf) >= 0:
+                        if _fourth_star(stars, hits, counts, cat, buf) >= 0:
                             beta = sel[b]
                             break
                     if beta < 0:
@@ -215,3 +215,10 @@ def composite_kernel(x_px, y_px, mag, index, guide_unit, tol, cam):
                 rows[:] = -1
                 out4[:] = -1
     return rows, np.zeros((3, 3)), out4, work
+
+
+@njit(cache=True)
+def fourth_star(stars, hits, counts, cat, buf):
+    """:func:`_fourth_star` from Python (tests and tools); the kernels call that one, so this entry point
+    is compiled only when Python calls it."""
+    return _fourth_star(stars, hits, counts, cat, buf)

@@ -15,8 +15,8 @@ from typing import NamedTuple
 
 import numpy as np
 from numba import njit
-from starid_algorithms.angle.kernels import confirm_pattern
-from starid_algorithms.pyramid.kernels import neighbours_within, select_stars, triple
+from starid_algorithms.angle.kernels import _confirm_pattern
+from starid_algorithms.pyramid.kernels import _neighbours_within, select_stars, triple
 
 from starid.kernels import backproject_px, chord_rows, kvector_query
 
@@ -61,8 +61,8 @@ class InteriorTol(NamedTuple):
     widen: float
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
-def angle_at(cx, cy, cz, ix, iy, iz, jx, jy, jz):
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+def _angle_at(cx, cy, cz, ix, iy, iz, jx, jy, jz):
     """Angle at unit vector c between the great circles to i and j (radians, in [0, pi]).
 
     Scalars (float64) so that image (float64) and catalog (float32) vectors share one signature:
@@ -72,15 +72,15 @@ def angle_at(cx, cy, cz, ix, iy, iz, jx, jy, jz):
     return math.atan2(t, ix * jx + iy * jy + iz * jz - (ix * cx + iy * cy + iz * cz) * (jx * cx + jy * cy + jz * cz))
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
-def interior_angle(u, c, i, j):
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+def _interior_angle(u, c, i, j):
     """:func:`angle_at` of rows ``c``, ``i``, ``j`` of the (n, 3) image vectors ``u`` (float64)."""
-    return angle_at(f64(u[c, 0]), f64(u[c, 1]), f64(u[c, 2]), f64(u[i, 0]), f64(u[i, 1]), f64(u[i, 2]), f64(u[j, 0]),
+    return _angle_at(f64(u[c, 0]), f64(u[c, 1]), f64(u[c, 2]), f64(u[i, 0]), f64(u[i, 1]), f64(u[i, 2]), f64(u[j, 0]),
                     f64(u[j, 1]), f64(u[j, 2]))
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
-def nearest_two(v_cam, sel, c):
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+def _nearest_two(v_cam, sel, c):
     """Positions in ``sel`` of the two stars nearest to ``sel[c]`` (Liebe's choice; ties by position)."""
     best1 = -1
     best2 = -1
@@ -137,7 +137,7 @@ def trio_query_marked(v_cam, sc, s1, s2, kv, pairs, nbr, nbr_chord, nbr_start, g
     for p in range(lo2, hi2):
         mark[pairs[p, 0]] = stamp
         mark[pairs[p, 1]] = stamp
-    phi = interior_angle(v_cam, sc, s1, s2)
+    phi = _interior_angle(v_cam, sc, s1, s2)
     t_obs = triple(v_cam, sc, v_cam, s1, v_cam, s2)
     eps_phi = tol.eps_phi
     if eps_phi <= 0.0:
@@ -150,7 +150,7 @@ def trio_query_marked(v_cam, sc, s1, s2, kv, pairs, nbr, nbr_chord, nbr_start, g
                 continue    # no partner of C in the second window: the bisection would find none
             big_1 = np.int64(pairs[p, 1 - o])
             c1 = chord_rows(guide_unit, big_c, guide_unit, big_1)
-            a, b = neighbours_within(nbr_chord, nbr_start, big_c, t2 - tol.eps, t2 + tol.eps)
+            a, b = _neighbours_within(nbr_chord, nbr_start, big_c, t2 - tol.eps, t2 + tol.eps)
             for e in range(a, b):
                 big_2 = np.int64(nbr[e])
                 if big_2 == big_1:
@@ -160,7 +160,7 @@ def trio_query_marked(v_cam, sc, s1, s2, kv, pairs, nbr, nbr_chord, nbr_start, g
                 if tol.chirality and triple(guide_unit, big_c, guide_unit, big_1, guide_unit, big_2) * t_obs <= 0.0:
                     continue
                 g = guide_unit
-                phi_cat = angle_at(f64(g[big_c, 0]), f64(g[big_c, 1]), f64(g[big_c, 2]), f64(g[big_1, 0]),
+                phi_cat = _angle_at(f64(g[big_c, 0]), f64(g[big_c, 1]), f64(g[big_c, 2]), f64(g[big_1, 0]),
                                    f64(g[big_1, 1]), f64(g[big_1, 2]), f64(g[big_2, 0]), f64(g[big_2, 1]),
                                    f64(g[big_2, 2]))
                 if abs(phi_cat - phi) > eps_phi:
@@ -186,8 +186,8 @@ def _pairing_key(pat_star, pat_row, key):
         key[2 * r + 1] = pat_row[a]
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
-def seen_before(pat_star, pat_row, failed, n_failed):
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+def _seen_before(pat_star, pat_row, failed, n_failed):
     """Whether the pairing of ``pat_star`` to ``pat_row`` is one of ``failed[:n_failed]``.
 
     ``confirm_pattern``'s answer depends on the pairing only, not on the order of the three stars: its
@@ -208,8 +208,8 @@ def seen_before(pat_star, pat_row, failed, n_failed):
     return False
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
-def remember(pat_star, pat_row, failed, n_failed):
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+def _remember(pat_star, pat_row, failed, n_failed):
     """Store the pairing in ``failed[n_failed]`` (it is about to be confirmed; kept only if refused, as
     an accepted one ends the search); returns the new count."""
     key = np.empty(6, dtype=np.int64)
@@ -265,7 +265,7 @@ def interior_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide
         if work[0] >= tol.max_centres:
             break
         work[0] += 1
-        k1, k2 = nearest_two(v_cam, sel, c)
+        k1, k2 = _nearest_two(v_cam, sel, c)
         pat_star[0] = sel[c]
         pat_star[1] = sel[k1]
         pat_star[2] = sel[k2]
@@ -288,11 +288,11 @@ def interior_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide
             for a in range(3):
                 pat_row[a] = out[t, a]
             work[3] += 1
-            if seen_before(pat_star, pat_row, failed, n_failed):
+            if _seen_before(pat_star, pat_row, failed, n_failed):
                 continue    # the same star -> row pairing already failed (from another central star)
             if n_failed < failed.shape[0]:
-                n_failed = remember(pat_star, pat_row, failed, n_failed)
-            if confirm_pattern(v_cam, pat_star, pat_row, guide_unit, tol.c_fov, tol.eps, tol.widen, cam, tol.min_extra,
+                n_failed = _remember(pat_star, pat_row, failed, n_failed)
+            if _confirm_pattern(v_cam, pat_star, pat_row, guide_unit, tol.c_fov, tol.eps, tol.widen, cam, tol.min_extra,
                                tol.confirm_fraction, rows):
                 for a in range(3):
                     trio[a] = pat_star[a]
@@ -311,3 +311,38 @@ def interior_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide
                 work[6] = 1
                 break
     return rows, trio, work
+
+
+@njit(cache=True)
+def angle_at(cx, cy, cz, ix, iy, iz, jx, jy, jz):
+    """:func:`_angle_at` from Python (tests and tools); the kernels call that one, so this entry point
+    is compiled only when Python calls it."""
+    return _angle_at(cx, cy, cz, ix, iy, iz, jx, jy, jz)
+
+
+@njit(cache=True)
+def interior_angle(u, c, i, j):
+    """:func:`_interior_angle` from Python (tests and tools); the kernels call that one, so this entry point
+    is compiled only when Python calls it."""
+    return _interior_angle(u, c, i, j)
+
+
+@njit(cache=True)
+def nearest_two(v_cam, sel, c):
+    """:func:`_nearest_two` from Python (tests and tools); the kernels call that one, so this entry point
+    is compiled only when Python calls it."""
+    return _nearest_two(v_cam, sel, c)
+
+
+@njit(cache=True)
+def seen_before(pat_star, pat_row, failed, n_failed):
+    """:func:`_seen_before` from Python (tests and tools); the kernels call that one, so this entry point
+    is compiled only when Python calls it."""
+    return _seen_before(pat_star, pat_row, failed, n_failed)
+
+
+@njit(cache=True)
+def remember(pat_star, pat_row, failed, n_failed):
+    """:func:`_remember` from Python (tests and tools); the kernels call that one, so this entry point
+    is compiled only when Python calls it."""
+    return _remember(pat_star, pat_row, failed, n_failed)

@@ -142,7 +142,7 @@ def _cross(u0, u1, u2, w0, w1, w2):
     return u1 * w2 - u2 * w1, u2 * w0 - u0 * w2, u0 * w1 - u1 * w0
 
 
-@njit(cache=True)
+@_inner
 def triangle_features(r1, r2, r3):
     """``(area, moment, diameter_rad)`` of the chord triangle of three unit vectors.
 
@@ -173,7 +173,7 @@ def triangle_features(r1, r2, r3):
     return area, moment, diameter
 
 
-@njit(cache=True)
+@_inner
 def triangle_variances(r1, r2, r3, sigma_rad):
     """``(var_area, var_moment)`` of the chord triangle under the QUEST noise model.
 
@@ -277,7 +277,7 @@ def entry_triangles(moment_perm):
     return entry - entry % MOMENT_BLOCK + moment_perm
 
 
-@njit(cache=True)
+@_inner
 def _moment_filter(moment, moment_perm, start, stop, lo, hi):
     """The catalog triangles in ``[start, stop)`` (area order) whose polar moment lies in
     ``[lo, hi]``, as their entries (positions) in the moment index, ascending: the triangle of entry
@@ -499,7 +499,7 @@ def _next_in_chain(prev, used, img_tri, img_area):
     return best
 
 
-@njit(cache=True)
+@_inner
 def _signatures(members, length):
     """Sorted membership bitmasks of the stars of a chain of ``length`` triangles.
 
@@ -920,8 +920,8 @@ def extend_by_distance(img_v, rows, db, tol_chord):
     return out
 
 
-@njit(cache=True)  # the profiling tools call it from Python
-def image_triangles(img_v, db, tol):
+@_inner
+def _image_triangles(img_v, db, tol):
     """Step 1: every image triangle within ``fov_rad`` and of area >= ``min_area``, looked up in
     the area-sorted catalog with the k-vector, ``[A - beta sA, A + beta sA]``; triangles with
     more than ``climit`` hits are dropped (``MatchStarsWPlanarTris.m``)."""
@@ -959,6 +959,13 @@ def image_triangles(img_v, db, tol):
 
 
 @njit(cache=True)
+def image_triangles(img_v, db, tol):
+    """:func:`_image_triangles` from Python (the profiling tools); the identification calls that one, so
+    this entry point is compiled only when a tool calls it."""
+    return _image_triangles(img_v, db, tol)
+
+
+@_inner
 def argsort_desc(values):
     """``np.argsort(-values, kind="mergesort")``: indices by descending value, ties by ascending index.
 
@@ -1003,7 +1010,7 @@ def argsort_desc(values):
 def identify_rows(img_v, db, tol):
     """The whole identification of one image: guide-star row per observed star, -1 if none.
 
-    1. image triangles and their area hits (:func:`image_triangles`);
+    1. image triangles and their area hits (:func:`_image_triangles`);
     2. start triangle = the one of largest area; chain of triangles sharing two stars, at
        most ``pivot_limit`` pivots; finalists filtered by the polar moment; pivot procedure;
     3. a unique finalist chain is turned into per-star rows (chords + chirality);
@@ -1140,7 +1147,7 @@ def identify_subsets(img_v, bright, db, tol, stages):
     work = np.zeros(N_WORK, dtype=np.int64)
     if n < 3:
         return out, chain, -1, work
-    img = image_triangles(img_v, db, tol)
+    img = _image_triangles(img_v, db, tol)
     work[4] = img.tri.shape[0]
     cache = new_cache(img, db.unit.shape[0])
     tol_chord = tol.beta * math.sqrt(2.0) * tol.sigma_rad

@@ -142,8 +142,8 @@ def _adjacency(pairs, start, stop, head, stamp, tick, nxt, val):
             cnt += 1
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
-def triad_triangles(v_cam, si, sj, sk, win_ij, win_ik, pairs, guide_unit, eps, work, tick, out):
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+def _triad_triangles(v_cam, si, sj, sk, win_ij, win_ik, pairs, guide_unit, eps, work, tick, out):
     """Catalog triangles (I, J, K) matching the image triad (i, j, k) (the paper's triangle step).
 
     (I, J) runs over the k-vector window of side ij, K over the partners of I in the window of
@@ -185,8 +185,8 @@ def triad_triangles(v_cam, si, sj, sk, win_ij, win_ik, pairs, guide_unit, eps, w
     return count
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
-def neighbours_within(nbr_chord, nbr_start, big_i, lo, hi):
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+def _neighbours_within(nbr_chord, nbr_start, big_i, lo, hi):
     """Index range of guide row ``big_i``'s neighbours whose chord lies in ``[lo, hi]`` (bisection)."""
     a = nbr_start[big_i]
     b = nbr_start[big_i + 1]
@@ -208,8 +208,8 @@ def neighbours_within(nbr_chord, nbr_start, big_i, lo, hi):
     return first, x
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
-def fourth_star(v_cam, sel, tri_pos, tri_rows, nbr, nbr_chord, nbr_start, guide_unit, eps):
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+def _fourth_star(v_cam, sel, tri_pos, tri_rows, nbr, nbr_chord, nbr_start, guide_unit, eps):
     """The pyramid's confirming star: the first selected star r (brightness order) with exactly
     one catalog star R at the right distance (+- ``eps``) from all three triangle stars.
 
@@ -228,7 +228,7 @@ def fourth_star(v_cam, sel, tri_pos, tri_rows, nbr, nbr_chord, nbr_start, guide_
         ck = chord_rows(v_cam, sel[pk], v_cam, sr)
         found = -1
         n_found = 0
-        lo, hi = neighbours_within(nbr_chord, nbr_start, big_i, ci - eps, ci + eps)
+        lo, hi = _neighbours_within(nbr_chord, nbr_start, big_i, ci - eps, ci + eps)
         for e in range(lo, hi):
             big_r = np.int64(nbr[e])
             if big_r == big_j or big_r == big_k:
@@ -244,8 +244,8 @@ def fourth_star(v_cam, sel, tri_pos, tri_rows, nbr, nbr_chord, nbr_start, guide_
     return -1, -1
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
-def _confirm(v_cam, pyr_star, pyr_row, guide_unit, tol, cam, rows):
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+def _confirm_pyramid(v_cam, pyr_star, pyr_row, guide_unit, tol, cam, rows):
     """Attitude of the pyramid, the other stars by reprojection, and the confirmation test.
 
     Wahba on the four pyramid stars; ``reproject_assign`` identifies every detection lying
@@ -403,7 +403,7 @@ def pyramid_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_
                         and _window(v_cam, sel, i, k, kv, tol, start, stop, work)):
                     continue
                 work[2] += stop[i, j] - start[i, j] + stop[i, k] - start[i, k]
-                n_tri = triad_triangles(v_cam, sel[i], sel[j], sel[k], (start[i, j], stop[i, j]),
+                n_tri = _triad_triangles(v_cam, sel[i], sel[j], sel[k], (start[i, j], stop[i, j]),
                                         (start[i, k], stop[i, k]), pairs, guide_unit, tol.eps, work_lists, n_triads,
                                         tri)
                 work[3] += n_tri
@@ -426,7 +426,7 @@ def pyramid_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_
                     return rows, _hip(rows, guide_hip), wahba_rows(v_cam, rows, guide_unit), pyramid, work
                 n_ok = 0
                 for t in range(n_tri):
-                    r, big_r = fourth_star(v_cam, sel, tri_pos, tri[t], nbr, nbr_chord, nbr_start, guide_unit,
+                    r, big_r = _fourth_star(v_cam, sel, tri_pos, tri[t], nbr, nbr_chord, nbr_start, guide_unit,
                                            tol.eps)
                     if r < 0:
                         continue
@@ -436,7 +436,7 @@ def pyramid_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_
                     cand_star[3] = sel[r]
                     cand_row[3] = big_r
                     work[4] += 1
-                    ok, cand_attitude = _confirm(v_cam, cand_star, cand_row, guide_unit, tol, cam, trial_rows)
+                    ok, cand_attitude = _confirm_pyramid(v_cam, cand_star, cand_row, guide_unit, tol, cam, trial_rows)
                     if not ok:
                         continue
                     n_ok += 1
@@ -456,7 +456,7 @@ def pyramid_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_
     return rows, _hip(rows, guide_hip), np.zeros((3, 3)), pyramid, work
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _hip(rows, guide_hip):
     """Catalog id of each detection's guide row (-1 stays -1)."""
     hip = np.full(rows.shape[0], -1, dtype=np.int64)
@@ -464,3 +464,31 @@ def _hip(rows, guide_hip):
         if rows[s] >= 0:
             hip[s] = guide_hip[rows[s]]
     return hip
+
+
+@njit(cache=True)
+def triad_triangles(v_cam, si, sj, sk, win_ij, win_ik, pairs, guide_unit, eps, work, tick, out):
+    """:func:`_triad_triangles` from Python (tests and tools); the kernels call that one, so this entry point
+    is compiled only when Python calls it."""
+    return _triad_triangles(v_cam, si, sj, sk, win_ij, win_ik, pairs, guide_unit, eps, work, tick, out)
+
+
+@njit(cache=True)
+def neighbours_within(nbr_chord, nbr_start, big_i, lo, hi):
+    """:func:`_neighbours_within` from Python (tests and tools); the kernels call that one, so this entry point
+    is compiled only when Python calls it."""
+    return _neighbours_within(nbr_chord, nbr_start, big_i, lo, hi)
+
+
+@njit(cache=True)
+def fourth_star(v_cam, sel, tri_pos, tri_rows, nbr, nbr_chord, nbr_start, guide_unit, eps):
+    """:func:`_fourth_star` from Python (tests and tools); the kernels call that one, so this entry point
+    is compiled only when Python calls it."""
+    return _fourth_star(v_cam, sel, tri_pos, tri_rows, nbr, nbr_chord, nbr_start, guide_unit, eps)
+
+
+@njit(cache=True)
+def _confirm(v_cam, pyr_star, pyr_row, guide_unit, tol, cam, rows):
+    """:func:`_confirm_pyramid` from Python (tests and tools); the kernels call that one, so this entry point
+    is compiled only when Python calls it."""
+    return _confirm_pyramid(v_cam, pyr_star, pyr_row, guide_unit, tol, cam, rows)
