@@ -146,7 +146,7 @@ SKIES = {
 }
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def _merge_labels(x_px, y_px, radius_px):
     """Union-find labels of stars closer than ``radius_px`` (label = smallest member index)."""
     n = x_px.shape[0]

@@ -39,7 +39,6 @@ EXCEPTIONS = {
     "starid.kernels.kvector.kvector_range": "k-vectors with uint16 and int32 ids (different plugins)",
     "starid.kernels.order.before": "read-only observation arrays and writable copies",
     "starid.kernels.order.sort_rows": "read-only observation arrays and writable copies",
-    "starid_algorithms.lpt_improved.planar.plane_polar": "int32 catalogue neighbour lists and int64 image ones",
     "starid_algorithms.lpt_improved.planar.keep_best": "float scores (grid) and int scores (lpt, lpt_improved)",
     "starid_algorithms.lpt_improved.planar.tangent_basis": "float32 catalogue and float64 image vectors",
     "starid_algorithms.pyramid.kernels.triple": "float32 catalogue and float64 image vectors; a 1-line helper",

@@ -417,7 +417,7 @@ def _search(v_cam, sel, start, stop, pairs, nbr, nbr_chord, nbr_start, guide_uni
     return rows, pair
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def support(v_cam, sel, a, b, big_i, big_j, nbr, nbr_chord, nbr_start, guide_unit, eps, n_check, need, chirality):
     """:func:`_support` from Python (tests and tools); the kernels call that one, so this entry point
     is compiled only when Python calls it."""
@@ -425,7 +425,7 @@ def support(v_cam, sel, a, b, big_i, big_j, nbr, nbr_chord, nbr_start, guide_uni
                     chirality)
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def confirm_pattern(v_cam, pat_star, pat_row, guide_unit, c_fov, eps, widen, cam, min_extra, confirm_fraction, rows):
     """:func:`_confirm_pattern` from Python (tests and tools); the kernels call that one, so this entry point
     is compiled only when Python calls it."""

@@ -100,7 +100,7 @@ def _fourth_star(stars, hits, counts, cat, buf):
     return found if n == 1 else -1
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def composite_kernel(x_px, y_px, mag, index, guide_unit, tol, cam):
     """Identify one image. Returns ``(rows, attitude, stars4, work)`` (``stars4``: the trio and the
     fourth star of the accepted identification, -1 when none; ``work``: the spherical triangle's
@@ -217,7 +217,7 @@ def composite_kernel(x_px, y_px, mag, index, guide_unit, tol, cam):
     return rows, np.zeros((3, 3)), out4, work
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def fourth_star(stars, hits, counts, cat, buf):
     """:func:`_fourth_star` from Python (tests and tools); the kernels call that one, so this entry point
     is compiled only when Python calls it."""

@@ -313,35 +313,35 @@ def interior_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide
     return rows, trio, work
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def angle_at(cx, cy, cz, ix, iy, iz, jx, jy, jz):
     """:func:`_angle_at` from Python (tests and tools); the kernels call that one, so this entry point
     is compiled only when Python calls it."""
     return _angle_at(cx, cy, cz, ix, iy, iz, jx, jy, jz)
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def interior_angle(u, c, i, j):
     """:func:`_interior_angle` from Python (tests and tools); the kernels call that one, so this entry point
     is compiled only when Python calls it."""
     return _interior_angle(u, c, i, j)
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def nearest_two(v_cam, sel, c):
     """:func:`_nearest_two` from Python (tests and tools); the kernels call that one, so this entry point
     is compiled only when Python calls it."""
     return _nearest_two(v_cam, sel, c)
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def seen_before(pat_star, pat_row, failed, n_failed):
     """:func:`_seen_before` from Python (tests and tools); the kernels call that one, so this entry point
     is compiled only when Python calls it."""
     return _seen_before(pat_star, pat_row, failed, n_failed)
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def remember(pat_star, pat_row, failed, n_failed):
     """:func:`_remember` from Python (tests and tools); the kernels call that one, so this entry point
     is compiled only when Python calls it."""

@@ -47,7 +47,7 @@ class StringSearch(NamedTuple):
     double_px: float
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def lpt_string(r_px, phi, n, search, out, owner):
     """The LPT string of a pattern: character k = the log-radius row of the nearest star in sector k.
 
@@ -96,7 +96,7 @@ class Strings(NamedTuple):
     start: np.ndarray
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def build_strings(unit, nbr, nbr_off, f_px, search):
     """LPT string of every guide star (rows of ``unit``), dense uint8 ``(g, n_sectors)``."""
     n_guide = unit.shape[0]
@@ -123,7 +123,7 @@ def sparse_strings(strings: np.ndarray) -> Strings:
     return Strings(sector.astype(sector_dtype), strings[g_idx, sector].astype(np.uint8), start)
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def dense_string(chars, g, out):
     """Guide ``g``'s string in the layout of :func:`lpt_string`, written into ``out`` (length m)."""
     for k in range(out.shape[0]):
@@ -148,7 +148,7 @@ class ImageString(NamedTuple):
     mask: np.ndarray
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def index_image(img_sector, img_level, nz, search, level_start, by_level, mask):
     """Fill ``level_start`` (n_levels + 2), ``by_level`` and ``mask`` (n_levels + 1) of an :class:`ImageString`."""
     q = 0
@@ -201,7 +201,7 @@ def _lowest_bit(x):
     return n
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def rank_key(matched, n_chars):
     """Ranking key of a match: more matched characters first; among equals, fewer unmatched database characters.
 
@@ -210,7 +210,7 @@ def rank_key(matched, n_chars):
     return 1024 * matched - min(n_chars - matched, 1023)
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def least_needed(threshold, n_chars, min_score):
     """Smallest score ``>= min_score`` whose :func:`rank_key` is above ``threshold`` (the last of a full list)."""
     need = max(min_score, threshold // 1024 - 1)
@@ -219,7 +219,7 @@ def least_needed(threshold, n_chars, min_score):
     return need
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def match_bound(chars, g, img):
     """Upper bound of guide ``g``'s best score, without trying shifts.
 
@@ -242,7 +242,7 @@ def match_bound(chars, g, img):
     return min(n_pairs, img.nz)
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def shift_scores(chars, g, img, search, sets, planes):
     """Best circular shift of guide ``g``'s string against the image string: ``(best_score, best_shift)``.
 
@@ -324,7 +324,7 @@ def best_shift(sets, nz, nw, planes, cand):
     return best, first_w * 64 + _lowest_bit(cand[first_w])
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def window_counts(img, search, most):
     """``most[L]`` (L = 1..n_levels): the most image characters near row L in any few consecutive sectors.
 
@@ -366,7 +366,7 @@ def fill_pattern(pattern, m, sector_tol):
             pattern[x, s >> 6] |= np.int64(1) << (s & 63)
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def shift_tables(img, search, tables):
     """Per reference star, the shifts under which one database character matches image characters.
 
@@ -425,7 +425,7 @@ def shift_tables_of(img, search, most, by_level_x, pattern2, tables):
                 tables[2, lv, j, 1] = r3b
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", no_cfunc_wrapper=True)
 def reaches_tables(chars, g, need, tables, planes):
     """Whether guide ``g``'s best score can reach ``need``: false only when :func:`shift_scores` is below it.
 
@@ -483,7 +483,7 @@ def reaches_tables_at(chars, g, need, most, tables, planes):
     return (gta | eqa | gtb | eqb) != 0
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", no_cfunc_wrapper=True)
 def image_groups(chars, g, img, u, pattern, valid, xs, groups):
     """A necessary condition of guide ``g``'s best score reaching ``nz - u`` (``u >= 0``): false only when it does not.
 
@@ -515,7 +515,7 @@ def at_forms(img, pattern):
     return by_level_x, pattern2
 
 
-@njit(cache=True, inline="always")   # one call site, the scan's most frequent test
+@njit(cache=True, inline="always", no_cfunc_wrapper=True)   # one call site, the scan's most frequent test
 def image_groups_at(chars, g, img, by_level_x, u, pattern2, valid, xs, groups):
     """:func:`image_groups` without a branch per pair: ``by_level_x[p]`` = m - (sector of ``img.by_level[p]``),
     and ``pattern2[y]`` (int64 (2 m, 2)) = ``pattern[y mod m]``, read at ``j + by_level_x[p]``."""
@@ -549,7 +549,7 @@ def image_groups_at(chars, g, img, by_level_x, u, pattern2, valid, xs, groups):
     return (any_a | any_b) != 0
 
 
-@njit(cache=True, inline="always")   # one call site, the scan's second most frequent test
+@njit(cache=True, inline="always", no_cfunc_wrapper=True)   # one call site, the scan's second most frequent test
 def reaches_groups(chars, g, v, most, tables, valid, groups):
     """A necessary condition of :func:`reaches_budget` (same arguments): false only when it is false.
 
@@ -580,7 +580,7 @@ def reaches_groups(chars, g, v, most, tables, valid, groups):
     return (any_a | any_b) != 0
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def reaches_budget(chars, g, v, most, tables, valid, at_most):
     """Whether some shift s has ``sum over g's characters q of w_q(s) >= total - v`` (see :func:`reaches_tables`).
 
@@ -739,14 +739,14 @@ def refined_roll(row, img_sector, img_level, img_phi, nz, shift, search):
     return base + (total / count if count else 0.5 * width)
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def search_at(p, i):
     """The :class:`StringSearch` packed at ``p[i:i+11]`` by ``planar.pack_params``."""
     return StringSearch(int(p[i]), int(p[i + 1]), p[i + 2], p[i + 3], p[i + 4], int(p[i + 5]), int(p[i + 6]),
                         int(p[i + 7]), int(p[i + 8]), int(p[i + 9]), p[i + 10])
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def identify_kernel(x_px, y_px, params, char_sector, char_level, char_start, scan_guide, count_start, scan_levels,
                     scan_counts, guides_unit, z_start, trace):
     """LPT identification of one image; returns ``(rows, attitude, accepted)``.

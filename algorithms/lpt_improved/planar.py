@@ -968,7 +968,7 @@ TRACE_WORK = 4
 WORK_COUNTERS = ("patterns", "comparisons", "verifications")
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", no_cfunc_wrapper=True)
 def count_work(trace, k, n):
     """Add ``n`` to work counter ``k`` (0 patterns, 1 comparisons, 2 verifications) of ``trace``
     when ``trace`` has room for it (a 4-slot trace counts nothing)."""

@@ -28,6 +28,7 @@ from starid.kernels import (
     wahba_rows,
     z_band_rows,
 )
+from starid.kernels.jit import inner as _inner
 from starid.kernels.order import search_left, sort_int_prefix
 
 MOMENT_BLOCK = 256  # triangles per block of the moment index (offsets fit uint8)
@@ -56,9 +57,6 @@ MEMO_NODES = 1 << 15  # room for the memoised pivots' new finalists per image (f
 #: the same triangle builds the whole table, kept for the other subsets)
 FEW_FINALISTS = 256
 KEY_BASE = 65536  # star indices are < 65536 (uint16), so a sorted pair packs into lo * 65536 + hi
-#: the decorator of a kernel that only other kernels call: numba builds no Python and no C wrapper for it
-#: (~30 ms of a cold compile each); call it from Python through a kernel that does
-_inner = njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)
 
 
 class Rules(NamedTuple):
@@ -219,7 +217,7 @@ def triangle_variances(r1, r2, r3, sigma_rad):
     return s * var_a, s * var_j
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def scan_triangles(unit, nbr_ptr, nbr_idx, rules, offsets, fill):
     """Catalog triangles ``i < j < k`` that pass the database ``rules``.
 
@@ -958,7 +956,7 @@ def _image_triangles(img_v, db, tol):
     return ImageTriangles(img_v, img_tri[:m], img_area[:m], img_start[:m], img_stop[:m], np.arange(m))
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def image_triangles(img_v, db, tol):
     """:func:`_image_triangles` from Python (the profiling tools); the identification calls that one, so
     this entry point is compiled only when a tool calls it."""
@@ -1057,7 +1055,7 @@ def _stable_sort(items, n, k0, k1, k2):
         items[j + 1] = cur
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def choose_stars(x_px, y_px, mag, mag_max, n_chosen, f_px, cx_px, cy_px):
     """The stars the triangles are built from, in one call (what ``PlanarTriangle._run`` did with
     ``np.flatnonzero``, three ``np.lexsort`` and the back-projection): those with ``mag <= mag_max``,
@@ -1123,7 +1121,7 @@ def _sub_triangles(img, idx, size, sub_v):
     return ImageTriangles(sub_v, tri, img.area[keep], img.start[keep], img.stop[keep], img.gid[keep])
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def identify_subsets(img_v, bright, db, tol, stages):
     """Brightest-first star subsets: the pivoting of :func:`identify_rows` on subsets of the stars.
 
@@ -1321,7 +1319,7 @@ def coverage(attitude, deep, deep_mag, mag_max, found_hip, frame):
     return predicted, missed
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def finish(x_px, y_px, mag, rows, guide_unit, guide_hip, deep, deep_mag, frame, rules):
     """Attitude, the core final assignment and the coverage check, for ``rows`` (guide rows or -1).
 

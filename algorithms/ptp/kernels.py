@@ -246,7 +246,7 @@ def _before(dist, unit, i, j):
     return unit[i, 1] < unit[j, 1]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", no_cfunc_wrapper=True)
 def nearest_slaves(dist_row, unit, usable, master, d_min, d_max, n_slaves, out):
     """The ``n_slaves`` usable stars nearest ``master`` with ``d_min <= D_ms <= d_max`` (eq. 2), nearest first.
 
@@ -273,7 +273,7 @@ def nearest_slaves(dist_row, unit, usable, master, d_min, d_max, n_slaves, out):
     return m
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", no_cfunc_wrapper=True)
 def build_triangles(unit, neighbours, neighbour_offsets, d_min, d_max, n_slaves, scale):
     """Feature triangles of every master star (section 2.1, step 1).
 
@@ -315,7 +315,7 @@ def _grad_var(g0, g1, g2, t, i):
     return g0 * g0 + g1 * g1 + g2 * g2 - gt * gt
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", no_cfunc_wrapper=True)
 def projection_sigma(t, i1, i2, i3, a, b, c, w, sigma, scale):
     """Analytic standard deviation of the projection, eqs. 6-14.
 
@@ -346,7 +346,7 @@ def side_sigma(side, sigma):
     return sigma * math.sqrt(max(2.0 - 0.5 * side * side, 0.0))
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", no_cfunc_wrapper=True)
 def _window(t, i1, i2, i3, sides, kv, mean, w, sigma, scale, beta):
     """Sides (eq. 4), projection (eq. 5) and k-vector window [p - xi, p + xi] (eqs. 13-19) of a triangle."""
     lo, hi = _window_bounds(t, i1, i2, i3, sides, mean, w, sigma, scale, beta)
@@ -386,7 +386,7 @@ def _side_window(sides, sigma, scale, side_beta):
     return a, b, c, ta, tb, tc
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", no_cfunc_wrapper=True)
 def _side_check(sides, start, stop, db_sides, sigma, scale, side_beta, out_cand):
     """Database rows in ``[start, stop)`` whose three sides all agree with ``sides``; returns the count.
 
@@ -427,7 +427,7 @@ def _index_bins(a, ta, index):
     return i0, i1
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", no_cfunc_wrapper=True)
 def _side_check_indexed(sides, start, stop, index, sigma, scale, side_beta, out_cand):
     """The rows of :func:`_side_check` (the same rows, ascending), read through the :class:`SideIndex`: only
     the entries of the window ``[start, stop)`` whose side a lies in a bin within the tolerance of
@@ -502,7 +502,7 @@ def _triple_key(i, j, k, n):
     return (a * n + b) * n + c
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", no_cfunc_wrapper=True)
 def argsort_int(keys):
     """Ascending, stable order of int64 ``keys``: the shared merge sort
     (:func:`starid.kernels.order.stable_sort_by_key`, which compiles in a fraction of the time of
@@ -513,7 +513,7 @@ def argsort_int(keys):
     return order
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", no_cfunc_wrapper=True)
 def select_stars(x_px, y_px, mag, max_stars):
     """Indices of the ``max_stars`` brightest detections (ties: by x, then y), brightest first."""
     n = x_px.shape[0]
@@ -537,7 +537,7 @@ def select_stars(x_px, y_px, mag, max_stars):
 WORK_NAMES = ("searches", "window_triangles", "candidates", "hypotheses")
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", no_cfunc_wrapper=True)
 def identify_kernel(x_px, y_px, mag, params, narrow, wide):
     """One int64 array (:func:`unpack_out`: one array to box instead of four, some 8 us of a call that finds
     Python's objects out of the cache): the catalog id of each detection (-1 = none), the work counters

@@ -466,28 +466,28 @@ def _hip(rows, guide_hip):
     return hip
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def triad_triangles(v_cam, si, sj, sk, win_ij, win_ik, pairs, guide_unit, eps, work, tick, out):
     """:func:`_triad_triangles` from Python (tests and tools); the kernels call that one, so this entry point
     is compiled only when Python calls it."""
     return _triad_triangles(v_cam, si, sj, sk, win_ij, win_ik, pairs, guide_unit, eps, work, tick, out)
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def neighbours_within(nbr_chord, nbr_start, big_i, lo, hi):
     """:func:`_neighbours_within` from Python (tests and tools); the kernels call that one, so this entry point
     is compiled only when Python calls it."""
     return _neighbours_within(nbr_chord, nbr_start, big_i, lo, hi)
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def fourth_star(v_cam, sel, tri_pos, tri_rows, nbr, nbr_chord, nbr_start, guide_unit, eps):
     """:func:`_fourth_star` from Python (tests and tools); the kernels call that one, so this entry point
     is compiled only when Python calls it."""
     return _fourth_star(v_cam, sel, tri_pos, tri_rows, nbr, nbr_chord, nbr_start, guide_unit, eps)
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def _confirm(v_cam, pyr_star, pyr_row, guide_unit, tol, cam, rows):
     """:func:`_confirm_pyramid` from Python (tests and tools); the kernels call that one, so this entry point
     is compiled only when Python calls it."""

@@ -81,7 +81,7 @@ def first_query_check(work, rows, first_trio, first_cand, stars):
             return
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def spherical_kernel(x_px, y_px, mag, index, guide_unit, tol, cam):
     """Identify one image. Returns ``(rows, attitude, trio, work)``; ``work``: the counters
     :data:`WORK_NAMES` -- image trios tried, (area, moment) queries made (pivots included), and the

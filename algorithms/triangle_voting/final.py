@@ -20,13 +20,12 @@ import numpy as np
 from numba import njit
 
 from starid.kernels import backproject_px, chord_rows, wahba_rows
+from starid.kernels.jit import inner as _inner
 from starid.kernels.prefetch import prefetch
 
-#: kernels only other kernels call: no Python or C entry point to compile (issue #25, compile time)
-_inner = njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)
 
 # inline="always": called for arrays of several dtypes and row sizes (literal); inlined, it adds no signature
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", no_cfunc_wrapper=True)
 def _prefetch_rows(arr, ranges, count, per_line):
     """:func:`~starid.kernels.prefetch.prefetch` every ``per_line``-th row of ``arr`` in the row ranges
     ``ranges[:count]`` (rows of ``64 / per_line`` bytes or more: one request per cache line), and each
@@ -70,7 +69,7 @@ def ra_key(x, y):
     return 3.0 + x / (x - y)
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def deep_keys(unit):
     """Per row of ``unit`` (float32 (m, 3)) its :func:`deep_band` and :func:`ra_key` (the sort keys of the order)."""
     m = unit.shape[0]
@@ -161,7 +160,7 @@ def _cone_bounds(cx, cy, cz, c_radius):
     return b0, b1, full, k0, k1, wrap
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def cone_ranges(unit, cx, cy, cz, c_radius, ranges):
     """Row ranges ``ranges[:count]`` (start, stop) of the deep sky that hold every row within chord
     ``c_radius`` of the direction ``(cx, cy, cz)`` (unit length); returns ``count``."""
@@ -190,7 +189,7 @@ def cone_ranges(unit, cx, cy, cz, c_radius, ranges):
     return count
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def cone_ranges_indexed(unit, index, cx, cy, cz, c_radius, ranges):
     """:func:`cone_ranges` (the same ranges) with the cells of :func:`deep_index`: a band's rows from the index, and
     each key's binary search only over its bucket (rows of a lower bucket have a smaller key, of a higher bucket
@@ -398,7 +397,7 @@ def _coverage(attitude, deep_unit, deep_index, deep_hip, deep_mag, mag_max, foun
 
 
 # inline="always": identify_image takes its body in numba IR (one level of compilation less; see identify_rows)
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", no_cfunc_wrapper=True)
 def finish_cone(x_px, y_px, mag, rows, guide_unit, guide_hip, deep_unit, deep_index, deep_hip, deep_mag, f_px, cx_px,
                 cy_px, width_px, height_px, eps_chord, mag_margin, mag_limit, coverage_mag_margin, max_missed_fraction,
                 assign_all):

@@ -17,13 +17,11 @@ from numba import njit
 from starid_algorithms.planar_triangle.kernels import argsort_desc
 
 from starid.kernels import backproject_px, chord_rows, verify_pairwise, wahba_rows
+from starid.kernels.jit import inner as _inner
 from starid.kernels.params import exact_float64
 from starid.kernels.prefetch import prefetch
 
 from .final import finish_cone
-
-#: kernels only other kernels call: no Python or C entry point to compile (issue #25, compile time)
-_inner = njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)
 
 #: names of the per-image work counters :func:`identify_rows` returns (``Identification.counters``):
 #: image triangles looked up in the grid, catalog records in the grid cells scanned, records within
@@ -146,7 +144,7 @@ TOL_MIN_STARS = Tolerance._fields.index("min_stars")
 TOL_MAX_HYPOTHESES = Tolerance._fields.index("max_hypotheses")
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def triangle_features(s, a, b):
     """``(base, height, t)`` of the triangle with apex ``s`` over the base ``a``-``b`` (chord units)."""
     abx = b[0] - a[0]
@@ -167,7 +165,7 @@ def triangle_features(s, a, b):
     return base, height, t
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def build_triangles(unit, rank, nbr_ptr, nbr_idx, lam, dmin_chord):
     """Triangle records of every star: ``(base, height, main, n_i, n_j)``.
 
@@ -229,7 +227,7 @@ def build_triangles(unit, rank, nbr_ptr, nbr_idx, lam, dmin_chord):
 SIDE_ROUNDING = 2.5e-7
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def record_sides(unit, main, n_i, n_j):
     """Per record the chords main-to-``n_i`` and main-to-``n_j`` (``chord_rows`` of ``unit``) as float32.
 
@@ -327,7 +325,7 @@ def _rehash(touched_o, touched_c, n_touched, n_guide, size):
     return slots
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def vote(v_cam, db, tol, votes, mark):
     """Triangle voting (Fan & Zhong's double feature constraint) over a 2-D grid index.
 
@@ -739,7 +737,7 @@ def select_candidates(v_cam, cand, cand_votes, cat_unit, tol_chord):
     return chosen, chosen_votes
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def sky_cell_of(u, n_axis):
     """Cell of a unit vector in the uniform ``n_axis``^3 grid over the cube [-1, 1]^3."""
     ix = min(int((u[0] + 1.0) * 0.5 * n_axis), n_axis - 1)
@@ -938,7 +936,7 @@ def _any_row(rows):
 # inline="always": identify_image takes its body in numba IR, so it is not compiled and optimised once more as a
 # level of its own between identify_image and vote (numba re-optimises every linked callee at each level); tools
 # calling it from Python compile it as usual
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", no_cfunc_wrapper=True)
 def identify_rows(v_cam, db, tol, votes, mark):
     """The whole identification of one image (``v_cam`` brightest first): ``(rows, work)``, the guide
     row per star or -1 and :func:`vote`'s work counters.
@@ -1004,7 +1002,7 @@ def flat_params(db: tuple, tol: tuple, fin_cam: tuple) -> np.ndarray:
     return exact_float64([db[k] for k in PARAMS_DB] + list(tol) + list(fin_cam), "triangle voting's kernel parameters")
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def identify_flat(x_px, y_px, mag, features, records, rows, cell_start, unit, sky_start, unit64, guide_hip, deep_unit,
                   deep_index, deep_hip, deep_mag, p):
     """:func:`identify_image` with its bundles' arrays as arguments of their own and their scalars in one float64
@@ -1028,7 +1026,7 @@ def identify_flat(x_px, y_px, mag, features, records, rows, cell_start, unit, sk
     return status, hip, attitude, accepted, work[0], work[1], work[2], work[3], n_named
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def identify_image(x_px, y_px, mag, db, tol, fin_db, fin_cam):
     """:func:`_identify_image` from Python with the plain tuples (the tools call it; ``identify`` calls
     :func:`identify_flat`)."""
@@ -1036,7 +1034,7 @@ def identify_image(x_px, y_px, mag, db, tol, fin_db, fin_cam):
 
 
 # inline="always": identify_flat (and identify_image) take its body in numba IR, as identify_rows'
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", no_cfunc_wrapper=True)
 def _identify_image(x_px, y_px, mag, db, tol, fin_db, fin_cam):
     """``identify`` of one image in one call: ``(status, hip, attitude, accepted, work, n_named)``, ``n_named`` the
     number of stars with an id (``hip >= 0``; the wrapper's photometry check reads only small results).

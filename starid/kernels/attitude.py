@@ -16,7 +16,7 @@ def _det3(M):
             + M[0, 2] * (M[1, 0] * M[2, 1] - M[1, 1] * M[2, 0]))
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def wahba_rows(v, rows, unit):
     """ICRS -> camera rotation from the stars with ``rows >= 0`` (Wahba's problem, equal weights).
 

@@ -61,7 +61,7 @@ def kvector_rows(k, n, jb, jt):
     return start, stop
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def kvector_slice(k, m, q, n, lo, hi):
     """Index range ``[start, stop)`` of the ``n`` sorted keys that holds every key in ``[lo, hi]``,
     from the k-vector alone: the O(1) slice :func:`kvector_range` then trims
@@ -94,7 +94,7 @@ def kvector_trim(sorted_values, n, start, stop, lo, hi):
     return start, stop
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def kvector_range(sorted_values, k, m, q, lo, hi):
     """Index range ``[start, stop)`` of ``sorted_values`` lying in ``[lo, hi]``.
 
@@ -133,7 +133,7 @@ def kvector_make(sorted_values: np.ndarray, values_dtype=np.float64, index_dtype
     return KVector(values, k.astype(index_dtype), m, q)
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def kvector_query(kv, lo, hi):
     """Index range ``[start, stop)`` of ``kv.values`` lying in ``[lo, hi]`` (see :func:`kvector_range`)."""
     return kvector_range(kv[0], kv[1], kv[2], kv[3], lo, hi)

@@ -9,11 +9,10 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-#: kernels only other kernels call: no Python or C wrapper to compile (~30 ms each, cold)
-_inner = njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)
+from .jit import inner as _inner
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def before(key, x_px, y_px, i, j):
     """True when detection ``i`` comes before ``j``: smaller ``key``, exact ties by x, then y."""
     if key[i] != key[j]:
@@ -74,7 +73,7 @@ def stable_sort_by_key(rows, n, key):
         rows[a] = src[a]
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def sort_rows(rows, n, key, x_px, y_px):
     """Sort ``rows[:n]`` in place by :func:`before` (stable): an insertion sort, after a stable
     merge sort by ``key`` alone when there are more than :data:`PRESORT_ROWS` of them."""
@@ -89,7 +88,7 @@ def sort_rows(rows, n, key, x_px, y_px):
         rows[b + 1] = r
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def order_by(key, x_px, y_px):
     """Indices of all detections in :func:`before` order."""
     order = np.arange(key.shape[0])
@@ -113,7 +112,7 @@ def search_left(a, v):
     return lo
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def sort_int_prefix(a, n):
     """Sort ``a[:n]`` (integers) ascending in place: the array ``np.sort`` gives (equal integers are
     indistinguishable), without compiling numpy's quicksort (~0.7 CPU s cold, and again in every

@@ -67,7 +67,7 @@ def _angle(ux, uy, uz, wx, wy, wz):
     return math.atan2(math.sqrt(cx * cx + cy * cy + cz * cz), ux * wx + uy * wy + uz * wz)
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def tri_features(r1, r2, r3, kind, depth):
     """``(area, moment)`` of the triangle of unit vectors ``r1, r2, r3`` (see the module docstring)."""
     e1 = np.empty(3)  # r2 - r1, r3 - r1 as loops (array expressions compile a ufunc kernel each)
@@ -133,7 +133,7 @@ def tri_features(r1, r2, r3, kind, depth):
     return area, moment
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def tri_windows(r1, r2, r3, kind, depth, sigma_rad, beta):
     """``(area, moment, half_area, half_moment)``: features and their ``beta``-sigma half-widths.
 
@@ -191,7 +191,7 @@ def _chord(u, i, w, j):
     return math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def scan_catalog(unit, nbr_ptr, nbr_idx, chord_max, kind, depth, min_area, fill, stars, area, moment):
     """Every guide-star triple (i < j < k) with all three chords <= ``chord_max`` and area >= ``min_area``.
 
@@ -258,7 +258,7 @@ def _sides_agree(unit, g0, g1, g2, sides, eps):
     return abs(x - sides[0]) <= eps and abs(y - sides[1]) <= eps and abs(z - sides[2]) <= eps
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def tri_query(index, a_lo, a_hi, m_lo, m_hi, max_hits, truncate, unit, sides, eps_side, out):
     """Triangles with area in ``[a_lo, a_hi]`` and moment in ``[m_lo, m_hi]``, written into ``out``
     (int64 positions in the block order); with ``eps_side > 0`` also with sorted chords (stars = rows of
@@ -409,7 +409,7 @@ def build_triangle_index(unit: np.ndarray, chord_max: float, kind: int, depth: i
                          stars=np.ascontiguousarray(stars[order]))
 
 
-@njit(cache=True)   # spherical_triangle's testing.py calls it from Python
+@njit(cache=True, no_cfunc_wrapper=True)   # spherical_triangle's testing.py calls it from Python
 def trio_query(v_cam, a, b, c, index, kind, depth, sigma_rad, beta, fixed_area, fixed_moment, chord_max,
                max_hits, truncate, unit, eps_side, out):
     """:func:`tri_query` for the image triangle of rows ``a, b, c`` of ``v_cam``: 0 when a side is longer

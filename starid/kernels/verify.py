@@ -10,7 +10,7 @@ from numba import njit
 from .geometry import chord_rows
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def verify_pairwise(v_cam, cand_row, cat_unit, tol_chord, min_support, min_fraction=0.0):
     """Pairwise angular-consistency verification (algorithm notes 1.5, geometric-voting style).
 
@@ -76,7 +76,7 @@ def z_bound(unit, z, upper):
     return lo
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def z_band_rows(unit, z_centre, c_radius):
     """Rows ``[start, stop)`` of z-sorted unit vectors in the declination band that holds every
     vector within chord ``c_radius`` of a direction whose z component is ``z_centre``."""
@@ -99,7 +99,7 @@ def keep_unique(n_match, out_row):
     return count
 
 
-@njit(cache=True)
+@njit(cache=True, no_cfunc_wrapper=True)
 def reproject_assign(A, v_cam, unit, c_fov, eps, out_row, f_px, cx_px, cy_px, width_px, height_px):
     """Identify observed stars from an attitude: each catalog star predicted at ``A r`` (notes 1.5).
 
