@@ -44,6 +44,7 @@ from starid.kernels import (
     backproject_px,
     camera_frame,
     chord_rows,
+    identity3,
     keep_unique,
     reproject_assign,
     sort_rows,
@@ -431,17 +432,6 @@ def begin_identify(x_px, y_px, sensor, double_px, trace):
     if n < 3:
         order = order[:0]
     return np.full(n, -1, dtype=np.int64), unit, usable, order
-
-
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
-def identity3():
-    """``np.eye(3)``, written out: numba's ``np.eye`` compiles its own overload (with ``min`` and its
-    ``None`` handler, ~0.2 CPU s cold) that no other kernel of these plugins needs."""
-    A = np.empty((3, 3))
-    for i in range(3):
-        for j in range(3):
-            A[i, j] = 1.0 if i == j else 0.0
-    return A
 
 
 @njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
@@ -943,7 +933,8 @@ def confirm_pair_near(unit, rows, seed, s, o, guide_s, guide_o, guides_unit, z_s
     n_first = np.int64(-1)
     A = A0
     if acc.eps0 == acc.eps:
-        tol = pair_attitude(unit, s, o, guides_unit, guide_s, guide_o, A0)
+        # int64 guide rows, as confirm_near passes them: one signature of pair_attitude
+        tol = pair_attitude(unit, s, o, guides_unit, np.int64(guide_s), np.int64(guide_o), A0)
         if tol > 0:
             n_first = pair_first_pass(A0, tol, unit, guides_unit, z_start, acc.c_fov + acc.eps0, acc.eps0, work)
     if n_first >= 0:

@@ -25,6 +25,7 @@ from starid.kernels import (
     explained,
     field_chord,
     guide_rows_f64,
+    identity3,
     keep_unique,
     kvector_slice,
     refine_explained,
@@ -121,17 +122,6 @@ def _ranks_before(x_px, y_px, a, ka, da, b, kb, db):
     if da != db:
         return da < db
     return _precedes(x_px[a], y_px[a], 0.0, x_px[b], y_px[b], 0.0)
-
-
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
-def _identity3():
-    """``np.eye(3)``, written out: numba's ``np.eye`` compiles its own overload (with ``min`` and its
-    ``None`` handler, ~0.2 CPU s cold) that no other kernel of this plugin needs."""
-    A = np.empty((3, 3))
-    for i in range(3):
-        for j in range(3):
-            A[i, j] = 1.0 if i == j else 0.0
-    return A
 
 
 @njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
@@ -419,7 +409,7 @@ def identify_rows(x_in, y_in, mag_in, frame_t, db_t, tol_t):
     tri_found = np.full(3, -1, dtype=np.int64)
     work = np.zeros(len(WORK_NAMES), dtype=np.int64)
     if x_px.shape[0] < 3:
-        return out, _identity3(), False, tri_found, work
+        return out, identity3(), False, tri_found, work
     # only the max_stars brightest detections take part (ties by position)
     sel = _sort_by(mag, x_px, y_px)[:min(x_px.shape[0], tol.max_stars)]
     n = sel.shape[0]
@@ -647,4 +637,4 @@ def identify_rows(x_in, y_in, mag_in, frame_t, db_t, tol_t):
             for j in range(3):
                 tri_found[j] = canon[hyp_obs[h, j]]
             return out, attitude, True, tri_found, work
-    return out, _identity3(), False, tri_found, work
+    return out, identity3(), False, tri_found, work

@@ -27,7 +27,7 @@ from .assign import (
                      field_chord,
                      refine_explained,
 )
-from .attitude import guide_rows_f64, wahba_rows
+from .attitude import guide_rows_f64, identity3, wahba_rows
 from .geometry import (
                      angular_distance_rad,
                      backproject_px,
@@ -47,8 +47,8 @@ from .verify import keep_unique, reproject_assign, verify_pairwise, z_band_rows,
 __all__ = [
     "angular_distance_rad", "assign_all", "backproject_px", "before", "camera_frame", "check_stars", "chord",
     "chord_rows", "chord_to_rad", "deep_sky", "DeepSky", "explained", "field_chord", "Frame", "guide_rows_f64",
-    "keep_unique", "KVector", "kvector_build", "kvector_make", "kvector_query", "kvector_range", "kvector_slice",
-    "order_by", "pairwise_chords",
+    "identity3", "keep_unique", "KVector", "kvector_build", "kvector_make", "kvector_query", "kvector_range",
+    "kvector_slice", "order_by", "pairwise_chords",
     "project_cam", "rad_to_chord", "refine_explained", "reproject_assign", "sort_rows", "triangle_sides",
     "triple_product", "verify_pairwise", "wahba_rows", "z_band_rows", "z_bound",
 ]

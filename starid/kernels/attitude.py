@@ -16,6 +16,17 @@ def _det3(M):
             + M[0, 2] * (M[1, 0] * M[2, 1] - M[1, 1] * M[2, 0]))
 
 
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+def identity3():
+    """``np.eye(3)``, written out: numba's ``np.eye`` compiles its own overload (with ``min`` and its
+    ``None`` handler, ~0.2 CPU s cold), which no kernel needs otherwise; the attitude of "no answer"."""
+    A = np.empty((3, 3))
+    for i in range(3):
+        for j in range(3):
+            A[i, j] = 1.0 if i == j else 0.0
+    return A
+
+
 @njit(cache=True, no_cfunc_wrapper=True)
 def wahba_rows(v, rows, unit):
     """ICRS -> camera rotation from the stars with ``rows >= 0`` (Wahba's problem, equal weights).
