@@ -170,8 +170,12 @@ class Algorithm(abc.ABC):
             cache = {}
             object.__setattr__(self, "_kept", cache)
         held = cache.get(name)
-        if held is not None and len(held[0]) == len(key) and all(a is b for a, b in zip(held[0], key, strict=True)):
-            return held[1]
+        if held is not None and len(held[0]) == len(key):
+            for a, b in zip(held[0], key, strict=True):   # a loop, not all(generator): called for every image
+                if a is not b:
+                    break
+            else:
+                return held[1]
         value = build()
         cache[name] = (key, value)
         return value

@@ -440,38 +440,6 @@ class PTP(Algorithm):
         return self._tol(self.d_min_deg, self.sigma_floor_px)
 
     @cached_property
-    def _derived_slot(self) -> list:
-        return [(None, None)]
-
-    @cached_property
-    def _tol_by_database(self) -> dict:
-        return {}
-
-    def _tolerances_pair(self, database: PTPDatabase) -> tuple[Tolerances, list]:
-        """:meth:`tolerances` and a one-entry memo of the kernel's parameter array (``[(view, params)]``, see
-        :meth:`_kernel_params`). An instance that was not :meth:`derived` (e.g. ``get_algorithm("ptp")()`` as
-        the benchmarks time it) keeps both per database setting in a dict of its own: the lru_cache's hash
-        of the whole instance costs about 2 us of every image."""
-        if self.d_min_deg is not None and self.sigma_floor_px is not None:
-            return self._derived_tol, self._derived_slot
-        key = (database.d_min_deg, database.sigma_floor_px)
-        pair = self._tol_by_database.get(key)
-        if pair is None:
-            pair = (_tolerances(self, *key), [(None, None)])
-            self._tol_by_database[key] = pair
-        return pair
-
-    def _kernel_params(self, database: PTPDatabase, view: View) -> tuple[Tolerances, np.ndarray]:
-        """:meth:`tolerances` and :func:`~starid_algorithms.ptp.kernels.params_of` of them with ``view``, the
-        array kept for the last view (by identity: one camera object per run)."""
-        tol, slot = self._tolerances_pair(database)
-        last = slot[0]
-        if last[0] is not view:
-            last = (view, params_of(view, tol))
-            slot[0] = last        # one assignment: threads see a consistent pair
-        return tol, last[1]
-
-    @cached_property
     def _d_max(self) -> float:
         """d_max as a scaled chord (872.8 for 5 deg)."""
         return CHORD_SCALE * rad_to_chord(math.radians(self.d_max_deg))
@@ -540,10 +508,9 @@ class PTP(Algorithm):
         """:func:`~starid_algorithms.ptp.kernels.identify_kernel`, then (``assign_all``) the attitude of the
         identified stars (Wahba) assigns every detection to the deep catalog star predicted within the
         tolerance (``starid.kernels.assign_all``, one-to-one only). Counters: :data:`WORK_NAMES`."""
-        memo = self._memo[0]
-        if memo[0] is not database or memo[1] is not observation.camera:
-            memo = self._remember(database, observation.camera)
-        tol, params, (narrow, wide), view = memo[2:]
+        camera = observation.camera
+        tol, params, (narrow, wide), view = self.kept("kernel_call", (database, camera),
+                                                      lambda: self._kernel_call(database, camera))
         x_px = observation.x_px
         n = x_px.shape[0]
         out = identify_kernel(x_px, observation.y_px, observation.mag, params, narrow, wide)
@@ -558,18 +525,14 @@ class PTP(Algorithm):
                            tol.side_beta * math.sqrt(2.0) * tol.sigma_px / view.frame.f_px, hip)
         return Identification(hip, counters=dict(zip(WORK_NAMES, out[n:n + len(WORK_NAMES)].tolist(), strict=True)))
 
-    @cached_property
-    def _memo(self) -> list:
-        """``[(database, camera, tolerances, params, packed tables, view)]`` of the last call: one identity test
-        per image instead of three lookups (some 5 us of a call whose Python objects are out of the cache)."""
-        return [(None, None)]
-
-    def _remember(self, database: PTPDatabase, camera: Camera) -> tuple:
+    def _kernel_call(self, database: PTPDatabase, camera: Camera) -> tuple:
+        """What :meth:`identify` hands the kernel for one (database, camera), kept by identity
+        (:meth:`~starid.plugin.Algorithm.kept`: one test per image instead of the tolerances', the view's
+        and the parameter array's look-ups, some 5 us of a call whose Python objects are out of the cache):
+        ``(tolerances, params_of(view, tolerances), packed tables, view)``."""
         view = _view(camera)
-        tol, params = self._kernel_params(database, view)
-        memo = (database, camera, tol, params, database.packed, view)
-        self._memo[0] = memo      # one assignment: threads see a consistent tuple
-        return memo
+        tol = self.tolerances(database)
+        return tol, params_of(view, tol), database.packed, view
 
     def explain(self, database: PTPDatabase, observation: Observation) -> Explanation:
         """The image triangles PTP formed (every master with its nearest slaves) as segments; bold:
