@@ -41,7 +41,6 @@ from .kernels import (
     nearest_slaves,
     pack_tables,
     params_of,
-    plain,
     select_stars,
     unpack_out,
 )
@@ -130,12 +129,6 @@ class PTPDatabase(Database):
         return self._tables
 
     @cached_property
-    def plain_tables(self) -> tuple:
-        """:meth:`tables` as plain tuples (:func:`~starid_algorithms.ptp.kernels.plain`; the profiling tools
-        read it)."""
-        return plain(self._tables)
-
-    @cached_property
     def packed(self) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`tables` packed into two arrays (:func:`~starid_algorithms.ptp.kernels.pack_tables`), as
         :func:`~starid_algorithms.ptp.kernels.identify_kernel` takes them: a copy of the same numbers, the
@@ -149,23 +142,10 @@ class PTPDatabase(Database):
 
 
 @lru_cache(maxsize=16)
-def _view_of(camera: Camera) -> View:
-    return View(camera_frame(camera), rad_to_chord(camera.half_diagonal_rad))
-
-
-_last_view: tuple = (None, None)
-
-
 def _view(camera: Camera) -> View:
     """The camera as the kernel needs it: the core frame and ``c_fov``, the chord from the boresight to
-    the farthest corner. The last camera's is kept by identity: hashing a ``Camera`` for the lru_cache costs
-    about a microsecond per image, and a run identifies every image with one camera object."""
-    global _last_view
-    cam, view = _last_view
-    if cam is not camera:
-        view = _view_of(camera)
-        _last_view = (camera, view)    # one assignment: threads see a consistent pair
-    return view
+    the farthest corner. (``identify`` asks once per (database, camera): :meth:`PTP._kernel_call`.)"""
+    return View(camera_frame(camera), rad_to_chord(camera.half_diagonal_rad))
 
 
 def _chord(deg: float) -> float:

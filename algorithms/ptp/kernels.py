@@ -197,11 +197,6 @@ class Tolerances(NamedTuple):
     lone_triangles: bool
 
 
-def plain(t):
-    """A named tuple as a plain tuple, its named-tuple fields likewise."""
-    return tuple(plain(v) if hasattr(v, "_fields") else v for v in t)
-
-
 #: Slots of :func:`params_of`' array: the :class:`View` (the frame's 5 numbers and ``c_fov``), then the
 #: :class:`Tolerances` in field order.
 N_VIEW = 6
