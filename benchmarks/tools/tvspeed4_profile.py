@@ -58,7 +58,9 @@ def _time(f) -> float:
     return (time.perf_counter_ns() - t0) * 1e-3
 
 
-def main(n: int, rounds: int) -> None:
+def main(n: int, rounds: int, calls_of=None, stages=STAGES) -> None:
+    """Print the table; ``calls_of`` (default :func:`_calls`) and ``stages`` let tvspeed5_profile.py add stages."""
+    calls_of = calls_of or _calls
     cat, cam = load_hipparcos(), Camera()
     for sky in ("paper", "real"):
         sim = Simulator(cat, cam, SimConfig(**{**TABLE6_SIM, **SKIES[sky]}), seed=0)
@@ -71,26 +73,26 @@ def main(n: int, rounds: int) -> None:
         k_tv, k_te = NAMES.index("triangle_voting"), NAMES.index("tetra")
         others = [(a, db) for j, (a, db) in enumerate(zip(plugins, dbs, strict=True)) if j not in (k_tv, k_te)]
         alg, db = plugins[k_tv], dbs[k_tv]
-        calls = [_calls(alg, db, plugins[k_te], dbs[k_te], o) for o in obs]
+        calls = [calls_of(alg, db, plugins[k_te], dbs[k_te], o) for o in obs]
         for c in calls:  # compile every stage
             for f in c.values():
                 f()
-        cold = {s: [] for s in STAGES}
-        warm = {s: [] for s in STAGES}
+        cold = {s: [] for s in stages}
+        warm = {s: [] for s in stages}
         for _ in range(rounds):
             for o, c in zip(obs, calls, strict=True):
-                for s in STAGES:
+                for s in stages:
                     if s not in c:
                         continue
                     for a, d in others:
                         a.identify(d, o)
                     cold[s].append(_time(c[s]))
         for c in calls:
-            for s in STAGES:
+            for s in stages:
                 if s in c:
                     warm[s].append(min(_time(c[s]) for _ in range(3)))
         print(f"{sky} sky, {n} images x {rounds}: median us, cold (after {len(others)} other plugins) / warm")
-        for s in STAGES:
+        for s in stages:
             print(f"  {s:15s} {np.median(cold[s]):8.1f} {np.median(warm[s]):8.1f}")
 
 

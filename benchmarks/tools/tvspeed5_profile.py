@@ -19,19 +19,16 @@ the median over images and rounds per stage, in us.
 from __future__ import annotations
 
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
 from starid_algorithms.triangle_voting import algorithm as tva
 from starid_algorithms.triangle_voting import kernels as tvk
 
-from starid import SKIES, Camera, SimConfig, Simulator, load_hipparcos
 from starid.kernels import backproject_px
-from starid.registry import get_algorithm
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from test_ratios import NAMES, TABLE6_SIM  # noqa: E402
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import tvspeed4_profile  # noqa: E402
 
 STAGES = ("dispatch", "dispatch_flat", "vote", "identify_rows", "identify_image", "identify_flat", "identify", "tetra")
 NO = np.zeros((0, 0), dtype=np.int32)
@@ -60,47 +57,6 @@ def _calls(alg, db, tetra, tetra_db, o):
     return out
 
 
-def _time(f) -> float:
-    t0 = time.perf_counter_ns()
-    f()
-    return (time.perf_counter_ns() - t0) * 1e-3
-
-
-def main(n: int, rounds: int) -> None:
-    cat, cam = load_hipparcos(), Camera()
-    for sky in ("paper", "real"):
-        sim = Simulator(cat, cam, SimConfig(**{**TABLE6_SIM, **SKIES[sky]}), seed=0)
-        trials = sim.generate(n)
-        obs = [trials.observation(i, truth=False) for i in range(len(trials))]
-        plugins = [get_algorithm(name)() for name in NAMES]
-        dbs = [a.build(cat, cam) for a in plugins]
-        for a, db in zip(plugins, dbs, strict=True):
-            a.identify(db, obs[0])
-        k_tv, k_te = NAMES.index("triangle_voting"), NAMES.index("tetra")
-        others = [(a, db) for j, (a, db) in enumerate(zip(plugins, dbs, strict=True)) if j not in (k_tv, k_te)]
-        alg, db = plugins[k_tv], dbs[k_tv]
-        calls = [_calls(alg, db, plugins[k_te], dbs[k_te], o) for o in obs]
-        for c in calls:  # compile every stage
-            for f in c.values():
-                f()
-        cold = {s: [] for s in STAGES}
-        warm = {s: [] for s in STAGES}
-        for _ in range(rounds):
-            for o, c in zip(obs, calls, strict=True):
-                for s in STAGES:
-                    if s not in c:
-                        continue
-                    for a, d in others:
-                        a.identify(d, o)
-                    cold[s].append(_time(c[s]))
-        for c in calls:
-            for s in STAGES:
-                if s in c:
-                    warm[s].append(min(_time(c[s]) for _ in range(3)))
-        print(f"{sky} sky, {n} images x {rounds}: median us, cold (after {len(others)} other plugins) / warm")
-        for s in STAGES:
-            print(f"  {s:15s} {np.median(cold[s]):8.1f} {np.median(warm[s]):8.1f}")
-
-
 if __name__ == "__main__":
-    main(int(sys.argv[1]) if len(sys.argv) > 1 else 200, int(sys.argv[2]) if len(sys.argv) > 2 else 2)
+    tvspeed4_profile.main(int(sys.argv[1]) if len(sys.argv) > 1 else 200, int(sys.argv[2]) if len(sys.argv) > 2 else 2,
+                          _calls, STAGES)
