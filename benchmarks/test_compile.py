@@ -4,7 +4,8 @@
   database and runs the harness's warm-up identify (:func:`starid.harness.prepare`, which compiles
   every kernel the plugin calls) on a Table 6 image, with an empty ``NUMBA_CACHE_DIR``, in as many
   processes as the executor would use (the machine's cores, at most 2 here: issue #25's machine)
-  taking disjoint plugins and sharing the on-disk cache, as ``starid`` workers do. Target: at most
+  sharing the on-disk cache, each taking the next plugin when it is free, heaviest to compile first,
+  as ``starid`` workers take their first chunks (:mod:`starid.experiment.warmup`). Target: at most
   :data:`COLD_COMPILE_WALL_S` seconds of wall time for all of them.
 * **First command** (:func:`test_first_command_from_a_fresh_clone`): ``git clone`` of this
   checkout, a new venv, ``pip install -e .`` (the README's first command: pip takes the dependencies
@@ -24,6 +25,7 @@ from __future__ import annotations
 
 import json
 import os
+import selectors
 import subprocess
 import sys
 import time
@@ -35,7 +37,8 @@ COLD_COMPILE_WALL_S = 40.0
 FIRST_COMMAND_WALL_S = 180.0
 REPO = Path(__file__).resolve().parent.parent
 
-#: one process: build + warm-up identify of the plugins named on its command line, one JSON line each
+#: one process: build + warm-up identify of each plugin named on its standard input, one JSON line each;
+#: it asks for the next name only when it has finished the last, as a free executor worker does
 _PREPARE = r"""
 import json, sys, time
 from starid import SimConfig, Simulator, load_hipparcos
@@ -46,7 +49,9 @@ from starid.registry import algorithm_info
 exp = table6.experiment(trials=1)
 cat = load_hipparcos()
 trials = Simulator(cat, exp.make_camera(), SimConfig(**sim_settings(exp.sim, {"sky": "paper"})), seed=0).generate(1)
-for name in sys.argv[1:]:
+print(json.dumps({"ready": True}), flush=True)
+for line in sys.stdin:
+    name = line.strip()
     c0 = time.process_time()
     p = prepare(algorithm_info(name).cls(), cat, trials.camera, trials.warmup, name)
     print(json.dumps({"plugin": name, "build_s": p.build_s, "compile_s": p.compile_s,
@@ -55,27 +60,47 @@ for name in sys.argv[1:]:
 
 
 def _names() -> list[str]:
-    """Every registered plugin, in Table 6's order (the order its first chunks reach the workers)."""
-    from starid.experiments import table6
+    """Every registered plugin, in the order an executor's workers take their first chunks
+    (:func:`starid.experiment.warmup.compile_order`: the longest to compile first)."""
+    from starid.experiment.warmup import compile_order
     from starid.registry import available_algorithms
 
-    ok = {i.name for i in available_algorithms() if i.status == "ok"}
-    order = [v.name for v in table6.study().variants]
-    return [n for n in order if n in ok] + sorted(ok - set(order))
+    return compile_order(sorted(i.name for i in available_algorithms() if i.status == "ok"))
 
 
 def cold_compile(cache_dir: Path, jobs: int) -> tuple[float, list[dict]]:
-    """Wall seconds for ``jobs`` processes (one shared, empty numba cache) to prepare every plugin,
-    the plugins dealt out in turn as the executor's first chunks are (:func:`starid.experiment.warmup.schedule`);
-    and one record per plugin."""
+    """Wall seconds for ``jobs`` processes (one shared, empty numba cache) to prepare every plugin, and
+    one record per plugin (with the process that prepared it). The plugins are dealt out as an
+    executor deals the first chunks (:class:`starid.experiment.warmup.Dispatcher`): in
+    :func:`_names`' order, each to the first process that is free."""
     env = {**os.environ, "NUMBA_CACHE_DIR": str(cache_dir)}
-    names = _names()
+    pending = _names()
     t0 = time.perf_counter()
-    procs = [subprocess.Popen([sys.executable, "-c", _PREPARE, *names[k::jobs]], env=env, stdout=subprocess.PIPE,
-                              text=True) for k in range(jobs)]
-    out = [p.communicate()[0] for p in procs]
-    wall_s = time.perf_counter() - t0
-    return wall_s, [json.loads(line) for text in out for line in text.splitlines() if line.startswith("{")]
+    procs = [subprocess.Popen([sys.executable, "-c", _PREPARE], env=env, stdin=subprocess.PIPE,
+                              stdout=subprocess.PIPE, text=True) for _ in range(jobs)]
+    records: list[dict] = []
+    with selectors.DefaultSelector() as sel:
+        for k, p in enumerate(procs):
+            sel.register(p.stdout, selectors.EVENT_READ, k)
+        while sel.get_map():
+            for key, _ in sel.select():
+                k, p = key.data, procs[key.data]
+                line = p.stdout.readline()
+                if not line:                                  # the process ended (or died)
+                    sel.unregister(p.stdout)
+                    continue
+                if line.startswith("{"):
+                    record = json.loads(line)
+                    if "plugin" in record:
+                        records.append({**record, "process": k})
+                    if pending:
+                        p.stdin.write(pending.pop(0) + "\n")
+                        p.stdin.flush()
+                    else:
+                        p.stdin.close()
+    for p in procs:
+        p.wait()
+    return time.perf_counter() - t0, records
 
 
 def test_cold_compile_of_every_plugin(tmp_path):
@@ -83,9 +108,11 @@ def test_cold_compile_of_every_plugin(tmp_path):
     wall_s, records = cold_compile(tmp_path / "numba", jobs)
     print(f"\ncold compile of {len(records)} plugins in {jobs} processes: {wall_s:.1f} s wall, "
           f"load {os.getloadavg()[0]:.1f}")
-    for r in sorted(records, key=lambda r: -r["cpu_s"]):
-        print(f"  {r['plugin']:18s} compile {r['compile_s']:6.1f} s  build {r['build_s']:5.1f} s  "
-              f"CPU {r['cpu_s']:6.1f} s {r['error']}")
+    for r in records:
+        print(f"  {r['plugin']:18s} process {r['process']}  compile {r['compile_s']:6.1f} s  "
+              f"build {r['build_s']:5.1f} s  CPU {r['cpu_s']:6.1f} s {r['error']}")
+    for k in range(jobs):
+        print(f"  process {k}: CPU {sum(r['cpu_s'] for r in records if r['process'] == k):6.1f} s")
     assert len(records) == len(_names()) and not any(r["error"] for r in records)
     assert wall_s <= COLD_COMPILE_WALL_S, f"cold compile took {wall_s:.0f} s wall (target {COLD_COMPILE_WALL_S:g} s)"
 

@@ -6,21 +6,41 @@ import numpy as np
 import pytest
 
 from starid import Camera, SimConfig, Simulator
-from starid.experiment.warmup import schedule
+from starid.experiment import compile_weights
+from starid.experiment.warmup import compile_order, compile_weight, schedule
 
 
 def _task(name, k):
     return SimpleNamespace(chunk=SimpleNamespace(variant=SimpleNamespace(name=name)), k=k)
 
 
-def test_first_chunk_of_each_plugin_goes_first_the_rest_in_plan_order():
+def test_first_chunk_of_each_plugin_goes_first_the_rest_in_plan_order(monkeypatch):
+    monkeypatch.setattr(compile_weights, "CPU_S", {"ptp": 9.0, "grid": 5.0, "tetra": 2.0})
     plan = [_task(n, k) for n in ("ptp", "tetra", "ptp", "grid") for k in range(3)]
     out = schedule(plan)
-    assert [(t.chunk.variant.name, t.k) for t in out[:3]] == [("ptp", 0), ("tetra", 0), ("grid", 0)]
+    assert [(t.chunk.variant.name, t.k) for t in out[:3]] == [("ptp", 0), ("grid", 0), ("tetra", 0)]
     firsts = {id(t) for t in out[:3]}
     rest = [t for t in plan if id(t) not in firsts]
     assert [id(t) for t in out[3:]] == [id(t) for t in rest]     # every other chunk in plan order
     assert sorted(map(id, out)) == sorted(map(id, plan))
+
+
+def test_first_chunks_go_heaviest_compile_first_and_an_unmeasured_plugin_weighs_the_median(monkeypatch):
+    monkeypatch.setattr(compile_weights, "CPU_S", {"a": 1.0, "b": 7.0, "c": 3.0, "d": 5.0})
+    assert compile_weight("b") == 7.0 and compile_weight("someone_elses") == 5.0
+    assert compile_order(["a", "x", "b", "c", "y"]) == ["b", "x", "y", "c", "a"]    # ties keep their order
+    plan = [_task(n, k) for n in ("a", "x", "b", "c") for k in range(2)]
+    assert [t.chunk.variant.name for t in schedule(plan)[:4]] == ["b", "x", "c", "a"]
+
+
+def test_every_registered_plugin_has_a_measured_compile_weight():
+    """``benchmarks/tools/compile_weights.py`` measured every built-in plugin (rerun it for a new one)."""
+    from starid.registry import available_algorithms
+
+    builtin = {i.name for i in available_algorithms() if i.status == "ok" and
+               i.cls.__module__.startswith("starid_algorithms.")}
+    assert len(builtin) >= 10 and builtin <= set(compile_weights.CPU_S)
+    assert all(s > 0 for s in compile_weights.CPU_S.values())
 
 
 def test_observation_arrays_are_read_only(catalog):
@@ -59,9 +79,10 @@ def _dispatch_task(name, block, sky="paper"):
     return SimpleNamespace(chunk=chunk, catalog_path="", camera=Camera(), seed=0, k=(name, sky, block))
 
 
-def test_dispatcher_gives_first_chunks_first_then_keeps_each_worker_to_its_algorithms():
+def test_dispatcher_gives_first_chunks_first_then_keeps_each_worker_to_its_algorithms(monkeypatch):
     from starid.experiment.warmup import Dispatcher
 
+    monkeypatch.setattr(compile_weights, "CPU_S", {"ptp": 9.0, "tetra": 7.0, "pvector": 5.0, "grid": 3.0})
     names = ("ptp", "tetra", "pvector", "grid")
     plan = [_dispatch_task(n, b, sky) for sky in ("paper", "real") for n in names for b in range(3)]
     d = Dispatcher(plan)

@@ -8,9 +8,9 @@ belong to the same plugin, so on a cold cache every worker compiles the same ker
 time, and then the next plugin's, and so on: with ``n`` workers each kernel is compiled ``n``
 times.
 
-:func:`schedule` reorders the tasks so that the first chunk of each plugin comes first (in the
-order the plugins first appear), then every other chunk in plan order. Free workers take tasks in
-this order, so the first chunks -- those that compile -- go to different workers, each plugin is
+:func:`schedule` reorders the tasks so that the first chunk of each plugin comes first (those
+that take longest to compile first: :func:`compile_order`), then every other chunk. Free workers
+take tasks in this order, so the first chunks -- those that compile -- go to different workers, each plugin is
 compiled once, and the other workers load it from the cache when they reach its later chunks.
 The other chunks follow grouped by the images they score (grid point settings, block of trials,
 catalog, camera, seed), in the order each group first appears: every plugin's chunk of one block
@@ -40,19 +40,43 @@ def images_of(task) -> tuple:
             getattr(chunk, "settings_key", None), getattr(chunk, "start", None), getattr(chunk, "stop", None))
 
 
+def compile_weight(name: str) -> float:
+    """CPU seconds plugin ``name`` took to build and compile on an empty cache, alone in a process
+    (:data:`starid.experiment.compile_weights.CPU_S`, measured by ``benchmarks/tools/compile_weights.py``);
+    a plugin not measured (a third party's) weighs the median of those measured."""
+    from .compile_weights import CPU_S
+
+    if name in CPU_S:
+        return CPU_S[name]
+    values = sorted(CPU_S.values())
+    return values[len(values) // 2] if values else 0.0
+
+
+def compile_order(names: list[str]) -> list[str]:
+    """``names`` heaviest to compile first (:func:`compile_weight`; equal weights keep their order).
+
+    Free workers take the first chunks in this order, so on a cold cache the longest compiles start
+    first and the short ones fill in at the end, as in longest-processing-time-first scheduling: with
+    Table 6's order (triangle voting, among the longest, last) one of two workers compiled for about
+    10 s after the other had finished."""
+    return sorted(names, key=lambda name: -compile_weight(name))
+
+
 def schedule(tasks: list) -> list:
-    """``tasks`` with the first task of each plugin moved to the front, then the others grouped by
-    the images they score (groups in first-appearance order, plan order within a group)."""
+    """``tasks`` with the first task of each plugin moved to the front (heaviest compile first,
+    :func:`compile_order`), then the others grouped by the images they score (groups in
+    first-appearance order, plan order within a group)."""
     seen: set[str] = set()
-    first, groups = [], {}
+    first, groups = {}, {}
     for task in tasks:
         name = plugin_of(task)
         if name in seen:
             groups.setdefault(images_of(task), []).append(task)
         else:
-            first.append(task)
+            first[name] = task
         seen.add(name)
-    return first + [task for group in groups.values() for task in group]
+    return [first[name] for name in compile_order(list(first))] + [task for group in groups.values()
+                                                                   for task in group]
 
 
 #: simulated blocks a worker keeps (``executors._trials``); :class:`Dispatcher` mirrors what each worker holds.
