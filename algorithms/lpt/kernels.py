@@ -622,7 +622,7 @@ def pad_rows(img, n_levels, by_level_x, pad_t, pad_x):
     return width
 
 
-@njit(cache=True, inline="always", no_cfunc_wrapper=True)   # one call site, the scan's second most frequent test
+@njit(cache=True, no_cfunc_wrapper=True)   # a call, not inlined: the same speed, 0.4 CPU s less compile
 def reaches_groups(chars, g, v, most, tables, valid, groups):
     """A necessary condition of :func:`reaches_budget` (same arguments): false only when it is false.
 
