@@ -493,7 +493,7 @@ def image_groups(chars, g, img, u, pattern, valid, xs, groups):
     sector_tol``). A shift reaching ``nz - u`` misses at most u image characters, so one of the
     ``u + 1`` groups the characters are dealt into (``groups``, int64 (u + 1, 2)) has all its
     characters matched under it: when every group's intersection is empty, the score stays below.
-    (:func:`image_groups_at`, the scan's form, on tables derived here.)
+    (:func:`image_groups_at` on tables derived here; the scan calls :func:`image_groups_pad`.)
     """
     by_level_x, pattern2 = at_forms(img, pattern)
     return image_groups_at(chars, g, img, by_level_x, u, pattern2, valid, xs, groups)
@@ -527,7 +527,7 @@ def at_forms(img, pattern):
     return by_level_x, pattern2
 
 
-@njit(cache=True, inline="always", no_cfunc_wrapper=True)   # one call site, the scan's most frequent test
+@njit(cache=True, inline="always", no_cfunc_wrapper=True)   # tests' and tools' form (the scan: image_groups_pad)
 def image_groups_at(chars, g, img, by_level_x, u, pattern2, valid, xs, groups):
     """:func:`image_groups` without a branch per pair: ``by_level_x[p]`` = m - (sector of ``img.by_level[p]``),
     and ``pattern2[y]`` (int64 (2 m, 2)) = ``pattern[y mod m]``, read at ``j + by_level_x[p]``."""
