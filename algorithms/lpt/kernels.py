@@ -493,10 +493,22 @@ def image_groups(chars, g, img, u, pattern, valid, xs, groups):
     sector_tol``). A shift reaching ``nz - u`` misses at most u image characters, so one of the
     ``u + 1`` groups the characters are dealt into (``groups``, int64 (u + 1, 2)) has all its
     characters matched under it: when every group's intersection is empty, the score stays below.
-    (:func:`image_groups_at`, the scan's form, on tables derived here.)
+    (:func:`image_groups_at` on tables derived here; the scan calls :func:`image_groups_pad`.)
     """
     by_level_x, pattern2 = at_forms(img, pattern)
     return image_groups_at(chars, g, img, by_level_x, u, pattern2, valid, xs, groups)
+
+
+@njit(cache=True, no_cfunc_wrapper=True)   # tests' and tools' form
+def image_groups_padded(chars, g, img, u, pattern, valid, xs, groups):
+    """:func:`image_groups` through :func:`pad_rows` and :func:`image_groups_pad`, the scan's form (``xs``:
+    at least ``2 nz`` rows)."""
+    by_level_x, pattern2 = at_forms(img, pattern)
+    n_levels = img.level_start.shape[0] - 2
+    pad_t = np.empty((n_levels + 1) * max(img.nz, 1), dtype=np.int64)
+    pad_x = np.empty(pad_t.shape[0], dtype=np.int64)
+    width = pad_rows(img, n_levels, by_level_x, pad_t, pad_x)
+    return image_groups_pad(chars, g, img.nz, width, pad_t, pad_x, u, pattern2, valid, xs, groups)
 
 
 @njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # tests' and tools' forms only
@@ -515,7 +527,7 @@ def at_forms(img, pattern):
     return by_level_x, pattern2
 
 
-@njit(cache=True, inline="always", no_cfunc_wrapper=True)   # one call site, the scan's most frequent test
+@njit(cache=True, inline="always", no_cfunc_wrapper=True)   # tests' and tools' form (the scan: image_groups_pad)
 def image_groups_at(chars, g, img, by_level_x, u, pattern2, valid, xs, groups):
     """:func:`image_groups` without a branch per pair: ``by_level_x[p]`` = m - (sector of ``img.by_level[p]``),
     and ``pattern2[y]`` (int64 (2 m, 2)) = ``pattern[y mod m]``, read at ``j + by_level_x[p]``."""
@@ -549,7 +561,68 @@ def image_groups_at(chars, g, img, by_level_x, u, pattern2, valid, xs, groups):
     return (any_a | any_b) != 0
 
 
-@njit(cache=True, inline="always", no_cfunc_wrapper=True)   # one call site, the scan's second most frequent test
+@njit(cache=True, inline="always", no_cfunc_wrapper=True)   # one call site, the scan's most frequent test
+def image_groups_pad(chars, g, nz, width, pad_t, pad_x, u, pattern2, valid, xs, groups):
+    """:func:`image_groups_at` with every row's list of image characters padded to ``width`` entries.
+
+    ``pad_t[L * width + i]``, ``pad_x[L * width + i]`` (i < ``width``): the i-th image character
+    within ``level_tol`` rows of row L and m minus its sector, as ``img.by_level`` and ``by_level_x``
+    list them; past the row's own count, the junk row ``nz + i`` of ``xs`` and 0. Every database
+    character then reads ``width`` entries, a loop count fixed per reference star instead of one
+    that changes with each character's row (a mispredicted branch per character); the rows ``t <
+    nz`` of ``xs`` are :func:`image_groups_at`'s, and so is the answer.
+    """
+    for t in range(np.uint64(nz)):
+        xs[t, 0] = 0
+        xs[t, 1] = 0
+    w = np.uint64(width)
+    for q in range(np.uint64(chars.start[g]), np.uint64(chars.start[g + 1])):
+        base = np.uint64(chars.level[q]) * w
+        j = np.uint64(chars.sector[q])
+        for i in range(w):
+            t = np.uint64(pad_t[base + i])
+            x = j + np.uint64(pad_x[base + i])
+            xs[t, 0] |= pattern2[x, 0]
+            xs[t, 1] |= pattern2[x, 1]
+    for i in range(u + 1):
+        groups[i, 0] = valid[0]
+        groups[i, 1] = valid[1]
+    e = 0
+    for t in range(nz):
+        groups[e, 0] &= xs[t, 0]
+        groups[e, 1] &= xs[t, 1]
+        e += 1
+        if e > u:
+            e = 0
+    any_a = np.int64(0)
+    any_b = np.int64(0)
+    for i in range(u + 1):
+        any_a |= groups[i, 0]
+        any_b |= groups[i, 1]
+    return (any_a | any_b) != 0
+
+
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+def pad_rows(img, n_levels, by_level_x, pad_t, pad_x):
+    """The padded lists of :func:`image_groups_pad` for one reference star; returns their ``width``
+    (the longest row list, at least 1)."""
+    width = 1
+    for lv in range(1, n_levels + 1):
+        width = max(width, img.level_start[lv + 1] - img.level_start[lv])
+    for lv in range(n_levels + 1):
+        a = img.level_start[lv] if lv > 0 else 0
+        c = img.level_start[lv + 1] - a if lv > 0 else 0
+        for i in range(width):
+            if i < c:
+                pad_t[lv * width + i] = img.by_level[a + i]
+                pad_x[lv * width + i] = by_level_x[a + i]
+            else:
+                pad_t[lv * width + i] = img.nz + i
+                pad_x[lv * width + i] = 0
+    return width
+
+
+@njit(cache=True, no_cfunc_wrapper=True)   # a call, not inlined: the same speed, 0.4 CPU s less compile
 def reaches_groups(chars, g, v, most, tables, valid, groups):
     """A necessary condition of :func:`reaches_budget` (same arguments): false only when it is false.
 
@@ -801,7 +874,10 @@ def identify_kernel(x_px, y_px, params, char_sector, char_level, char_start, sca
     at_most = np.zeros((BUDGET_MAX + 1, 2), dtype=np.int64)
     valid = np.zeros(2, dtype=np.int64)
     groups = np.zeros((3 * m + 1, 2), dtype=np.int64)
-    xs = np.zeros((m, 2), dtype=np.int64)
+    xs = np.zeros((2 * m + 1, 2), dtype=np.int64)   # rows nz.. : image_groups_pad's junk rows
+    pad_t = np.zeros((search.n_levels + 1) * m if fast else 0, dtype=np.int64)
+    pad_x = np.zeros(pad_t.shape[0], dtype=np.int64)
+    width = 1
     cand = np.zeros(2, dtype=np.int64)
     pattern = np.zeros((m if fast else 0, 2), dtype=np.int64)
     fill_pattern(pattern, m, search.sector_tol)
@@ -842,6 +918,7 @@ def identify_kernel(x_px, y_px, params, char_sector, char_level, char_start, sca
             for p_ in range(level_start[search.n_levels + 1]):
                 by_level_x[p_] = m - img_sector[by_level[p_]]
             shift_tables_of(image, search, most, by_level_x, pattern2, tables)
+            width = pad_rows(image, np.int64(search.n_levels), by_level_x, pad_t, pad_x)
         if summed:
             level_set_masks(image, search, most, set_masks, most_masks)
         # Strings by length (character count), lengths from nz up, then from nz - 1 down: the image's own
@@ -896,7 +973,8 @@ def identify_kernel(x_px, y_px, params, char_sector, char_level, char_start, sca
                     if total < need:
                         continue
                     if nz - need < total - need:
-                        if not image_groups_at(chars, g, image, by_level_x, nz - need, pattern2, valid, xs, groups):
+                        if not image_groups_pad(chars, g, nz, width, pad_t, pad_x, nz - need, pattern2, valid, xs,
+                                                groups):
                             continue
                         # xs holds shift_scores' shift sets: score them at once
                         matched, sh = best_shift(xs, nz, sets.shape[1], planes, cand)

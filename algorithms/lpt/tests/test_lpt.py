@@ -12,6 +12,7 @@ from starid_algorithms.lpt.kernels import (
     StringSearch,
     dense_string,
     image_groups,
+    image_groups_padded,
     index_image,
     least_needed,
     match_bound,
@@ -73,6 +74,7 @@ def test_shift_scores_equal_brute_force_circular_match(m, sector_tol):
     sets, planes = np.zeros((m + 1, words), dtype=np.int64), np.zeros((9, words), dtype=np.int64)
     sum_planes, at_most = np.zeros((12, 2), dtype=np.int64), np.zeros((3 * m + 1, 2), dtype=np.int64)
     groups, xs = np.zeros((3 * m + 1, 2), dtype=np.int64), np.zeros((m, 2), dtype=np.int64)
+    xs2 = np.zeros((2 * m + 1, 2), dtype=np.int64)
     pattern = np.zeros((m, 128), dtype=bool)
     for d in range(-sector_tol, sector_tol + 1):
         pattern[np.arange(m), (np.arange(m) - d) % m % 128] = True
@@ -101,6 +103,9 @@ def test_shift_scores_equal_brute_force_circular_match(m, sector_tol):
                 assert total >= expect[0]
                 assert reaches_tables(chars, g, expect[0], tables, sum_planes)
                 assert image_groups(chars, g, image, nz - expect[0], pattern, valid, xs, groups)
+                for u in range(nz):             # the scan's padded form gives the same answer
+                    assert image_groups_padded(chars, g, image, u, pattern, valid, xs2, groups) == image_groups(
+                        chars, g, image, u, pattern, valid, xs, groups)
                 for need in range(1, total + 1):    # the two forms of the filter agree
                     exact = reaches_tables(chars, g, need, tables, sum_planes)
                     assert reaches_budget(chars, g, total - need, most, tables, valid, at_most) == exact
