@@ -363,6 +363,15 @@ def _window_bounds(t, i1, i2, i3, sides, mean, w, sigma, scale, beta):
 
 
 @njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+def _projection_window(t, i1, i2, i3, a, b, c, mean, w, sigma, scale, beta):
+    """:func:`_window_bounds` of a triangle whose scaled sides ``a, b, c`` are known (the kernel's distance
+    matrix holds them: the same bits as ``scale * chord_rows``, whichever vertex comes first)."""
+    p = w[0] * (a - mean[0]) + w[1] * (b - mean[1]) + w[2] * (c - mean[2])
+    xi = beta * projection_sigma(t, i1, i2, i3, a, b, c, w, sigma, scale)
+    return p - xi, p + xi
+
+
+@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _side_excess(sa, sb, sc, k, a, b, c, ta, tb, tc):
     """Largest amount by which one of the three sides misses its tolerance (<= 0: all agree)."""
     x = max(abs(sa[k] - a) - ta, abs(sb[k] - b) - tb)
@@ -430,12 +439,19 @@ def _side_check_indexed(sides, start, stop, index, sigma, scale, side_beta, out_
     float32 sides. ``out_cand`` must hold ``stop - start + 1`` entries.
     """
     a, b, c, ta, tb, tc = _side_window(sides, sigma, scale, side_beta)
+    i0, i1 = _index_bins(a, ta, index)
+    return _side_check_entries(a, b, c, ta, tb, tc, i0, i1, start, stop, index, out_cand)
+
+
+@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+def _side_check_entries(a, b, c, ta, tb, tc, i0, i1, start, stop, index, out_cand):
+    """:func:`_side_check_indexed` with the float32 sides and tolerances of :func:`_side_window` and the bins
+    ``i0 .. i1`` of :func:`_index_bins` given (the kernel computes them once per window)."""
     if stop <= start:
         return 0
     offsets = index.offsets
     rows = index.rows
     s = index.sides
-    i0, i1 = _index_bins(a, ta, index)
     j0 = start >> index.shift
     j1 = ((stop - 1) >> index.shift) + 1
     n_out = 0
@@ -635,14 +651,14 @@ def identify_kernel(x_px, y_px, mag, params, narrow, wide):
     m_img = np.empty((m_cap, 3), dtype=np.int64)
     m_cat = np.empty((m_cap, 3), dtype=np.int64)
     n_match = np.int64(0)   # not a literal: one signature of try_hypotheses
-    sides = np.empty(3)
     kv = db.kv
     index = db.index
     n_rows = kv.values.shape[0]
     # the windows of a batch of masters: image stars (3), triple key, rows [start, stop), bins of side a
-    # [i0, i1]; sides a, b, c, lo, hi
+    # [i0, i1]; lo, hi; the float32 sides a, b, c and their tolerances (_side_window)
     w_int = np.empty((cap_w, 8), dtype=np.int64)
-    w_flt = np.empty((cap_w, 5))
+    w_flt = np.empty((cap_w, 2))
+    w_side = np.empty((cap_w, 6), dtype=np.float32)
     # The search runs in passes over all the windows of a batch (every master; one master with stop_first),
     # each pass asking for the cache lines the next one reads (starid.kernels.prefetch): a window's reads form a chain
     # (k-vector -> its values -> the index's offsets -> the entries -> the guide rows), which the passes turn
@@ -666,21 +682,30 @@ def identify_kernel(x_px, y_px, mag, params, narrow, wide):
                     d2 = dist[master, s2]
                     if dist[s1, s2] <= 0.0:
                         continue    # coincident slaves make no triangle
-                    tol_swap = side_beta * scale * side_sigma(max(d1, d2) / scale, sigma)
+                    d12 = dist[s1, s2]
+                    # each side's tolerance once (_side_window's, and the swap test's of the longer slave)
+                    t1 = side_beta * scale * side_sigma(d1 / scale, sigma)
+                    t2 = side_beta * scale * side_sigma(d2 / scale, sigma)
+                    t12 = side_beta * scale * side_sigma(d12 / scale, sigma)
+                    tol_swap = t1 if d1 >= d2 else t2
                     n_orders = 2 if (tol.swap_slaves and abs(d2 - d1) <= tol_swap) else 1
                     key = _triple_key(master, s1, s2, n)
                     for o in range(n_orders):
+                        sa, sc, ta, tc = (d1, d2, t1, t2) if o == 0 else (d2, d1, t2, t1)
                         w_int[nw, 0] = master
                         w_int[nw, 1] = s1 if o == 0 else s2
                         w_int[nw, 2] = s2 if o == 0 else s1
                         w_int[nw, 3] = key
-                        lo, hi = _window_bounds(unit, master, w_int[nw, 1], w_int[nw, 2], sides, db.mean, db.axis,
-                                                sigma, scale, tol.beta)
-                        w_flt[nw, 0] = sides[0]
-                        w_flt[nw, 1] = sides[1]
-                        w_flt[nw, 2] = sides[2]
-                        w_flt[nw, 3] = lo
-                        w_flt[nw, 4] = hi
+                        lo, hi = _projection_window(unit, master, w_int[nw, 1], w_int[nw, 2], sa, d12, sc, db.mean,
+                                                    db.axis, sigma, scale, tol.beta)
+                        w_flt[nw, 0] = lo
+                        w_flt[nw, 1] = hi
+                        w_side[nw, 0] = np.float32(sa)
+                        w_side[nw, 1] = np.float32(d12)
+                        w_side[nw, 2] = np.float32(sc)
+                        w_side[nw, 3] = np.float32(ta)
+                        w_side[nw, 4] = np.float32(t12)
+                        w_side[nw, 5] = np.float32(tc)
                         jb, jt = kvector_ends(kv.m, kv.q, lo, hi)
                         w_int[nw, 4] = jb
                         w_int[nw, 5] = jt
@@ -696,8 +721,8 @@ def identify_kernel(x_px, y_px, mag, params, narrow, wide):
             prefetch(kv.values, min(max(stop - 1, 0), n_rows - 1))
             prefetch(kv.values, min(stop, n_rows - 1))
         for w in range(nw):     # the exact windows (kvector_query's rows); ask for the index's offsets they read
-            lo = w_flt[w, 3]
-            hi = w_flt[w, 4]
+            lo = w_flt[w, 0]
+            hi = w_flt[w, 1]
             if n_rows == 0 or hi < lo:
                 start, stop = 0, 0
             else:
@@ -705,7 +730,7 @@ def identify_kernel(x_px, y_px, mag, params, narrow, wide):
             w_int[w, 4] = start
             w_int[w, 5] = stop
             if stop > start:
-                i0, i1 = _bins_of(w_flt[w, 0], index, sigma, scale, side_beta)
+                i0, i1 = _index_bins(w_side[w, 0], w_side[w, 3], index)
                 w_int[w, 6] = i0
                 w_int[w, 7] = i1
                 j0 = start >> index.shift
@@ -723,12 +748,10 @@ def identify_kernel(x_px, y_px, mag, params, narrow, wide):
         for w in range(nw):     # the three-side checks; the records hold the database row until the pass below
             start = w_int[w, 4]
             stop = w_int[w, 5]
-            sides[0] = w_flt[w, 0]
-            sides[1] = w_flt[w, 1]
-            sides[2] = w_flt[w, 2]
             if stop - start >= cand.shape[0]:
                 cand = np.empty(2 * (stop - start) + 1, dtype=np.int64)
-            nc = _side_check_indexed(sides, start, stop, index, sigma, scale, side_beta, cand)
+            nc = _side_check_entries(w_side[w, 0], w_side[w, 1], w_side[w, 2], w_side[w, 3], w_side[w, 4],
+                                     w_side[w, 5], w_int[w, 6], w_int[w, 7], start, stop, index, cand)
             work[0] += 1
             work[1] += stop - start
             work[2] += nc
