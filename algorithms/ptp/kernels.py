@@ -6,7 +6,9 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
+from llvmlite import ir
+from numba import carray, njit, types
+from numba.extending import intrinsic
 
 from starid.kernels import (
     Frame,
@@ -141,23 +143,41 @@ def pack_tables(tables: Tables, index_dtype) -> tuple[np.ndarray, np.ndarray]:
     return np.ascontiguousarray(narrow, dtype=index_dtype), np.ascontiguousarray(wide)
 
 
+@intrinsic
+def _address(typingctx, arr, offset):
+    """The address of byte ``offset`` of the 1-D array ``arr``'s data, as a ``void *`` (for ``numba.carray``)."""
+    if not isinstance(arr, types.Array) or arr.ndim != 1 or not isinstance(offset, types.Integer):
+        return None
+
+    def codegen(context, builder, sig, args):
+        ary = context.make_array(sig.args[0])(context, builder, args[0])
+        at = context.cast(builder, args[1], sig.args[1], types.intp)
+        return builder.gep(builder.bitcast(ary.data, ir.IntType(8).as_pointer()), [at])
+    return types.voidptr(arr, offset), codegen
+
+
 @njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def tables_of(narrow, wide):
-    """The :class:`Tables` of :func:`pack_tables`' two arrays: views into them, the same types as the
-    original arrays (``ids`` in the narrow dtype)."""
-    h = wide[0:PACK_HEADER * 8].view(np.int64)
+    """The :class:`Tables` of :func:`pack_tables`' two arrays: arrays over their memory (``numba.carray`` of an
+    address: no copy, no reference of their own, so they live as long as the caller holds ``narrow`` and
+    ``wide``, i.e. the kernel call), the same dtypes, shapes and layouts as the original arrays (``ids`` in the
+    narrow dtype). (``wide[a:b].view(dtype).reshape(shape)`` gives the same arrays through numba's checked
+    view and reshape: some 1,900 instructions of machine code, 5 us of a call that finds them out of the
+    cache.)"""
+    h = carray(_address(wide, 0), PACK_HEADER, np.int64)
     t, g, e, nb1, nbins, shift = h[0], h[1], h[2], h[3], h[4], h[5]
-    values = wide[h[6]:h[6] + 4 * t].view(np.float32)
-    guide_unit = wide[h[7]:h[7] + 12 * g].view(np.float32).reshape((g, 3))
-    extra_unit = wide[h[8]:h[8] + 12 * e].view(np.float32).reshape((e, 3))
-    entries = wide[h[9]:h[9] + 16 * t].view(np.float32).reshape((t, 4))
-    mean = wide[h[10]:h[10] + 24].view(np.float64)
-    axis = wide[h[11]:h[11] + 24].view(np.float64)
-    guide_hip = wide[h[12]:h[12] + 8 * g].view(np.int64)
-    sc = wide[h[13]:h[13] + 24].view(np.float64)
-    k = narrow[h[14]:h[14] + t]
-    ids = narrow[h[15]:h[15] + 3 * t].reshape((t, 3))
-    offsets = narrow[h[16]:h[16] + nb1 * nbins].reshape((nb1, nbins))
+    values = carray(_address(wide, h[6]), t, np.float32)
+    guide_unit = carray(_address(wide, h[7]), (g, 3), np.float32)
+    extra_unit = carray(_address(wide, h[8]), (e, 3), np.float32)
+    entries = carray(_address(wide, h[9]), (t, 4), np.float32)
+    mean = carray(_address(wide, h[10]), 3, np.float64)
+    axis = carray(_address(wide, h[11]), 3, np.float64)
+    guide_hip = carray(_address(wide, h[12]), g, np.int64)
+    sc = carray(_address(wide, h[13]), 3, np.float64)
+    size = narrow.itemsize
+    k = carray(_address(narrow, h[14] * size), t, narrow.dtype)
+    ids = carray(_address(narrow, h[15] * size), (t, 3), narrow.dtype)
+    offsets = carray(_address(narrow, h[16] * size), (nb1, nbins), narrow.dtype)
     return Tables(KVector(values, k, sc[0], sc[1]), ids, mean, axis, guide_unit, guide_hip, extra_unit,
                   SideIndex(entries[:, 3], entries, offsets, sc[2], shift))
 
@@ -363,6 +383,15 @@ def _window_bounds(t, i1, i2, i3, sides, mean, w, sigma, scale, beta):
 
 
 @njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+def _projection_window(t, i1, i2, i3, a, b, c, mean, w, sigma, scale, beta):
+    """:func:`_window_bounds` of a triangle whose scaled sides ``a, b, c`` are known (the kernel's distance
+    matrix holds them: the same bits as ``scale * chord_rows``, whichever vertex comes first)."""
+    p = w[0] * (a - mean[0]) + w[1] * (b - mean[1]) + w[2] * (c - mean[2])
+    xi = beta * projection_sigma(t, i1, i2, i3, a, b, c, w, sigma, scale)
+    return p - xi, p + xi
+
+
+@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _side_excess(sa, sb, sc, k, a, b, c, ta, tb, tc):
     """Largest amount by which one of the three sides misses its tolerance (<= 0: all agree)."""
     x = max(abs(sa[k] - a) - ta, abs(sb[k] - b) - tb)
@@ -430,12 +459,19 @@ def _side_check_indexed(sides, start, stop, index, sigma, scale, side_beta, out_
     float32 sides. ``out_cand`` must hold ``stop - start + 1`` entries.
     """
     a, b, c, ta, tb, tc = _side_window(sides, sigma, scale, side_beta)
+    i0, i1 = _index_bins(a, ta, index)
+    return _side_check_entries(a, b, c, ta, tb, tc, i0, i1, start, stop, index, out_cand)
+
+
+@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+def _side_check_entries(a, b, c, ta, tb, tc, i0, i1, start, stop, index, out_cand):
+    """:func:`_side_check_indexed` with the float32 sides and tolerances of :func:`_side_window` and the bins
+    ``i0 .. i1`` of :func:`_index_bins` given (the kernel computes them once per window)."""
     if stop <= start:
         return 0
     offsets = index.offsets
     rows = index.rows
     s = index.sides
-    i0, i1 = _index_bins(a, ta, index)
     j0 = start >> index.shift
     j1 = ((stop - 1) >> index.shift) + 1
     n_out = 0
@@ -635,14 +671,14 @@ def identify_kernel(x_px, y_px, mag, params, narrow, wide):
     m_img = np.empty((m_cap, 3), dtype=np.int64)
     m_cat = np.empty((m_cap, 3), dtype=np.int64)
     n_match = np.int64(0)   # not a literal: one signature of try_hypotheses
-    sides = np.empty(3)
     kv = db.kv
     index = db.index
     n_rows = kv.values.shape[0]
     # the windows of a batch of masters: image stars (3), triple key, rows [start, stop), bins of side a
-    # [i0, i1]; sides a, b, c, lo, hi
+    # [i0, i1]; lo, hi; the float32 sides a, b, c and their tolerances (_side_window)
     w_int = np.empty((cap_w, 8), dtype=np.int64)
-    w_flt = np.empty((cap_w, 5))
+    w_flt = np.empty((cap_w, 2))
+    w_side = np.empty((cap_w, 6), dtype=np.float32)
     # The search runs in passes over all the windows of a batch (every master; one master with stop_first),
     # each pass asking for the cache lines the next one reads (starid.kernels.prefetch): a window's reads form a chain
     # (k-vector -> its values -> the index's offsets -> the entries -> the guide rows), which the passes turn
@@ -666,21 +702,30 @@ def identify_kernel(x_px, y_px, mag, params, narrow, wide):
                     d2 = dist[master, s2]
                     if dist[s1, s2] <= 0.0:
                         continue    # coincident slaves make no triangle
-                    tol_swap = side_beta * scale * side_sigma(max(d1, d2) / scale, sigma)
+                    d12 = dist[s1, s2]
+                    # each side's tolerance once (_side_window's, and the swap test's of the longer slave)
+                    t1 = side_beta * scale * side_sigma(d1 / scale, sigma)
+                    t2 = side_beta * scale * side_sigma(d2 / scale, sigma)
+                    t12 = side_beta * scale * side_sigma(d12 / scale, sigma)
+                    tol_swap = t1 if d1 >= d2 else t2
                     n_orders = 2 if (tol.swap_slaves and abs(d2 - d1) <= tol_swap) else 1
                     key = _triple_key(master, s1, s2, n)
                     for o in range(n_orders):
+                        sa, sc, ta, tc = (d1, d2, t1, t2) if o == 0 else (d2, d1, t2, t1)
                         w_int[nw, 0] = master
                         w_int[nw, 1] = s1 if o == 0 else s2
                         w_int[nw, 2] = s2 if o == 0 else s1
                         w_int[nw, 3] = key
-                        lo, hi = _window_bounds(unit, master, w_int[nw, 1], w_int[nw, 2], sides, db.mean, db.axis,
-                                                sigma, scale, tol.beta)
-                        w_flt[nw, 0] = sides[0]
-                        w_flt[nw, 1] = sides[1]
-                        w_flt[nw, 2] = sides[2]
-                        w_flt[nw, 3] = lo
-                        w_flt[nw, 4] = hi
+                        lo, hi = _projection_window(unit, master, w_int[nw, 1], w_int[nw, 2], sa, d12, sc, db.mean,
+                                                    db.axis, sigma, scale, tol.beta)
+                        w_flt[nw, 0] = lo
+                        w_flt[nw, 1] = hi
+                        w_side[nw, 0] = np.float32(sa)
+                        w_side[nw, 1] = np.float32(d12)
+                        w_side[nw, 2] = np.float32(sc)
+                        w_side[nw, 3] = np.float32(ta)
+                        w_side[nw, 4] = np.float32(t12)
+                        w_side[nw, 5] = np.float32(tc)
                         jb, jt = kvector_ends(kv.m, kv.q, lo, hi)
                         w_int[nw, 4] = jb
                         w_int[nw, 5] = jt
@@ -696,8 +741,8 @@ def identify_kernel(x_px, y_px, mag, params, narrow, wide):
             prefetch(kv.values, min(max(stop - 1, 0), n_rows - 1))
             prefetch(kv.values, min(stop, n_rows - 1))
         for w in range(nw):     # the exact windows (kvector_query's rows); ask for the index's offsets they read
-            lo = w_flt[w, 3]
-            hi = w_flt[w, 4]
+            lo = w_flt[w, 0]
+            hi = w_flt[w, 1]
             if n_rows == 0 or hi < lo:
                 start, stop = 0, 0
             else:
@@ -705,7 +750,7 @@ def identify_kernel(x_px, y_px, mag, params, narrow, wide):
             w_int[w, 4] = start
             w_int[w, 5] = stop
             if stop > start:
-                i0, i1 = _bins_of(w_flt[w, 0], index, sigma, scale, side_beta)
+                i0, i1 = _index_bins(w_side[w, 0], w_side[w, 3], index)
                 w_int[w, 6] = i0
                 w_int[w, 7] = i1
                 j0 = start >> index.shift
@@ -723,12 +768,10 @@ def identify_kernel(x_px, y_px, mag, params, narrow, wide):
         for w in range(nw):     # the three-side checks; the records hold the database row until the pass below
             start = w_int[w, 4]
             stop = w_int[w, 5]
-            sides[0] = w_flt[w, 0]
-            sides[1] = w_flt[w, 1]
-            sides[2] = w_flt[w, 2]
             if stop - start >= cand.shape[0]:
                 cand = np.empty(2 * (stop - start) + 1, dtype=np.int64)
-            nc = _side_check_indexed(sides, start, stop, index, sigma, scale, side_beta, cand)
+            nc = _side_check_entries(w_side[w, 0], w_side[w, 1], w_side[w, 2], w_side[w, 3], w_side[w, 4],
+                                     w_side[w, 5], w_int[w, 6], w_int[w, 7], start, stop, index, cand)
             work[0] += 1
             work[1] += stop - start
             work[2] += nc
@@ -843,6 +886,56 @@ def unpack_out(out: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray, np.ndar
     return out[:n], out[n:n + nw], out[n + nw + 1:n + nw + 1 + k], out[n + nw + 1 + k:n + nw + 1 + 2 * k]
 
 
+#: Fibonacci hashing's multiplier (2**64 / golden ratio, as a wrapping int64) for :func:`_pair_support`.
+HASH_MULTIPLIER = -7046029254386353131
+
+
+@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+def _hash_slot(table, base, mask, bits, value):
+    """The slot of ``value`` (>= 0) in the open-addressing table ``table[base:base + mask + 1]`` (-1 = empty,
+    linear probing): its own slot if present, else the empty slot it goes to."""
+    h = ((value * HASH_MULTIPLIER) >> (64 - bits)) & mask
+    while table[base + h] != -1 and table[base + h] != value:
+        h = (h + 1) & mask
+    return base + h
+
+
+@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+def _pair_support(n, n_guide, n_match, m_tri, m_img, m_cat, support):
+    """``support[3 mi + v]``: the number of distinct observed triangles (``m_tri``) among the records that
+    propose the pairing (image star ``m_img[mi, v]``, guide row ``m_cat[mi, v]``), for every record ``mi`` of
+    the first ``n_match``. Two hash tables, of the pairings and of the (pairing, triangle) pairs: each new
+    (pairing, triangle) adds one to its pairing's count. The same counts as grouping a sort of the
+    (pairing, triangle) keys, in time linear in the records (the sort's insertions were a third of
+    :func:`validate`'s time on the real sky)."""
+    n_pair = 3 * n_match
+    bits = 6
+    while (1 << bits) < 2 * n_pair:
+        bits += 1
+    cap = np.int64(1) << bits
+    mask = cap - 1
+    # [0, cap): pairing keys; [cap, 2 cap): (pairing, triangle) keys; [2 cap, 3 cap): each pairing's count
+    table = np.empty(3 * cap, dtype=np.int64)
+    for h in range(2 * cap):
+        table[h] = -1
+    for h in range(2 * cap, 3 * cap):
+        table[h] = 0
+    n_tri = n * n * n
+    for mi in range(n_match):
+        for v in range(3):
+            key = m_img[mi, v] * n_guide + m_cat[mi, v]
+            at = _hash_slot(table, np.int64(0), mask, bits, key)
+            table[at] = key
+            support[3 * mi + v] = at
+            pair = key * n_tri + m_tri[mi]
+            at_pair = _hash_slot(table, cap, mask, bits, pair)
+            if table[at_pair] == -1:
+                table[at_pair] = pair
+                table[2 * cap + at] += 1
+    for t in range(n_pair):
+        support[t] = table[2 * cap + support[t]]
+
+
 @njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def validate(n, n_guide, n_match, m_tri, m_img, m_cat, tol, min_shared, conflict_fails, result):
     """Sharing-star validation (section 2.3, Table 3) of the first ``n_match`` match records: writes the
@@ -858,63 +951,8 @@ def validate(n, n_guide, n_match, m_tri, m_img, m_cat, tol, min_shared, conflict
     result[:] = -1
     # Support of each pairing = number of distinct observed triangles that propose it.
     n_pair = 3 * n_match
-    key = np.empty(n_pair, dtype=np.int64)
-    tri = np.empty(n_pair, dtype=np.int64)
-    for mi in range(n_match):
-        for v in range(3):
-            key[3 * mi + v] = m_img[mi, v] * n_guide + m_cat[mi, v]
-            tri[3 * mi + v] = m_tri[mi]
-    n_tri = n * n * n
-    combined = np.empty(n_pair, dtype=np.int64)
-    for t in range(n_pair):
-        combined[t] = key[t] * n_tri + tri[t]
-    # The order of a stable sort of ``combined``: pairings grouped by image star (a counting sort), each
-    # group by insertion; the merge sort only when a group is large. Both give the same order; the groups
-    # are some 20 pairings, where the insertion costs a fraction of the merge sort (11 us per image).
-    start = np.zeros(n + 1, dtype=np.int64)
-    for mi in range(n_match):
-        for v in range(3):
-            start[m_img[mi, v] + 1] += 1
-    largest = 0
-    for s in range(n):
-        largest = max(largest, start[s + 1])
-        start[s + 1] += start[s]
-    if largest > 64:
-        order = argsort_int(combined)
-    else:
-        order = np.empty(n_pair, dtype=np.int64)
-        val = np.empty(n_pair, dtype=np.int64)
-        fill = np.empty(n, dtype=np.int64)
-        for s in range(n):
-            fill[s] = start[s]
-        for t in range(n_pair):
-            s = m_img[t // 3, t % 3]
-            order[fill[s]] = t
-            val[fill[s]] = combined[t]
-            fill[s] += 1
-        for s in range(n):
-            for i in range(start[s] + 1, start[s + 1]):
-                cv = val[i]
-                co = order[i]
-                j = i
-                while j > start[s] and val[j - 1] > cv:
-                    val[j] = val[j - 1]
-                    order[j] = order[j - 1]
-                    j -= 1
-                val[j] = cv
-                order[j] = co
-    support = np.zeros(n_pair, dtype=np.int64)
-    i = 0
-    while i < n_pair:
-        j = i
-        distinct = 0
-        while j < n_pair and key[order[j]] == key[order[i]]:
-            if j == i or tri[order[j]] != tri[order[j - 1]]:
-                distinct += 1
-            j += 1
-        for t in range(i, j):
-            support[order[t]] = distinct
-        i = j
+    support = np.empty(n_pair, dtype=np.int64)
+    _pair_support(n, n_guide, n_match, m_tri, m_img, m_cat, support)
     # Validated matches contribute their pairings; conflicts are settled by support.
     best = np.full(n, -1, dtype=np.int64)
     best_support = np.zeros(n, dtype=np.int64)

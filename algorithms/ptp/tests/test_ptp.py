@@ -330,3 +330,29 @@ def test_argsort_int_is_numpys_stable_order():
     for n in (0, 1, 2, 7, 64, 65, 300):
         keys = rng.integers(0, max(n // 3, 1), n).astype(np.int64)
         assert np.array_equal(argsort_int(keys), np.argsort(keys, kind="stable"))
+
+
+def test_pair_support_counts_distinct_triangles():
+    """validate's support (hash tables): per pairing, the distinct observed triangles among the records that
+    propose it, against a plain count; repeated pairings, triangles and records, and a table that grows."""
+    from numba import njit
+    from starid_algorithms.ptp.kernels import _pair_support
+
+    @njit
+    def support_of(n, n_guide, n_match, m_tri, m_img, m_cat):
+        out = np.empty(3 * n_match, dtype=np.int64)
+        _pair_support(n, n_guide, n_match, m_tri, m_img, m_cat, out)
+        return out
+
+    rng = np.random.default_rng(5)
+    for n, n_guide, n_match in ((3, 5, 1), (6, 4, 40), (12, 5000, 110), (40, 30, 700)):
+        m_img = rng.integers(0, n, (n_match + 3, 3)).astype(np.int64)
+        m_cat = rng.integers(0, n_guide, (n_match + 3, 3)).astype(np.int64)
+        m_tri = rng.integers(0, min(n ** 3, 25), n_match + 3).astype(np.int64)
+        got = support_of(n, n_guide, n_match, m_tri, m_img, m_cat)
+        tris = {}
+        for mi in range(n_match):
+            for v in range(3):
+                tris.setdefault((m_img[mi, v], m_cat[mi, v]), set()).add(m_tri[mi])
+        want = [len(tris[(m_img[mi, v], m_cat[mi, v])]) for mi in range(n_match) for v in range(3)]
+        assert got.tolist() == want
