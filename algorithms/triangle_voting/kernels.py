@@ -389,7 +389,13 @@ def vote(v_cam, db, tol, votes, mark):
     e_b_in = eps_b_in * inv_b
     e_b_out = eps_b_out * inv_b
     e_near = eps_near * inv_s
-    no_side_check = not side_check
+    # the compact records as one flat uint16 array (a view), read in the scan with unsigned indices
+    rec_flat = records.reshape(4 * records.shape[0])
+    u4 = np.uint64(4)
+    u_base = np.uint64(REC_BASE)
+    u_height = np.uint64(REC_HEIGHT)
+    u_side_i = np.uint64(REC_SIDE_I)
+    u_side_j = np.uint64(REC_SIDE_J)
     # the votes of (observed star o, catalog row c): tally[e] for the e-th pair touched, (touched_o[e],
     # touched_c[e]); a small open-addressing table (slot: index e + 1, 0 = empty) finds e from the key
     # o * n_guide + c. Small enough to stay in the first-level cache, where an (n, n_guide) matrix sent
@@ -516,8 +522,12 @@ def vote(v_cam, db, tol, votes, mark):
             o_h_in, w_h_in = _span(math.ceil(q_height - e_h_in), math.floor(q_height + e_h_in))
             lh_out = math.floor(q_height - e_h_out)
             hh_out = math.ceil(q_height + e_h_out)
-            o_a, w_a = _span(math.floor(q_ia - e_near), math.ceil(q_ia + e_near))
-            o_bb, w_bb = _span(math.floor(q_ib - e_near), math.ceil(q_ib + e_near))
+            if side_check:
+                o_a, w_a = _span(math.floor(q_ia - e_near), math.ceil(q_ia + e_near))
+                o_bb, w_bb = _span(math.floor(q_ib - e_near), math.ceil(q_ib + e_near))
+            else:  # every record is "near": intervals holding every compact value (0..65535)
+                o_a, w_a = _span(0, 65535)
+                o_bb, w_bb = o_a, w_a
             for cb in range(cb0, cb1 + 1):
                 # the cells (cb, ch0..ch1) are contiguous in the record order and sorted by height
                 # (cell, then height): the records surely below and above the height window are skipped,
@@ -529,10 +539,12 @@ def vote(v_cam, db, tol, votes, mark):
                 while r1 > r0 and np.int64(records[r1 - 1, REC_HEIGHT]) > hh_out:
                     r1 -= 1
                 for r in range(r0, r1):
-                    qb = np.int64(records[r, REC_BASE])
-                    qh = np.int64(records[r, REC_HEIGHT])
-                    qi = np.int64(records[r, REC_SIDE_I])
-                    qj = np.int64(records[r, REC_SIDE_J])
+                    # unsigned indices into the flat view: no negative-index wrap-around code in the loop
+                    k = np.uint64(r) * u4
+                    qb = np.int64(rec_flat[k + u_base])
+                    qh = np.int64(rec_flat[k + u_height])
+                    qi = np.int64(rec_flat[k + u_side_i])
+                    qj = np.int64(rec_flat[k + u_side_j])
                     in_windows = (np.uint64(qb - o_b_in) <= w_b_in) & (np.uint64(qh - o_h_in) <= w_h_in)
                     if (np.uint64(qb - o_b_out) <= w_b_out) & (not in_windows):  # rare
                         in_windows = ((abs(features[r, FEAT_BASE] - base) <= eps_b)
@@ -540,8 +552,8 @@ def vote(v_cam, db, tol, votes, mark):
                     near = (((np.uint64(qi - o_a) <= w_a) & (np.uint64(qj - o_bb) <= w_bb))
                             | ((np.uint64(qj - o_a) <= w_a) & (np.uint64(qi - o_bb) <= w_bb)))
                     n_matches += in_windows
-                    listed[n_near] = r
-                    n_near += in_windows & (near | no_side_check)
+                    listed[np.uint64(n_near)] = r
+                    n_near += in_windows & near
             for e in range(n_near):  # their guide rows, read in the next turn's second pass
                 prefetch(rows_db, listed[e])
         if g == 0:
