@@ -534,9 +534,9 @@ def vote(v_cam, db, tol, votes, mark):
                 # so every record scanned is within the "not surely out" height bounds (not tested again)
                 r0 = cell_start[cb * n_cells_h + ch0]
                 r1 = cell_start[cb * n_cells_h + ch1 + 1]
-                while r0 < r1 and np.int64(records[r0, REC_HEIGHT]) < lh_out:
+                while r0 < r1 and np.int64(rec_flat[np.uint64(r0) * u4 + u_height]) < lh_out:
                     r0 += 1
-                while r1 > r0 and np.int64(records[r1 - 1, REC_HEIGHT]) > hh_out:
+                while r1 > r0 and np.int64(rec_flat[np.uint64(r1 - 1) * u4 + u_height]) > hh_out:
                     r1 -= 1
                 for r in range(r0, r1):
                     # unsigned indices into the flat view: no negative-index wrap-around code in the loop
