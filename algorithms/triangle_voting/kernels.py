@@ -526,7 +526,7 @@ def vote(v_cam, db, tol, votes, mark):
                 o_a, w_a = _span(math.floor(q_ia - e_near), math.ceil(q_ia + e_near))
                 o_bb, w_bb = _span(math.floor(q_ib - e_near), math.ceil(q_ib + e_near))
             else:  # every record is "near": intervals holding every compact value (0..65535)
-                o_a, w_a = _span(0, 65535)
+                o_a, w_a = np.int64(0), np.uint64(65535)
                 o_bb, w_bb = o_a, w_a
             for cb in range(cb0, cb1 + 1):
                 # the cells (cb, ch0..ch1) are contiguous in the record order and sorted by height
