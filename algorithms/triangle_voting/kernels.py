@@ -397,10 +397,10 @@ def vote(v_cam, db, tol, votes, mark):
     u_side_i = np.uint64(REC_SIDE_I)
     u_side_j = np.uint64(REC_SIDE_J)
     # the votes of (observed star o, catalog row c): tally[e] for the e-th pair touched, (touched_o[e],
-    # touched_c[e]); a small open-addressing table (slot: index e + 1, 0 = empty) finds e from the key
-    # o * n_guide + c. Small enough to stay in the first-level cache, where an (n, n_guide) matrix sent
-    # each vote to a random line of 1.3 MB. tri_u / tri_c: the (vertex, row) pairs the current
-    # triangle has voted (one vote per triangle each)
+    # touched_c[e]); a small open-addressing table finds e from the key o * n_guide + c (``keys``: the key + 1
+    # per slot, 0 = empty; ``slots``: e + 1 per slot in use). Small enough to stay in the first-level cache,
+    # where an (n, n_guide) matrix sent each vote to a random line of 1.3 MB. tri_u / tri_c: the (vertex, row)
+    # pairs the current triangle has voted (one vote per triangle each)
     n_guide = cat_unit.shape[0]
     obs = np.empty(3, dtype=np.int64)
     row = np.empty(3, dtype=np.int64)
