@@ -267,6 +267,7 @@ def _reproject_assign(A, v_cam, unit, index, c_fov, eps, out_row, ranges, f_px, 
     b = np.empty((1, 3))
     z_lo, z_hi = z_band(bore[0, 2], c_fov)
     count = cone_ranges_indexed(unit, index, bore[0, 0], bore[0, 1], bore[0, 2], c_fov, ranges)
+    eps_x = eps * (1.0 + 1e-9)
     _prefetch_rows(unit, ranges, count, 5)
     for k in range(count):
         for g in range(ranges[k, 0], ranges[k, 1]):
@@ -280,6 +281,10 @@ def _reproject_assign(A, v_cam, unit, index, c_fov, eps, out_row, ranges, f_px, 
             found = -1
             n_found = 0
             for i in range(n):
+                # a star farther than eps_x along x alone is farther than eps (the chord's float64 rounding is
+                # ~3e-16 of it, far inside eps_x's margin): decided without the chord, the same outcome
+                if abs(v_cam[i, 0] - b[0, 0]) > eps_x:
+                    continue
                 if chord_rows(v_cam, i, b, np.int64(0)) <= eps:
                     n_found += 1
                     found = i

@@ -271,21 +271,26 @@ def _key_after(q, r, records, features, rows_db):
 
 
 @_inner
-def _by_base(listed, n, cell_start, cb0, cb1, ch0, ch1, n_cells_h, records, features, rows_db):
+def _by_base(listed, n, cell, cell_start, cb0, cb1, ch0, ch1, n_cells_h, records, features, rows_db):
     """Reorder the records ``listed[:n]`` (ascending, from the cells ``cb0..cb1`` x ``ch0..ch1``) by cell,
     then base, height and main star (stable): the order of the records before they were sorted by height
     within a cell, so the side-matched triangles (the fallback's hypotheses, whose ties go by position)
-    come in the same order as before."""
-    cell = np.empty(n, dtype=np.int64)
+    come in the same order as before. ``cell``: scratch of at least ``n`` entries (``vote``'s, not one
+    allocation per triangle)."""
+    # each record's cell: the records ascend and so do their cells (the cells in the scan's order, column by
+    # column), so one walk over the cells finds them all (not a search of every cell per record)
+    cb = cb0
+    ch = ch0
     for e in range(n):
         r = listed[e]
-        found = -1
-        for cb in range(cb0, cb1 + 1):
-            for ch in range(ch0, ch1 + 1):
-                c = cb * n_cells_h + ch
-                if cell_start[c] <= r < cell_start[c + 1]:
-                    found = c
-        cell[e] = found
+        c = cb * n_cells_h + ch
+        while cb <= cb1 and r >= cell_start[c + 1]:
+            ch += 1
+            if ch > ch1:
+                ch = ch0
+                cb += 1
+            c = cb * n_cells_h + ch
+        cell[e] = c if cb <= cb1 and cell_start[c] <= r else -1
     for k in range(1, n):
         r = listed[k]
         c = cell[k]
@@ -304,25 +309,41 @@ def _by_base(listed, n, cell_start, cb0, cb1, ch0, ch1, n_cells_h, records, feat
 
 
 @_inner
-def _slot(slots, touched_o, touched_c, o, c, n_guide):
-    """The slot of the pair ``(o, c)`` in :func:`vote`'s table: the one holding it, or the empty one
-    where it goes (linear probing; ``slots.size`` a power of 2, never full)."""
-    mask = slots.size - 1
-    e = ((o * n_guide + c) * 40503) & mask
+def _slot(keys, key1):
+    """The slot of the pair key ``key1`` (``o * n_guide + c + 1``) in :func:`vote`'s table: the one holding it,
+    or the empty one (key 0) where it goes (linear probing; ``keys.size`` a power of 2, never full). One
+    load per probe: the keys sit in the table itself."""
+    mask = keys.size - 1
+    e = ((key1 - 1) * 40503) & mask
     while True:
-        h = slots[e]
-        if h == 0 or (touched_o[h - 1] == o and touched_c[h - 1] == c):
+        h = keys[e]
+        if h == 0 or h == key1:
             return e
         e = (e + 1) & mask
 
 
 @_inner
 def _rehash(touched_o, touched_c, n_touched, n_guide, size):
-    """:func:`vote`'s table rebuilt with ``size`` slots for its first ``n_touched`` pairs."""
-    slots = np.zeros(size, dtype=np.int64)
+    """:func:`vote`'s table (``keys``, ``slots``) rebuilt with ``size`` slots for its first ``n_touched``
+    pairs."""
+    keys = np.zeros(size, dtype=np.int64)
+    slots = np.empty(size, dtype=np.int64)
     for k in range(n_touched):
-        slots[_slot(slots, touched_o, touched_c, touched_o[k], touched_c[k], n_guide)] = k + 1
-    return slots
+        key1 = touched_o[k] * n_guide + touched_c[k] + 1
+        e = _slot(keys, key1)
+        keys[e] = key1
+        slots[e] = k + 1
+    return keys, slots
+
+
+@_inner
+def _span(lo, hi):
+    """``(lo, hi - lo)`` of the integer interval ``[lo, hi]`` for :func:`vote`'s one-comparison test
+    ``np.uint64(q - lo) <= hi - lo`` (``lo`` int64, the width uint64); an empty interval (``hi < lo``) as
+    ``(2^40, 0)``, which no compact value (0..65535) is in."""
+    if hi < lo:
+        return np.int64(1 << 40), np.uint64(0)
+    return np.int64(lo), np.uint64(hi - lo)
 
 
 @njit(cache=True, no_cfunc_wrapper=True)
@@ -368,12 +389,18 @@ def vote(v_cam, db, tol, votes, mark):
     e_b_in = eps_b_in * inv_b
     e_b_out = eps_b_out * inv_b
     e_near = eps_near * inv_s
-    no_side_check = not side_check
+    # the compact records as one flat uint16 array (a view), read in the scan with unsigned indices
+    rec_flat = records.reshape(4 * records.shape[0])
+    u4 = np.uint64(4)
+    u_base = np.uint64(REC_BASE)
+    u_height = np.uint64(REC_HEIGHT)
+    u_side_i = np.uint64(REC_SIDE_I)
+    u_side_j = np.uint64(REC_SIDE_J)
     # the votes of (observed star o, catalog row c): tally[e] for the e-th pair touched, (touched_o[e],
-    # touched_c[e]); a small open-addressing table (slot: index e + 1, 0 = empty) finds e from the key
-    # o * n_guide + c. Small enough to stay in the first-level cache, where an (n, n_guide) matrix sent
-    # each vote to a random line of 1.3 MB. tri_u / tri_c: the (vertex, row) pairs the current
-    # triangle has voted (one vote per triangle each)
+    # touched_c[e]); a small open-addressing table finds e from the key o * n_guide + c (``keys``: the key + 1
+    # per slot, 0 = empty; ``slots``: e + 1 per slot in use). Small enough to stay in the first-level cache,
+    # where an (n, n_guide) matrix sent each vote to a random line of 1.3 MB. tri_u / tri_c: the (vertex, row)
+    # pairs the current triangle has voted (one vote per triangle each)
     n_guide = cat_unit.shape[0]
     obs = np.empty(3, dtype=np.int64)
     row = np.empty(3, dtype=np.int64)
@@ -381,7 +408,8 @@ def vote(v_cam, db, tol, votes, mark):
     touched_o = np.empty(1024, dtype=np.int64)
     touched_c = np.empty(1024, dtype=np.int64)
     tally = np.empty(1024, dtype=np.int64)
-    slots = np.zeros(2048, dtype=np.int64)
+    keys = np.zeros(2048, dtype=np.int64)  # per slot the pair's key o * n_guide + c + 1, 0 = empty
+    slots = np.empty(2048, dtype=np.int64)  # per slot in use: the pair's index + 1
     n_touched = 0
     tri_u = np.empty(64, dtype=np.int64)
     tri_c = np.empty(64, dtype=np.int64)
@@ -436,6 +464,7 @@ def vote(v_cam, db, tol, votes, mark):
     # each costing a wait (in the benchmark's interleaved timing they come from memory the other plugins
     # evicted). The triangles' step 2 come in the same order, so the votes and hypotheses are the same.
     listed_prev = np.empty(256, dtype=np.int64)  # the records step 1 listed for the previous triangle
+    cells_of = np.empty(256, dtype=np.int64)  # _by_base's scratch: the cell of each listed record
     n_prev = 0
     n_near = 0
     for g in range(tri + 1):
@@ -485,41 +514,46 @@ def vote(v_cam, db, tol, votes, mark):
             q_ib = d_ib * inv_s
             e_h_in = (eps_h - m_h) * inv_h
             e_h_out = (eps_h + m_h) * inv_h
-            lb_in = math.ceil(q_base - e_b_in)
-            hb_in = math.floor(q_base + e_b_in)
-            lb_out = math.floor(q_base - e_b_out)
-            hb_out = math.ceil(q_base + e_b_out)
-            lh_in = math.ceil(q_height - e_h_in)
-            hh_in = math.floor(q_height + e_h_in)
+            # each interval [lo, hi] as (lo, hi - lo): a value q is inside when the unsigned q - lo is at most
+            # hi - lo, one comparison instead of two (the same integers, the same outcome; an empty interval
+            # becomes one no q of 0..65535 reaches)
+            o_b_in, w_b_in = _span(math.ceil(q_base - e_b_in), math.floor(q_base + e_b_in))
+            o_b_out, w_b_out = _span(math.floor(q_base - e_b_out), math.ceil(q_base + e_b_out))
+            o_h_in, w_h_in = _span(math.ceil(q_height - e_h_in), math.floor(q_height + e_h_in))
             lh_out = math.floor(q_height - e_h_out)
             hh_out = math.ceil(q_height + e_h_out)
-            la = math.floor(q_ia - e_near)
-            ha = math.ceil(q_ia + e_near)
-            lb = math.floor(q_ib - e_near)
-            hb = math.ceil(q_ib + e_near)
+            if side_check:
+                o_a, w_a = _span(math.floor(q_ia - e_near), math.ceil(q_ia + e_near))
+                o_bb, w_bb = _span(math.floor(q_ib - e_near), math.ceil(q_ib + e_near))
+            else:  # every record is "near": intervals holding every compact value (0..65535)
+                o_a, w_a = np.int64(0), np.uint64(65535)
+                o_bb, w_bb = o_a, w_a
             for cb in range(cb0, cb1 + 1):
                 # the cells (cb, ch0..ch1) are contiguous in the record order and sorted by height
-                # (cell, then height): the records surely below and above the height window are skipped
+                # (cell, then height): the records surely below and above the height window are skipped,
+                # so every record scanned is within the "not surely out" height bounds (not tested again)
                 r0 = cell_start[cb * n_cells_h + ch0]
                 r1 = cell_start[cb * n_cells_h + ch1 + 1]
-                while r0 < r1 and np.int64(records[r0, REC_HEIGHT]) < lh_out:
+                while r0 < r1 and np.int64(rec_flat[np.uint64(r0) * u4 + u_height]) < lh_out:
                     r0 += 1
-                while r1 > r0 and np.int64(records[r1 - 1, REC_HEIGHT]) > hh_out:
+                while r1 > r0 and np.int64(rec_flat[np.uint64(r1 - 1) * u4 + u_height]) > hh_out:
                     r1 -= 1
                 for r in range(r0, r1):
-                    qb = np.int64(records[r, REC_BASE])
-                    qh = np.int64(records[r, REC_HEIGHT])
-                    qi = np.int64(records[r, REC_SIDE_I])
-                    qj = np.int64(records[r, REC_SIDE_J])
-                    in_windows = (qb >= lb_in) & (qb <= hb_in) & (qh >= lh_in) & (qh <= hh_in)
-                    if (qb >= lb_out) & (qb <= hb_out) & (qh >= lh_out) & (qh <= hh_out) & (not in_windows):  # rare
+                    # unsigned indices into the flat view: no negative-index wrap-around code in the loop
+                    k = np.uint64(r) * u4
+                    qb = np.int64(rec_flat[k + u_base])
+                    qh = np.int64(rec_flat[k + u_height])
+                    qi = np.int64(rec_flat[k + u_side_i])
+                    qj = np.int64(rec_flat[k + u_side_j])
+                    in_windows = (np.uint64(qb - o_b_in) <= w_b_in) & (np.uint64(qh - o_h_in) <= w_h_in)
+                    if (np.uint64(qb - o_b_out) <= w_b_out) & (not in_windows):  # rare
                         in_windows = ((abs(features[r, FEAT_BASE] - base) <= eps_b)
                                       & (abs(features[r, FEAT_HEIGHT] - height) <= eps_h))
-                    near = (((qi >= la) & (qi <= ha) & (qj >= lb) & (qj <= hb))
-                            | ((qj >= la) & (qj <= ha) & (qi >= lb) & (qi <= hb)))
+                    near = (((np.uint64(qi - o_a) <= w_a) & (np.uint64(qj - o_bb) <= w_bb))
+                            | ((np.uint64(qj - o_a) <= w_a) & (np.uint64(qi - o_bb) <= w_bb)))
                     n_matches += in_windows
-                    listed[n_near] = r
-                    n_near += in_windows & (near | no_side_check)
+                    listed[np.uint64(n_near)] = r
+                    n_near += in_windows & near
             for e in range(n_near):  # their guide rows, read in the next turn's second pass
                 prefetch(rows_db, listed[e])
         if g == 0:
@@ -541,8 +575,8 @@ def vote(v_cam, db, tol, votes, mark):
             touched_o = _grow(touched_o)
             touched_c = _grow(touched_c)
             tally = _grow(tally)
-        if 2 * touched_o.size > slots.size:  # at most half full
-            slots = _rehash(touched_o, touched_c, np.int64(n_touched), n_guide, 2 * touched_o.size)
+        if 2 * touched_o.size > keys.size:  # at most half full
+            keys, slots = _rehash(touched_o, touched_c, np.int64(n_touched), n_guide, 2 * touched_o.size)
         if 3 * n_prev > tri_u.size:
             tri_u = np.empty(3 * n_prev, dtype=np.int64)
             tri_c = np.empty(3 * n_prev, dtype=np.int64)
@@ -554,8 +588,10 @@ def vote(v_cam, db, tol, votes, mark):
                     grown[q, col] = hyp[q, col]
             hyp = grown
         if n_prev > 1:  # the records in the order of (cell, base, height, main), as they were stored
-            _by_base(listed_prev, np.int64(n_prev), cell_start, cb0, cb1, ch0, ch1, n_cells_h, records, features,
-                     rows_db)
+            if n_prev > cells_of.size:
+                cells_of = np.empty(2 * n_prev, dtype=np.int64)
+            _by_base(listed_prev, np.int64(n_prev), cells_of, cell_start, cb0, cb1, ch0, ch1, n_cells_h, records,
+                     features, rows_db)
         for e in range(n_prev):
             r = listed_prev[e]
             c = rows_db[r, ROW_MAIN]
@@ -612,15 +648,16 @@ def vote(v_cam, db, tol, votes, mark):
                 tri_u[n_tri] = u
                 tri_c[n_tri] = c
                 n_tri += 1
-                e = _slot(slots, touched_o, touched_c, o, c, n_guide)
-                h = slots[e]
-                if h == 0:
+                key1 = o * n_guide + c + 1
+                e = _slot(keys, key1)
+                if keys[e] == 0:
+                    keys[e] = key1
                     touched_o[n_touched] = o
                     touched_c[n_touched] = c
                     tally[n_touched] = 0
                     n_touched += 1
-                    h = slots[e] = n_touched
-                tally[h - 1] += 1
+                    slots[e] = n_touched
+                tally[slots[e] - 1] += 1
         listed_prev, listed = listed, listed_prev
         n_prev = n_near
     cand = np.full((n, n_cand), -1, dtype=np.int64)
@@ -651,9 +688,9 @@ def vote(v_cam, db, tol, votes, mark):
     for h in range(n_hyp):
         w = 0
         for u in range(3):
-            slot = slots[_slot(slots, touched_o, touched_c, hyp[h, 2 * u], hyp[h, 2 * u + 1], n_guide)]
-            if slot > 0:
-                w += tally[slot - 1]
+            e = _slot(keys, hyp[h, 2 * u] * n_guide + hyp[h, 2 * u + 1] + 1)
+            if keys[e] != 0:
+                w += tally[slots[e] - 1]
         score[h] = w
     work = np.zeros(len(WORK_COUNTERS), dtype=np.int64)
     work[0] = tri
