@@ -217,41 +217,75 @@ def triangle_variances(r1, r2, r3, sigma_rad):
     return s * var_a, s * var_j
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
-def scan_triangles(unit, nbr_ptr, nbr_idx, rules, offsets, fill):
-    """Catalog triangles ``i < j < k`` that pass the database ``rules``.
+SCAN_CHUNK = 1 << 14  # neighbour pairs per numpy pass of the database scan (small: the temporaries stay in cache)
 
-    Returns ``(counts, stars, area, moment)``. With ``fill=False`` only ``counts`` (triangles per
-    star ``i``) is meaningful; with ``fill=True`` star ``i``'s triangles are written at
-    ``offsets[i]`` onwards of arrays of length ``offsets[-1]`` (two passes, so the arrays are
-    allocated once at their exact size).
+
+def scan_triangles(unit, nbr_ptr, nbr_idx, rules):
+    """Catalog triangles ``i < j < k`` that pass the database ``rules``, as ``(stars uint16 (N, 3), area,
+    moment)`` in the order of the loops ``for i: for a < b in i's neighbours (j = nbr_idx[a], k =
+    nbr_idx[b])``.
+
+    numpy, not a kernel: it runs once per database, and a kernel cost more to compile (~0.5 CPU s on
+    a cold cache) than this takes to run (about the kernel's own time at Table 6's 2.1 M triangles). The
+    arithmetic is :func:`triangle_features`' operation by operation (and ``chord_rows``' for the side
+    ``j``-``k``), so the values are the same bits; the smallest enclosing circle's diameter decides
+    with libm's ``asin`` (the kernel's) wherever numpy's could differ from it (within 1e-9 of the limit).
     """
     n = unit.shape[0]
-    total = offsets[-1] if fill else 0
-    stars = np.empty((total, 3), dtype=np.uint16)
-    area_out = np.empty(total)
-    moment_out = np.empty(total)
-    counts = np.zeros(n, dtype=np.int64)
-    for i in range(n):
-        c = 0
-        for a in range(nbr_ptr[i], nbr_ptr[i + 1]):
-            j = nbr_idx[a]
-            for b in range(a + 1, nbr_ptr[i + 1]):
-                k = nbr_idx[b]
-                if chord_rows(unit, j, unit, k) > rules.chord_max:
-                    continue
-                area, moment, diam = triangle_features(unit[i], unit[j], unit[k])
-                if diam <= rules.fov_rad and area >= rules.min_area:
-                    if fill:
-                        p = offsets[i] + c
-                        stars[p, 0] = i
-                        stars[p, 1] = j
-                        stars[p, 2] = k
-                        area_out[p] = area
-                        moment_out[p] = moment
-                    c += 1
-        counts[i] = c
-    return counts, stars, area_out, moment_out
+    ptr = np.asarray(nbr_ptr, dtype=np.int64)
+    m = int(ptr[-1])
+    ux, uy, uz = (np.ascontiguousarray(unit[:, q], dtype=np.float64) for q in range(3))
+    idx = np.asarray(nbr_idx, dtype=np.int64)
+    owner = np.repeat(np.arange(n, dtype=np.int64), np.diff(ptr))  # star i of each neighbour entry a
+    n_pairs = ptr[owner + 1] - 1 - np.arange(m, dtype=np.int64)  # entries b > a of the same star
+    ends = np.cumsum(n_pairs)
+    parts = []
+    a_lo = 0
+    while a_lo < m:
+        done = int(ends[a_lo - 1]) if a_lo else 0
+        a_hi = min(max(int(np.searchsorted(ends, done + SCAN_CHUNK, side="right")), a_lo + 1), m)
+        cnt = n_pairs[a_lo:a_hi]
+        a = np.repeat(np.arange(a_lo, a_hi, dtype=np.int64), cnt)
+        b = a + 1 + (np.arange(a.size, dtype=np.int64) - np.repeat(np.cumsum(cnt) - cnt, cnt))
+        a_lo = a_hi
+        j = idx[a]
+        k = idx[b]
+        x2, y2, z2, x3, y3, z3 = ux[j], uy[j], uz[j], ux[k], uy[k], uz[k]
+        dx, dy, dz = x3 - x2, y3 - y2, z3 - z2
+        b2 = dx * dx + dy * dy + dz * dz  # side j-k squared (chord_rows' (x2 - x3)^2: the same bits)
+        near = np.flatnonzero(~(np.sqrt(b2) > rules.chord_max))
+        i = owner[a[near]]
+        j, k, b2 = j[near], k[near], b2[near]
+        x1, y1, z1 = ux[i], uy[i], uz[i]
+        x2, y2, z2, x3, y3, z3 = x2[near], y2[near], z2[near], x3[near], y3[near], z3[near]
+        e1x, e1y, e1z = x2 - x1, y2 - y1, z2 - z1
+        e2x, e2y, e2z = x3 - x1, y3 - y1, z3 - z1
+        nx = e1y * e2z - e1z * e2y
+        ny = e1z * e2x - e1x * e2z
+        nz = e1x * e2y - e1y * e2x
+        area = 0.5 * np.sqrt(nx * nx + ny * ny + nz * nz)
+        a2 = e1x * e1x + e1y * e1y + e1z * e1z
+        c2 = e2x * e2x + e2y * e2y + e2z * e2z
+        s2 = a2 + b2 + c2
+        big = np.maximum(np.maximum(a2, b2), c2)
+        acute = (big < s2 - big) & (area > 0.0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            radius = np.where(acute, np.sqrt(a2 * b2 * c2) / (4.0 * area), 0.5 * np.sqrt(big))
+        keep = np.flatnonzero(area >= rules.min_area)
+        r = radius[keep]
+        diameter = np.full(r.shape, math.pi)
+        inside = r < 1.0
+        diameter[inside] = 2.0 * np.arcsin(r[inside])
+        # np.arcsin may differ from libm's asin (the kernel's) in the last bits: near the limit, libm's
+        edge = np.flatnonzero(inside & (np.abs(diameter - rules.fov_rad) <= 1e-9 * rules.fov_rad))
+        diameter[edge] = [2.0 * math.asin(x) for x in r[edge].tolist()]
+        keep = keep[diameter <= rules.fov_rad]
+        parts.append((i[keep], j[keep], k[keep], area[keep], area[keep] * s2[keep] / 36.0))
+    cols = [np.concatenate([p[q] for p in parts]) if parts else np.zeros(0) for q in range(5)]
+    stars = np.empty((cols[0].shape[0], 3), dtype=np.uint16)
+    for q in range(3):
+        stars[:, q] = cols[q]
+    return stars, cols[3].astype(np.float64), cols[4].astype(np.float64)
 
 
 def moment_blocks(moment):
@@ -1150,6 +1184,7 @@ def identify_subsets(img_v, bright, db, tol, stages):
     cache = new_cache(img, db.unit.shape[0])
     tol_chord = tol.beta * math.sqrt(2.0) * tol.sigma_rad
     first = np.int64(-1)  # the first subset's start triangle (a row of img; np.int64: not a literal)
+    stage = -1  # the stage that identified
     for st in range(stages.shape[0]):
         pool = min(stages[st, 1], k)
         size = min(stages[st, 0], pool)
@@ -1229,8 +1264,8 @@ def identify_subsets(img_v, bright, db, tol, stages):
                 if found:
                     for a in range(size):
                         out[idx[a]] = rows[a]
-                    first_query(img, db, tol, cache, out, first, work)
-                    return out, chain, st, work
+                    stage = st
+                    break
             # next combination of ``size`` out of ``pool`` in lexicographic order
             p = size - 1
             while p >= 0 and comb[p] == pool - size + p:
@@ -1240,8 +1275,10 @@ def identify_subsets(img_v, bright, db, tol, stages):
             comb[p] += 1
             for q in range(p + 1, size):
                 comb[q] = comb[q - 1] + 1
+        if stage >= 0:
+            break
     first_query(img, db, tol, cache, out, first, work)
-    return out, chain, -1, work
+    return out, chain, stage, work
 
 
 # -- the final step (shared with triangle_voting) -------------------------------------------
