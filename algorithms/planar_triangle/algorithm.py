@@ -418,12 +418,9 @@ class PlanarTriangle(Algorithm):
         fov_db_rad = math.radians(fov_db_deg)
         rules = Rules(float(rad_to_chord(fov_db_rad)), fov_db_rad, min_area_deg2 * DEG2_TO_CHORD2)
         ptr, idx = _neighbour_csr(unit, rules.chord_max, symmetric=False)
-        counts = scan_triangles(unit, ptr, idx, rules, np.zeros(1, dtype=np.int64), False)[0]
-        offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
-        total = int(offsets[-1])
-        if total >= 2**31:
-            raise ConfigError(f"{total} triangles exceed the int32 k-vector")
-        _, stars, area, moment = scan_triangles(unit, ptr, idx, rules, offsets, True)
+        stars, area, moment = scan_triangles(unit, ptr, idx, rules)
+        if area.shape[0] >= 2**31:
+            raise ConfigError(f"{area.shape[0]} triangles exceed the int32 k-vector")
         area32 = area.astype(np.float32)
         order = np.argsort(area32, kind="stable")
         moment_sorted, moment_perm = moment_blocks(moment[order])

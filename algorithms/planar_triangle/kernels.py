@@ -180,8 +180,12 @@ def triangle_variances(r1, r2, r3, sigma_rad):
     ``grad_1 A = (b2 - b3) x n_hat / 2`` (cyclic), ``grad_i J = (S grad_i A + A grad_i S) / 36``
     with ``S = a^2 + b^2 + c^2``.
     """
-    e1x, e1y, e1z = r2[0] - r1[0], r2[1] - r1[1], r2[2] - r1[2]
-    e2x, e2y, e2z = r3[0] - r1[0], r3[1] - r1[1], r3[2] - r1[2]
+    # the nine coordinates read once (scalars: every array access is a typed operation to compile)
+    x1, y1, z1 = r1[0], r1[1], r1[2]
+    x2, y2, z2 = r2[0], r2[1], r2[2]
+    x3, y3, z3 = r3[0], r3[1], r3[2]
+    e1x, e1y, e1z = x2 - x1, y2 - y1, z2 - z1
+    e2x, e2y, e2z = x3 - x1, y3 - y1, z3 - z1
     nx, ny, nz = _cross(e1x, e1y, e1z, e2x, e2y, e2z)
     nn = math.sqrt(nx * nx + ny * ny + nz * nz)
     if nn == 0.0:
@@ -189,69 +193,101 @@ def triangle_variances(r1, r2, r3, sigma_rad):
     area = 0.5 * nn
     nx, ny, nz = nx / nn, ny / nn, nz / nn
     s2 = 0.0
-    for d in range(3):
-        s2 += (r1[d] - r2[d]) ** 2 + (r2[d] - r3[d]) ** 2 + (r1[d] - r3[d]) ** 2
+    s2 += (x1 - x2) ** 2 + (x2 - x3) ** 2 + (x1 - x3) ** 2
+    s2 += (y1 - y2) ** 2 + (y2 - y3) ** 2 + (y1 - y3) ** 2
+    s2 += (z1 - z2) ** 2 + (z2 - z3) ** 2 + (z1 - z3) ** 2
     var_a = 0.0
     var_j = 0.0
-    for i in range(3):
-        if i == 0:
-            p, q, r = r1, r2, r3
-        elif i == 1:
-            p, q, r = r2, r3, r1
-        else:
-            p, q, r = r3, r1, r2
+    # vertex p with the other two q, r: (1, 2, 3), (2, 3, 1), (3, 1, 2)
+    px, py, pz, qx, qy, qz, rx, ry, rz = x1, y1, z1, x2, y2, z2, x3, y3, z3
+    for _ in range(3):
         # grad_p A = (q - r) x n_hat / 2; grad_p S = 2 (p - q) + 2 (p - r)
-        gx, gy, gz = _cross(q[0] - r[0], q[1] - r[1], q[2] - r[2], nx, ny, nz)
+        gx, gy, gz = _cross(qx - rx, qy - ry, qz - rz, nx, ny, nz)
         gx, gy, gz = 0.5 * gx, 0.5 * gy, 0.5 * gz
-        sx = 2.0 * (2.0 * p[0] - q[0] - r[0])
-        sy = 2.0 * (2.0 * p[1] - q[1] - r[1])
-        sz = 2.0 * (2.0 * p[2] - q[2] - r[2])
+        sx = 2.0 * (2.0 * px - qx - rx)
+        sy = 2.0 * (2.0 * py - qy - ry)
+        sz = 2.0 * (2.0 * pz - qz - rz)
         jx = (s2 * gx + area * sx) / 36.0
         jy = (s2 * gy + area * sy) / 36.0
         jz = (s2 * gz + area * sz) / 36.0
-        pg = p[0] * gx + p[1] * gy + p[2] * gz
-        pj = p[0] * jx + p[1] * jy + p[2] * jz
+        pg = px * gx + py * gy + pz * gz
+        pj = px * jx + py * jy + pz * jz
         var_a += gx * gx + gy * gy + gz * gz - pg * pg
         var_j += jx * jx + jy * jy + jz * jz - pj * pj
+        px, py, pz, qx, qy, qz, rx, ry, rz = qx, qy, qz, rx, ry, rz, px, py, pz
     s = sigma_rad * sigma_rad
     return s * var_a, s * var_j
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
-def scan_triangles(unit, nbr_ptr, nbr_idx, rules, offsets, fill):
-    """Catalog triangles ``i < j < k`` that pass the database ``rules``.
+SCAN_CHUNK = 1 << 14  # neighbour pairs per numpy pass of the database scan (small: the temporaries stay in cache)
 
-    Returns ``(counts, stars, area, moment)``. With ``fill=False`` only ``counts`` (triangles per
-    star ``i``) is meaningful; with ``fill=True`` star ``i``'s triangles are written at
-    ``offsets[i]`` onwards of arrays of length ``offsets[-1]`` (two passes, so the arrays are
-    allocated once at their exact size).
+
+def scan_triangles(unit, nbr_ptr, nbr_idx, rules):
+    """Catalog triangles ``i < j < k`` that pass the database ``rules``, as ``(stars uint16 (N, 3), area,
+    moment)`` in the order of the loops ``for i: for a < b in i's neighbours (j = nbr_idx[a], k =
+    nbr_idx[b])``.
+
+    numpy, not a kernel: it runs once per database, and a kernel cost more to compile (~0.5 CPU s on
+    a cold cache) than this takes to run (about the kernel's own time at Table 6's 2.1 M triangles). The
+    arithmetic is :func:`triangle_features`' operation by operation (and ``chord_rows``' for the side
+    ``j``-``k``), so the values are the same bits; the smallest enclosing circle's diameter decides
+    with libm's ``asin`` (the kernel's) wherever numpy's could differ from it (within 1e-9 of the limit).
     """
     n = unit.shape[0]
-    total = offsets[-1] if fill else 0
-    stars = np.empty((total, 3), dtype=np.uint16)
-    area_out = np.empty(total)
-    moment_out = np.empty(total)
-    counts = np.zeros(n, dtype=np.int64)
-    for i in range(n):
-        c = 0
-        for a in range(nbr_ptr[i], nbr_ptr[i + 1]):
-            j = nbr_idx[a]
-            for b in range(a + 1, nbr_ptr[i + 1]):
-                k = nbr_idx[b]
-                if chord_rows(unit, j, unit, k) > rules.chord_max:
-                    continue
-                area, moment, diam = triangle_features(unit[i], unit[j], unit[k])
-                if diam <= rules.fov_rad and area >= rules.min_area:
-                    if fill:
-                        p = offsets[i] + c
-                        stars[p, 0] = i
-                        stars[p, 1] = j
-                        stars[p, 2] = k
-                        area_out[p] = area
-                        moment_out[p] = moment
-                    c += 1
-        counts[i] = c
-    return counts, stars, area_out, moment_out
+    ptr = np.asarray(nbr_ptr, dtype=np.int64)
+    m = int(ptr[-1])
+    ux, uy, uz = (np.ascontiguousarray(unit[:, q], dtype=np.float64) for q in range(3))
+    idx = np.asarray(nbr_idx, dtype=np.int64)
+    owner = np.repeat(np.arange(n, dtype=np.int64), np.diff(ptr))  # star i of each neighbour entry a
+    n_pairs = ptr[owner + 1] - 1 - np.arange(m, dtype=np.int64)  # entries b > a of the same star
+    ends = np.cumsum(n_pairs)
+    parts = []
+    a_lo = 0
+    while a_lo < m:
+        done = int(ends[a_lo - 1]) if a_lo else 0
+        a_hi = min(max(int(np.searchsorted(ends, done + SCAN_CHUNK, side="right")), a_lo + 1), m)
+        cnt = n_pairs[a_lo:a_hi]
+        a = np.repeat(np.arange(a_lo, a_hi, dtype=np.int64), cnt)
+        b = a + 1 + (np.arange(a.size, dtype=np.int64) - np.repeat(np.cumsum(cnt) - cnt, cnt))
+        a_lo = a_hi
+        j = idx[a]
+        k = idx[b]
+        x2, y2, z2, x3, y3, z3 = ux[j], uy[j], uz[j], ux[k], uy[k], uz[k]
+        dx, dy, dz = x3 - x2, y3 - y2, z3 - z2
+        b2 = dx * dx + dy * dy + dz * dz  # side j-k squared (chord_rows' (x2 - x3)^2: the same bits)
+        near = np.flatnonzero(~(np.sqrt(b2) > rules.chord_max))
+        i = owner[a[near]]
+        j, k, b2 = j[near], k[near], b2[near]
+        x1, y1, z1 = ux[i], uy[i], uz[i]
+        x2, y2, z2, x3, y3, z3 = x2[near], y2[near], z2[near], x3[near], y3[near], z3[near]
+        e1x, e1y, e1z = x2 - x1, y2 - y1, z2 - z1
+        e2x, e2y, e2z = x3 - x1, y3 - y1, z3 - z1
+        nx = e1y * e2z - e1z * e2y
+        ny = e1z * e2x - e1x * e2z
+        nz = e1x * e2y - e1y * e2x
+        area = 0.5 * np.sqrt(nx * nx + ny * ny + nz * nz)
+        a2 = e1x * e1x + e1y * e1y + e1z * e1z
+        c2 = e2x * e2x + e2y * e2y + e2z * e2z
+        s2 = a2 + b2 + c2
+        big = np.maximum(np.maximum(a2, b2), c2)
+        acute = (big < s2 - big) & (area > 0.0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            radius = np.where(acute, np.sqrt(a2 * b2 * c2) / (4.0 * area), 0.5 * np.sqrt(big))
+        keep = np.flatnonzero(area >= rules.min_area)
+        r = radius[keep]
+        diameter = np.full(r.shape, math.pi)
+        inside = r < 1.0
+        diameter[inside] = 2.0 * np.arcsin(r[inside])
+        # np.arcsin may differ from libm's asin (the kernel's) in the last bits: near the limit, libm's
+        edge = np.flatnonzero(inside & (np.abs(diameter - rules.fov_rad) <= 1e-9 * rules.fov_rad))
+        diameter[edge] = [2.0 * math.asin(x) for x in r[edge].tolist()]
+        keep = keep[diameter <= rules.fov_rad]
+        parts.append((i[keep], j[keep], k[keep], area[keep], area[keep] * s2[keep] / 36.0))
+    cols = [np.concatenate([p[q] for p in parts]) if parts else np.zeros(0) for q in range(5)]
+    stars = np.empty((cols[0].shape[0], 3), dtype=np.uint16)
+    for q in range(3):
+        stars[:, q] = cols[q]
+    return stars, cols[3].astype(np.float64), cols[4].astype(np.float64)
 
 
 def moment_blocks(moment):
@@ -441,26 +477,41 @@ def new_cache(img, n_guide):
     CACHE_PER_TRIANGLE candidates per triangle on average; ``n_guide`` guide stars."""
     m = img.tri.shape[0]
     total = CACHE_PER_TRIANGLE * m
-    return MomentCache(np.zeros(m, dtype=np.bool_), np.zeros(m, dtype=np.int64), np.zeros(m, dtype=np.int64),
+    # np.empty and loops, not np.zeros / np.full: each of those (per dtype) compiles np.empty and a fill
+    # of its own, ~0.1 CPU s each on a cold cache
+    done = np.empty(m, dtype=np.bool_)
+    per_triangle = np.empty((5, m), dtype=np.int64)  # start, stop, hstart, hsize, scans
+    for g in range(m):
+        done[g] = False
+        for r in range(5):
+            per_triangle[r, g] = 0
+    fills = np.empty(4, dtype=np.int64)  # fill, hfill, memo_fill (2)
+    for r in range(4):
+        fills[r] = 0
+    memo_of = np.empty(MEMO_DIM * MEMO_DIM, dtype=np.int64)
+    for e in range(MEMO_DIM * MEMO_DIM):
+        memo_of[e] = -1
+    mark = np.empty(n_guide, dtype=np.uint8)
+    for g in range(n_guide):
+        mark[g] = 0
+    return MomentCache(done, per_triangle[0], per_triangle[1],
                        np.empty(total, dtype=np.int64), np.empty(HASH_ROOM * total, dtype=np.uint64),
-                       np.zeros(m, dtype=np.int64),
-                       np.zeros(m, dtype=np.int64), np.zeros(1, dtype=np.int64), np.zeros(1, dtype=np.int64),
-                       np.full(MEMO_DIM * MEMO_DIM, -1, dtype=np.int64), np.empty(MEMO_DIM * MEMO_DIM, dtype=np.int64),
+                       per_triangle[2], per_triangle[3], fills[0:1], fills[1:2],
+                       memo_of, np.empty(MEMO_DIM * MEMO_DIM, dtype=np.int64),
                        np.empty(MEMO_DIM * MEMO_DIM, dtype=np.int64), np.empty(MEMO_DIM * MEMO_DIM, dtype=np.int64),
                        np.empty(MEMO_DIM * MEMO_DIM, dtype=np.bool_), np.empty(MEMO_NODES, dtype=np.int64),
-                       np.empty(MEMO_NODES, dtype=np.int64), np.zeros(2, dtype=np.int64),
-                       np.zeros(n_guide, dtype=np.uint8), np.zeros(m, dtype=np.int64))
+                       np.empty(MEMO_NODES, dtype=np.int64), fills[2:4],
+                       mark, per_triangle[4])
 
 
 @_inner
-def first_query(img, db, tol, cache, rows, first, work):
+def first_query(img, tri_stars, cand, rows, first, work):
     """``work[5:8]`` (the first-query counters) of the image triangle ``first`` (a row of ``img``, the
-    whole image's triangles; -1: none was queried) given the identification's ``rows`` (guide row per
-    star of ``img.v``): its number of candidates, whether ``rows`` names its three stars, and whether a
-    candidate is the triangle of the rows they are named as. The candidates come from ``cache``."""
-    if first < 0:
-        return
-    cand = _moment_list(first, img, db, tol, cache)
+    whole image's triangles) and its candidates ``cand`` (``_moment_list``) given the identification's
+    ``rows`` (guide row per star of ``img.v``): its number of candidates, whether ``rows`` names its
+    three stars, and whether a candidate is the triangle of the rows they are named as. The caller looks
+    the candidates up: this kernel does not call ``_moment_list``, so its machine code does not hold
+    that kernel's call tree once more."""
     work[5] = cand.shape[0]
     r0 = rows[img.tri[first, 0]]
     r1 = rows[img.tri[first, 1]]
@@ -471,7 +522,7 @@ def first_query(img, db, tol, cache, rows, first, work):
     for c in range(cand.shape[0]):
         hit = 0
         for a in range(3):
-            g = np.int64(db.stars[cand[c], a])
+            g = np.int64(tri_stars[cand[c], a])
             if g == r0 or g == r1 or g == r2:
                 hit += 1
         if hit == 3:
@@ -551,7 +602,7 @@ def _same_signatures(members, length, want, ids, masks):
 
 @_inner
 def _grow(arr, size):
-    out = np.empty(max(2 * arr.shape[0], size), dtype=arr.dtype)
+    out = np.empty(max(2 * arr.shape[0], size), dtype=np.int64)  # int64 only: np.empty compiled once
     for q in range(arr.shape[0]):  # not a slice assignment (see _moment_list)
         out[q] = arr[q]
     return out
@@ -658,7 +709,9 @@ def _pivot(first, img, db, tol, pivot_limit, cache, work):
     abort_if_grow = tol.abort_if_grow
     consistent_chain = tol.consistent_chain
     m = img_tri.shape[0]
-    used_tri = np.zeros(m, dtype=np.bool_)
+    used_tri = np.empty(m, dtype=np.bool_)  # not np.zeros (see new_cache)
+    for q in range(m):
+        used_tri[q] = False
     chain = np.empty(m, dtype=np.int64)
     chain[0] = first
     used_tri[first] = True
@@ -666,7 +719,9 @@ def _pivot(first, img, db, tol, pivot_limit, cache, work):
     node_cat = _moment_list(first, img, db, tol, cache).copy()
     n_nodes = node_cat.shape[0]
     work[2] += n_nodes
-    node_parent = np.full(max(n_nodes, 1), -1, dtype=np.int64)
+    node_parent = np.empty(max(n_nodes, 1), dtype=np.int64)  # not np.full (see new_cache)
+    for q in range(node_parent.shape[0]):
+        node_parent[q] = -1
     layer_lo = 0
     n_fin = n_nodes
     length = 1
@@ -793,11 +848,15 @@ def recover_correspondence(img, chain, cat_chain, db, tol_chord):
     cat_unit = db.unit
     perms = PERMS
     n = img_v.shape[0]
-    best = np.full(n, -1, dtype=np.int64)
+    best = np.empty(n, dtype=np.int64)  # np.empty and loops, not np.full (see new_cache)
+    for i in range(n):
+        best[i] = -1
     n_ok = 0
     length = cat_chain.shape[0]
     for p in range(perms.shape[0]):
-        rows = np.full(n, -1, dtype=np.int64)
+        rows = np.empty(n, dtype=np.int64)
+        for i in range(n):
+            rows[i] = -1
         t0 = chain[0]
         c0 = cat_chain[0]
         for s in range(3):
@@ -849,7 +908,8 @@ def recover_correspondence(img, chain, cat_chain, db, tol_chord):
             n_ok += 1
             best = rows
     if n_ok != 1:
-        return np.full(n, -1, dtype=np.int64)
+        for i in range(n):
+            best[i] = -1
     return best
 
 
@@ -905,7 +965,9 @@ def extend_by_distance(img_v, rows, db, tol_chord):
                 n_found += 1
         if n_found == 1:
             out[o] = found
-    clash = np.zeros(n, dtype=np.bool_)
+    clash = np.empty(n, dtype=np.bool_)  # not np.zeros (see new_cache)
+    for i in range(n):
+        clash[i] = False
     for i in range(n):
         if rows[i] >= 0 or out[i] < 0:
             continue
@@ -953,7 +1015,10 @@ def _image_triangles(img_v, db, tol):
                 img_start[m] = start
                 img_stop[m] = stop
                 m += 1
-    return ImageTriangles(img_v, img_tri[:m], img_area[:m], img_start[:m], img_stop[:m], np.arange(m))
+    gid = np.empty(m, dtype=np.int64)  # np.arange(m) (a loop: see new_cache)
+    for t in range(m):
+        gid[t] = t
+    return ImageTriangles(img_v, img_tri[:m], img_area[:m], img_start[:m], img_stop[:m], gid)
 
 
 @njit(cache=True, no_cfunc_wrapper=True)
@@ -971,7 +1036,9 @@ def argsort_desc(values):
     (planar_triangle and triangle_voting each), this one a fraction of it; a stable sort's order is
     unique, so the result is the same."""
     n = values.shape[0]
-    idx = np.arange(n)
+    idx = np.empty(n, dtype=np.int64)  # np.arange(n) (a loop: its overload compiles per caller's flags)
+    for q in range(n):
+        idx[q] = q
     tmp = np.empty(n, dtype=np.int64)
     width = 1
     while width < n:
@@ -1103,7 +1170,9 @@ def _sub_triangles(img, idx, size, sub_v):
     """The triangles of ``img`` whose three stars are all in ``idx[:size]`` (sorted star indices),
     renumbered to positions in ``idx``; ``gid`` keeps the row in ``img`` (the cache key)."""
     n = img.v.shape[0]
-    local = np.full(n, -1, dtype=np.int64)
+    local = np.empty(n, dtype=np.int64)  # not np.full (see new_cache)
+    for i in range(n):
+        local[i] = -1
     for a in range(size):
         local[idx[a]] = a
     m = img.tri.shape[0]
@@ -1140,9 +1209,15 @@ def identify_subsets(img_v, bright, db, tol, stages):
     """
     n = img_v.shape[0]
     k = bright.shape[0]
-    out = np.full(n, -1, dtype=np.int64)
-    chain = np.zeros((0, 3), dtype=np.int64)
-    work = np.zeros(N_WORK, dtype=np.int64)
+    # np.empty and loops, not np.full / np.zeros: this kernel has a Python entry point, so numba compiles
+    # every numpy function it calls once more for its flags (the inner kernels' copies do not serve it)
+    out = np.empty(n, dtype=np.int64)
+    for i in range(n):
+        out[i] = -1
+    chain = np.empty((0, 3), dtype=np.int64)
+    work = np.empty(N_WORK, dtype=np.int64)
+    for i in range(N_WORK):
+        work[i] = 0
     if n < 3:
         return out, chain, -1, work
     img = _image_triangles(img_v, db, tol)
@@ -1150,9 +1225,10 @@ def identify_subsets(img_v, bright, db, tol, stages):
     cache = new_cache(img, db.unit.shape[0])
     tol_chord = tol.beta * math.sqrt(2.0) * tol.sigma_rad
     first = np.int64(-1)  # the first subset's start triangle (a row of img; np.int64: not a literal)
+    stage = -1  # the stage that identified
     for st in range(stages.shape[0]):
-        pool = min(stages[st, 1], k)
-        size = min(stages[st, 0], pool)
+        pool = stages[st, 1] if stages[st, 1] < k else k  # min(): see np.empty above
+        size = stages[st, 0] if stages[st, 0] < pool else pool
         if size < 3:
             continue
         comb = np.arange(size)
@@ -1161,7 +1237,8 @@ def identify_subsets(img_v, bright, db, tol, stages):
             # skip a subset an earlier stage of the same size already tried (all within its pool)
             seen = False
             for e in range(st):
-                if min(stages[e, 0], min(stages[e, 1], k)) == size and comb[size - 1] < min(stages[e, 1], k):
+                pool_e = stages[e, 1] if stages[e, 1] < k else k
+                if (stages[e, 0] if stages[e, 0] < pool_e else pool_e) == size and comb[size - 1] < pool_e:
                     seen = True
             if not seen:
                 tried += 1
@@ -1186,16 +1263,18 @@ def identify_subsets(img_v, bright, db, tol, stages):
                             best = q
                     first = sub_img.gid[best]
                 # steps 2-5 of identify_rows on the subset (inline: a kernel level less to compile)
-                rows = np.full(size, -1, dtype=np.int64)
+                rows = np.empty(size, dtype=np.int64)
+                for a in range(size):
+                    rows[a] = -1
                 found = False
-                sub_chain = np.zeros((0, 3), dtype=np.int64)
+                sub_chain = np.empty((0, 3), dtype=np.int64)
                 m_sub = sub_img.tri.shape[0]
                 if m_sub > 0:
                     pivot_limit = tol.pivot_limit
                     if pivot_limit < 0:  # no limit: the chain may use every image triangle
                         pivot_limit = m_sub - 1
                     ranked = argsort_desc(sub_img.area)
-                    for attempt in range(min(tol.restarts + 1, m_sub)):
+                    for attempt in range(tol.restarts + 1 if tol.restarts + 1 < m_sub else m_sub):
                         tri_chain, cat_chain, n_fin = _pivot(ranked[attempt], sub_img, db, tol, pivot_limit, cache,
                                                              work)
                         work[8] += 1
@@ -1229,8 +1308,8 @@ def identify_subsets(img_v, bright, db, tol, stages):
                 if found:
                     for a in range(size):
                         out[idx[a]] = rows[a]
-                    first_query(img, db, tol, cache, out, first, work)
-                    return out, chain, st, work
+                    stage = st
+                    break
             # next combination of ``size`` out of ``pool`` in lexicographic order
             p = size - 1
             while p >= 0 and comb[p] == pool - size + p:
@@ -1240,8 +1319,11 @@ def identify_subsets(img_v, bright, db, tol, stages):
             comb[p] += 1
             for q in range(p + 1, size):
                 comb[q] = comb[q - 1] + 1
-    first_query(img, db, tol, cache, out, first, work)
-    return out, chain, -1, work
+        if stage >= 0:
+            break
+    if first >= 0:  # the first query's counters, its candidates from the cache
+        first_query(img, db.stars, _moment_list(first, img, db, tol, cache), out, first, work)
+    return out, chain, stage, work
 
 
 # -- the final step (shared with triangle_voting) -------------------------------------------
@@ -1342,14 +1424,22 @@ def finish(x_px, y_px, mag, rows, guide_unit, guide_hip, deep, deep_mag, frame, 
     The ids of step 2 are reported only with ``assign_all``; otherwise those of ``rows``.
     """
     n = rows.shape[0]
-    hip = np.full(n, -1, dtype=np.int64)
+    # np.empty and loops, not np.full / np.zeros (see identify_subsets); ``none``: every id -1
+    none = np.empty(n, dtype=np.int64)
+    hip = np.empty(n, dtype=np.int64)
     n_found = 0
     for i in range(n):
+        none[i] = -1
+        hip[i] = -1
         if rows[i] >= 0:
             hip[i] = guide_hip[rows[i]]
             n_found += 1
     if n_found < 2:
-        return np.full(n, -1, dtype=np.int64), np.zeros((3, 3)), False
+        zero = np.empty((3, 3))
+        for a in range(3):
+            for b in range(3):
+                zero[a, b] = 0.0
+        return none, zero, False
     v_cam = backproject_px(x_px, y_px, frame.f_px, frame.cx_px, frame.cy_px)
     attitude = wahba_rows(v_cam, rows, guide_unit)
     assigned = hip.copy()
@@ -1388,7 +1478,7 @@ def finish(x_px, y_px, mag, rows, guide_unit, guide_hip, deep, deep_mag, frame, 
         mag_max = min(rules.mag_limit, mag_top) - rules.coverage_mag_margin
         predicted, missed = coverage(attitude, deep, deep_mag, mag_max, found[:n_ids], frame)
         if not (missed <= 1 or missed <= rules.max_missed_fraction * predicted):
-            return np.full(n, -1, dtype=np.int64), attitude, False
+            return none, attitude, False
     # a guide identification is not reported when two stars bright enough to be the detection are
     # predicted within the window of it: the triangles could not tell them apart either (close pairs
     # at coarse pixels and 2 px of noise; the attitude and the coverage above still use it)
