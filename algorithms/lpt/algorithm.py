@@ -29,7 +29,32 @@ from ..lpt_improved.planar import (
     select_guides,
     z_index,
 )
-from .kernels import Strings, StringSearch, build_strings, identify_kernel, lpt_string, scan_order, sparse_strings
+from .kernels import Strings, StringSearch, identify_kernel, lpt_string, scan_order, sparse_strings
+
+
+def build_strings(unit: np.ndarray, nbr: np.ndarray, nbr_off: np.ndarray, f_px: float,
+                  search: StringSearch) -> np.ndarray:
+    """LPT string of every guide star (rows of ``unit``), dense uint8 ``(g, n_sectors)``.
+
+    Once per database, so plain Python over the guide stars calling the two kernels identify
+    compiles anyway (``plane_polar``, ``lpt_string``), with the same argument types: a build kernel
+    of its own compiled ~0.6 CPU s on a cold cache (issue #25).
+    """
+    unit = np.ascontiguousarray(unit, dtype=np.float64)
+    rows = np.asarray(nbr, dtype=np.int64)   # int64 rows: plane_polar's one (the image's) signature
+    off = np.asarray(nbr_off, dtype=np.int64)
+    strings = np.zeros((unit.shape[0], search.n_sectors), dtype=np.uint8)
+    longest = max(1, int(np.diff(off).max())) if off.size > 1 else 1
+    r_px, phi = np.empty(longest), np.empty(longest)
+    out = np.zeros(search.n_sectors, dtype=np.int64)
+    owner = np.zeros(search.n_sectors, dtype=np.int64)
+    f_px = float(f_px)
+    for g in np.flatnonzero(np.diff(off)).tolist():
+        lo, hi = int(off[g]), int(off[g + 1])
+        plane_polar(unit, g, rows[lo:hi], hi - lo, f_px, r_px, phi)
+        lpt_string(r_px, phi, hi - lo, search, out, owner)
+        strings[g] = out
+    return strings
 
 
 @dataclass(frozen=True, eq=False)

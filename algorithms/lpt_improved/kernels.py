@@ -21,11 +21,10 @@ from .planar import (
     confirm_pair_near,
     count_work,
     frame_at,
-    guide_pattern,
     keep_best,
     no_match,
     pair_work,
-    polar_buffers,
+    plane_polar,
     reference_pattern,
     relative_angle,
 )
@@ -89,33 +88,39 @@ def feature_vector(r_px, phi, n, align, n_sectors, log_scale, out):
     return nz
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
 def build_features(unit, nbr, nbr_off, f_px, n_sectors, log_scale, db_alignments, max_value):
     """Feature rows of every guide star, one per alignment choice (``db_alignments``; paper: 1).
 
     ``nbr[nbr_off[g]:nbr_off[g+1]]`` are the guide rows within R of guide ``g``, nearest
     first; alignment choice ``a`` is the ``a``-th nearest. Returns
     ``(feature (k, m) int64, count (k,), guide (k,), align (k,))`` in guide order.
+
+    Once per database, so plain Python over the guide stars calling the two kernels identify
+    compiles anyway (:func:`plane_polar`, :func:`feature_vector`), with the same argument types: a
+    build kernel of its own compiled ~0.5 CPU s on a cold cache (issue #25).
     """
-    n_guide = unit.shape[0]
-    k_max = 0
-    for g in range(n_guide):
-        k_max += min(db_alignments, nbr_off[g + 1] - nbr_off[g])
+    unit = np.ascontiguousarray(unit, dtype=np.float64)
+    rows = np.asarray(nbr, dtype=np.int64)   # int64 rows: plane_polar's one (the image's) signature
+    off = np.asarray(nbr_off, dtype=np.int64)
+    per_guide = np.minimum(db_alignments, np.diff(off))
+    k_max = int(per_guide.sum())
     feature = np.zeros((k_max, n_sectors), dtype=np.int64)
     count = np.zeros(k_max, dtype=np.int64)
-    guide = np.zeros(k_max, dtype=np.int64)
+    guide = np.repeat(np.arange(unit.shape[0], dtype=np.int64), per_guide)
     align = np.zeros(k_max, dtype=np.int64)
-    r_px, phi = polar_buffers(nbr_off)
+    longest = max(1, int(np.diff(off).max())) if off.size > 1 else 1
+    r_px, phi = np.empty(longest), np.empty(longest)
+    f_px, log_scale, n_sectors = float(f_px), float(log_scale), int(n_sectors)
     row = 0
-    for g in range(n_guide):
-        n = guide_pattern(unit, nbr, nbr_off, g, f_px, r_px, phi)
-        for a in range(min(db_alignments, n)):
+    for g in np.flatnonzero(per_guide).tolist():
+        lo, hi = int(off[g]), int(off[g + 1])
+        n = hi - lo
+        plane_polar(unit, g, rows[lo:hi], n, f_px, r_px, phi)
+        for a in range(int(per_guide[g])):
             count[row] = feature_vector(r_px, phi, n, a, n_sectors, log_scale, feature[row])
-            for i in range(n_sectors):
-                feature[row, i] = min(feature[row, i], max_value)
-            guide[row] = g
-            align[row] = nbr[nbr_off[g] + a]
+            align[row] = rows[lo + a]
             row += 1
+    np.minimum(feature, max_value, out=feature)
     return feature, count, guide, align
 
 

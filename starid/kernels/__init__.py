@@ -1,6 +1,7 @@
 """Shared numba kernels: every algorithm reuses these instead of writing its own.
 
-All are ``@njit(cache=True, no_cfunc_wrapper=True)`` (except the k-vector builders, which run once per database) and
+All are ``@njit(cache=True, no_cfunc_wrapper=True)`` (except the k-vector builders, which run once per database,
+and :func:`rad_to_chord`, which only Python calls) and
 take plain numpy arrays or named bundles of them (:class:`KVector`), so they can be called from
 Python or from other kernels. Units: angles in radians; unit vectors are 3-vectors in the frame
 the caller says (camera frame for observed stars, ICRS for catalog stars); a "chord" is the
