@@ -12,7 +12,7 @@ from typing import NamedTuple
 
 import numpy as np
 from numba import njit
-from starid_algorithms.pyramid.kernels import _adjacency, _neighbours_within, select_stars, triple, windows_into
+from starid_algorithms.pyramid.kernels import _adjacency, _neighbours_within, pair_windows, select_stars, triple
 
 from starid.kernels import backproject_px, chord_rows, reproject_assign, wahba_rows
 
@@ -171,9 +171,7 @@ def angle_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_un
     v_cam = backproject_px(x_px, y_px, cam.f_px, cam.cx_px, cam.cy_px)
     sel = select_stars(x_px, y_px, mag, v_cam, tol.d_min, tol.max_stars)
     m = sel.shape[0]
-    start = np.zeros((m, m), dtype=np.int64)
-    stop = np.zeros((m, m), dtype=np.int64)
-    windows_into(v_cam, sel, kv, tol.eps, tol.c_max, np.int64(tol.max_window), start, stop, np.int64(0), np.int64(m))
+    start, stop = pair_windows(v_cam, sel, kv, tol)
     work[1] = m * (m - 1) // 2
     work[8] = _pairs_to_r(start, stop)
     rows, pair = _search(v_cam, sel, start, stop, pairs, nbr, nbr_chord, nbr_start, guide_unit, tol, cam, work)

@@ -1,8 +1,8 @@
 """numba kernels of geometric voting (Kolomenkin, Pollak, Shimshoni & Lindenbaum 2008).
 
 The star selection is the Pyramid plugin's (:mod:`starid_algorithms.pyramid.kernels`), and the
-k-vector windows of the image pairs are its ``windows_into``, searched round by round
-over the same star-pair database.
+k-vector windows of the image pairs are its ``pair_windows`` searched round by round
+(:func:`extend_windows`), over the same star-pair database.
 
 Bundles (``typing.NamedTuple``, passed to numba as tuples): ``kv`` (:class:`starid.kernels.KVector`),
 :class:`~starid_algorithms.pyramid.kernels.PairTol` (tolerances and work limits),
@@ -22,13 +22,14 @@ from typing import NamedTuple
 
 import numpy as np
 from numba import njit
-from starid_algorithms.pyramid.kernels import PairTol, select_stars, windows_into
+from starid_algorithms.pyramid.kernels import PairTol, select_stars
 
 from starid.kernels import (
     Frame,
     KVector,
     backproject_px,
     chord_rows,
+    kvector_query,
     reproject_assign,
     verify_pairwise,
     wahba_rows,
@@ -427,10 +428,21 @@ def decide(v_cam, sel, n_voters, start, stop, tally, degree, guide_unit, tol, ca
 @njit(cache=True, no_cfunc_wrapper=True)
 def extend_windows(v_cam, sel, kv, tol, start, stop, b_lo, b_hi):
     """The k-vector windows of the image pairs (a, b), a < b, ``b_lo <= b < b_hi``, written into the
-    symmetric (m, m) arrays ``start``, ``stop`` (``starid_algorithms.pyramid.kernels.windows_into`` with
-    ``tol``'s fields, which :func:`vote_rounds` calls: each round searches only the pairs its new stars
-    form, not again those of the earlier ones). From Python (tests and tools), compiled only when called."""
-    windows_into(v_cam, sel, kv, tol.eps, tol.c_max, np.int64(tol.max_window), start, stop, b_lo, b_hi)
+    symmetric (m, m) arrays ``start``, ``stop`` as ``starid_algorithms.pyramid.kernels.pair_windows``
+    computes them (empty beyond ``tol.c_max`` or above ``tol.max_window`` pairs): each round of
+    :func:`vote_rounds` searches only the pairs its new stars form, not again those of the earlier ones."""
+    for b in range(b_lo, b_hi):
+        for a in range(b):
+            c = chord_rows(v_cam, sel[a], v_cam, sel[b])
+            if c - tol.eps > tol.c_max:
+                continue
+            lo, hi = kvector_query(kv, c - tol.eps, c + tol.eps)
+            if hi - lo > tol.max_window:
+                continue
+            start[a, b] = lo
+            start[b, a] = lo
+            stop[a, b] = hi
+            stop[b, a] = hi
 
 
 @njit(cache=True, inline="always", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # inlined: see decide
@@ -440,7 +452,7 @@ def vote_rounds(v_cam, sel, kv, pairs, degree, guide_unit, tol, cam, rule, tally
     join, their pairs with every earlier star add votes to the same counters, and the choice is
     made again -- until a round succeeds or every selected star has voted (that last round has
     exactly the votes of one round of all). Each round searches the windows of its new pairs only
-    (``windows_into``). The windows that vote are ``vtol``'s (see
+    (:func:`extend_windows`). The windows that vote are ``vtol``'s (see
     :func:`voting_kernel`). ``tally`` is one row of counters per selected star, cleared here when
     its star joins (its contents on entry do not matter). Returns ``(rows, votes, attitude)``;
     counts into ``work`` (:data:`WORK_COUNTERS`)."""
@@ -459,7 +471,7 @@ def vote_rounds(v_cam, sel, kv, pairs, degree, guide_unit, tol, cam, rule, tally
     last_level = 0
     while True:
         upto = min(m, done + (step if done == 0 else rule.round_step))
-        windows_into(v_cam, sel, kv, vtol.eps, vtol.c_max, np.int64(vtol.max_window), start, stop, done, upto)
+        extend_windows(v_cam, sel, kv, vtol, start, stop, done, upto)
         work[0] += 1
         for b in range(done, upto):     # the new image pairs (a, b), a < b, of this round
             for a in range(b):

@@ -1,6 +1,6 @@
 """numba kernels of the Pyramid algorithm (Mortari, Samaan, Bruccoleri & Junkins 2004).
 
-The pair-angle helpers at the top (:func:`isolated`, :func:`windows_into`) are shared with the
+The pair-angle helpers at the top (:func:`isolated`, :func:`pair_windows`) are shared with the
 geometric-voting plugin, which searches the same kind of star-pair k-vector.
 
 Bundles (``typing.NamedTuple``, passed to numba as tuples):
@@ -85,40 +85,28 @@ def select_stars(x_px, y_px, mag, v_cam, d_min, max_stars):
 
 
 @njit(cache=True, no_cfunc_wrapper=True)
-def windows_into(v_cam, sel, kv, eps, c_max, max_window, start, stop, b_lo, b_hi):
-    """k-vector windows ``[start, stop)`` of the selected-star pairs (a, b), a < b, ``b_lo <= b < b_hi``,
-    written into the symmetric (m, m) arrays ``start``, ``stop``.
+def pair_windows(v_cam, sel, kv, tol):
+    """k-vector window ``[start, stop)`` of every pair of selected stars (symmetric (m, m) arrays).
 
-    The catalog pairs whose chord lies within ``eps`` of the observed chord; a window is left
-    untouched (empty when the arrays start at zero) when the chord is beyond ``c_max`` or the window
-    holds more than ``max_window`` pairs (a too-wide tolerance, e.g. a fish-eye camera: such a pair
-    carries no information and would only cost time). One kernel for angle (all pairs at once) and
-    geometric voting (the pairs of each round's new stars): compiled once, not once per plugin; the
-    tolerances are scalars so that both plugins' tolerance bundles give the same signature.
+    The catalog pairs whose chord lies within ``tol.eps`` of the observed chord; a window is
+    left empty when it holds more than ``tol.max_window`` pairs (a too-wide tolerance, e.g. a
+    fish-eye camera: such a pair carries no information and would only cost time).
     """
-    for b in range(b_lo, b_hi):
-        for a in range(b):
+    m = sel.shape[0]
+    start = np.zeros((m, m), dtype=np.int64)
+    stop = np.zeros((m, m), dtype=np.int64)
+    for a in range(m):
+        for b in range(a + 1, m):
             c = chord_rows(v_cam, sel[a], v_cam, sel[b])
-            if c - eps > c_max:
+            if c - tol.eps > tol.c_max:
                 continue
-            lo, hi = kvector_query(kv, c - eps, c + eps)
-            if hi - lo > max_window:
+            lo, hi = kvector_query(kv, c - tol.eps, c + tol.eps)
+            if hi - lo > tol.max_window:
                 continue
             start[a, b] = lo
             start[b, a] = lo
             stop[a, b] = hi
             stop[b, a] = hi
-
-
-@njit(cache=True, no_cfunc_wrapper=True)
-def pair_windows(v_cam, sel, kv, tol):
-    """k-vector window ``[start, stop)`` of every pair of selected stars (symmetric (m, m) arrays;
-    :func:`windows_into` with ``tol``'s ``eps``, ``c_max`` and ``max_window``, from Python: tests and
-    tools; the kernels call that one, so this entry point is compiled only when Python calls it)."""
-    m = sel.shape[0]
-    start = np.zeros((m, m), dtype=np.int64)
-    stop = np.zeros((m, m), dtype=np.int64)
-    windows_into(v_cam, sel, kv, tol.eps, tol.c_max, np.int64(tol.max_window), start, stop, np.int64(0), np.int64(m))
     return start, stop
 
 
