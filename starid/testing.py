@@ -289,6 +289,26 @@ def _check_query_only(cls, algorithm, db, catalog, camera):
 _FUNCTIONS = {name: globals()[f"_check_{name}"] for name in CHECKS}
 
 
+def cost_ratio(one, batch, n_batch: int, repeats: int = 5) -> float:
+    """How many times one call of ``one()`` costs one of the ``n_batch`` items ``batch()`` does: the best
+    of ``repeats`` timings of each, ``one`` / (``batch`` / ``n_batch``). For plugin tests that bound a
+    slow case (a wide field, a dense image) by a multiple of a normal one measured in the same run, never
+    by seconds: absolute times follow the machine's load. Time the normal images as one batch (~10 ms),
+    not one ~0.1 ms call: on a loaded machine a short call fits between preemptions and a long one does
+    not, which inflated such ratios 6x. Call both once before (compilation)."""
+    import time
+
+    def best(fn) -> float:
+        out = float("inf")
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            fn()
+            out = min(out, time.perf_counter() - t0)
+        return out
+
+    return best(one) / (best(batch) / n_batch)
+
+
 def check_algorithm(algorithm: type[Algorithm], checks=None, catalog: Catalog | None = None,
                     camera: Camera | None = None) -> list[str]:
     """Run the named checks (default: all) on an algorithm class; :class:`ConformanceError` on the first failure."""

@@ -7,7 +7,6 @@ PTP's own. The catalog database does not depend on the camera, so every test sha
 
 import dataclasses
 import math
-import time
 
 import numpy as np
 import pytest
@@ -24,6 +23,7 @@ from starid_algorithms.ptp.kernels import (
 from starid import Camera, ConfigError, Observation, SimConfig, Simulator, run, summarize
 from starid.kernels import assign_all, backproject_px, camera_frame, deep_sky, wahba_rows
 from starid.plugin import Explanation, check_identification
+from starid.testing import cost_ratio
 
 
 @pytest.fixture(scope="module")
@@ -172,14 +172,24 @@ def test_side_index_reads_the_same_rows(db):
 
 
 @pytest.mark.parametrize("fov_deg", [170.0, 60.0])
-def test_wide_field_finishes_quickly(db, catalog, fov_deg):
+def test_wide_field_finishes_quickly(db, catalog, camera, fov_deg):
+    """A wide field costs a bounded multiple of a normal image (a ratio in this run, never seconds).
+    Measured 2026-12-05 (idle): 170 deg ~0.22 s, 60 deg ~17 ms, against ~0.1 ms a normal image: about
+    2,000x and 170x; the bound, 20,000x, is the former 2 s limit at ~0.1 ms a normal image."""
     cam = Camera.from_fov(fov_deg)      # the database does not depend on the camera
     algo = PTP()
     obs = Simulator(catalog, cam, SimConfig(sigma_px=1.0), seed=2).observation(0)
+    normals = [Simulator(catalog, camera, SimConfig(sigma_px=1.0), seed=2).observation(t) for t in range(100)]
     algo.identify(db, obs)                     # compile
-    t0 = time.perf_counter()
+    algo.identify(db, normals[0])
+
+    def all_normal():
+        for o in normals:
+            algo.identify(db, o)
+
+    ratio = cost_ratio(lambda: algo.identify(db, obs), all_normal, len(normals), repeats=3)
+    assert ratio < 20_000.0, f"{fov_deg} deg field costs {ratio:.0f}x a normal field's image"
     hip = algo.identify(db, obs).hip
-    assert time.perf_counter() - t0 < 2.0
     assert not np.any((hip >= 0) & (hip != obs.truth_hip))
 
 

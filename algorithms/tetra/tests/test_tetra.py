@@ -1,6 +1,5 @@
 """Tests of the Tetra plugin: conformance, hash table, pattern keys, verification, explain."""
 
-import time
 from functools import lru_cache
 
 import numpy as np
@@ -21,6 +20,7 @@ from starid_algorithms.tetra.kernels import (
 import starid
 from starid.errors import ConfigError
 from starid.plugin import Explanation
+from starid.testing import cost_ratio
 
 
 @lru_cache(maxsize=2)
@@ -177,14 +177,21 @@ def test_ids_beyond_int32(catalog, camera):
 
 
 def test_very_wide_camera_finishes_quickly(catalog):
-    wide = starid.Camera.from_fov(170.0)
-    start = time.perf_counter()
-    db = Tetra().build(catalog, wide)
+    """Building for a 170 deg camera and identifying two of its images costs a bounded multiple of a
+    normal camera's build (a ratio in this run, never seconds). Measured 2026-12-05: ~4x; the bound
+    100x is the former 30 s limit at ~0.3 s a normal build."""
+    wide, normal = starid.Camera.from_fov(170.0), starid.Camera()
     sim = starid.Simulator(catalog, wide, starid.SimConfig(), seed=1)
-    for t in range(2):
-        obs = sim.observation(t)
-        assert Tetra().identify(db, obs).hip.shape == (len(obs),)
-    assert time.perf_counter() - start < 30
+    images = [sim.observation(t) for t in range(2)]
+
+    def wide_build_and_identify():
+        db = Tetra().build(catalog, wide)
+        for obs in images:
+            assert Tetra().identify(db, obs).hip.shape == (len(obs),)
+
+    wide_build_and_identify()                   # compile
+    ratio = cost_ratio(wide_build_and_identify, lambda: Tetra().build(catalog, normal), 1, repeats=2)
+    assert ratio < 100.0, f"170 deg build and two images cost {ratio:.0f}x a normal build"
 
 
 def test_explain_draws_the_matched_pattern(catalog, camera):
