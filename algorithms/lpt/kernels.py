@@ -18,11 +18,9 @@ from ..lpt_improved.planar import (
     confirm_near,
     count_work,
     frame_at,
-    guide_pattern,
     keep_best,
     no_match,
     pair_work,
-    polar_buffers,
     reference_pattern,
     seed_attitude_roll,
 )
@@ -94,24 +92,6 @@ class Strings(NamedTuple):
     sector: np.ndarray
     level: np.ndarray
     start: np.ndarray
-
-
-@njit(cache=True, no_cfunc_wrapper=True)
-def build_strings(unit, nbr, nbr_off, f_px, search):
-    """LPT string of every guide star (rows of ``unit``), dense uint8 ``(g, n_sectors)``."""
-    n_guide = unit.shape[0]
-    strings = np.zeros((n_guide, search.n_sectors), dtype=np.uint8)
-    r_px, phi = polar_buffers(nbr_off)
-    out = np.zeros(search.n_sectors, dtype=np.int64)
-    owner = np.zeros(search.n_sectors, dtype=np.int64)
-    for g in range(n_guide):
-        n = guide_pattern(unit, nbr, nbr_off, g, f_px, r_px, phi)
-        if n == 0:
-            continue
-        lpt_string(r_px, phi, n, search, out, owner)
-        for k in range(search.n_sectors):
-            strings[g, k] = out[k]
-    return strings
 
 
 def sparse_strings(strings: np.ndarray) -> Strings:

@@ -386,32 +386,6 @@ def confirm(unit, rows, attitude, guides_unit, sensor, acc, solved_from):
     return True, wahba_rows(unit, rows, guides_unit)
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
-def polar_buffers(nbr_off):
-    """Work arrays ``(r_px, phi)`` long enough for the longest CSR neighbour list (at least 1)."""
-    longest = 1
-    for g in range(nbr_off.shape[0] - 1):
-        longest = max(longest, nbr_off[g + 1] - nbr_off[g])
-    return np.empty(longest), np.empty(longest)
-
-
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
-def guide_pattern(unit, nbr, nbr_off, g, f_px, r_px, phi):
-    """Neighbour count of guide ``g`` and, when it has any, their :func:`plane_polar` coordinates.
-
-    The rows are copied to int64 first: :func:`plane_polar` is then compiled for the image's int64
-    neighbour lists only, not a second time for the catalogue's int32 ones (0.3-0.4 CPU s of a cold
-    compile; the copy is one short allocation per guide star of a database build)."""
-    start = nbr_off[g]
-    n = nbr_off[g + 1] - start
-    if n > 0:
-        rows = np.empty(n, dtype=np.int64)
-        for k in range(n):
-            rows[k] = nbr[start + k]
-        plane_polar(unit, g, rows, n, f_px, r_px, phi)
-    return n
-
-
 #: :func:`prepare_image` inlined by numba into its one kernel caller, :func:`begin_identify`: one kernel fewer to
 #: compile and to optimise again in every kernel above it (``prepare_image`` itself is compiled only when Python
 #: calls it, for ``explain``)
