@@ -507,22 +507,11 @@ def at_forms(img, pattern):
     return by_level_x, pattern2
 
 
-@njit(cache=True, inline="always", no_cfunc_wrapper=True)   # tests' and tools' form (the scan: image_groups_pad)
-def image_groups_at(chars, g, img, by_level_x, u, pattern2, valid, xs, groups):
-    """:func:`image_groups` without a branch per pair: ``by_level_x[p]`` = m - (sector of ``img.by_level[p]``),
-    and ``pattern2[y]`` (int64 (2 m, 2)) = ``pattern[y mod m]``, read at ``j + by_level_x[p]``."""
-    nz = np.uint64(img.nz)
-    for t in range(nz):
-        xs[t, 0] = 0
-        xs[t, 1] = 0
-    for q in range(np.uint64(chars.start[g]), np.uint64(chars.start[g + 1])):
-        lv = np.uint64(chars.level[q])
-        j = np.uint64(chars.sector[q])
-        for p in range(np.uint64(img.level_start[lv]), np.uint64(img.level_start[lv + 1])):
-            t = np.uint64(img.by_level[p])
-            x = j + np.uint64(by_level_x[p])
-            xs[t, 0] |= pattern2[x, 0]
-            xs[t, 1] |= pattern2[x, 1]
+@njit(cache=True, inline="always", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+def any_group(xs, nz, u, valid, groups):
+    """Deal the image characters' shift sets ``xs[:nz]`` into ``u + 1`` groups in turn, intersect each
+    group's (starting from ``valid``), and tell whether any group's intersection is non-empty: the last
+    step of :func:`image_groups_at` and :func:`image_groups_pad`."""
     for i in range(u + 1):
         groups[i, 0] = valid[0]
         groups[i, 1] = valid[1]
@@ -539,6 +528,25 @@ def image_groups_at(chars, g, img, by_level_x, u, pattern2, valid, xs, groups):
         any_a |= groups[i, 0]
         any_b |= groups[i, 1]
     return (any_a | any_b) != 0
+
+
+@njit(cache=True, inline="always", no_cfunc_wrapper=True)   # tests' and tools' form (the scan: image_groups_pad)
+def image_groups_at(chars, g, img, by_level_x, u, pattern2, valid, xs, groups):
+    """:func:`image_groups` without a branch per pair: ``by_level_x[p]`` = m - (sector of ``img.by_level[p]``),
+    and ``pattern2[y]`` (int64 (2 m, 2)) = ``pattern[y mod m]``, read at ``j + by_level_x[p]``."""
+    nz = np.uint64(img.nz)
+    for t in range(nz):
+        xs[t, 0] = 0
+        xs[t, 1] = 0
+    for q in range(np.uint64(chars.start[g]), np.uint64(chars.start[g + 1])):
+        lv = np.uint64(chars.level[q])
+        j = np.uint64(chars.sector[q])
+        for p in range(np.uint64(img.level_start[lv]), np.uint64(img.level_start[lv + 1])):
+            t = np.uint64(img.by_level[p])
+            x = j + np.uint64(by_level_x[p])
+            xs[t, 0] |= pattern2[x, 0]
+            xs[t, 1] |= pattern2[x, 1]
+    return any_group(xs, nz, u, valid, groups)
 
 
 @njit(cache=True, inline="always", no_cfunc_wrapper=True)   # one call site, the scan's most frequent test
@@ -564,22 +572,7 @@ def image_groups_pad(chars, g, nz, width, pad_t, pad_x, u, pattern2, valid, xs, 
             x = j + np.uint64(pad_x[base + i])
             xs[t, 0] |= pattern2[x, 0]
             xs[t, 1] |= pattern2[x, 1]
-    for i in range(u + 1):
-        groups[i, 0] = valid[0]
-        groups[i, 1] = valid[1]
-    e = 0
-    for t in range(nz):
-        groups[e, 0] &= xs[t, 0]
-        groups[e, 1] &= xs[t, 1]
-        e += 1
-        if e > u:
-            e = 0
-    any_a = np.int64(0)
-    any_b = np.int64(0)
-    for i in range(u + 1):
-        any_a |= groups[i, 0]
-        any_b |= groups[i, 1]
-    return (any_a | any_b) != 0
+    return any_group(xs, nz, u, valid, groups)
 
 
 @njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
