@@ -1,7 +1,7 @@
 """Measured cold-preparation CPU seconds per plugin: the order workers compile in (heaviest first).
 
 Written by ``python benchmarks/tools/compile_weights.py`` (each plugin alone in a process, empty numba
-cache, database build + warm-up identify) at commit 374e698, 2026-12-05, on issue #25's
+cache, database build + warm-up identify) at commit 43be098, 2026-12-05, on issue #25's
 2-core machine. :func:`starid.experiment.warmup.schedule` deals the first chunk of each plugin (the one
 that compiles) heaviest first, so that two workers finish compiling at about the same time; a plugin
 not listed (a third party's) weighs the median. Only the order of computation depends on these numbers.
