@@ -15,18 +15,14 @@ import os
 import sys
 import time
 
-from starid import SimConfig, Simulator, load_hipparcos
-from starid.experiment.spec import sim_settings
-from starid.experiments import table6
+from compile_profile import warmup_trials  # benchmarks/tools
+
 from starid.harness import prepare
 from starid.registry import algorithm_info
 
 
 def main(names: list[str]) -> None:
-    exp = table6.experiment(trials=2)
-    camera = exp.make_camera()
-    catalog = load_hipparcos()
-    trials = Simulator(catalog, camera, SimConfig(**sim_settings(exp.sim, {"sky": "paper"})), seed=0).generate(2)
+    catalog, trials = warmup_trials()
     print(json.dumps({"numba_cache_dir": os.environ.get("NUMBA_CACHE_DIR")}), flush=True)
     for name in names:
         algorithm = algorithm_info(name).cls()

@@ -14,6 +14,7 @@ reuse kernels compiled for earlier ones.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import sys
 import time
@@ -56,17 +57,32 @@ class _Recorder(event.Listener):
             self.llvm_s += time.process_time() - self._llvm_t0
 
 
-def main(names: list[str], top: int = 15) -> None:
-    exp = table6.experiment(trials=2)
+def warmup_trials(n: int = 2):
+    """``(catalog, trials)``: the embedded catalog and ``n`` Table 6 images (paper's sky, seed 0) with their
+    warm-up image, on which every compile tool here prepares plugins."""
+    exp = table6.experiment(trials=n)
     catalog = load_hipparcos()
-    trials = Simulator(catalog, exp.make_camera(), SimConfig(**sim_settings(exp.sim, {"sky": "paper"})),
-                       seed=0).generate(2)
+    return catalog, Simulator(catalog, exp.make_camera(), SimConfig(**sim_settings(exp.sim, {"sky": "paper"})),
+                              seed=0).generate(n)
+
+
+def prepare_listening(name: str, catalog, trials, listener=None, kinds=("numba:compile",)):
+    """``(prepared, cpu_s)``: plugin ``name`` built and warmed up as :func:`starid.harness.prepare` does,
+    with ``listener`` installed for each numba event kind in ``kinds`` (none without one)."""
+    c0 = time.process_time()
+    with contextlib.ExitStack() as stack:
+        for kind in kinds if listener is not None else ():
+            stack.enter_context(event.install_listener(kind, listener))
+        p = prepare(algorithm_info(name).cls(), catalog, trials.camera, trials.warmup, name)
+    return p, time.process_time() - c0
+
+
+def main(names: list[str], top: int = 15) -> None:
+    catalog, trials = warmup_trials()
     for name in names:
         rec = _Recorder()
-        c0 = time.process_time()
-        with event.install_listener("numba:compile", rec), event.install_listener("numba:llvm_lock", rec):
-            p = prepare(algorithm_info(name).cls(), catalog, trials.camera, trials.warmup, name)
-        print(json.dumps({"plugin": name, "cpu_s": round(time.process_time() - c0, 2), "build_s": round(p.build_s, 2),
+        p, cpu_s = prepare_listening(name, catalog, trials, rec, ("numba:compile", "numba:llvm_lock"))
+        print(json.dumps({"plugin": name, "cpu_s": round(cpu_s, 2), "build_s": round(p.build_s, 2),
                           "compile_s": round(p.compile_s, 2), "llvm_cpu_s": round(rec.llvm_s, 1),
                           "compilations": sum(rec.count.values()), "error": p.error}), flush=True)
         for k, v in sorted(rec.exclusive.items(), key=lambda kv: -kv[1])[:top]:

@@ -15,13 +15,8 @@ import sys
 import time
 from collections import defaultdict
 
+from compile_profile import prepare_listening, warmup_trials  # benchmarks/tools
 from numba.core import event
-
-from starid import SimConfig, Simulator, load_hipparcos
-from starid.experiment.spec import sim_settings
-from starid.experiments import table6
-from starid.harness import prepare
-from starid.registry import algorithm_info
 
 
 class _Llvm(event.Listener):
@@ -44,15 +39,10 @@ class _Llvm(event.Listener):
 
 
 def main(plugin: str, targets: list[str]) -> None:
-    exp = table6.experiment(trials=2)
-    catalog = load_hipparcos()
-    trials = Simulator(catalog, exp.make_camera(), SimConfig(**sim_settings(exp.sim, {"sky": "paper"})),
-                       seed=0).generate(2)
+    catalog, trials = warmup_trials()
     rec = _Llvm()
-    c0 = time.process_time()
-    with event.install_listener("numba:compile", rec), event.install_listener("numba:llvm_lock", rec):
-        prepare(algorithm_info(plugin).cls(), catalog, trials.camera, trials.warmup, plugin)
-    print(f"{plugin}: {time.process_time() - c0:.2f} CPU s")
+    _, cpu_s = prepare_listening(plugin, catalog, trials, rec, ("numba:compile", "numba:llvm_lock"))
+    print(f"{plugin}: {cpu_s:.2f} CPU s")
     for target in targets:
         mod, name = target.rsplit(".", 1)
         disp = getattr(importlib.import_module("starid_algorithms." + mod), name)

@@ -16,13 +16,8 @@ import sys
 import time
 from collections import defaultdict
 
+from compile_profile import prepare_listening, warmup_trials  # benchmarks/tools
 from numba.core import event
-
-from starid import SimConfig, Simulator, load_hipparcos
-from starid.experiment.spec import sim_settings
-from starid.experiments import table6
-from starid.harness import prepare
-from starid.registry import algorithm_info
 
 
 class _Recorder(event.Listener):
@@ -59,16 +54,11 @@ class _Recorder(event.Listener):
 
 
 def main(names: list[str], top: int = 40) -> None:
-    exp = table6.experiment(trials=2)
-    catalog = load_hipparcos()
-    trials = Simulator(catalog, exp.make_camera(), SimConfig(**sim_settings(exp.sim, {"sky": "paper"})),
-                       seed=0).generate(2)
+    catalog, trials = warmup_trials()
     for name in names:
         rec = _Recorder()
-        c0 = time.process_time()
-        with event.install_listener("numba:compile", rec), event.install_listener("numba:llvm_lock", rec):
-            p = prepare(algorithm_info(name).cls(), catalog, trials.camera, trials.warmup, name)
-        print(json.dumps({"plugin": name, "cpu_s": round(time.process_time() - c0, 2), "build_s": round(p.build_s, 2),
+        p, cpu_s = prepare_listening(name, catalog, trials, rec, ("numba:compile", "numba:llvm_lock"))
+        print(json.dumps({"plugin": name, "cpu_s": round(cpu_s, 2), "build_s": round(p.build_s, 2),
                           "compile_s": round(p.compile_s, 2), "llvm_cpu_s": round(sum(rec.llvm.values()), 1),
                           "compilations": sum(rec.count.values()), "error": p.error}), flush=True)
         for k, v in sorted(rec.exclusive.items(), key=lambda kv: -kv[1])[:top]:

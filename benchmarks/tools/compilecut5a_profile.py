@@ -13,13 +13,8 @@ from __future__ import annotations
 import sys
 import time
 
+from compile_profile import prepare_listening, warmup_trials  # benchmarks/tools
 from numba.core import event
-
-from starid import SimConfig, Simulator, load_hipparcos
-from starid.experiment.spec import sim_settings
-from starid.experiments import table6
-from starid.harness import prepare
-from starid.registry import algorithm_info
 
 
 def _name(dispatcher) -> str:
@@ -49,15 +44,10 @@ class _Recorder(event.Listener):
 
 
 def main(name: str, needle: str = "") -> None:
-    exp = table6.experiment(trials=2)
-    catalog = load_hipparcos()
-    trials = Simulator(catalog, exp.make_camera(), SimConfig(**sim_settings(exp.sim, {"sky": "paper"})),
-                       seed=0).generate(2)
+    catalog, trials = warmup_trials()
     rec = _Recorder()
-    c0 = time.process_time()
-    with event.install_listener("numba:compile", rec):
-        p = prepare(algorithm_info(name).cls(), catalog, trials.camera, trials.warmup, name)
-    print(f"{name}: cpu_s {time.process_time() - c0:.2f} build_s {p.build_s:.2f} compilations {len(rec.rows)}")
+    p, cpu_s = prepare_listening(name, catalog, trials, rec)
+    print(f"{name}: cpu_s {cpu_s:.2f} build_s {p.build_s:.2f} compilations {len(rec.rows)}")
     total = 0.0
     for excl, caller, disp, args in sorted(rec.rows, key=lambda r: -r[0]):
         if needle in disp and needle != "-":

@@ -12,13 +12,8 @@ from __future__ import annotations
 import sys
 import time
 
+from compile_profile import prepare_listening, warmup_trials  # benchmarks/tools
 from numba.core import event
-
-from starid import SimConfig, Simulator, load_hipparcos
-from starid.experiment.spec import sim_settings
-from starid.experiments import table6
-from starid.harness import prepare
-from starid.registry import algorithm_info
 
 
 def _name(dispatcher) -> str:
@@ -62,15 +57,10 @@ def _show(node, depth, min_s):
 
 
 def main(name: str, min_s: float) -> None:
-    exp = table6.experiment(trials=2)
-    catalog = load_hipparcos()
-    trials = Simulator(catalog, exp.make_camera(), SimConfig(**sim_settings(exp.sim, {"sky": "paper"})),
-                       seed=0).generate(2)
+    catalog, trials = warmup_trials()
     rec = _Recorder()
-    c0 = time.process_time()
-    with event.install_listener("numba:compile", rec):
-        p = prepare(algorithm_info(name).cls(), catalog, trials.camera, trials.warmup, name)
-    print(f"{name}: cpu_s {time.process_time() - c0:.2f} build_s {p.build_s:.2f} error {p.error!r}")
+    p, cpu_s = prepare_listening(name, catalog, trials, rec)
+    print(f"{name}: cpu_s {cpu_s:.2f} build_s {p.build_s:.2f} error {p.error!r}")
     for c in rec.root.children:
         _show(c, 0, min_s)
 
