@@ -6,7 +6,7 @@ regular install (the package under ``site-packages``, or in a folder this user c
 mechanism): ``$XDG_CACHE_HOME/starid/numba`` (``~/.cache/starid/numba``; ``~/Library/Caches`` on
 macOS, ``%LOCALAPPDATA%`` on Windows). A ``NUMBA_CACHE_DIR`` the user set is never overridden.
 
-``@njit(cache=True, no_cfunc_wrapper=True)`` keeps compiled machine code in ``__pycache__/*.nbi`` and ``*.nbc`` beside
+``@njit(cache=True)`` keeps compiled machine code in ``__pycache__/*.nbi`` and ``*.nbc`` beside
 each source file. A truncated or garbage cache file makes the kernel fail to load; starid then
 records the failure with the folder to clear instead of a bare unpickling error.
 """

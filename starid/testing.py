@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import dataclasses
 import re
+import time
 from functools import lru_cache
 
 import numpy as np
@@ -296,7 +297,6 @@ def cost_ratio(one, batch, n_batch: int, repeats: int = 5) -> float:
     by seconds: absolute times follow the machine's load. Time the normal images as one batch (~10 ms),
     not one ~0.1 ms call: on a loaded machine a short call fits between preemptions and a long one does
     not, which inflated such ratios 6x. Call both once before (compilation)."""
-    import time
 
     def best(fn) -> float:
         out = float("inf")

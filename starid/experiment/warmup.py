@@ -1,6 +1,6 @@
 """Compile scheduling: workers compile disjoint plugins first and share numba's on-disk cache.
 
-A worker process compiles a plugin's kernels (``@njit(cache=True, no_cfunc_wrapper=True)``) the first time it prepares
+A worker process compiles a plugin's kernels (``@njit(cache=True)``) the first time it prepares
 a chunk of that plugin, and writes the machine code to numba's on-disk cache; any later process
 that needs the same kernels loads them from disk in a fraction of a second instead of compiling
 them again. In plan order (study, grid point, variant, block) the first chunks of every worker
