@@ -504,13 +504,6 @@ def _side_check_entries(a, b, c, ta, tb, tc, i0, i1, start, stop, index, out_can
 
 
 @njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
-def _bins_of(a, index, sigma, scale, side_beta):
-    """:func:`_index_bins` of a triangle whose scaled side a is ``a`` (float64), as the check computes them."""
-    ta = np.float32(side_beta * scale * side_sigma(a / scale, sigma))
-    return _index_bins(np.float32(a), ta, index)
-
-
-@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _prefetch_entries(start, stop, i0, i1, index):
     """Ask for the entries (rows and sides) :func:`_side_check_indexed` reads for ``[start, stop)``
     (``stop > start``) in the bins ``i0 .. i1``."""
