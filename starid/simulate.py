@@ -37,8 +37,9 @@ import math
 from dataclasses import asdict, dataclass
 
 import numpy as np
-from numba import njit
 from scipy.spatial import cKDTree
+
+from starid.kernels.jit import kernel
 
 from . import sky
 from .attitude import random_attitude
@@ -146,7 +147,7 @@ SKIES = {
 }
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def _merge_labels(x_px, y_px, radius_px):
     """Union-find labels of stars closer than ``radius_px`` (label = smallest member index)."""
     n = x_px.shape[0]

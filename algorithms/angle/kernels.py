@@ -11,10 +11,10 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 from starid_algorithms.pyramid.kernels import _adjacency, _neighbours_within, pair_windows, select_stars, triple
 
 from starid.kernels import backproject_px, chord_rows, reproject_assign, wahba_rows
+from starid.kernels.jit import inline_inner, inner, kernel
 
 
 class AngleTol(NamedTuple):
@@ -57,7 +57,7 @@ class AngleTol(NamedTuple):
     widen: float
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def _support(v_cam, sel, a, b, big_i, big_j, nbr, nbr_chord, nbr_start, guide_unit, eps, n_check, need, chirality):
     """Direct-match test of the pairing ``sel[a] -> I``, ``sel[b] -> J``: how many of the next
     ``n_check`` selected stars k (brightness order) have a guide star K within ``eps`` of the right
@@ -95,7 +95,7 @@ def _support(v_cam, sel, a, b, big_i, big_j, nbr, nbr_chord, nbr_start, guide_un
     return count
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def _confirm_pattern(v_cam, pat_star, pat_row, guide_unit, c_fov, eps, widen, cam, min_extra, confirm_fraction, rows):
     """Attitude of a matched pattern (Wahba), the other stars by reprojection, and the confirmation.
 
@@ -142,7 +142,7 @@ def _confirm_pattern(v_cam, pat_star, pat_row, guide_unit, c_fov, eps, widen, ca
 WORK_NAMES = ("pairs", "windows", "candidates", "tests", "confirms", "first_R", "first_named", "first_in_R", "to_r")
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def angle_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_unit, tol, cam):
     """The angle method on one image. Returns ``(rows, pair, work)``.
 
@@ -189,7 +189,7 @@ def angle_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_un
     return rows, pair, work
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def _pairs_to_r(start, stop):
     """Image pairs, in the order ``for a: for b > a``, up to the first whose window holds one catalog pair."""
     m = start.shape[0]
@@ -202,7 +202,7 @@ def _pairs_to_r(start, stop):
     return k
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def _triangles_by_ik(v_cam, si, sj, sk, win_ij, win_ik, pairs, guide_unit, eps, scratch, tick, out):
     """pyramid's ``triad_triangles`` of the image triad (i, j, k), the join taken the other way round.
 
@@ -258,7 +258,7 @@ def _triangles_by_ik(v_cam, si, sj, sk, win_ij, win_ik, pairs, guide_unit, eps, 
     return count
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def _swap_cached(store, first, count, out):
     """The triangles of triad (a, k, j) from those computed for (a, j, k) (``store[first:first + count]``,
     rows of :func:`_triangles_by_ik`), in ``triad_triangles``' order for (a, k, j): rows
@@ -287,7 +287,7 @@ def _swap_cached(store, first, count, out):
         out[u, 4] = k2
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def _keep(store, n_store, tri, count):
     """``store`` with ``tri[:count]`` written from row ``n_store`` on (grown when full)."""
     if n_store + count > store.shape[0]:
@@ -305,7 +305,7 @@ def _keep(store, n_store, tri, count):
 # inlined (numba IR) into angle_kernel, its one caller: one level less whose module re-optimises and re-emits
 # support, confirm_pattern and the core's Wahba and reprojection (the plugin's kernels cold, core warm:
 # 7.5-7.7 -> 7.0-7.2 CPU s). confirm_pattern inlined too (two call sites) cost 0.8 s more.
-@njit(cache=True, inline="always", no_cpython_wrapper=True, no_cfunc_wrapper=True)
+@inline_inner
 def _search(v_cam, sel, start, stop, pairs, nbr, nbr_chord, nbr_start, guide_unit, tol, cam, work):
     """Steps 2-5 of :func:`angle_kernel`; returns ``(rows, pair)`` and adds to ``work``."""
     n = v_cam.shape[0]
@@ -417,7 +417,7 @@ def _search(v_cam, sel, start, stop, pairs, nbr, nbr_chord, nbr_start, guide_uni
     return rows, pair
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def support(v_cam, sel, a, b, big_i, big_j, nbr, nbr_chord, nbr_start, guide_unit, eps, n_check, need, chirality):
     """:func:`_support` from Python (tests and tools); the kernels call that one, so this entry point
     is compiled only when Python calls it."""
@@ -425,7 +425,7 @@ def support(v_cam, sel, a, b, big_i, big_j, nbr, nbr_chord, nbr_start, guide_uni
                     chirality)
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def confirm_pattern(v_cam, pat_star, pat_row, guide_unit, c_fov, eps, widen, cam, min_extra, confirm_fraction, rows):
     """:func:`_confirm_pattern` from Python (tests and tools); the kernels call that one, so this entry point
     is compiled only when Python calls it."""

@@ -10,11 +10,11 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 from starid_algorithms.pyramid.kernels import select_stars
 from starid_algorithms.spherical_triangle.kernels import WORK_NAMES, first_query_check
 
 from starid.kernels import backproject_px, wahba_rows
+from starid.kernels.jit import inner, kernel
 from starid.kernels.order import search_left, sort_int_prefix
 from starid.kernels.triangles import trio_confirm, trio_query
 
@@ -45,7 +45,7 @@ class ComTol(NamedTuple):
     fourth_tries: int  # fourth stars tried per candidate (paper: one)
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def _third_stars(stars, hits, n_hits, cat, out):
     """Sorted distinct third stars of the hit triangles containing exactly two stars of ``cat``."""
     m = 0
@@ -73,7 +73,7 @@ def _third_stars(stars, hits, n_hits, cat, out):
     return out[:u].copy()
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def _holds(values, e):
     """``e`` is in the ascending int64 ``values``: ``np.searchsorted`` (side left) and a comparison, through
     the core's bisection (numba's searchsorted overload costs ~0.25 CPU s of a cold compile)."""
@@ -81,7 +81,7 @@ def _holds(values, e):
     return lo < values.shape[0] and values[lo] == e
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def _fourth_star(stars, hits, counts, cat, buf):
     """The catalog star of the fourth image star beta: the stars E that complete, with two stars of the
     candidate ``cat``, a catalog triangle in the window of each of the three image trios (b1, b2, beta),
@@ -100,7 +100,7 @@ def _fourth_star(stars, hits, counts, cat, buf):
     return found if n == 1 else -1
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def composite_kernel(x_px, y_px, mag, index, guide_unit, tol, cam):
     """Identify one image. Returns ``(rows, attitude, stars4, work)`` (``stars4``: the trio and the
     fourth star of the accepted identification, -1 when none; ``work``: the spherical triangle's
@@ -217,7 +217,7 @@ def composite_kernel(x_px, y_px, mag, index, guide_unit, tol, cam):
     return rows, np.zeros((3, 3)), out4, work
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def fourth_star(stars, hits, counts, cat, buf):
     """:func:`_fourth_star` from Python (tests and tools); the kernels call that one, so this entry point
     is compiled only when Python calls it."""

@@ -21,7 +21,6 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 from starid_algorithms.pyramid.kernels import PairTol, select_stars
 
 from starid.kernels import (
@@ -34,6 +33,7 @@ from starid.kernels import (
     verify_pairwise,
     wahba_rows,
 )
+from starid.kernels.jit import inline_inner, inline_kernel, kernel
 
 #: names of the per-image work counters :func:`voting_kernel` returns (``Identification.counters``):
 #: voting rounds (each one choice, verification and confirmation), image pairs with a non-empty
@@ -70,7 +70,7 @@ class VoteRule(NamedTuple):
     saturate: bool
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def cast_votes(start, stop, pairs, b_lo, b_hi, once_per_pair, stamp, tally, level, listed, n_listed):
     """Add the votes of the image pairs (a, b), a < b, ``b_lo <= b < b_hi`` to ``tally``.
 
@@ -165,7 +165,7 @@ def cast_votes(start, stop, pairs, b_lo, b_hi, once_per_pair, stamp, tally, leve
                         n_listed[b] += 1
 
 
-@njit(cache=True, inline="always", no_cfunc_wrapper=True)
+@inline_kernel
 def chance_votes(chance, p_b, n_b, d):
     """The votes a catalog star with ``d`` neighbours collects by chance when one image pair gives it
     at most one vote (``once_per_pair``): ``sum_b 1 - exp(-d p_b)`` over the star's image pairs b,
@@ -179,7 +179,7 @@ def chance_votes(chance, p_b, n_b, d):
     return chance[d]
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def rank_votes(v_cam, sel, n_voters, start, stop, tally, degree, tol, expected, saturate, n_keep, level,
                listed, n_listed):
     """Each of the first ``n_voters`` selected stars' ``n_keep`` best catalog stars, from ``tally``.
@@ -284,7 +284,7 @@ def rank_votes(v_cam, sel, n_voters, start, stop, tally, degree, tol, expected, 
     return cand_row, cand_votes
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def vote(v_cam, sel, start, stop, pairs, degree, tol, once_per_pair, expected, n_keep, level, saturate=False):
     """All selected stars vote in one round: :func:`cast_votes` then :func:`rank_votes`.
 
@@ -307,7 +307,7 @@ def vote(v_cam, sel, start, stop, pairs, degree, tol, once_per_pair, expected, n
                       n_listed)
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def pick_candidates(v_cam, sel, cand_row, cand_votes, guide_unit, eps):
     """Each star's candidate with the most support (reconstruction, ``n_candidates > 1``).
 
@@ -370,7 +370,7 @@ def pick_candidates(v_cam, sel, cand_row, cand_votes, guide_unit, eps):
 # re-optimise and re-emit every callee linked below them (wahba_rows, reproject_assign, verify_pairwise,
 # rank_votes, ...); the plugin's own kernels cold, core warm: 10.0-10.3 -> 7.2-7.3 CPU s
 # (benchmarks/tools/compilecut3b_one.py geometric_voting @plugins)
-@njit(cache=True, inline="always", no_cfunc_wrapper=True)
+@inline_kernel
 def decide(v_cam, sel, n_voters, start, stop, tally, degree, guide_unit, tol, cam, rule, level, listed, n_listed,
            rows, votes, vtol):
     """Choice, verification and confirmation from the votes of the first ``n_voters`` selected stars.
@@ -425,7 +425,7 @@ def decide(v_cam, sel, n_voters, start, stop, tally, degree, guide_unit, tol, ca
     return True, attitude
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def extend_windows(v_cam, sel, kv, tol, start, stop, b_lo, b_hi):
     """The k-vector windows of the image pairs (a, b), a < b, ``b_lo <= b < b_hi``, written into the
     symmetric (m, m) arrays ``start``, ``stop`` as ``starid_algorithms.pyramid.kernels.pair_windows``
@@ -445,7 +445,7 @@ def extend_windows(v_cam, sel, kv, tol, start, stop, b_lo, b_hi):
             stop[b, a] = hi
 
 
-@njit(cache=True, inline="always", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # inlined: see decide
+@inline_inner   # inlined: see decide
 def vote_rounds(v_cam, sel, kv, pairs, degree, guide_unit, tol, cam, rule, tally, vtol, work):
     """Voting in rounds: the ``rule.round_voters`` brightest selected stars vote, their choice is
     verified and confirmed (:func:`decide`); if that fails, the next ``rule.round_step`` stars
@@ -510,7 +510,7 @@ def tally_like(rule):
     return _TALLY_ONCE if rule.once_per_pair else _TALLY_MANY
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def voting_kernel(x_px, y_px, mag, kv, pairs, degree, guide_unit, guide_hip, tol, cam, rule, vtol, tally_like):
     """Geometric voting on one image. Returns ``(rows, votes, hip, attitude, found, work)``.
 

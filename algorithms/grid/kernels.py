@@ -10,8 +10,8 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
+from starid.kernels.jit import inner, kernel
 from starid.kernels.order import sort_int_prefix
 
 from ..lpt_improved.planar import (
@@ -78,7 +78,7 @@ def by_pattern(patterns: np.ndarray, cell_start: np.ndarray) -> tuple[np.ndarray
     return cell[order], start
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def orientation_candidates(r_px, n, buffer_px, half_px, out):
     """Indices (into the nearest-first neighbour list) of neighbours ``buffer_px`` to ``half_px`` away."""
     k = 0
@@ -89,7 +89,7 @@ def orientation_candidates(r_px, n, buffer_px, half_px, out):
     return k
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def grid_cells(r_px, phi, n, o, spec, out):
     """Occupied cells of the pattern oriented on neighbour ``o`` (Padgett's grid).
 
@@ -157,7 +157,7 @@ def build_patterns(unit, nbr, nbr_off, f_px, spec, db_orientations):
             np.array(guide, dtype=np.int64), np.array(orient, dtype=np.int32))
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def _mark(weight, touched, nt, cell, value):
     if weight[cell] == 0.0:
         touched[nt] = cell
@@ -167,7 +167,7 @@ def _mark(weight, touched, nt, cell, value):
     return nt
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def image_weights(cells, nc, spec, weight, touched):
     """Credit of every grid cell for one image pattern (modified grid: soft neighbour credit).
 
@@ -196,14 +196,14 @@ def image_weights(cells, nc, spec, weight, touched):
     return nt
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def spec_at(p, i):
     """The :class:`GridSpec` packed at ``p[i:i+12]`` by ``planar.pack_params``."""
     return GridSpec(int(p[i]), p[i + 1], p[i + 2], p[i + 3], p[i + 4], p[i + 5], p[i + 6] != 0.0, p[i + 7],
                     int(p[i + 8]), int(p[i + 9]), int(p[i + 10]), p[i + 11])
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def identify_kernel(x_px, y_px, params, patterns, cell_start, start, guide, orient, guides_unit, trace):
     """Grid identification of one image; returns ``(rows, attitude, accepted)``.
 

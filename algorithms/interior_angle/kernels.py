@@ -14,11 +14,11 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 from starid_algorithms.angle.kernels import _confirm_pattern
 from starid_algorithms.pyramid.kernels import _neighbours_within, select_stars, triple
 
 from starid.kernels import backproject_px, chord_rows, kvector_query
+from starid.kernels.jit import inner, kernel
 
 #: numba: float() of a float32 stays a float32; np.float64 casts (one signature for image and catalog)
 f64 = np.float64
@@ -61,7 +61,7 @@ class InteriorTol(NamedTuple):
     widen: float
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def _angle_at(cx, cy, cz, ix, iy, iz, jx, jy, jz):
     """Angle at unit vector c between the great circles to i and j (radians, in [0, pi]).
 
@@ -72,14 +72,14 @@ def _angle_at(cx, cy, cz, ix, iy, iz, jx, jy, jz):
     return math.atan2(t, ix * jx + iy * jy + iz * jz - (ix * cx + iy * cy + iz * cz) * (jx * cx + jy * cy + jz * cz))
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def _interior_angle(u, c, i, j):
     """:func:`angle_at` of rows ``c``, ``i``, ``j`` of the (n, 3) image vectors ``u`` (float64)."""
     return _angle_at(f64(u[c, 0]), f64(u[c, 1]), f64(u[c, 2]), f64(u[i, 0]), f64(u[i, 1]), f64(u[i, 2]), f64(u[j, 0]),
                     f64(u[j, 1]), f64(u[j, 2]))
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def _nearest_two(v_cam, sel, c):
     """Positions in ``sel`` of the two stars nearest to ``sel[c]`` (Liebe's choice; ties by position)."""
     best1 = -1
@@ -103,7 +103,7 @@ def _nearest_two(v_cam, sel, c):
 MARK_MARGIN = 1e-6
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def trio_query(v_cam, sc, s1, s2, kv, pairs, nbr, nbr_chord, nbr_start, guide_unit, tol, out):
     """Catalog trios (C, C1, C2) matching the image trio (central ``sc``, nearest ``s1``, second ``s2``).
 
@@ -117,7 +117,7 @@ def trio_query(v_cam, sc, s1, s2, kv, pairs, nbr, nbr_chord, nbr_start, guide_un
                              np.int32(1))
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def trio_query_marked(v_cam, sc, s1, s2, kv, pairs, nbr, nbr_chord, nbr_start, guide_unit, tol, out, mark, stamp):
     """:func:`trio_query`, its partner-list searches filtered: the catalog stars with a pair in the
     second side's window (``t2 +- tol.eps``, widened by :data:`MARK_MARGIN`) get ``mark[g] = stamp``
@@ -174,7 +174,7 @@ def trio_query_marked(v_cam, sc, s1, s2, kv, pairs, nbr, nbr_chord, nbr_start, g
     return count
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def _pairing_key(pat_star, pat_row, key):
     """The pairing {pat_star[a] -> pat_row[a]} as (star, row, star, row, star, row), stars ascending."""
     for a in range(3):
@@ -186,7 +186,7 @@ def _pairing_key(pat_star, pat_row, key):
         key[2 * r + 1] = pat_row[a]
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def _seen_before(pat_star, pat_row, failed, n_failed):
     """Whether the pairing of ``pat_star`` to ``pat_row`` is one of ``failed[:n_failed]``.
 
@@ -208,7 +208,7 @@ def _seen_before(pat_star, pat_row, failed, n_failed):
     return False
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def _remember(pat_star, pat_row, failed, n_failed):
     """Store the pairing in ``failed[n_failed]`` (it is about to be confirmed; kept only if refused, as
     an accepted one ends the search); returns the new count."""
@@ -223,7 +223,7 @@ def _remember(pat_star, pat_row, failed, n_failed):
 WORK_NAMES = ("centres", "queries", "candidates", "confirms", "first_R", "first_named", "first_in_R")
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def interior_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_unit, tol, cam):
     """The interior-angle method on one image. Returns ``(rows, trio, work)``.
 
@@ -313,35 +313,35 @@ def interior_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide
     return rows, trio, work
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def angle_at(cx, cy, cz, ix, iy, iz, jx, jy, jz):
     """:func:`_angle_at` from Python (tests and tools); the kernels call that one, so this entry point
     is compiled only when Python calls it."""
     return _angle_at(cx, cy, cz, ix, iy, iz, jx, jy, jz)
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def interior_angle(u, c, i, j):
     """:func:`_interior_angle` from Python (tests and tools); the kernels call that one, so this entry point
     is compiled only when Python calls it."""
     return _interior_angle(u, c, i, j)
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def nearest_two(v_cam, sel, c):
     """:func:`_nearest_two` from Python (tests and tools); the kernels call that one, so this entry point
     is compiled only when Python calls it."""
     return _nearest_two(v_cam, sel, c)
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def seen_before(pat_star, pat_row, failed, n_failed):
     """:func:`_seen_before` from Python (tests and tools); the kernels call that one, so this entry point
     is compiled only when Python calls it."""
     return _seen_before(pat_star, pat_row, failed, n_failed)
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def remember(pat_star, pat_row, failed, n_failed):
     """:func:`_remember` from Python (tests and tools); the kernels call that one, so this entry point
     is compiled only when Python calls it."""

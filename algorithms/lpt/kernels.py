@@ -10,7 +10,8 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
+
+from starid.kernels.jit import inline_inner, inline_kernel, inner, kernel
 
 from ..lpt_improved.planar import (
     acceptance_at,
@@ -45,7 +46,7 @@ class StringSearch(NamedTuple):
     double_px: float
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def lpt_string(r_px, phi, n, search, out, owner):
     """The LPT string of a pattern: character k = the log-radius row of the nearest star in sector k.
 
@@ -103,7 +104,7 @@ def sparse_strings(strings: np.ndarray) -> Strings:
     return Strings(sector.astype(sector_dtype), strings[g_idx, sector].astype(np.uint8), start)
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def dense_string(chars, g, out):
     """Guide ``g``'s string in the layout of :func:`lpt_string`, written into ``out`` (length m)."""
     for k in range(out.shape[0]):
@@ -128,7 +129,7 @@ class ImageString(NamedTuple):
     mask: np.ndarray
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def index_image(img_sector, img_level, nz, search, level_start, by_level, mask):
     """Fill ``level_start`` (n_levels + 2), ``by_level`` and ``mask`` (n_levels + 1) of an :class:`ImageString`."""
     q = 0
@@ -147,7 +148,7 @@ def index_image(img_sector, img_level, nz, search, level_start, by_level, mask):
         level_start[lv + 1] = q
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def _popcount(x):
     """Set bits of a non-negative int64 word (SWAR: no data-dependent branch)."""
     x = x - ((x >> 1) & 0x5555555555555555)
@@ -156,7 +157,7 @@ def _popcount(x):
     return (x * 0x0101010101010101) >> 56
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def _lowest_bit(x):
     """Index of the lowest set bit of a non-zero int64 word."""
     x = x & -x
@@ -181,7 +182,7 @@ def _lowest_bit(x):
     return n
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def rank_key(matched, n_chars):
     """Ranking key of a match: more matched characters first; among equals, fewer unmatched database characters.
 
@@ -190,7 +191,7 @@ def rank_key(matched, n_chars):
     return 1024 * matched - min(n_chars - matched, 1023)
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def least_needed(threshold, n_chars, min_score):
     """Smallest score ``>= min_score`` whose :func:`rank_key` is above ``threshold`` (the last of a full list)."""
     need = max(min_score, threshold // 1024 - 1)
@@ -199,7 +200,7 @@ def least_needed(threshold, n_chars, min_score):
     return need
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def match_bound(chars, g, img):
     """Upper bound of guide ``g``'s best score, without trying shifts.
 
@@ -222,7 +223,7 @@ def match_bound(chars, g, img):
     return min(n_pairs, img.nz)
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def shift_scores(chars, g, img, search, sets, planes):
     """Best circular shift of guide ``g``'s string against the image string: ``(best_score, best_shift)``.
 
@@ -260,7 +261,7 @@ def shift_scores(chars, g, img, search, sets, planes):
     return best_shift(sets, nz, nw, planes, sets[nz])
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def best_shift(sets, nz, nw, planes, cand):
     """``(best_score, best_shift)`` of the shift sets ``sets[:nz, :nw]`` (see :func:`shift_scores`).
 
@@ -304,7 +305,7 @@ def best_shift(sets, nz, nw, planes, cand):
     return best, first_w * 64 + _lowest_bit(cand[first_w])
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def window_counts(img, search, most):
     """``most[L]`` (L = 1..n_levels): the most image characters near row L in any few consecutive sectors.
 
@@ -335,7 +336,7 @@ def window_counts(img, search, most):
         most[lv] = best
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def fill_pattern(pattern, m, sector_tol):
     """``pattern[x]`` (int64 rows of two words, zeros on entry) |= the shifts ``(x - d) mod m``,
     ``|d| <= sector_tol``: the shifts under which a database character in sector j matches an image
@@ -346,7 +347,7 @@ def fill_pattern(pattern, m, sector_tol):
             pattern[x, s >> 6] |= np.int64(1) << (s & 63)
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def shift_tables(img, search, tables):
     """Per reference star, the shifts under which one database character matches image characters.
 
@@ -365,7 +366,7 @@ def shift_tables(img, search, tables):
     shift_tables_of(img, search, most, by_level_x, pattern2, tables)
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def shift_tables_of(img, search, most, by_level_x, pattern2, tables):
     """:func:`shift_tables` with the shifts of a pair read from ``pattern2`` (see :func:`image_groups_at`),
     written only where they can be non-empty: layers r < ``most[L]`` (:func:`window_counts`) of rows
@@ -405,7 +406,7 @@ def shift_tables_of(img, search, most, by_level_x, pattern2, tables):
                 tables[2, lv, j, 1] = r3b
 
 
-@njit(cache=True, inline="always", no_cfunc_wrapper=True)
+@inline_kernel
 def reaches_tables(chars, g, need, tables, planes):
     """Whether guide ``g``'s best score can reach ``need``: false only when :func:`shift_scores` is below it.
 
@@ -422,7 +423,7 @@ def reaches_tables(chars, g, need, tables, planes):
     return reaches_tables_at(chars, g, need, most, tables, planes)
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def reaches_tables_at(chars, g, need, most, tables, planes):
     """:func:`reaches_tables` reading only the layers r < ``most[L]`` of a character of row L (the
     others are empty, and :func:`shift_tables_of` does not write them)."""
@@ -463,7 +464,7 @@ def reaches_tables_at(chars, g, need, most, tables, planes):
     return (gta | eqa | gtb | eqb) != 0
 
 
-@njit(cache=True, inline="always", no_cfunc_wrapper=True)
+@inline_kernel
 def image_groups(chars, g, img, u, pattern, valid, xs, groups):
     """A necessary condition of guide ``g``'s best score reaching ``nz - u`` (``u >= 0``): false only when it does not.
 
@@ -479,7 +480,7 @@ def image_groups(chars, g, img, u, pattern, valid, xs, groups):
     return image_groups_at(chars, g, img, by_level_x, u, pattern2, valid, xs, groups)
 
 
-@njit(cache=True, no_cfunc_wrapper=True)   # tests' and tools' form
+@kernel   # tests' and tools' form
 def image_groups_padded(chars, g, img, u, pattern, valid, xs, groups):
     """:func:`image_groups` through :func:`pad_rows` and :func:`image_groups_pad`, the scan's form (``xs``:
     at least ``2 nz`` rows)."""
@@ -491,7 +492,7 @@ def image_groups_padded(chars, g, img, u, pattern, valid, xs, groups):
     return image_groups_pad(chars, g, img.nz, width, pad_t, pad_x, u, pattern2, valid, xs, groups)
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # tests' and tools' forms only
+@inner   # tests' and tools' forms only
 def at_forms(img, pattern):
     """``(by_level_x, pattern2)``, what :func:`image_groups_at` and :func:`shift_tables_of` read, derived from
     the image and ``pattern`` (int64 (m, 2), the shifts x - d of each x): ``by_level_x[p]`` = m - (sector of
@@ -507,7 +508,7 @@ def at_forms(img, pattern):
     return by_level_x, pattern2
 
 
-@njit(cache=True, inline="always", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inline_inner   # kernels call it only
 def any_group(xs, nz, u, valid, groups):
     """Deal the image characters' shift sets ``xs[:nz]`` into ``u + 1`` groups in turn, intersect each
     group's (starting from ``valid``), and tell whether any group's intersection is non-empty: the last
@@ -530,7 +531,7 @@ def any_group(xs, nz, u, valid, groups):
     return (any_a | any_b) != 0
 
 
-@njit(cache=True, inline="always", no_cfunc_wrapper=True)   # tests' and tools' form (the scan: image_groups_pad)
+@inline_kernel   # tests' and tools' form (the scan: image_groups_pad)
 def image_groups_at(chars, g, img, by_level_x, u, pattern2, valid, xs, groups):
     """:func:`image_groups` without a branch per pair: ``by_level_x[p]`` = m - (sector of ``img.by_level[p]``),
     and ``pattern2[y]`` (int64 (2 m, 2)) = ``pattern[y mod m]``, read at ``j + by_level_x[p]``."""
@@ -549,7 +550,7 @@ def image_groups_at(chars, g, img, by_level_x, u, pattern2, valid, xs, groups):
     return any_group(xs, nz, u, valid, groups)
 
 
-@njit(cache=True, inline="always", no_cfunc_wrapper=True)   # one call site, the scan's most frequent test
+@inline_kernel   # one call site, the scan's most frequent test
 def image_groups_pad(chars, g, nz, width, pad_t, pad_x, u, pattern2, valid, xs, groups):
     """:func:`image_groups_at` with every row's list of image characters padded to ``width`` entries.
 
@@ -575,7 +576,7 @@ def image_groups_pad(chars, g, nz, width, pad_t, pad_x, u, pattern2, valid, xs, 
     return any_group(xs, nz, u, valid, groups)
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def pad_rows(img, n_levels, by_level_x, pad_t, pad_x):
     """The padded lists of :func:`image_groups_pad` for one reference star; returns their ``width``
     (the longest row list, at least 1)."""
@@ -595,7 +596,7 @@ def pad_rows(img, n_levels, by_level_x, pad_t, pad_x):
     return width
 
 
-@njit(cache=True, no_cfunc_wrapper=True)   # a call, not inlined: the same speed, 0.4 CPU s less compile
+@kernel   # a call, not inlined: the same speed, 0.4 CPU s less compile
 def reaches_groups(chars, g, v, most, tables, valid, groups):
     """A necessary condition of :func:`reaches_budget` (same arguments): false only when it is false.
 
@@ -626,7 +627,7 @@ def reaches_groups(chars, g, v, most, tables, valid, groups):
     return (any_a | any_b) != 0
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def reaches_budget(chars, g, v, most, tables, valid, at_most):
     """Whether some shift s has ``sum over g's characters q of w_q(s) >= total - v`` (see :func:`reaches_tables`).
 
@@ -658,7 +659,7 @@ def reaches_budget(chars, g, v, most, tables, valid, at_most):
     return True
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def order_by_count(chars, count_start, by_count):
     """Guide rows ordered by their strings' character count, guide order within a count (counting sort).
 
@@ -725,7 +726,7 @@ def scan_order(chars: Strings, n_sectors: int, n_levels: int) -> ScanOrder:
     return ScanOrder(strings, guide, count_start, levels, counts)
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def _nibble_sum(x):
     """Sum of the 16 nibbles of a uint64 word, when it is below 256."""
     lo = np.uint64(0x0F0F0F0F0F0F0F0F)
@@ -733,7 +734,7 @@ def _nibble_sum(x):
     return np.int64((y * np.uint64(0x0101010101010101)) >> np.uint64(56))
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def level_set_masks(img, search, most, set_masks, most_masks):
     """Per reference star, the level bound and window sum of a string from its :class:`ScanOrder` summaries.
 
@@ -757,7 +758,7 @@ def level_set_masks(img, search, most, set_masks, most_masks):
         most_masks[r] = w
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def refined_roll(row, img_sector, img_level, img_phi, nz, shift, search):
     """Roll (``phi_catalog - phi_image``) of a match: the shift refined by the matched characters.
 
@@ -785,14 +786,14 @@ def refined_roll(row, img_sector, img_level, img_phi, nz, shift, search):
     return base + (total / count if count else 0.5 * width)
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def search_at(p, i):
     """The :class:`StringSearch` packed at ``p[i:i+11]`` by ``planar.pack_params``."""
     return StringSearch(int(p[i]), int(p[i + 1]), p[i + 2], p[i + 3], p[i + 4], int(p[i + 5]), int(p[i + 6]),
                         int(p[i + 7]), int(p[i + 8]), int(p[i + 9]), p[i + 10])
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def identify_kernel(x_px, y_px, params, char_sector, char_level, char_start, scan_guide, count_start, scan_levels,
                     scan_counts, guides_unit, z_start, trace):
     """LPT identification of one image; returns ``(rows, attitude, accepted)``.

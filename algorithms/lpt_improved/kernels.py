@@ -10,9 +10,9 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
 from starid.kernels import chord_rows
+from starid.kernels.jit import inner, kernel
 
 from .planar import (
     SEPARATION_TOL,
@@ -56,14 +56,14 @@ class Search(NamedTuple):
     pair_filter: bool       # rank only rows whose alignment pair has the image pair's separation
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def log_level(r_px, log_scale):
     """Entry of a feature vector for plane distance ``r_px``: ``ceil(log_scale ln r_px)``, at least 1."""
     v = math.ceil(log_scale * math.log(max(r_px, 1.0)))
     return max(int(v), 1)
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def feature_vector(r_px, phi, n, align, n_sectors, log_scale, out):
     """Luo et al.'s feature (their eqs. 7-8) of the neighbours ``align..n-1`` relative to ``phi[align]``.
 
@@ -124,7 +124,7 @@ def build_features(unit, nbr, nbr_off, f_px, n_sectors, log_scale, db_alignments
     return feature, count, guide, align
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def sad_search(table, vec, nz_idx, nz, count_tol, n_best, best_row, best_sad, count_tol_above, acc, chord,
                chord_tol):
     """The ``n_best`` rows of smallest sum of absolute differences to ``vec`` (Luo et al. eq. 9).
@@ -181,7 +181,7 @@ def chord_order(align_chord: np.ndarray, count_start: np.ndarray) -> tuple[np.nd
     return rows, np.ascontiguousarray(align_chord[rows], dtype=np.float32)
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def chord_first(chords, lo, hi, chord, limit, upper):
     """First position in ``chords[lo:hi]`` (ascending) whose ``chords[k] - chord`` is >= ``limit``
     (``upper``: > ``limit``); the difference is monotone in ``chords[k]``, so bisection finds it."""
@@ -195,7 +195,7 @@ def chord_first(chords, lo, hi, chord, limit, upper):
     return lo
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def sad_search_pairs(table, vec, nz_idx, nz, count_tol, n_best, best_row, best_sad, count_tol_above, chord, chord_tol,
                      by_chord, chords):
     """:func:`sad_search` with ``pair_filter`` (``chord_tol >= 0``), the same rows in the same order.
@@ -241,14 +241,14 @@ def sad_search_pairs(table, vec, nz_idx, nz, count_tol, n_best, best_row, best_s
     return found
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def search_at(p, i):
     """The :class:`Search` packed at ``p[i:i+10]`` by ``planar.pack_params``."""
     return Search(int(p[i]), p[i + 1], p[i + 2], int(p[i + 3]), int(p[i + 4]), int(p[i + 5]), int(p[i + 6]),
                   int(p[i + 7]), p[i + 8], p[i + 9] != 0.0)
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def identify_kernel(x_px, y_px, params, columns, total, count_start, guide, align, align_chord, guides_unit, z_start,
                     by_chord, chords, trace):
     """Improved-LPT identification of one image; returns ``(rows, attitude, accepted)``.

@@ -52,6 +52,7 @@ from starid.kernels import (
     wahba_rows,
     z_band_rows,
 )
+from starid.kernels.jit import inline_kernel, inner, kernel
 from starid.observation import Observation
 from starid.params import check_number, check_whole, param
 from starid.plugin import Algorithm, Explanation, Identification
@@ -173,19 +174,19 @@ def pack_params(*bundles) -> np.ndarray:
     return np.array([v for b in bundles for v in b], dtype=np.float64)
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def frame_at(p, i):
     """The :class:`starid.kernels.Frame` packed at ``p[i:i+5]`` by :func:`pack_params`."""
     return Frame(p[i], p[i + 1], p[i + 2], p[i + 3], p[i + 4])
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def acceptance_at(p, i):
     """The :class:`Acceptance` packed at ``p[i:i+5]`` by :func:`pack_params`."""
     return Acceptance(p[i], p[i + 1], p[i + 2], int(p[i + 3]), p[i + 4])
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def tangent_basis(unit, s):
     """Right-handed orthonormal ``e1, e2`` perpendicular to ``unit[s]`` (``e2 = s x e1``), as six scalars
     ``e1x, e1y, e1z, e2x, e2y, e2z`` (no arrays: nothing to allocate per call, less to compile)."""
@@ -206,7 +207,7 @@ def tangent_basis(unit, s):
     return ax, ay, az, sy * az - sz * ay, sz * ax - sx * az, sx * ay - sy * ax
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def plane_polar(unit, s, rows, n_rows, f_px, r_px, phi):
     """Polar coordinates of ``unit[rows[:n_rows]]`` in the plane tangent at ``unit[s]`` (notes 1.4).
 
@@ -232,7 +233,7 @@ def plane_polar(unit, s, rows, n_rows, f_px, r_px, phi):
         phi[k] = p + 2.0 * math.pi if p < 0 else p
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def relative_angle(phi, phi0):
     """``phi - phi0`` wrapped to ``[0, 2 pi)``."""
     d = phi - phi0
@@ -243,7 +244,7 @@ def relative_angle(phi, phi0):
     return d
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def prepare_image(x_px, y_px, sensor, double_px):
     """Back-projected unit vectors, the usable mask and the reference order of one image.
 
@@ -279,7 +280,7 @@ def prepare_image(x_px, y_px, sensor, double_px):
     return unit, usable, order
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def image_neighbours(unit, usable, x_px, y_px, s, cos_radius, out):
     """Usable stars within the angle whose cosine is ``cos_radius`` of star ``s``, nearest first.
 
@@ -300,7 +301,7 @@ def image_neighbours(unit, usable, x_px, y_px, s, cos_radius, out):
     return k
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def seed_attitude_roll(unit, s, guides_unit, g, roll):
     """Attitude taking guide row ``g`` to image star ``s`` with a roll about it.
 
@@ -324,7 +325,7 @@ def seed_attitude_roll(unit, s, guides_unit, g, roll):
     return A
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def confirm(unit, rows, attitude, guides_unit, sensor, acc, solved_from):
     """Accept or reject a seed attitude by reprojection; fills ``rows`` (guide row per star or -1).
 
@@ -392,7 +393,7 @@ def confirm(unit, rows, attitude, guides_unit, sensor, acc, solved_from):
 _prepare_image_inline = njit(inline="always", no_cpython_wrapper=True, no_cfunc_wrapper=True)(prepare_image.py_func)
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def begin_identify(x_px, y_px, sensor, double_px, trace):
     """Start of every identify kernel: ``trace`` reset to -1, ``(rows, unit, usable, order)``.
 
@@ -408,7 +409,7 @@ def begin_identify(x_px, y_px, sensor, double_px, trace):
     return np.full(n, -1, dtype=np.int64), unit, usable, order
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def no_match(rows):
     """End of every identify kernel when nothing was accepted: ``(rows all -1, identity, False)``."""
     for i in range(rows.shape[0]):
@@ -416,7 +417,7 @@ def no_match(rows):
     return rows, identity3(), False
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def reference_pattern(unit, usable, x_px, y_px, s, cos_radius, f_px, nbrs, r_px, phi):
     """Neighbours of reference star ``s`` (:func:`image_neighbours` into ``nbrs``) and their polar coordinates.
 
@@ -428,7 +429,7 @@ def reference_pattern(unit, usable, x_px, y_px, s, cos_radius, f_px, nbrs, r_px,
     return k
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def keep_best(best_score, best_item, found, n_best, score, item):
     """Insert ``(score, item)`` into the ``found`` best so far (``best_score`` descending); returns the new count.
 
@@ -447,7 +448,7 @@ def keep_best(best_score, best_item, found, n_best, score, item):
     return found + 1 if found < n_best else found
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def confirm_pair(unit, rows, seed, s, o, guide_s, guide_o, guides_unit, sensor, acc):
     """Seed an attitude on two matched stars (``s`` -> ``guide_s``, ``o`` -> ``guide_o``, Wahba) and :func:`confirm` it.
 
@@ -496,7 +497,7 @@ def z_index(unit: np.ndarray, n_buckets: int = Z_BUCKETS) -> np.ndarray:
     return np.searchsorted(np.asarray(unit[:, 2], dtype=np.float64), edges, side="left").astype(np.int64)
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def z_first(unit, z_start, z, g_lo):
     """First row, not before ``g_lo``, whose z is >= ``z`` (rows of ``unit`` sorted by z; ``z_start``
     from :func:`z_index`). Starts one bucket early (rounding of the bucket number) and walks."""
@@ -509,7 +510,7 @@ def z_first(unit, z_start, z, g_lo):
     return g
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def settle_pairs(pair_i, pair_g, n_pairs, n_match, out_row):
     """``reproject_assign``'s bookkeeping from the (star, guide row) pairs within the window.
 
@@ -533,7 +534,7 @@ def settle_pairs(pair_i, pair_g, n_pairs, n_match, out_row):
     return keep_unique(n_match, out_row)
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def assign_near(A, v_cam, unit, z_start, c_fov, eps, out_row, pair_i, pair_g, n_match):
     """``starid.kernels.reproject_assign``'s assignment (``out_row`` and the count), without the prediction count.
 
@@ -592,7 +593,7 @@ def assign_near(A, v_cam, unit, z_start, c_fov, eps, out_row, pair_i, pair_g, n_
         pg = np.empty(4 * pg.shape[0], dtype=np.int64)
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def predicted_on_sensor(A, unit, c_fov, f_px, cx_px, cy_px, width_px, height_px):
     """``reproject_assign``'s second count: guide rows of the cap whose prediction lands on the sensor
     (the same loop and expressions)."""
@@ -615,7 +616,7 @@ def predicted_on_sensor(A, unit, c_fov, f_px, cx_px, cy_px, width_px, height_px)
     return n_predicted
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def confirm_near(unit, rows, attitude, guides_unit, z_start, sensor, acc, solved_from, work, n_first):
     """:func:`confirm`, pass for pass, with :func:`assign_near` for the assignment (called directly: a
     wrapper level between them made numba re-optimise assign_near once more), and no two-star Wahba
@@ -739,7 +740,7 @@ def confirm_near(unit, rows, attitude, guides_unit, z_start, sensor, acc, solved
     return True, wahba_rows(unit, rows, guides_unit)
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def plane_frame(x0, y0, z0, x1, y1, z1):
     """Right-handed orthonormal ``p1, p2, p3`` with ``p1`` along ``(x0, y0, z0)`` and ``p2`` in the plane
     of the two vectors (Gram-Schmidt), as nine scalars; ``p3`` = 0 when they are parallel."""
@@ -754,7 +755,7 @@ def plane_frame(x0, y0, z0, x1, y1, z1):
     return ax, ay, az, bx, by, bz, ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def pair_attitude(unit, s, o, guides_unit, guide_s, guide_o, A):
     """The rotation Wahba's problem gives for the two pairs ``s -> guide_s``, ``o -> guide_o`` (equal
     weights), written to ``A`` (3 x 3).
@@ -813,7 +814,7 @@ def pair_attitude(unit, s, o, guides_unit, guide_s, guide_o, A):
     return max(ATT_FLOOR, ATT_SCALE / sigma2)
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def band_z(z_centre, c_radius):
     """The z limits of :func:`starid.kernels.z_band_rows`'s band (the same expressions): a row of the
     z-sorted catalog lies in the rows it returns exactly when its z is within ``[z_lo, z_hi]``."""
@@ -822,7 +823,7 @@ def band_z(z_centre, c_radius):
     return math.sin(max(-0.5 * math.pi, dec0 - half)), math.sin(min(0.5 * math.pi, dec0 + half))
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def pair_first_pass(A, tol, v_cam, unit, z_start, c_fov, eps, work):
     """:func:`confirm`'s first pass from the seed Wahba gives for a pair, made with ``A`` when it can be.
 
@@ -878,7 +879,7 @@ def pair_first_pass(A, tol, v_cam, unit, z_start, c_fov, eps, work):
     return settle_pairs(pair_i, pair_g, n_pairs, n_match, out_row)
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def pair_work(n):
     """Work arrays of :func:`confirm_pair_near`: ``(pair_i, pair_g, n_match, out_row), A0 (3 x 3)``."""
     cap = 4 * n + 16
@@ -886,7 +887,7 @@ def pair_work(n):
             np.empty(n, dtype=np.int64)), np.empty((3, 3))
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def confirm_pair_near(unit, rows, seed, s, o, guide_s, guide_o, guides_unit, z_start, sensor, acc, work, A0):
     """:func:`confirm_pair`, the same answer, cheaper.
 
@@ -933,7 +934,7 @@ TRACE_WORK = 4
 WORK_COUNTERS = ("patterns", "comparisons", "verifications")
 
 
-@njit(cache=True, inline="always", no_cfunc_wrapper=True)
+@inline_kernel
 def count_work(trace, k, n):
     """Add ``n`` to work counter ``k`` (0 patterns, 1 comparisons, 2 verifications) of ``trace``
     when ``trace`` has room for it (a 4-slot trace counts nothing)."""
@@ -960,7 +961,7 @@ def trace_counters(trace: np.ndarray, skip=()) -> dict | None:
     return {k: v for k, v in zip(WORK_COUNTERS, values, strict=False) if k not in skip}
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def rows_to_hip(rows, hip):
     """Catalog ids of guide ``rows`` (-1 stays -1)."""
     out = np.full(rows.shape[0], -1, dtype=np.int64)

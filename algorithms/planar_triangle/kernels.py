@@ -14,7 +14,6 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
 from starid.kernels import (
     KVector,
@@ -28,7 +27,7 @@ from starid.kernels import (
     wahba_rows,
     z_band_rows,
 )
-from starid.kernels.jit import inner as _inner
+from starid.kernels.jit import inner, kernel
 from starid.kernels.order import search_left, sort_int_prefix
 
 MOMENT_BLOCK = 256  # triangles per block of the moment index (offsets fit uint8)
@@ -135,12 +134,12 @@ class MomentCache(NamedTuple):
     scans: np.ndarray  # int64 (M,) pivots into triangle g matched that way (the second builds its table)
 
 
-@_inner
+@inner
 def _cross(u0, u1, u2, w0, w1, w2):
     return u1 * w2 - u2 * w1, u2 * w0 - u0 * w2, u0 * w1 - u1 * w0
 
 
-@_inner
+@inner
 def triangle_features(r1, r2, r3):
     """``(area, moment, diameter_rad)`` of the chord triangle of three unit vectors.
 
@@ -171,7 +170,7 @@ def triangle_features(r1, r2, r3):
     return area, moment, diameter
 
 
-@_inner
+@inner
 def triangle_variances(r1, r2, r3, sigma_rad):
     """``(var_area, var_moment)`` of the chord triangle under the QUEST noise model.
 
@@ -311,7 +310,7 @@ def entry_triangles(moment_perm):
     return entry - entry % MOMENT_BLOCK + moment_perm
 
 
-@_inner
+@inner
 def _moment_filter(moment, moment_perm, start, stop, lo, hi):
     """The catalog triangles in ``[start, stop)`` (area order) whose polar moment lies in
     ``[lo, hi]``, as their entries (positions) in the moment index, ascending: the triangle of entry
@@ -352,13 +351,13 @@ def _moment_filter(moment, moment_perm, start, stop, lo, hi):
     return out[:m]
 
 
-@_inner
+@inner
 def _slot(key, mask):
     """Home slot of a star-pair key in a hash table of ``mask + 1`` slots (Fibonacci hashing)."""
     return np.int64((np.uint64(key) * np.uint64(0x9E3779B97F4A7C15)) >> np.uint64(40)) & mask
 
 
-@_inner
+@inner
 def _moment_list(t, img, db, tol, cache):
     """The candidates of image triangle ``t``: its area hits ``[img.start[t], img.stop[t])`` whose
     polar moment lies within ``beta`` standard deviations of its own (paper eqs. 16-20), ascending.
@@ -384,7 +383,7 @@ def _moment_list(t, img, db, tol, cache):
     return out
 
 
-@_inner
+@inner
 def _fill_hash(cand, n, tri_stars, keys):
     """Open-addressing hash table (linear probing; ``keys.shape[0]`` a power of two, EMPTY = empty
     slot) of the three star pairs ``lo * KEY_BASE + hi`` of the catalog triangles ``cand[:n]``, each
@@ -408,7 +407,7 @@ def _fill_hash(cand, n, tri_stars, keys):
             keys[pos] = (np.uint64(key) << SHIFT) | np.uint64(cand[c])
 
 
-@_inner
+@inner
 def _hash_size(n):
     """Slots of a table of ``n`` candidates (3 keys each, at most 3/8 full: short probes): a power of two >= 16."""
     size = 16
@@ -417,7 +416,7 @@ def _hash_size(n):
     return size
 
 
-@_inner
+@inner
 def _moment_hash(t, img, cand, tri_stars, cache):
     """``keys``: the hash table (:func:`_fill_hash`) of the star pairs of image triangle
     ``t``'s candidates ``cand`` (:func:`_moment_list`), what a pivot matches on. From ``cache`` when
@@ -443,7 +442,7 @@ def _moment_hash(t, img, cand, tri_stars, cache):
     return keys
 
 
-@_inner
+@inner
 def _few_hash(cand, tri_stars, node_cat, layer_lo, layer_hi, mark):
     """The hash table of only those candidates ``cand`` that hold two or more stars of the
     finalists' last triangles (``node_cat[layer_lo:layer_hi]``), in the order of ``cand``: a probe
@@ -471,7 +470,7 @@ def _few_hash(cand, tri_stars, node_cat, layer_lo, layer_hi, mark):
     return keys
 
 
-@_inner
+@inner
 def new_cache(img, n_guide):
     """An empty :class:`MomentCache` for the triangles of ``img`` (``gid`` 0..m-1), room for
     CACHE_PER_TRIANGLE candidates per triangle on average; ``n_guide`` guide stars."""
@@ -504,7 +503,7 @@ def new_cache(img, n_guide):
                        mark, per_triangle[4])
 
 
-@_inner
+@inner
 def first_query(img, tri_stars, cand, rows, first, work):
     """``work[5:8]`` (the first-query counters) of the image triangle ``first`` (a row of ``img``, the
     whole image's triangles) and its candidates ``cand`` (``_moment_list``) given the identification's
@@ -530,7 +529,7 @@ def first_query(img, tri_stars, cand, rows, first, work):
             return
 
 
-@_inner
+@inner
 def _next_in_chain(prev, used, img_tri, img_area):
     """Cole's linked list: the unused image triangle of largest area sharing exactly two stars
     with ``prev`` (-1 if none)."""
@@ -548,7 +547,7 @@ def _next_in_chain(prev, used, img_tri, img_area):
     return best
 
 
-@_inner
+@inner
 def _signatures(members, length):
     """Sorted membership bitmasks of the stars of a chain of ``length`` triangles.
 
@@ -563,7 +562,7 @@ def _signatures(members, length):
     return masks[:n]
 
 
-@_inner
+@inner
 def _fill_masks(members, length, ids, masks):
     """The chain's distinct stars into ``ids[:n]`` and their membership bitmasks (bit ``l`` for
     triangle ``l``) into ``masks[:n]``, in first-seen order; returns ``n``."""
@@ -585,7 +584,7 @@ def _fill_masks(members, length, ids, masks):
     return n
 
 
-@_inner
+@inner
 def _same_signatures(members, length, want, ids, masks):
     """``_signatures(members, length)`` equals ``want`` (sorted), computed in the scratch arrays
     ``ids`` and ``masks`` (at least ``3 * length`` long) without allocating: the pivot calls this
@@ -600,7 +599,7 @@ def _same_signatures(members, length, want, ids, masks):
     return True
 
 
-@_inner
+@inner
 def _grow(arr, size):
     out = np.empty(max(2 * arr.shape[0], size), dtype=np.int64)  # int64 only: np.empty compiled once
     for q in range(arr.shape[0]):  # not a slice assignment (see _moment_list)
@@ -608,7 +607,7 @@ def _grow(arr, size):
     return out
 
 
-@_inner
+@inner
 def _pivot_layer(layer_lo, layer_hi, n_nodes, node_cat, node_parent, hkeys, tri_stars, img_sig, step,
                  abort_if_grow, consistent_chain, work):
     """One pivot of :func:`_pivot`: every finalist ``f`` in ``[layer_lo, layer_hi)`` extended by the
@@ -677,7 +676,7 @@ def _pivot_layer(layer_lo, layer_hi, n_nodes, node_cat, node_parent, hkeys, tri_
     return n_new, False, True
 
 
-@_inner
+@inner
 def _pivot(first, img, db, tol, pivot_limit, cache, work):
     """The chain and pivot procedure of ``MatchStarsWPlanarTris.m``.
 
@@ -819,7 +818,7 @@ def _pivot(first, img, db, tol, pivot_limit, cache, work):
 PERMS = np.array([[0, 1, 2], [0, 2, 1], [1, 0, 2], [1, 2, 0], [2, 0, 1], [2, 1, 0]], dtype=np.int64)
 
 
-@_inner
+@inner
 def _triangle_consistent(img_v, cat_unit, i0, i1, i2, g0, g1, g2, tol_chord):
     """Chords agree within ``tol_chord`` and the handedness is the same."""
     if abs(chord_rows(img_v, i0, img_v, i1) - chord_rows(cat_unit, g0, cat_unit, g1)) > tol_chord:
@@ -833,7 +832,7 @@ def _triangle_consistent(img_v, cat_unit, i0, i1, i2, g0, g1, g2, tol_chord):
     return (ti > 0.0) == (tc > 0.0)
 
 
-@_inner
+@inner
 def recover_correspondence(img, chain, cat_chain, db, tol_chord):
     """Per-star catalog rows from the single surviving chain, or all -1.
 
@@ -913,7 +912,7 @@ def recover_correspondence(img, chain, cat_chain, db, tol_chord):
     return best
 
 
-@_inner
+@inner
 def extend_by_distance(img_v, rows, db, tol_chord):
     """Extension (not in the paper): identify further stars by angular distance.
 
@@ -980,7 +979,7 @@ def extend_by_distance(img_v, rows, db, tol_chord):
     return out
 
 
-@_inner
+@inner
 def _image_triangles(img_v, db, tol):
     """Step 1: every image triangle within ``fov_rad`` and of area >= ``min_area``, looked up in
     the area-sorted catalog with the k-vector, ``[A - beta sA, A + beta sA]``; triangles with
@@ -1021,14 +1020,14 @@ def _image_triangles(img_v, db, tol):
     return ImageTriangles(img_v, img_tri[:m], img_area[:m], img_start[:m], img_stop[:m], gid)
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def image_triangles(img_v, db, tol):
     """:func:`_image_triangles` from Python (the profiling tools); the identification calls that one, so
     this entry point is compiled only when a tool calls it."""
     return _image_triangles(img_v, db, tol)
 
 
-@_inner
+@inner
 def argsort_desc(values):
     """``np.argsort(-values, kind="mergesort")``: indices by descending value, ties by ascending index.
 
@@ -1096,7 +1095,7 @@ def identify_rows(img_v, db, tol):
     return rows, chain, work
 
 
-@_inner
+@inner
 def _key_before(a, b, k0, k1, k2):
     """Star ``a`` sorts before star ``b`` by ``(k0, k1, k2)`` (the first key first; finite values)."""
     if k0[a] != k0[b]:
@@ -1106,7 +1105,7 @@ def _key_before(a, b, k0, k1, k2):
     return k2[a] < k2[b]
 
 
-@_inner
+@inner
 def _stable_sort(items, n, k0, k1, k2):
     """``items[:n]`` (star indices) sorted in place by ``(k0, k1, k2)``, ties kept in their order:
     ``items[np.lexsort((k2[items], k1[items], k0[items]))]`` (insertion sort: a few dozen stars).
@@ -1122,7 +1121,7 @@ def _stable_sort(items, n, k0, k1, k2):
         items[j + 1] = cur
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def choose_stars(x_px, y_px, mag, mag_max, n_chosen, f_px, cx_px, cy_px):
     """The stars the triangles are built from, in one call (what ``PlanarTriangle._run`` did with
     ``np.flatnonzero``, three ``np.lexsort`` and the back-projection): those with ``mag <= mag_max``,
@@ -1165,7 +1164,7 @@ def choose_stars(x_px, y_px, mag, mag_max, n_chosen, f_px, cx_px, cy_px):
     return order, backproject_px(xo, yo, f_px, cx_px, cy_px), rank
 
 
-@_inner
+@inner
 def _sub_triangles(img, idx, size, sub_v):
     """The triangles of ``img`` whose three stars are all in ``idx[:size]`` (sorted star indices),
     renumbered to positions in ``idx``; ``gid`` keeps the row in ``img`` (the cache key)."""
@@ -1190,7 +1189,7 @@ def _sub_triangles(img, idx, size, sub_v):
     return ImageTriangles(sub_v, tri, img.area[keep], img.start[keep], img.stop[keep], img.gid[keep])
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def identify_subsets(img_v, bright, db, tol, stages):
     """Brightest-first star subsets: the pivoting of :func:`identify_rows` on subsets of the stars.
 
@@ -1346,7 +1345,7 @@ def deep_v_mag(catalog, deep) -> np.ndarray:
     return catalog.v_mag[by_hip[np.searchsorted(catalog.hip[by_hip], deep.hip)]].astype(np.float32)
 
 
-@_inner
+@inner
 def _deep_mag_of(deep, deep_mag, r_icrs, eps_chord, hip):
     """V of the deep star ``hip``, which lies within chord ``eps_chord`` of the ICRS direction ``r_icrs``."""
     start, stop = z_band_rows(deep.unit, float(r_icrs[2]), 2.0 * eps_chord)
@@ -1356,7 +1355,7 @@ def _deep_mag_of(deep, deep_mag, r_icrs, eps_chord, hip):
     return np.inf
 
 
-@_inner
+@inner
 def _rivals(deep, deep_mag, r_icrs, eps_chord, mag_max):
     """How many deep stars with V <= ``mag_max`` lie within chord ``eps_chord`` of the ICRS direction ``r_icrs``."""
     start, stop = z_band_rows(deep.unit, float(r_icrs[2]), eps_chord)
@@ -1371,7 +1370,7 @@ def _rivals(deep, deep_mag, r_icrs, eps_chord, mag_max):
     return count
 
 
-@_inner
+@inner
 def coverage(attitude, deep, deep_mag, mag_max, found_hip, frame):
     """``(predicted, missed)``: stars of ``deep`` with V <= ``mag_max`` that ``attitude`` puts on the
     sensor, and how many of them are not among ``found_hip`` (sorted ids of the identified stars).
@@ -1401,7 +1400,7 @@ def coverage(attitude, deep, deep_mag, mag_max, found_hip, frame):
     return predicted, missed
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def finish(x_px, y_px, mag, rows, guide_unit, guide_hip, deep, deep_mag, frame, rules):
     """Attitude, the core final assignment and the coverage check, for ``rows`` (guide rows or -1).
 

@@ -13,7 +13,6 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
 from starid.kernels import (
     DeepSky,
@@ -35,6 +34,7 @@ from starid.kernels import (
     wahba_rows,
     z_band_rows,
 )
+from starid.kernels.jit import inner, kernel
 
 # The six vertex correspondences (observed vertex j -> database vertex PERMS[p, j]).
 PERMS = np.array([[0, 1, 2], [1, 2, 0], [2, 0, 1], [0, 2, 1], [2, 1, 0], [1, 0, 2]], dtype=np.int64)
@@ -104,7 +104,7 @@ def plain(t):
     return tuple(plain(v) if hasattr(v, "_fields") else v for v in t)
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def _precedes(a_key, a_x, a_y, b_key, b_x, b_y):
     """Lexicographic (key, x, y) comparison, the geometric tie-break used everywhere."""
     if a_key != b_key:
@@ -114,7 +114,7 @@ def _precedes(a_key, a_x, a_y, b_key, b_x, b_y):
     return a_y < b_y
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def _ranks_before(x_px, y_px, a, ka, da, b, kb, db):
     """Neighbour ``a`` (rank key ``ka``, chord ``da``) ranks before ``b``: key, then chord, then position."""
     if ka != kb:
@@ -124,7 +124,7 @@ def _ranks_before(x_px, y_px, a, ka, da, b, kb, db):
     return _precedes(x_px[a], y_px[a], 0.0, x_px[b], y_px[b], 0.0)
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def _sort_by(key, x_px, y_px):
     """Order of the stars by ``key``, ties broken on position (insertion sort; images are small)."""
     n = key.shape[0]
@@ -142,7 +142,7 @@ def _sort_by(key, x_px, y_px):
     return order
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def select_neighbours(v, mag, eligible, centre, c_rmin, c_r, brightest, x_px, y_px):
     """The two neighbours of star ``centre`` that form its triangle, or (-1, -1).
 
@@ -171,7 +171,7 @@ def select_neighbours(v, mag, eligible, centre, c_rmin, c_r, brightest, x_px, y_
     return best1, best2
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def select_top(v, mag, eligible, centre, c_rmin, c_r, brightest, x_px, y_px, out):
     """The ``len(out)`` neighbours of star ``centre`` that form its triangles, best first; returns how many.
 
@@ -205,7 +205,7 @@ def select_top(v, mag, eligible, centre, c_rmin, c_r, brightest, x_px, y_px, out
     return m
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def linear_range(values, lo, hi):
     """``[start, stop)`` of ascending ``values`` in ``[lo, hi]`` by a linear scan from the start: the
     search a sorted table without an index gets (``search='linear'``), O(m) per query."""
@@ -219,7 +219,7 @@ def linear_range(values, lo, hi):
     return start, stop
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def triangle_feature(s_len01, s_len02, s_len12, sorted_sides):
     """Feature vector of a triangle from its role-ordered sides (S-N1, S-N2, N1-N2)."""
     d = np.empty(3)
@@ -237,7 +237,7 @@ def triangle_feature(s_len01, s_len02, s_len12, sorted_sides):
     return d
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def _argsort_stable(values):
     """Stable ascending order of ``values`` (insertion sort: images are small; the same order as
     ``np.argsort(kind="mergesort")`` without compiling a mergesort)."""
@@ -255,7 +255,7 @@ def _argsort_stable(values):
     return order
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def _search_left(a, v):
     """``np.searchsorted(a, v)`` of an ascending ``a`` in numpy's order (NaN after every number), written
     out: numba's searchsorted costs ~0.3 CPU s per side to compile, in every kernel that inlines it."""
@@ -271,7 +271,7 @@ def _search_left(a, v):
     return lo
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def _search_right(a, v):
     """``np.searchsorted(a, v, side="right")``, as :func:`_search_left`."""
     lo = 0
@@ -286,7 +286,7 @@ def _search_right(a, v):
     return lo
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def match_extras(oc, by_c0, c0_sorted, tri_obs, cat_rows, unit, eps, c_band, out_row):
     """Identify the non-triangle observed stars by their chords to the three triangle stars.
 
@@ -339,7 +339,7 @@ def match_extras(oc, by_c0, c0_sorted, tri_obs, cat_rows, unit, eps, c_band, out
     return keep_unique(n_match, out_row)
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def chance_k_min(n_obs, n_guide, eps, tail):
     """Smallest k with P(X >= k) <= ``tail`` for X ~ Poisson(lam), the number of chance distance
     matches a WRONG correspondence collects in :func:`match_extras` (0 when ``tail`` <= 0).
@@ -369,7 +369,7 @@ def chance_k_min(n_obs, n_guide, eps, tail):
 WORK_NAMES = ("searches", "window_triangles", "candidates", "correspondences", "hypotheses")
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def identify_rows(x_in, y_in, mag_in, frame_t, db_t, tol_t):
     """``(hip, attitude, ok, triangle, work)``: catalog id per observed star (-1 = unidentified, input
     order), the ICRS -> camera attitude, whether the image was identified, the input indices of

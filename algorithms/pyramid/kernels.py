@@ -15,9 +15,9 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
 from starid.kernels import backproject_px, chord_rows, kvector_query, order_by, reproject_assign, wahba_rows
+from starid.kernels.jit import inner, kernel
 
 #: catalog triangles kept per image triad on :data:`starid.camera.REFERENCE_CAMERA` at the 1 px window
 #: floor (a triad matching more is skipped); scaled with the window's volume on other cameras and noise
@@ -55,7 +55,7 @@ class PairTol(NamedTuple):
 # shared pair-angle helpers
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def isolated(v_cam, d_min):
     """True for detections with no other detection within chord ``d_min`` (doubles, coincident)."""
     n = v_cam.shape[0]
@@ -68,7 +68,7 @@ def isolated(v_cam, d_min):
     return ok
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def select_stars(x_px, y_px, mag, v_cam, d_min, max_stars):
     """The usable detections (isolated), brightest first, at most ``max_stars`` of them."""
     order = order_by(mag, x_px, y_px)
@@ -84,7 +84,7 @@ def select_stars(x_px, y_px, mag, v_cam, d_min, max_stars):
     return sel[:m]
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def pair_windows(v_cam, sel, kv, tol):
     """k-vector window ``[start, stop)`` of every pair of selected stars (symmetric (m, m) arrays).
 
@@ -114,7 +114,7 @@ def pair_windows(v_cam, sel, kv, tol):
 # Pyramid
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def triple(u, i, v, j, w, k):
     """Triple product ``u_i . (v_j x w_k)`` of rows of three (n, 3) arrays (float64)."""
     ax, ay, az = float(u[i, 0]), float(u[i, 1]), float(u[i, 2])
@@ -123,7 +123,7 @@ def triple(u, i, v, j, w, k):
     return ax * (by * cz - bz * cy) + ay * (bz * cx - bx * cz) + az * (bx * cy - by * cx)
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def _adjacency(pairs, start, stop, head, stamp, tick, nxt, val):
     """Linked lists of the catalog pairs in ``[start, stop)``: partners of each guide row.
 
@@ -142,7 +142,7 @@ def _adjacency(pairs, start, stop, head, stamp, tick, nxt, val):
             cnt += 1
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def _triad_triangles(v_cam, si, sj, sk, win_ij, win_ik, pairs, guide_unit, eps, work, tick, out):
     """Catalog triangles (I, J, K) matching the image triad (i, j, k) (the paper's triangle step).
 
@@ -185,7 +185,7 @@ def _triad_triangles(v_cam, si, sj, sk, win_ij, win_ik, pairs, guide_unit, eps, 
     return count
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def _neighbours_within(nbr_chord, nbr_start, big_i, lo, hi):
     """Index range of guide row ``big_i``'s neighbours whose chord lies in ``[lo, hi]`` (bisection)."""
     a = nbr_start[big_i]
@@ -208,7 +208,7 @@ def _neighbours_within(nbr_chord, nbr_start, big_i, lo, hi):
     return first, x
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def _fourth_star(v_cam, sel, tri_pos, tri_rows, nbr, nbr_chord, nbr_start, guide_unit, eps):
     """The pyramid's confirming star: the first selected star r (brightness order) with exactly
     one catalog star R at the right distance (+- ``eps``) from all three triangle stars.
@@ -244,7 +244,7 @@ def _fourth_star(v_cam, sel, tri_pos, tri_rows, nbr, nbr_chord, nbr_start, guide
     return -1, -1
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def _confirm_pyramid(v_cam, pyr_star, pyr_row, guide_unit, tol, cam, rows):
     """Attitude of the pyramid, the other stars by reprojection, and the confirmation test.
 
@@ -287,7 +287,7 @@ WORK_COUNTERS = ("triads", "pair_searches", "pairs_read", "triangles", "confirma
                  "first_in_R")
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def first_query_check(work, rows, first_trio, first_tri):
     """``work[6]`` / ``work[7]``: whether ``rows`` names the three stars of the first triad
     (``first_trio``), and whether its R (the first ``min(work[5], len(first_tri))`` rows of
@@ -311,7 +311,7 @@ def first_query_check(work, rows, first_trio, first_tri):
             return
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def _window(v_cam, sel, a, b, kv, tol, start, stop, work):
     """True when the k-vector window of selected stars ``a < b`` holds catalog pairs; computed on
     first use (``start[a, b] < 0`` = not yet) exactly as :func:`pair_windows` does (empty when the
@@ -330,7 +330,7 @@ def _window(v_cam, sel, a, b, kv, tol, start, stop, work):
     return stop[a, b] > start[a, b]
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def pyramid_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_unit, guide_hip, tol, cam,
                    unique_triangle, accept_triangle, max_triangles):
     """Pyramid identification of one image. Returns ``(rows, hip, attitude, pyramid, work)``.
@@ -456,7 +456,7 @@ def pyramid_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_
     return rows, _hip(rows, guide_hip), np.zeros((3, 3)), pyramid, work
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def _hip(rows, guide_hip):
     """Catalog id of each detection's guide row (-1 stays -1)."""
     hip = np.full(rows.shape[0], -1, dtype=np.int64)
@@ -466,28 +466,28 @@ def _hip(rows, guide_hip):
     return hip
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def triad_triangles(v_cam, si, sj, sk, win_ij, win_ik, pairs, guide_unit, eps, work, tick, out):
     """:func:`_triad_triangles` from Python (tests and tools); the kernels call that one, so this entry point
     is compiled only when Python calls it."""
     return _triad_triangles(v_cam, si, sj, sk, win_ij, win_ik, pairs, guide_unit, eps, work, tick, out)
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def neighbours_within(nbr_chord, nbr_start, big_i, lo, hi):
     """:func:`_neighbours_within` from Python (tests and tools); the kernels call that one, so this entry point
     is compiled only when Python calls it."""
     return _neighbours_within(nbr_chord, nbr_start, big_i, lo, hi)
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def fourth_star(v_cam, sel, tri_pos, tri_rows, nbr, nbr_chord, nbr_start, guide_unit, eps):
     """:func:`_fourth_star` from Python (tests and tools); the kernels call that one, so this entry point
     is compiled only when Python calls it."""
     return _fourth_star(v_cam, sel, tri_pos, tri_rows, nbr, nbr_chord, nbr_start, guide_unit, eps)
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def _confirm(v_cam, pyr_star, pyr_row, guide_unit, tol, cam, rows):
     """:func:`_confirm_pyramid` from Python (tests and tools); the kernels call that one, so this entry point
     is compiled only when Python calls it."""

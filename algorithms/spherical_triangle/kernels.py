@@ -9,10 +9,10 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 from starid_algorithms.pyramid.kernels import select_stars
 
 from starid.kernels import backproject_px, wahba_rows
+from starid.kernels.jit import inner, kernel
 from starid.kernels.triangles import trio_confirm, trio_query
 
 
@@ -42,7 +42,7 @@ class SphTol(NamedTuple):
     unique: bool  # |R| = 1 required before the direct-match test
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def _share_two(stars, p, q):
     """True when catalog triangles ``p`` and ``q`` (rows of ``stars``) have at least two stars in common."""
     n = 0
@@ -57,7 +57,7 @@ def _share_two(stars, p, q):
 WORK_NAMES = ("trios", "queries", "first_R", "first_named", "first_in_R", "to_r")
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def first_query_check(work, rows, first_trio, first_cand, stars):
     """``work[3]`` / ``work[4]``: whether ``rows`` names the three stars of the first queried trio, and
     whether its first R (``first_cand[:work[2]]``, triangles as rows of ``stars``) holds their set."""
@@ -81,7 +81,7 @@ def first_query_check(work, rows, first_trio, first_cand, stars):
             return
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def spherical_kernel(x_px, y_px, mag, index, guide_unit, tol, cam):
     """Identify one image. Returns ``(rows, attitude, trio, work)``; ``work``: the counters
     :data:`WORK_NAMES` -- image trios tried, (area, moment) queries made (pivots included), and the

@@ -15,9 +15,9 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
 from starid.kernels import backproject_px, chord_rows, order_by, reproject_assign, wahba_rows
+from starid.kernels.jit import inner, kernel
 
 #: An empty slot (no slot word reaches it: keys are < bins^5 <= 84^5 < 2^32 - 1).
 EMPTY = np.uint64(0xFFFFFFFFFFFFFFFF)
@@ -96,7 +96,7 @@ class Settings(NamedTuple):
 # --------------------------------------------------------------------------- hash table
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def hash_slot(key, size):
     """Home slot of ``key`` in a table of ``size`` slots: Fibonacci hashing, then the high 32
     bits scaled to ``[0, size)`` by a multiply-shift (any size up to 2^32, no power of two needed)."""
@@ -104,7 +104,7 @@ def hash_slot(key, size):
     return np.int64((h * np.uint64(size)) >> np.uint64(32))
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def table_insert(table_word, table_pattern, keys, edges, patterns):
     """Insert ``patterns[i]`` under ``keys[i]`` (with its quantised largest edge ``edges[i]``) by
     linear probing; returns the longest probe run."""
@@ -125,7 +125,7 @@ def table_insert(table_word, table_pattern, keys, edges, patterns):
     return longest
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def table_lookup(table_word, key, out, n_out):
     """Append to ``out[n_out:]`` the slots holding ``key`` (probe until a free slot); returns the new count."""
     size = table_word.shape[0]
@@ -144,7 +144,7 @@ def table_lookup(table_word, key, out, n_out):
 # --------------------------------------------------------------------------- patterns
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def canonical_order(unit, rows, out, dist):
     """Rows of a 4-star pattern in ascending distance from its centroid (ties: smaller row first).
 
@@ -176,7 +176,7 @@ def canonical_order(unit, rows, out, dist):
             j -= 1
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def sorted_edges(unit, rows, edges):
     """The six chords among ``unit[rows[0..3]]``, sorted ascending into ``edges``; returns the largest."""
     for p in range(6):
@@ -189,14 +189,14 @@ def sorted_edges(unit, rows, edges):
     return edges[5]
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def ratio_bin(r, bins):
     """Bin of an edge ratio ``r`` in [0, 1] (``r = 1`` falls into the last bin)."""
     b = int(math.floor(r * bins))
     return min(max(b, 0), bins - 1)
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def pattern_keys(unit, patterns, bins, largest):
     """Canonical order (in place) and hash key of each catalogue pattern ``(p, 4)``; writes each pattern's
     largest edge (chord) to ``largest`` (the table's edge check; here rather than with numpy in the build:
@@ -267,7 +267,7 @@ def field_patterns(unit, field_rows, field_offsets, min_edge, max_edge, chunk=1 
 # --------------------------------------------------------------------------- identification
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def binom_sf(k, m, q):
     """P(X >= k) for X ~ Binomial(m, q) (terms by recurrence from the k-th)."""
     if k <= 0:
@@ -288,7 +288,7 @@ def binom_sf(k, m, q):
     return min(total, 1.0)
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def _match_order(img_edge, img_dist, cat_unit, cat_rows, tol, perm_out, cat_edge):
     """Star-to-star correspondence of an image pattern and a catalogue candidate, or False.
 
@@ -325,7 +325,7 @@ def _match_order(img_edge, img_dist, cat_unit, cat_rows, tol, perm_out, cat_edge
     return best <= tol
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def _verify(unit, rows, guide_unit, tol, n_stars, out_row):
     """Attitude from the stars with ``rows >= 0`` (Wahba), then every star by reprojection.
 
@@ -351,7 +351,7 @@ def _verify(unit, rows, guide_unit, tol, n_stars, out_row):
     return binom_sf(extra, max(n_predicted - 4, extra), q) <= tol.max_mismatch, n_seen
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def identify_kernel(x_px, y_px, mag, table, tol, record):
     """Tetra identification of one image: ``(hip, row)`` per star (catalog id and guide row, -1 = none).
 

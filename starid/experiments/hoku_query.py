@@ -54,7 +54,8 @@ import math
 
 import numpy as np
 import pandas as pd
-from numba import njit
+
+from starid.kernels.jit import kernel
 
 #: hoku's field of view: pairs and trios of the tables are within this of each other (deg).
 FOV_DEG = 20.0
@@ -219,19 +220,19 @@ def int_query(table: TrioTable, c: int, i: int, j: int) -> tuple[int, int, int, 
 
 # ---------------------------------------------------------------- triangle features (numba, hoku's formulas)
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def _norm3(x0, x1, x2):
     return math.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def _arc_rad(x, y):
     """Angle between two (not necessarily unit) vectors (rad), arccos form; NaN past +-1."""
     d = (x[0] * y[0] + x[1] * y[1] + x[2] * y[2]) / (_norm3(x[0], x[1], x[2]) * _norm3(y[0], y[1], y[2]))
     return np.arccos(d)
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def _planar(b1, b2, b3):
     """Planar area (Heron on the chords) and planar polar moment."""
     a = _norm3(b1[0] - b2[0], b1[1] - b2[1], b1[2] - b2[2])
@@ -243,7 +244,7 @@ def _planar(b1, b2, b3):
     return area, area * (a * a + b * b + c * c) / 36.0
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def _spherical_area(b1, b2, b3):
     """L'Huilier's spherical excess (sr); NaN where hoku returns its invalid marker."""
     a, b, c = _arc_rad(b1, b2), _arc_rad(b2, b3), _arc_rad(b3, b1)
@@ -254,13 +255,13 @@ def _spherical_area(b1, b2, b3):
     return 4.0 * math.atan(math.sqrt(f))
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def _mid(x, y):
     m = x + y
     return m / _norm3(m[0], m[1], m[2])
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def _spherical_moment(b1, b2, b3, depth):
     """hoku's recursive spherical polar moment: 4**depth pieces (in hoku's order), each piece's area
     times the squared angle (rad) from the root's planar centroid to its planar centroid; NaN unless >= 0."""
@@ -284,7 +285,7 @@ def _spherical_moment(b1, b2, b3, depth):
     return total if total >= 0 else np.nan
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def _features(u, stars, spherical, depth):
     """Each query trio's (area, moment): spherical or planar, stars in the query's order."""
     out = np.empty((stars.shape[0], 2))
@@ -298,7 +299,7 @@ def _features(u, stars, spherical, depth):
     return out
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def _match(area, mom, lo, hi, q_mom, truth, i, j, k, eps, rows, has):
     """Count the trio (i, j, k) against every query window holding ``area`` (windows sorted)."""
     first = np.searchsorted(hi, area, side="left")
@@ -310,7 +311,7 @@ def _match(area, mom, lo, hi, q_mom, truth, i, j, k, eps, rows, has):
                 has[q] = 1
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def _triangle_search(u, indptr, nbr, p_lo, p_hi, p_mom, p_truth, s_lo, s_hi, s_mom, s_truth,
                      do_planar, do_spherical, eps, depth):
     """One pass over K3 (every trio i < j < k whose three pairs are in K2): the planar and spherical

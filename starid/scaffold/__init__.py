@@ -6,7 +6,8 @@ point, the algorithm class with declared parameters and a ``published`` dict, a 
 a documentation page with the sections of a built-in page, a README). The algorithm is pair
 voting (Kolomenkin et al., IEEE TAES 44(2), 2008: every observed pair votes for the catalog pairs
 of the same angular separation), the docs/plugins.md example with its loop moved into one
-``@njit(cache=True, no_cfunc_wrapper=True)`` kernel; the author replaces the method and keeps the scaffolding.
+kernel (``starid.kernels.jit.kernel``: ``@njit(cache=True, no_cfunc_wrapper=True)``, the flags every
+built-in kernel uses); the author replaces the method and keeps the scaffolding.
 """
 
 from __future__ import annotations
@@ -70,12 +71,12 @@ KERNELS = '''\
 """The numba kernel of $cls: pair voting over a k-vector of catalog chords."""
 
 import numpy as np
-from numba import njit
 
 from starid.kernels import chord, kvector_query
+from starid.kernels.jit import kernel
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def vote(v_cam, kv, pair, n_guide, tol_chord, min_votes):
     """Per observed star the catalog row with most votes (-1 below ``min_votes``).
 
