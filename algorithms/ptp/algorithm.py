@@ -42,7 +42,7 @@ from .kernels import (
     pack_tables,
     params_of,
     select_stars,
-    unpack_out,
+    unpack_tail,
 )
 
 #: Sides and D_ms are chords of unit vectors times this (section 2.1: 5 deg -> 872.8).
@@ -492,18 +492,16 @@ class PTP(Algorithm):
         tol, params, (narrow, wide), view = self.kept("kernel_call", (database, camera),
                                                       lambda: self._kernel_call(database, camera))
         x_px = observation.x_px
-        n = x_px.shape[0]
-        out = identify_kernel(x_px, observation.y_px, observation.mag, params, narrow, wide)
-        hip = out[:n]
+        hip, counts, tail = identify_kernel(x_px, observation.y_px, observation.mag, params, narrow, wide)
         if tol.assign_all:
-            _, _, sel, rows = unpack_out(out, n)
+            sel, rows = unpack_tail(tail)
             if database.deep.unit.shape[0] > 0 and np.count_nonzero(rows >= 0) >= 3:
                 frame = view.frame    # the kernel's unit vectors of the detections that took part, the same bits
                 unit = backproject_px(x_px[sel], observation.y_px[sel], frame.f_px, frame.cx_px, frame.cy_px)
                 attitude = wahba_rows(unit, np.ascontiguousarray(rows), database.guide_unit)
                 assign_all(attitude, observation.x_px, observation.y_px, view.frame, database.deep,
                            tol.side_beta * math.sqrt(2.0) * tol.sigma_px / view.frame.f_px, hip)
-        return Identification(hip, counters=dict(zip(WORK_NAMES, out[n:n + len(WORK_NAMES)].tolist(), strict=True)))
+        return Identification(hip, counters=dict(zip(WORK_NAMES, counts, strict=True)))
 
     def _kernel_call(self, database: PTPDatabase, camera: Camera) -> tuple:
         """What :meth:`identify` hands the kernel for one (database, camera), kept by identity

@@ -563,11 +563,13 @@ WORK_NAMES = ("searches", "window_triangles", "candidates", "hypotheses")
 
 @njit(cache=True, error_model="numpy", no_cfunc_wrapper=True)
 def identify_kernel(x_px, y_px, mag, params, narrow, wide):
-    """One int64 array (:func:`unpack_out`: one array to box instead of four, some 8 us of a call that finds
-    Python's objects out of the cache): the catalog id of each detection (-1 = none), the work counters
-    (:data:`WORK_NAMES`: k-vector searches, database triangles in their windows, candidates that passed
-    the three-side check, single-triangle hypotheses tried), the detections that took part (brightest
-    first; their camera-frame unit vectors are ``backproject_px`` of them) and their guide rows (-1 = none).
+    """``(hip, counters, tail)``: the catalog id of each detection (int64, -1 = none), the work counters as a
+    tuple of ints (:data:`WORK_NAMES`: k-vector searches, database triangles in their windows, candidates that
+    passed the three-side check, single-triangle hypotheses tried), and one int64 array of the detections that
+    took part (brightest first; their camera-frame unit vectors are ``backproject_px`` of them) then their guide
+    rows (-1 = none) (:func:`unpack_tail`). Two arrays and a tuple: ``PTP.identify`` hands ``hip`` and the
+    counters to the ``Identification`` as they are, with no numpy slicing or ``tolist`` in Python (some 3 us of
+    a call that finds numpy's code out of the cache).
 
     ``params`` is a :class:`View` and :class:`Tolerances` as one float64 array (:func:`params_of`), rebuilt
     into the named tuples here: numba's dispatch types a named tuple in Python (about 4 us of every image) and
@@ -855,28 +857,20 @@ def identify_kernel(x_px, y_px, mag, params, narrow, wide):
 
 @njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def _out(hip, work, sel, rows):
-    """:func:`identify_kernel`'s one array: ``hip`` (n), ``work`` (:data:`WORK_NAMES`), k, the k detections
-    that took part (``sel``) and their guide rows (:func:`unpack_out`)."""
-    n = hip.shape[0]
+    """:func:`identify_kernel`'s result: ``hip`` (n), the work counters (:data:`WORK_NAMES`) as a tuple of ints,
+    and one array of the k detections that took part (``sel``) then their guide rows (:func:`unpack_tail`)."""
     k = sel.shape[0]
-    nw = work.shape[0]
-    out = np.empty(n + nw + 1 + 2 * k, dtype=np.int64)
-    for i in range(n):
-        out[i] = hip[i]
-    for i in range(nw):
-        out[n + i] = work[i]
-    out[n + nw] = k
+    tail = np.empty(2 * k, dtype=np.int64)
     for i in range(k):
-        out[n + nw + 1 + i] = sel[i]
-        out[n + nw + 1 + k + i] = rows[i]
-    return out
+        tail[i] = sel[i]
+        tail[k + i] = rows[i]
+    return hip, (work[0], work[1], work[2], work[3]), tail
 
 
-def unpack_out(out: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """``(hip, work, sel, rows)`` of :func:`identify_kernel`'s array for ``n`` detections (views)."""
-    nw = len(WORK_NAMES)
-    k = int(out[n + nw])
-    return out[:n], out[n:n + nw], out[n + nw + 1:n + nw + 1 + k], out[n + nw + 1 + k:n + nw + 1 + 2 * k]
+def unpack_tail(tail: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(sel, rows)`` of :func:`identify_kernel`'s third value (views)."""
+    k = tail.shape[0] // 2
+    return tail[:k], tail[k:]
 
 
 #: Fibonacci hashing's multiplier (2**64 / golden ratio, as a wrapping int64) for :func:`_pair_support`.
