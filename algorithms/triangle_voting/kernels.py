@@ -460,9 +460,13 @@ def vote(v_cam, db, tol, votes, mark):
     # each costing a wait (in the benchmark's interleaved timing they come from memory the other plugins
     # evicted). The triangles' step 2 come in the same order, so the votes and hypotheses are the same.
     listed_prev = np.empty(256, dtype=np.int64)  # the records step 1 listed for the previous triangle
+    edge = np.empty(256, dtype=np.int64)  # records near a window's edge, decided one turn later (2 r + near)
+    edge_prev = np.empty(256, dtype=np.int64)
+    n_edge_prev = 0
     cells_of = np.empty(256, dtype=np.int64)  # _by_base's scratch: the cell of each listed record
     n_prev = 0
     n_near = 0
+    n_edge = 0
     for g in range(tri + 1):
         if g < tri:
             # ahead: the grid cells' bounds two triangles on, the records of the next triangle's cells
@@ -492,6 +496,8 @@ def vote(v_cam, db, tol, votes, mark):
             n_records += n_scan
             if n_scan + 1 > listed.size:
                 listed = np.empty(2 * (n_scan + 1), dtype=np.int64)
+            if n_scan + 1 > edge.size:
+                edge = np.empty(2 * (n_scan + 1), dtype=np.int64)
             # first pass, branch-free over every record of the cells (about half of them are in both
             # windows: a branch on that is mispredicted half the time), reading only the 8-byte compact
             # records: the records in both windows (decided from the compact values, or for the rare
@@ -499,6 +505,7 @@ def vote(v_cam, db, tol, votes, mark):
             # come within their rounding of a side match, listed; the second pass checks those sides
             # and votes
             n_near = 0
+            n_edge = 0
             # the tests as integer intervals of the compact values: "surely in" (a value inside passes the float32
             # test too: the margins leave more than the float64 rounding of these bounds), "not surely out"
             # (rounded outward), and for the sides "near" (outward: every record whose exact sides match is inside)
@@ -542,19 +549,25 @@ def vote(v_cam, db, tol, votes, mark):
                     qi = np.int64(rec_flat[k + u_side_i])
                     qj = np.int64(rec_flat[k + u_side_j])
                     in_windows = (np.uint64(qb - o_b_in) <= w_b_in) & (np.uint64(qh - o_h_in) <= w_h_in)
-                    if (np.uint64(qb - o_b_out) <= w_b_out) & (not in_windows):  # rare
-                        in_windows = ((abs(features[r, FEAT_BASE] - base) <= eps_b)
-                                      & (abs(features[r, FEAT_HEIGHT] - height) <= eps_h))
                     near = (((np.uint64(qi - o_a) <= w_a) & (np.uint64(qj - o_bb) <= w_bb))
                             | ((np.uint64(qj - o_a) <= w_a) & (np.uint64(qi - o_bb) <= w_bb)))
                     n_matches += in_windows
                     listed[np.uint64(n_near)] = r
                     n_near += in_windows & near
+                    # a record within the rounding of a window's edge (rare): decided from its float32 values
+                    # one turn later, when their line has come (each was a wait on memory here), as 2 r + near
+                    edge[np.uint64(n_edge)] = 2 * r + near
+                    n_edge += (np.uint64(qb - o_b_out) <= w_b_out) & (not in_windows)
             for e in range(n_near):  # their guide rows, read in the next turn's second pass
                 prefetch(rows_db, listed[e])
+            for e in range(n_edge):
+                prefetch(features, edge[e] >> 1)
+                prefetch(rows_db, edge[e] >> 1)
         if g == 0:
             listed_prev, listed = listed, listed_prev
+            edge_prev, edge = edge, edge_prev
             n_prev = n_near
+            n_edge_prev = n_edge
             continue
         # second pass of the previous triangle gp = g - 1 (its records listed one turn ago)
         gp = g - 1
@@ -567,6 +580,20 @@ def vote(v_cam, db, tol, votes, mark):
         cb1 = g_cells[gp, 1]
         ch0 = g_cells[gp, 2]
         ch1 = g_cells[gp, 3]
+        # the previous triangle's records near a window's edge: the float32 test of the scan (the same values,
+        # the same outcome); those inside and near go into the list in its ascending place
+        for e in range(n_edge_prev):
+            r = edge_prev[e] >> 1
+            inside = ((abs(features[r, FEAT_BASE] - g_feat[gp, 0]) <= eps_b)
+                      & (abs(features[r, FEAT_HEIGHT] - g_feat[gp, 1]) <= g_feat[gp, 2]))
+            n_matches += inside
+            if inside and (edge_prev[e] & 1) == 1:
+                p = n_prev
+                while p > 0 and listed_prev[p - 1] > r:
+                    listed_prev[p] = listed_prev[p - 1]
+                    p -= 1
+                listed_prev[p] = r
+                n_prev += 1
         while 2 * (n_touched + 3 * n_prev) > table.shape[0]:  # at most half full after every possible vote
             table, touched = _rehash(table, touched, np.int64(n_touched), 2 * table.shape[0])
         if 3 * n_prev > tri_u.size:
@@ -643,7 +670,9 @@ def vote(v_cam, db, tol, votes, mark):
                     n_touched += 1
                 table[e, 1] += 1
         listed_prev, listed = listed, listed_prev
+        edge_prev, edge = edge, edge_prev
         n_prev = n_near
+        n_edge_prev = n_edge
     cand = np.full((n, n_cand), -1, dtype=np.int64)
     cand_votes = np.zeros((n, n_cand), dtype=np.int64)
     for k in range(n_touched):
