@@ -2,13 +2,14 @@
 
     python benchmarks/tools/tvspeed7_huge.py [N] [R] [SKIES]
 
-Two triangle_voting instances, one with the database ``build`` gives, one with a copy whose arrays (the records,
-guide rows, features, grid and sky cells, guide and deep-sky tables) sit in one buffer, aligned to 2 MB and given
-``madvise(MADV_HUGEPAGE)`` (Linux; numpy's own advice for 4 MB and more gave none here): the same values, so the
-same results, on two transparent huge pages instead of ~800 small ones. ``tvspeed5_ab.py``'s loop: Table 6's images
+Two triangle_voting instances with the same database values: one with ordinary copies of every array (``np.array``,
+each below numpy's 4 MB threshold for huge pages: on 4 KB pages), one with the arrays in one 2 MB-aligned block
+advised ``MADV_HUGEPAGE`` (what ``build`` gives since tvspeed7's ``on_huge_pages``; made here by :func:`packed`
+with ``ctypes``, so the tool also measures a base checkout's database). ``tvspeed5_ab.py``'s loop: Table 6's images
 (seed 0), N (150) x R (2) per sky of SKIES (``paper,real``); per image every other plugin identifies it, then one
-variant is timed; the others again, then the other variant (order alternating). Prints the medians, small / huge,
-and the buffer's ``AnonHugePages`` (0 kB: the kernel gave no huge pages, the comparison means nothing).
+variant is timed; the others again, then the other variant (order alternating). Prints the medians, huge / small,
+whether the ids agree, and the block's ``AnonHugePages`` (0 kB: the system gave no huge pages, the comparison means
+nothing).
 """
 
 from __future__ import annotations
@@ -61,12 +62,19 @@ def huge_kb(buf: np.ndarray) -> int:
     return kb
 
 
+NAMES_DB = ["features", "records", "rows", "cell_start", "unit_icrs", "hip", "sky_start", "deep_v_mag", "deep_index"]
+
+
 def huge_db(db):
-    names = ["features", "records", "rows", "cell_start", "unit_icrs", "hip", "sky_start", "deep_v_mag", "deep_index"]
-    arrays = [getattr(db, k) for k in names] + [db.deep.unit, db.deep.hip]
+    arrays = [getattr(db, k) for k in NAMES_DB] + [db.deep.unit, db.deep.hip]
     copies, buf = packed(arrays)
     deep = type(db.deep)(copies[-2], copies[-1])
-    return dataclasses.replace(db, **dict(zip(names, copies[:-2], strict=True)), deep=deep), buf
+    return dataclasses.replace(db, **dict(zip(NAMES_DB, copies[:-2], strict=True)), deep=deep), buf
+
+
+def small_db(db):
+    deep = type(db.deep)(np.array(db.deep.unit), np.array(db.deep.hip))
+    return dataclasses.replace(db, **{k: np.array(getattr(db, k)) for k in NAMES_DB}, deep=deep)
 
 
 def _t(f) -> float:
@@ -80,7 +88,7 @@ def main(n: int, rounds: int, skies: list[str]) -> None:
     variants = [get_algorithm("triangle_voting")(), get_algorithm("triangle_voting")()]
     others = [get_algorithm(x)() for x in NAMES if x != "triangle_voting"]
     k_te = [x for x in NAMES if x != "triangle_voting"].index("tetra")
-    small = variants[0].build(cat, cam)
+    small = small_db(variants[0].build(cat, cam))
     huge, buf = huge_db(variants[1].build(cat, cam))
     vdbs = [small, huge]
     for sky in skies:
