@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-import mmap
 import threading
 import weakref
 from dataclasses import dataclass
@@ -139,39 +138,6 @@ def _scratch(db: TriangleVotingDatabase, n: int) -> tuple[np.ndarray, np.ndarray
         votes, mark = new_scratch(max(n, 64), db.unit_icrs.shape[0])
         held[db] = (votes, mark)
     return votes, mark
-
-
-#: size and alignment of a transparent huge page (x86-64 Linux)
-HUGE_PAGE = 2 << 20
-
-
-def on_huge_pages(arrays: list[np.ndarray]) -> list[np.ndarray]:
-    """C-contiguous copies of ``arrays`` (the same values, dtypes and shapes) side by side in one anonymous
-    mapping, from a 2 MB boundary, advised as huge pages (``MADV_HUGEPAGE``, where the platform has it).
-
-    Issue #25, branch tvspeed7: in the benchmark's interleaved timing the other plugins' work between two calls
-    also evicts the address translations: the database's ~3.5 MB on 4 KB pages are ~850 pages, and an image's
-    vote and final step touch a few hundred of them, each a page walk (and software prefetches wait for theirs).
-    On two 2 MB pages they cost two translations. Where the system gives no huge pages (THP off, another OS)
-    the arrays are only packed, as fast as before. Pickling copies the values (an unpickled database is on
-    ordinary pages)."""
-    sizes = [(a.nbytes + 63) // 64 * 64 for a in arrays]
-    span = -(-sum(sizes) // HUGE_PAGE) * HUGE_PAGE
-    if hasattr(mmap, "MAP_PRIVATE"):  # private: shared anonymous memory is shmem, which THP leaves on small pages
-        mem = mmap.mmap(-1, span + HUGE_PAGE, flags=mmap.MAP_PRIVATE | mmap.MAP_ANONYMOUS)
-    else:
-        mem = mmap.mmap(-1, span + HUGE_PAGE)
-    if hasattr(mmap, "MADV_HUGEPAGE"):
-        mem.madvise(mmap.MADV_HUGEPAGE)  # the whole mapping: the 2 MB-aligned part of it becomes huge pages
-    block = np.frombuffer(mem, dtype=np.uint8)
-    offset = (-block.ctypes.data) % HUGE_PAGE
-    out = []
-    for a, size in zip(arrays, sizes, strict=True):
-        copy = block[offset:offset + a.nbytes].view(a.dtype).reshape(a.shape)
-        copy[...] = a
-        out.append(copy)
-        offset += size
-    return out
 
 
 _UNIT_F64: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
@@ -417,22 +383,14 @@ class TriangleVoting(Algorithm):
         features[:, FEAT_BASE] = base32[order]
         features[:, FEAT_HEIGHT] = height32[order]
         records, s_b, s_h, s_s = compact_records(features[:, FEAT_BASE], features[:, FEAT_HEIGHT], side_i, side_j)
-        # every array identify reads, in one block of memory on 2 MB pages where the system gives them (see
-        # on_huge_pages): the same values
-        (records, cell_start, rows, features, unit32, sky_start, unit64, hip, deep_unit, deep_hip, v_deep,
-         index_deep) = on_huge_pages([
-             records, cell_start, np.ascontiguousarray(np.c_[main_rows, i_rows, j_rows]), features, unit32, sky_start,
-             unit32.astype(np.float64), hip.astype(np.int64), deep.unit, deep.hip, deep_v_mag(catalog, deep),
-             deep_index(deep.unit)])
-        db = TriangleVotingDatabase(
+        return TriangleVotingDatabase(
             features=features, records=records, rec_scale_b=s_b, rec_scale_h=s_h, rec_scale_s=s_s,
-            rows=rows, cell_start=cell_start, unit_icrs=unit32, hip=hip,
+            rows=np.ascontiguousarray(np.c_[main_rows, i_rows, j_rows]),
+            cell_start=cell_start, unit_icrs=unit32, hip=hip.astype(np.int64),
             sky_start=sky_start, sky_axis=SKY_AXIS,
             cell_b=cell, cell_h=cell, n_cells_b=n_cells_b, n_cells_h=n_cells_h,
             pattern_radius_chord=pr_chord, d_min_chord=dmin_chord,
-            deep=DeepSky(deep_unit, deep_hip), deep_v_mag=v_deep, deep_index=index_deep)
-        _UNIT_F64[db] = unit64  # _unit_f64's copy, in the same block
-        return db
+            deep=deep, deep_v_mag=deep_v_mag(catalog, deep), deep_index=deep_index(deep.unit))
 
     # -- identification ---------------------------------------------------------------------
     def identify(self, database: TriangleVotingDatabase, observation: Observation) -> Identification:
