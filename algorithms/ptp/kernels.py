@@ -28,6 +28,11 @@ from starid.kernels.order import stable_sort_by_key
 from starid.kernels.params import exact_float64
 from starid.kernels.prefetch import prefetch, prefetch_at
 
+#: ptp's two flag sets: :data:`starid.kernels.jit.kernel` and :data:`~starid.kernels.jit.inner` with numba's numpy
+#: error model (no zero-divisor test and raise path; every divisor here is guarded: docs/algorithms/ptp.md)
+_kernel = njit(cache=True, error_model="numpy", no_cfunc_wrapper=True)
+_inner = njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+
 
 class View(NamedTuple):
     """The camera as identify needs it: the core :class:`starid.kernels.Frame` (focal length, principal
@@ -156,7 +161,7 @@ def _address(typingctx, arr, offset):
     return types.voidptr(arr, offset), codegen
 
 
-@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@_inner
 def tables_of(narrow, wide):
     """The :class:`Tables` of :func:`pack_tables`' two arrays: arrays over their memory (``numba.carray`` of an
     address: no copy, no reference of their own, so they live as long as the caller holds ``narrow`` and
@@ -234,13 +239,13 @@ def params_of(view: View, tol: Tolerances) -> np.ndarray:
     return exact_float64(values, "ptp's kernel parameters")
 
 
-@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@_inner
 def params_view(p):
     """The :class:`View` of :func:`params_of`' array."""
     return View(Frame(p[0], p[1], p[2], p[3], p[4]), p[5])
 
 
-@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@_inner
 def params_tol(p):
     """The :class:`Tolerances` of :func:`params_of`' array (the same types as the named tuple from Python:
     float64, int64, bool)."""
@@ -251,7 +256,7 @@ def params_tol(p):
                       q[22] != 0.0, q[23] != 0.0, q[24] != 0.0, q[25] != 0.0, q[26] != 0.0)
 
 
-@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@_inner
 def _before(dist, unit, i, j):
     """Strict order of candidate slaves: by distance, exact ties by the unit vector (input-order free)."""
     if dist[i] != dist[j]:
@@ -261,7 +266,7 @@ def _before(dist, unit, i, j):
     return unit[i, 1] < unit[j, 1]
 
 
-@njit(cache=True, error_model="numpy", no_cfunc_wrapper=True)
+@_kernel
 def nearest_slaves(dist_row, unit, usable, master, d_min, d_max, n_slaves, out):
     """The ``n_slaves`` usable stars nearest ``master`` with ``d_min <= D_ms <= d_max`` (eq. 2), nearest first.
 
@@ -288,7 +293,7 @@ def nearest_slaves(dist_row, unit, usable, master, d_min, d_max, n_slaves, out):
     return m
 
 
-@njit(cache=True, error_model="numpy", no_cfunc_wrapper=True)
+@_kernel
 def build_triangles(unit, neighbours, neighbour_offsets, d_min, d_max, n_slaves, scale):
     """Feature triangles of every master star (section 2.1, step 1).
 
@@ -323,14 +328,14 @@ def build_triangles(unit, neighbours, neighbour_offsets, d_min, d_max, n_slaves,
     return ids, sides
 
 
-@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@_inner
 def _grad_var(g0, g1, g2, t, i):
     """``g (I - t_i t_i^T) g^T`` for a gradient row ``g`` and unit vector ``t[i]`` (eqs. 11-12 without sigma^2)."""
     gt = g0 * t[i, 0] + g1 * t[i, 1] + g2 * t[i, 2]
     return g0 * g0 + g1 * g1 + g2 * g2 - gt * gt
 
 
-@njit(cache=True, error_model="numpy", no_cfunc_wrapper=True)
+@_kernel
 def projection_sigma(t, i1, i2, i3, a, b, c, w, sigma, scale):
     """Analytic standard deviation of the projection, eqs. 6-14.
 
@@ -355,20 +360,20 @@ def projection_sigma(t, i1, i2, i3, a, b, c, w, sigma, scale):
     return scale * sigma * math.sqrt(max(var, 0.0))
 
 
-@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@_inner
 def side_sigma(side, sigma):
     """Standard deviation of one unscaled chord side under eq. 11: ``sigma sqrt(2 - side^2/2)``."""
     return sigma * math.sqrt(max(2.0 - 0.5 * side * side, 0.0))
 
 
-@njit(cache=True, error_model="numpy", no_cfunc_wrapper=True)
+@_kernel
 def _window(t, i1, i2, i3, sides, kv, mean, w, sigma, scale, beta):
     """Sides (eq. 4), projection (eq. 5) and k-vector window [p - xi, p + xi] (eqs. 13-19) of a triangle."""
     lo, hi = _window_bounds(t, i1, i2, i3, sides, mean, w, sigma, scale, beta)
     return kvector_query(kv, lo, hi)
 
 
-@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@_inner
 def _window_bounds(t, i1, i2, i3, sides, mean, w, sigma, scale, beta):
     """Sides (eq. 4, written to ``sides``) and the projection window ``(p - xi, p + xi)`` (eqs. 5-14)."""
     a = scale * chord_rows(t, i1, t, i2)
@@ -382,7 +387,7 @@ def _window_bounds(t, i1, i2, i3, sides, mean, w, sigma, scale, beta):
     return p - xi, p + xi
 
 
-@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@_inner
 def _projection_window(t, i1, i2, i3, a, b, c, mean, w, sigma, scale, beta):
     """:func:`_window_bounds` of a triangle whose scaled sides ``a, b, c`` are known (the kernel's distance
     matrix holds them: the same bits as ``scale * chord_rows``, whichever vertex comes first)."""
@@ -391,14 +396,14 @@ def _projection_window(t, i1, i2, i3, a, b, c, mean, w, sigma, scale, beta):
     return p - xi, p + xi
 
 
-@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@_inner
 def _side_excess(sa, sb, sc, k, a, b, c, ta, tb, tc):
     """Largest amount by which one of the three sides misses its tolerance (<= 0: all agree)."""
     x = max(abs(sa[k] - a) - ta, abs(sb[k] - b) - tb)
     return max(x, abs(sc[k] - c) - tc)
 
 
-@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@_inner
 def _side_window(sides, sigma, scale, side_beta):
     """The image triangle's three scaled sides and their tolerances, float32 as the database's sides."""
     a = np.float32(sides[0])
@@ -410,7 +415,7 @@ def _side_window(sides, sigma, scale, side_beta):
     return a, b, c, ta, tb, tc
 
 
-@njit(cache=True, error_model="numpy", no_cfunc_wrapper=True)
+@_kernel
 def _side_check(sides, start, stop, db_sides, sigma, scale, side_beta, out_cand):
     """Database rows in ``[start, stop)`` whose three sides all agree with ``sides``; returns the count.
 
@@ -443,7 +448,7 @@ def _side_check(sides, start, stop, db_sides, sigma, scale, side_beta, out_cand)
 INDEX_MARGIN = 0.01
 
 
-@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@_inner
 def _index_bins(a, ta, index):
     """The bins of side a (:class:`SideIndex`) within ``a +- (ta + INDEX_MARGIN)``: ``(first, last)``."""
     i0 = max(int(math.floor((float(a) - float(ta) - INDEX_MARGIN) / index.width)), 0)
@@ -451,7 +456,7 @@ def _index_bins(a, ta, index):
     return i0, i1
 
 
-@njit(cache=True, error_model="numpy", no_cfunc_wrapper=True)
+@_kernel
 def _side_check_indexed(sides, start, stop, index, sigma, scale, side_beta, out_cand):
     """The rows of :func:`_side_check` (the same rows, ascending), read through the :class:`SideIndex`: only
     the entries of the window ``[start, stop)`` whose side a lies in a bin within the tolerance of
@@ -463,7 +468,7 @@ def _side_check_indexed(sides, start, stop, index, sigma, scale, side_beta, out_
     return _side_check_entries(a, b, c, ta, tb, tc, i0, i1, start, stop, index, out_cand)
 
 
-@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@_inner
 def _side_check_entries(a, b, c, ta, tb, tc, i0, i1, start, stop, index, out_cand):
     """:func:`_side_check_indexed` with the float32 sides and tolerances of :func:`_side_window` and the bins
     ``i0 .. i1`` of :func:`_index_bins` given (the kernel computes them once per window)."""
@@ -503,7 +508,7 @@ def _side_check_entries(a, b, c, ta, tb, tc, i0, i1, start, stop, index, out_can
     return n_out
 
 
-@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@_inner
 def _prefetch_entries(start, stop, i0, i1, index):
     """Ask for the entries (rows and sides) :func:`_side_check_indexed` reads for ``[start, stop)``
     (``stop > start``) in the bins ``i0 .. i1``."""
@@ -519,14 +524,14 @@ def _prefetch_entries(start, stop, i0, i1, index):
         prefetch_at(index.sides, e1 - 1, 3)
 
 
-@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@_inner
 def _triple_key(i, j, k, n):
     """Order-free key of a set of three image stars."""
     a, b, c = min(i, j, k), max(min(i, j), min(max(i, j), k)), max(i, j, k)
     return (a * n + b) * n + c
 
 
-@njit(cache=True, error_model="numpy", no_cfunc_wrapper=True)
+@_kernel
 def argsort_int(keys):
     """Ascending, stable order of int64 ``keys``: the shared merge sort
     (:func:`starid.kernels.order.stable_sort_by_key`, which compiles in a fraction of the time of
@@ -537,7 +542,7 @@ def argsort_int(keys):
     return order
 
 
-@njit(cache=True, error_model="numpy", no_cfunc_wrapper=True)
+@_kernel
 def select_stars(x_px, y_px, mag, max_stars):
     """Indices of the ``max_stars`` brightest detections (ties: by x, then y), brightest first."""
     n = x_px.shape[0]
@@ -561,7 +566,7 @@ def select_stars(x_px, y_px, mag, max_stars):
 WORK_NAMES = ("searches", "window_triangles", "candidates", "hypotheses")
 
 
-@njit(cache=True, error_model="numpy", no_cfunc_wrapper=True)
+@_kernel
 def identify_kernel(x_px, y_px, mag, params, narrow, wide):
     """``(hip, counters, tail)``: the catalog id of each detection (int64, -1 = none), the work counters as a
     tuple of ints (:data:`WORK_NAMES`: k-vector searches, database triangles in their windows, candidates that
@@ -855,7 +860,7 @@ def identify_kernel(x_px, y_px, mag, params, narrow, wide):
     return _out(hip, work, sel, result)
 
 
-@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@_inner
 def _out(hip, work, sel, rows):
     """:func:`identify_kernel`'s result: ``hip`` (n), the work counters (:data:`WORK_NAMES`) as a tuple of ints,
     and one array of the k detections that took part (``sel``) then their guide rows (:func:`unpack_tail`)."""
@@ -877,7 +882,7 @@ def unpack_tail(tail: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 HASH_MULTIPLIER = -7046029254386353131
 
 
-@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@_inner
 def _hash_slot(table, base, mask, bits, value):
     """The slot of ``value`` (>= 0) in the open-addressing table ``table[base:base + mask + 1]`` (-1 = empty,
     linear probing): its own slot if present, else the empty slot it goes to."""
@@ -887,7 +892,7 @@ def _hash_slot(table, base, mask, bits, value):
     return base + h
 
 
-@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@_inner
 def _pair_support(n, n_guide, n_match, m_tri, m_img, m_cat, support):
     """``support[3 mi + v]``: the number of distinct observed triangles (``m_tri``) among the records that
     propose the pairing (image star ``m_img[mi, v]``, guide row ``m_cat[mi, v]``), for every record ``mi`` of
@@ -923,7 +928,7 @@ def _pair_support(n, n_guide, n_match, m_tri, m_img, m_cat, support):
         support[t] = table[2 * cap + support[t]]
 
 
-@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@_inner
 def validate(n, n_guide, n_match, m_tri, m_img, m_cat, tol, min_shared, conflict_fails, result):
     """Sharing-star validation (section 2.3, Table 3) of the first ``n_match`` match records: writes the
     accepted guide row of each of the ``n`` image stars into ``result`` (-1 = none) and returns the support
@@ -985,7 +990,7 @@ def validate(n, n_guide, n_match, m_tri, m_img, m_cat, tol, min_shared, conflict
     return support
 
 
-@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@_inner
 def drop_displaced(unit, result, guide_unit, eps_chord, attitude):
     """Extension (``nearest_check``): ``attitude``, of all pairings in ``result`` (Wahba), predicts each
     paired guide star; a pairing is dropped when its detection lies farther than ``eps_chord`` (the pair
@@ -1017,7 +1022,7 @@ def drop_displaced(unit, result, guide_unit, eps_chord, attitude):
     return n_found
 
 
-@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@_inner
 def try_hypotheses(unit, view, db, tol, n_match, m_img, m_cat, support, eps_chord, result, work):
     """Extension (``hypotheses``): when sharing-star validation gives no identification, each matched
     triangle alone is a hypothesis, best supported first (then brightest stars: ``unit`` is in brightness

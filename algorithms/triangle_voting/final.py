@@ -17,15 +17,14 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
 from starid.kernels import backproject_px, chord_rows, wahba_rows
-from starid.kernels.jit import inner as _inner
+from starid.kernels.jit import inline_kernel, inner, kernel
 from starid.kernels.prefetch import prefetch
 
 
 # inline="always": called for arrays of several dtypes and row sizes (literal); inlined, it adds no signature
-@njit(cache=True, inline="always", no_cfunc_wrapper=True)
+@inline_kernel
 def _prefetch_rows(arr, ranges, count, per_line):
     """:func:`~starid.kernels.prefetch.prefetch` every ``per_line``-th row of ``arr`` in the row ranges
     ``ranges[:count]`` (rows of ``64 / per_line`` bytes or more: one request per cache line), and each
@@ -49,13 +48,13 @@ KEY_BUCKETS = 64
 MAX_RANGES = 2 * DEEP_BANDS
 
 
-@_inner
+@inner
 def deep_band(z):
     """The z band of a row (``DEEP_BANDS`` equal bands of [-1, 1])."""
     return min(max(int((z + 1.0) * 0.5 * DEEP_BANDS), 0), DEEP_BANDS - 1)
 
 
-@_inner
+@inner
 def ra_key(x, y):
     """A key in [0, 4) increasing with the right ascension ``atan2(y, x)`` taken in [0, 2 pi) (no trigonometry:
     the quadrant plus the share of ``|x| + |y|`` along it)."""
@@ -69,7 +68,7 @@ def ra_key(x, y):
     return 3.0 + x / (x - y)
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def deep_keys(unit):
     """Per row of ``unit`` (float32 (m, 3)) its :func:`deep_band` and :func:`ra_key` (the sort keys of the order)."""
     m = unit.shape[0]
@@ -87,7 +86,7 @@ def band_order(unit: np.ndarray, hip: np.ndarray) -> np.ndarray:
     return np.lexsort((hip, key, band))
 
 
-@_inner
+@inner
 def _key_bucket(k):
     """The right-ascension bucket of key ``k`` (:data:`KEY_BUCKETS` equal buckets of [0, 4))."""
     return min(int(k * (KEY_BUCKETS / 4.0)), KEY_BUCKETS - 1)
@@ -104,7 +103,7 @@ def deep_index(unit: np.ndarray) -> np.ndarray:
     return np.searchsorted(cell, np.arange(DEEP_BANDS * KEY_BUCKETS + 1)).astype(np.int32)
 
 
-@_inner
+@inner
 def _first_band(unit, b, lo, hi):
     """First row in ``[lo, hi)`` whose band is ``>= b`` (rows sorted by band)."""
     while lo < hi:
@@ -116,7 +115,7 @@ def _first_band(unit, b, lo, hi):
     return lo
 
 
-@_inner
+@inner
 def _first_key(unit, k, lo, hi, upper):
     """First row in ``[lo, hi)`` whose key is ``>= k`` (``upper``: ``> k``), rows of one band (sorted by key)."""
     while lo < hi:
@@ -129,7 +128,7 @@ def _first_key(unit, k, lo, hi, upper):
     return lo
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def _cone_bounds(cx, cy, cz, c_radius):
     """``(b0, b1, full, k0, k1, wrap)`` of a cone search around ``(cx, cy, cz)``: its z bands ``b0..b1``;
     ``full`` when every right ascension is in the cone; else the right-ascension keys ``[k0, k1]``, or
@@ -160,7 +159,7 @@ def _cone_bounds(cx, cy, cz, c_radius):
     return b0, b1, full, k0, k1, wrap
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def cone_ranges(unit, cx, cy, cz, c_radius, ranges):
     """Row ranges ``ranges[:count]`` (start, stop) of the deep sky that hold every row within chord
     ``c_radius`` of the direction ``(cx, cy, cz)`` (unit length); returns ``count``."""
@@ -189,7 +188,7 @@ def cone_ranges(unit, cx, cy, cz, c_radius, ranges):
     return count
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def cone_ranges_indexed(unit, index, cx, cy, cz, c_radius, ranges):
     """:func:`cone_ranges` (the same ranges) with the cells of :func:`deep_index`: a band's rows from the index, and
     each key's binary search only over its bucket (rows of a lower bucket have a smaller key, of a higher bucket
@@ -233,7 +232,7 @@ def cone_ranges_indexed(unit, index, cx, cy, cz, c_radius, ranges):
     return count
 
 
-@_inner
+@inner
 def z_band(z_centre, c_radius):
     """``(z_lo, z_hi)`` of ``starid.kernels.z_band_rows``: its rows are those with ``z_lo <= z <= z_hi``."""
     half = 2.0 * math.asin(min(1.0, 0.5 * c_radius))
@@ -243,7 +242,7 @@ def z_band(z_centre, c_radius):
     return z_lo, z_hi
 
 
-@_inner
+@inner
 def field_chord_px(f_px, cx_px, cy_px, width_px, height_px):
     """``starid.kernels.field_chord`` of the frame: chord from the boresight to the farthest sensor corner."""
     corners = backproject_px(np.array([0.0, width_px, 0.0, width_px]), np.array([0.0, 0.0, height_px, height_px]),
@@ -254,7 +253,7 @@ def field_chord_px(f_px, cx_px, cy_px, width_px, height_px):
     return c
 
 
-@_inner
+@inner
 def _reproject_assign(A, v_cam, unit, index, c_fov, eps, out_row, ranges, f_px, cx_px, cy_px, width_px, height_px):
     """``starid.kernels.reproject_assign`` (its ``n_assigned``) over the rows of the cone search."""
     n = v_cam.shape[0]
@@ -300,7 +299,7 @@ def _reproject_assign(A, v_cam, unit, index, c_fov, eps, out_row, ranges, f_px, 
             out_row[i] = -1
 
 
-@_inner
+@inner
 def _assign_all(attitude, v_all, deep_unit, deep_index, deep_hip, eps_chord, hip, ranges, f_px, cx_px, cy_px, width_px,
                 height_px):
     """``starid.kernels.assign_all`` (``hip`` updated in place) over the cone search; ``v_all`` the stars'
@@ -325,7 +324,7 @@ def _assign_all(attitude, v_all, deep_unit, deep_index, deep_hip, eps_chord, hip
         hip[i] = out[i]
 
 
-@_inner
+@inner
 def _deep_mag_of(deep_unit, deep_index, deep_hip, deep_mag, r_icrs, eps_chord, hip, ranges):
     """V of the deep star ``hip``, which lies within chord ``eps_chord`` of the ICRS direction ``r_icrs``
     (planar_triangle's ``_deep_mag_of``: searched in the z band of chord ``2 eps_chord``)."""
@@ -341,7 +340,7 @@ def _deep_mag_of(deep_unit, deep_index, deep_hip, deep_mag, r_icrs, eps_chord, h
     return np.inf
 
 
-@_inner
+@inner
 def _rivals(deep_unit, deep_index, deep_mag, r_icrs, eps_chord, mag_max, ranges):
     """How many deep stars with V <= ``mag_max`` lie within chord ``eps_chord`` of ``r_icrs`` (planar_triangle's
     ``_rivals``)."""
@@ -362,7 +361,7 @@ def _rivals(deep_unit, deep_index, deep_mag, r_icrs, eps_chord, mag_max, ranges)
     return count
 
 
-@_inner
+@inner
 def _coverage(attitude, deep_unit, deep_index, deep_hip, deep_mag, mag_max, found_hip, ranges, f_px, cx_px, cy_px,
               width_px, height_px):
     """``(predicted, missed)`` of planar_triangle's ``coverage`` over the cone search of the field; ``found_hip``:
@@ -402,7 +401,7 @@ def _coverage(attitude, deep_unit, deep_index, deep_hip, deep_mag, mag_max, foun
 
 
 # inline="always": identify_image takes its body in numba IR (one level of compilation less; see identify_rows)
-@njit(cache=True, inline="always", no_cfunc_wrapper=True)
+@inline_kernel
 def finish_cone(x_px, y_px, mag, rows, guide_unit, guide_hip, deep_unit, deep_index, deep_hip, deep_mag, f_px, cx_px,
                 cy_px, width_px, height_px, eps_chord, mag_margin, mag_limit, coverage_mag_margin, max_missed_fraction,
                 assign_all):

@@ -13,11 +13,10 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 from starid_algorithms.planar_triangle.kernels import argsort_desc
 
 from starid.kernels import backproject_px, chord_rows, verify_pairwise, wahba_rows
-from starid.kernels.jit import inner as _inner
+from starid.kernels.jit import inline_kernel, inner, kernel
 from starid.kernels.params import exact_float64
 from starid.kernels.prefetch import prefetch
 
@@ -144,7 +143,7 @@ TOL_MIN_STARS = Tolerance._fields.index("min_stars")
 TOL_MAX_HYPOTHESES = Tolerance._fields.index("max_hypotheses")
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def triangle_features(s, a, b):
     """``(base, height, t)`` of the triangle with apex ``s`` over the base ``a``-``b`` (chord units)."""
     abx = b[0] - a[0]
@@ -165,7 +164,7 @@ def triangle_features(s, a, b):
     return base, height, t
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def build_triangles(unit, rank, nbr_ptr, nbr_idx, lam, dmin_chord):
     """Triangle records of every star: ``(base, height, main, n_i, n_j)``.
 
@@ -227,7 +226,7 @@ def build_triangles(unit, rank, nbr_ptr, nbr_idx, lam, dmin_chord):
 SIDE_ROUNDING = 2.5e-7
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def record_sides(unit, main, n_i, n_j):
     """Per record the chords main-to-``n_i`` and main-to-``n_j`` (``chord_rows`` of ``unit``) as float32.
 
@@ -245,7 +244,7 @@ def record_sides(unit, main, n_i, n_j):
     return side_i, side_j
 
 
-@_inner
+@inner
 def _key_after(q, r, records, features, rows_db):
     """Whether record ``q`` comes after record ``r`` by (base, height, main star), the float32 values: from the
     compact records where they differ (rounding keeps the order: a larger compact value means a larger value),
@@ -261,7 +260,7 @@ def _key_after(q, r, records, features, rows_db):
     return rows_db[q, ROW_MAIN] > rows_db[r, ROW_MAIN]
 
 
-@_inner
+@inner
 def _by_base(listed, n, cell, cell_start, cb0, cb1, ch0, ch1, n_cells_h, records, features, rows_db):
     """Reorder the records ``listed[:n]`` (ascending, from the cells ``cb0..cb1`` x ``ch0..ch1``) by cell,
     then base, height and main star (stable): the order of the records before they were sorted by height
@@ -308,7 +307,7 @@ VOTE_SLOTS = 1024
 HASH_MUL = np.uint64(11400714819323198485)
 
 
-@_inner
+@inner
 def _slot(table, key1):
     """The slot of the pair key ``key1`` (``(o << 16) + c + 1``, ``c`` < 2^16: uint16 rows) in :func:`vote`'s table
     (``table[e] = (key, votes)``): the one holding it, or the empty one (key 0) where it goes (linear probing;
@@ -323,7 +322,7 @@ def _slot(table, key1):
         e = (e + np.uint64(1)) & mask
 
 
-@_inner
+@inner
 def _rehash(table, touched, n_touched, size):
     """:func:`vote`'s table rebuilt with ``size`` slots (the same pairs and votes) and its list of used slots
     (``touched[:n_touched]``, room for ``size // 2``)."""
@@ -337,7 +336,7 @@ def _rehash(table, touched, n_touched, size):
     return grown, listed
 
 
-@_inner
+@inner
 def _span(lo, hi):
     """``(lo, hi - lo)`` of the integer interval ``[lo, hi]`` for :func:`vote`'s one-comparison test
     ``np.uint64(q - lo) <= hi - lo`` (``lo`` int64, the width uint64); an empty interval (``hi < lo``) as
@@ -347,7 +346,7 @@ def _span(lo, hi):
     return np.int64(lo), np.uint64(hi - lo)
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def vote(v_cam, db, tol, votes, mark):
     """Triangle voting (Fan & Zhong's double feature constraint) over a 2-D grid index.
 
@@ -720,13 +719,13 @@ def new_scratch(n, n_guide):
     return np.zeros((n, n_guide), dtype=np.int32), np.zeros((3, n_guide), dtype=np.int32)
 
 
-@_inner
+@inner
 def _agree(v_cam, cat_unit, i, ri, j, rj, tol_chord):
     """Whether observed stars ``i``, ``j`` and catalog rows ``ri``, ``rj`` have the same separation."""
     return ri != rj and abs(chord_rows(v_cam, i, v_cam, j) - chord_rows(cat_unit, ri, cat_unit, rj)) <= tol_chord
 
 
-@_inner
+@inner
 def select_candidates(v_cam, cand, cand_votes, cat_unit, tol_chord):
     """Per observed star, the vote candidate best supported by the other stars' candidates.
 
@@ -789,7 +788,7 @@ def select_candidates(v_cam, cand, cand_votes, cat_unit, tol_chord):
     return chosen, chosen_votes
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def sky_cell_of(u, n_axis):
     """Cell of a unit vector in the uniform ``n_axis``^3 grid over the cube [-1, 1]^3."""
     ix = min(int((u[0] + 1.0) * 0.5 * n_axis), n_axis - 1)
@@ -798,7 +797,7 @@ def sky_cell_of(u, n_axis):
     return (ix * n_axis + iy) * n_axis + iz
 
 
-@_inner
+@inner
 def _nearest_row(r, db, tol_chord):
     """The only catalog row within ``tol_chord`` of unit vector ``r`` (-1 if none or several)."""
     cat_unit, sky_start, n_axis = db[DB_UNIT], db[DB_SKY_START], db[DB_SKY_AXIS]
@@ -826,7 +825,7 @@ def _nearest_row(r, db, tol_chord):
     return found
 
 
-@_inner
+@inner
 def _extend(v_cam, row, db, tol):
     """Extend the consistent set ``row`` (-1 = not in it) by reprojection, in place; returns its size.
 
@@ -898,7 +897,7 @@ def _extend(v_cam, row, db, tol):
     return n_set
 
 
-@_inner
+@inner
 def confirm(v_cam, proposed, weight, db, tol, min_stars):
     """Make the verified proposals one consistent set, extend it by reprojection, keep it if large enough.
 
@@ -935,7 +934,7 @@ def confirm(v_cam, proposed, weight, db, tol, min_stars):
     return row
 
 
-@_inner
+@inner
 def best_hypothesis(v_cam, hyp, score, db, tol, min_stars):
     """Fallback when voting and verification found no set: test single matched triangles.
 
@@ -976,7 +975,7 @@ def best_hypothesis(v_cam, hyp, score, db, tol, min_stars):
     return best
 
 
-@_inner
+@inner
 def _any_row(rows):
     """``rows.max() >= 0`` without numpy's reduction machinery (compile time)."""
     for k in range(rows.shape[0]):
@@ -988,7 +987,7 @@ def _any_row(rows):
 # inline="always": identify_image takes its body in numba IR, so it is not compiled and optimised once more as a
 # level of its own between identify_image and vote (numba re-optimises every linked callee at each level); tools
 # calling it from Python compile it as usual
-@njit(cache=True, inline="always", no_cfunc_wrapper=True)
+@inline_kernel
 def identify_rows(v_cam, db, tol, votes, mark):
     """The whole identification of one image (``v_cam`` brightest first): ``(rows, work)``, the guide
     row per star or -1 and :func:`vote`'s work counters.
@@ -1012,7 +1011,7 @@ def identify_rows(v_cam, db, tol, votes, mark):
 
 
 
-@_inner
+@inner
 def _brightest_first(x_px, y_px, mag):
     """``np.lexsort((y_px, x_px, mag))``: the stars by magnitude, then x, then y (stable insertion sort,
     the same order for the few dozen stars of an image)."""
@@ -1054,7 +1053,7 @@ def flat_params(db: tuple, tol: tuple, fin_cam: tuple) -> np.ndarray:
     return exact_float64([db[k] for k in PARAMS_DB] + list(tol) + list(fin_cam), "triangle voting's kernel parameters")
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def identify_flat(x_px, y_px, mag, features, records, rows, cell_start, unit, sky_start, unit64, guide_hip, deep_unit,
                   deep_index, deep_hip, deep_mag, p):
     """:func:`identify_image` with its bundles' arrays as arguments of their own and their scalars in one float64
@@ -1078,7 +1077,7 @@ def identify_flat(x_px, y_px, mag, features, records, rows, cell_start, unit, sk
     return status, hip, attitude, accepted, work[0], work[1], work[2], work[3], n_named
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def identify_image(x_px, y_px, mag, db, tol, fin_db, fin_cam):
     """:func:`_identify_image` from Python with the plain tuples (the tools call it; ``identify`` calls
     :func:`identify_flat`)."""
@@ -1086,7 +1085,7 @@ def identify_image(x_px, y_px, mag, db, tol, fin_db, fin_cam):
 
 
 # inline="always": identify_flat (and identify_image) take its body in numba IR, as identify_rows'
-@njit(cache=True, inline="always", no_cfunc_wrapper=True)
+@inline_kernel
 def _identify_image(x_px, y_px, mag, db, tol, fin_db, fin_cam):
     """``identify`` of one image in one call: ``(status, hip, attitude, accepted, work, n_named)``, ``n_named`` the
     number of stars with an id (``hip >= 0``; the wrapper's photometry check reads only small results).
