@@ -5,13 +5,19 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import carray, njit, types
+from numba.extending import overload
 
 from .geometry import chord_rows
+from .symcall import export, require_c
+from .symcall import require_dtype as _need
+
+_F8, _I8, _B1 = types.float64, types.int64, types.boolean
+_FLOATS = ("float32", "float64")
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
-def verify_pairwise(v_cam, cand_row, cat_unit, tol_chord, min_support, min_fraction=0.0):
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # the exported C function calls it only
+def _verify_pairwise_body(v_cam, cand_row, cat_unit, tol_chord, min_support, min_fraction):
     """Pairwise angular-consistency verification (algorithm notes 1.5, geometric-voting style).
 
     ``cand_row[i]`` is the catalog row proposed for observed star ``i`` (-1 = none). Two
@@ -62,6 +68,49 @@ def verify_pairwise(v_cam, cand_row, cat_unit, tol_chord, min_support, min_fract
     return active
 
 
+def _verify_entry(v_p, cand_p, cat_p, n, m, tol_chord, min_support, min_fraction, out_p):
+    """The C function behind :func:`verify_pairwise`: ``out = _verify_pairwise_body(...)``."""
+    out = carray(out_p, n)
+    keep = _verify_pairwise_body(carray(v_p, (n, 3)), carray(cand_p, n), carray(cat_p, (m, 3)), tol_chord,
+                                 min_support, min_fraction)
+    for i in range(n):
+        out[i] = keep[i]
+
+
+#: the exported verify_pairwise, per dtype of the catalogue vectors
+_VERIFY = {dt: export(f"starid_verify_pairwise_{dt}",
+                      types.void(types.CPointer(_F8), types.CPointer(_I8), types.CPointer(getattr(types, dt)), _I8,
+                                 _I8, _F8, _I8, _F8, types.CPointer(_B1)), _verify_entry)
+           for dt in _FLOATS}
+
+
+def _verify_call(v_cam, cand_row, cat_unit, tol_chord, min_support, min_fraction, out):
+    """Call the exported :func:`verify_pairwise` for ``cat_unit``'s dtype (kernels only)."""
+
+
+@overload(_verify_call)
+def _verify_call_impl(v_cam, cand_row, cat_unit, tol_chord, min_support, min_fraction, out):
+    require_c("verify_pairwise", v_cam, cand_row, cat_unit, out)
+    _need("verify_pairwise", v_cam, "float64")
+    _need("verify_pairwise", cand_row, "int64")
+    ext = _VERIFY[str(cat_unit.dtype)]
+
+    def impl(v_cam, cand_row, cat_unit, tol_chord, min_support, min_fraction, out):
+        ext(v_cam.ctypes, cand_row.ctypes, cat_unit.ctypes, v_cam.shape[0], cat_unit.shape[0], float(tol_chord),
+            np.int64(min_support), float(min_fraction), out.ctypes)
+    return impl
+
+
+@njit(cache=True, no_cfunc_wrapper=True)
+def verify_pairwise(v_cam, cand_row, cat_unit, tol_chord, min_support, min_fraction=0.0):
+    """Pairwise angular-consistency verification (``_verify_pairwise_body`` says how), called through a
+    registered symbol (:mod:`starid.kernels.symcall`), not linked into its callers. Returns a boolean mask
+    of the accepted proposals."""
+    out = np.empty(v_cam.shape[0], dtype=np.bool_)
+    _verify_call(v_cam, cand_row, cat_unit, tol_chord, min_support, min_fraction, out)
+    return out
+
+
 @njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
 def z_bound(unit, z, upper):
     """First row of z-sorted unit vectors whose z is >= ``z`` (``upper``: > ``z``), by bisection."""
@@ -99,8 +148,8 @@ def keep_unique(n_match, out_row):
     return count
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
-def reproject_assign(A, v_cam, unit, c_fov, eps, out_row, f_px, cx_px, cy_px, width_px, height_px):
+@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # the exported C function calls it only
+def _reproject_assign_body(A, v_cam, unit, c_fov, eps, out_row, f_px, cx_px, cy_px, width_px, height_px):
     """Identify observed stars from an attitude: each catalog star predicted at ``A r`` (notes 1.5).
 
     ``unit`` holds the catalog's unit vectors sorted by z; those within chord ``c_fov`` of the
@@ -144,3 +193,46 @@ def reproject_assign(A, v_cam, unit, c_fov, eps, out_row, f_px, cx_px, cy_px, wi
                 if chord_rows(v_cam, i, b, np.int64(0)) <= eps:
                     n_match[i] += 2
     return keep_unique(n_match, out_row), n_predicted
+
+
+def _reproject_entry(a_p, v_p, unit_p, n, m, c_fov, eps, out_p, f_px, cx_px, cy_px, width_px, height_px, res_p):
+    """The C function behind :func:`reproject_assign`: ``res = _reproject_assign_body(...)``."""
+    res = carray(res_p, 2)
+    res[0], res[1] = _reproject_assign_body(carray(a_p, (3, 3)), carray(v_p, (n, 3)), carray(unit_p, (m, 3)), c_fov,
+                                            eps, carray(out_p, n), f_px, cx_px, cy_px, width_px, height_px)
+
+
+#: the exported reproject_assign, per dtype of the catalogue vectors
+_REPROJECT = {dt: export(f"starid_reproject_assign_{dt}",
+                         types.void(types.CPointer(_F8), types.CPointer(_F8), types.CPointer(getattr(types, dt)), _I8,
+                                    _I8, _F8, _F8, types.CPointer(_I8), _F8, _F8, _F8, _F8, _F8,
+                                    types.CPointer(_I8)), _reproject_entry)
+              for dt in _FLOATS}
+
+
+def _reproject_call(A, v_cam, unit, c_fov, eps, out_row, f_px, cx_px, cy_px, width_px, height_px, res):
+    """Call the exported :func:`reproject_assign` for ``unit``'s dtype (kernels only)."""
+
+
+@overload(_reproject_call)
+def _reproject_call_impl(A, v_cam, unit, c_fov, eps, out_row, f_px, cx_px, cy_px, width_px, height_px, res):
+    require_c("reproject_assign", A, v_cam, unit, out_row, res)
+    _need("reproject_assign", A, "float64")
+    _need("reproject_assign", v_cam, "float64")
+    _need("reproject_assign", out_row, "int64")
+    ext = _REPROJECT[str(unit.dtype)]
+
+    def impl(A, v_cam, unit, c_fov, eps, out_row, f_px, cx_px, cy_px, width_px, height_px, res):
+        ext(A.ctypes, v_cam.ctypes, unit.ctypes, v_cam.shape[0], unit.shape[0], float(c_fov), float(eps),
+            out_row.ctypes, float(f_px), float(cx_px), float(cy_px), float(width_px), float(height_px), res.ctypes)
+    return impl
+
+
+@njit(cache=True, no_cfunc_wrapper=True)
+def reproject_assign(A, v_cam, unit, c_fov, eps, out_row, f_px, cx_px, cy_px, width_px, height_px):
+    """Identify observed stars from an attitude (``_reproject_assign_body`` says how), called through a
+    registered symbol (:mod:`starid.kernels.symcall`), not linked into its callers. Returns
+    ``(n_assigned, n_predicted)``."""
+    res = np.empty(2, dtype=np.int64)
+    _reproject_call(A, v_cam, unit, c_fov, eps, out_row, f_px, cx_px, cy_px, width_px, height_px, res)
+    return res[0], res[1]
