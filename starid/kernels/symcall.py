@@ -11,9 +11,18 @@ the way :mod:`starid.kernels.lapack` calls scipy's LAPACK: a caller's code refer
 name, so it is cached, and the name is bound again when a new process imports this package. A call
 through a symbol cannot be inlined, so only large callees pay (``benchmarks/tools/symcall_census.py``
 estimates which).
+
+Costs: ``import starid.kernels`` compiles the exported functions on an empty cache (~5 CPU s, all dtypes,
+whether the process needs them or not) and loads them from the cache otherwise (~0.03 s); each call
+passes pointers (the arrays must be C-contiguous: the shims check at typing time). The symbol names carry
+a hash of the C signature: numba does not recompile a cached caller when a callee in another file
+changes, and a stale caller must then fail to find its symbol rather than call one with other arguments
+(clear the cache after changing an exported signature).
 """
 
 from __future__ import annotations
+
+import hashlib
 
 import llvmlite.binding as llvm
 from numba import cfunc, types
@@ -28,11 +37,14 @@ def _abi(t):
 
 
 def export(symbol: str, sig, func):
-    """Compile ``func`` as ``cfunc(sig, cache=True)``, register its address as ``symbol`` and return the
-    :class:`numba.types.ExternalFunction` kernels call it by (pointer arguments as ``voidptr``)."""
+    """Compile ``func`` as ``cfunc(sig, cache=True)``, register its address as ``symbol`` plus a hash of
+    ``sig`` and return the :class:`numba.types.ExternalFunction` kernels call it by (pointer arguments as
+    ``voidptr``). The hash: numba does not recompile a cached caller when a callee in another file
+    changes, so a caller cached against another signature must find no symbol, not the wrong one."""
     compiled = cfunc(sig, cache=True)(func)
-    llvm.add_symbol(symbol, compiled.address)
-    return types.ExternalFunction(symbol, sig.return_type(*[_abi(a) for a in sig.args]))
+    name = f"{symbol}_{hashlib.sha1(str(sig).encode()).hexdigest()[:10]}"
+    llvm.add_symbol(name, compiled.address)
+    return types.ExternalFunction(name, sig.return_type(*[_abi(a) for a in sig.args]))
 
 
 def require_c(what: str, *arrays):

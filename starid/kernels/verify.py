@@ -17,7 +17,7 @@ _FLOATS = ("float32", "float64")
 
 
 @njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # the exported C function calls it only
-def _verify_pairwise_body(v_cam, cand_row, cat_unit, tol_chord, min_support, min_fraction):
+def _verify_pairwise_body(v_cam, cand_row, cat_unit, tol_chord, min_support, min_fraction, active):
     """Pairwise angular-consistency verification (algorithm notes 1.5, geometric-voting style).
 
     ``cand_row[i]`` is the catalog row proposed for observed star ``i`` (-1 = none). Two
@@ -27,10 +27,12 @@ def _verify_pairwise_body(v_cam, cand_row, cat_unit, tol_chord, min_support, min
     the ``k - 1`` others (``min_fraction = 0.5``: a majority, so a small self-consistent cluster
     of wrong proposals loses to a larger true one; ``1.0``: every pair must agree). Among equally
     supported proposals the one with the larger sum of chord residuals goes first. Stars left
-    sharing a catalog row are dropped too. Returns a boolean mask of the accepted proposals.
+    sharing a catalog row are dropped too. Writes the boolean mask of the accepted proposals to
+    ``active``.
     """
     n = v_cam.shape[0]
-    active = cand_row >= 0
+    for i in range(n):
+        active[i] = cand_row[i] >= 0
     while True:
         worst = -1
         worst_support = 1 << 30
@@ -71,10 +73,8 @@ def _verify_pairwise_body(v_cam, cand_row, cat_unit, tol_chord, min_support, min
 def _verify_entry(v_p, cand_p, cat_p, n, m, tol_chord, min_support, min_fraction, out_p):
     """The C function behind :func:`verify_pairwise`: ``out = _verify_pairwise_body(...)``."""
     out = carray(out_p, n)
-    keep = _verify_pairwise_body(carray(v_p, (n, 3)), carray(cand_p, n), carray(cat_p, (m, 3)), tol_chord,
-                                 min_support, min_fraction)
-    for i in range(n):
-        out[i] = keep[i]
+    _verify_pairwise_body(carray(v_p, (n, 3)), carray(cand_p, n), carray(cat_p, (m, 3)), tol_chord, min_support,
+                          min_fraction, out)
 
 
 #: the exported verify_pairwise, per dtype of the catalogue vectors
@@ -195,36 +195,41 @@ def _reproject_assign_body(A, v_cam, unit, c_fov, eps, out_row, f_px, cx_px, cy_
     return keep_unique(n_match, out_row), n_predicted
 
 
-def _reproject_entry(a_p, v_p, unit_p, n, m, c_fov, eps, out_p, f_px, cx_px, cy_px, width_px, height_px, res_p):
-    """The C function behind :func:`reproject_assign`: ``res = _reproject_assign_body(...)``."""
-    res = carray(res_p, 2)
-    res[0], res[1] = _reproject_assign_body(carray(a_p, (3, 3)), carray(v_p, (n, 3)), carray(unit_p, (m, 3)), c_fov,
-                                            eps, carray(out_p, n), f_px, cx_px, cy_px, width_px, height_px)
+#: :func:`reproject_assign`'s two counts travel as one int64, ``n_assigned * _HIGH + n_predicted`` (both are
+#: counts of stars, far below 2**31)
+_HIGH = 1 << 32
+
+
+def _reproject_entry(a_p, v_p, unit_p, n, m, c_fov, eps, out_p, f_px, cx_px, cy_px, width_px, height_px):
+    """The C function behind :func:`reproject_assign`: ``_reproject_assign_body(...)``, its two counts packed."""
+    n_assigned, n_predicted = _reproject_assign_body(carray(a_p, (3, 3)), carray(v_p, (n, 3)), carray(unit_p, (m, 3)),
+                                                     c_fov, eps, carray(out_p, n), f_px, cx_px, cy_px, width_px,
+                                                     height_px)
+    return n_assigned * _HIGH + n_predicted
 
 
 #: the exported reproject_assign, per dtype of the catalogue vectors
 _REPROJECT = {dt: export(f"starid_reproject_assign_{dt}",
-                         types.void(types.CPointer(_F8), types.CPointer(_F8), types.CPointer(getattr(types, dt)), _I8,
-                                    _I8, _F8, _F8, types.CPointer(_I8), _F8, _F8, _F8, _F8, _F8,
-                                    types.CPointer(_I8)), _reproject_entry)
+                         _I8(types.CPointer(_F8), types.CPointer(_F8), types.CPointer(getattr(types, dt)), _I8, _I8,
+                             _F8, _F8, types.CPointer(_I8), _F8, _F8, _F8, _F8, _F8), _reproject_entry)
               for dt in _FLOATS}
 
 
-def _reproject_call(A, v_cam, unit, c_fov, eps, out_row, f_px, cx_px, cy_px, width_px, height_px, res):
-    """Call the exported :func:`reproject_assign` for ``unit``'s dtype (kernels only)."""
+def _reproject_call(A, v_cam, unit, c_fov, eps, out_row, f_px, cx_px, cy_px, width_px, height_px):
+    """Call the exported :func:`reproject_assign` for ``unit``'s dtype (kernels only): the packed counts."""
 
 
 @overload(_reproject_call)
-def _reproject_call_impl(A, v_cam, unit, c_fov, eps, out_row, f_px, cx_px, cy_px, width_px, height_px, res):
-    require_c("reproject_assign", A, v_cam, unit, out_row, res)
+def _reproject_call_impl(A, v_cam, unit, c_fov, eps, out_row, f_px, cx_px, cy_px, width_px, height_px):
+    require_c("reproject_assign", A, v_cam, unit, out_row)
     _need("reproject_assign", A, "float64")
     _need("reproject_assign", v_cam, "float64")
     _need("reproject_assign", out_row, "int64")
     ext = _REPROJECT[str(unit.dtype)]
 
-    def impl(A, v_cam, unit, c_fov, eps, out_row, f_px, cx_px, cy_px, width_px, height_px, res):
-        ext(A.ctypes, v_cam.ctypes, unit.ctypes, v_cam.shape[0], unit.shape[0], float(c_fov), float(eps),
-            out_row.ctypes, float(f_px), float(cx_px), float(cy_px), float(width_px), float(height_px), res.ctypes)
+    def impl(A, v_cam, unit, c_fov, eps, out_row, f_px, cx_px, cy_px, width_px, height_px):
+        return ext(A.ctypes, v_cam.ctypes, unit.ctypes, v_cam.shape[0], unit.shape[0], float(c_fov), float(eps),
+                   out_row.ctypes, float(f_px), float(cx_px), float(cy_px), float(width_px), float(height_px))
     return impl
 
 
@@ -233,6 +238,5 @@ def reproject_assign(A, v_cam, unit, c_fov, eps, out_row, f_px, cx_px, cy_px, wi
     """Identify observed stars from an attitude (``_reproject_assign_body`` says how), called through a
     registered symbol (:mod:`starid.kernels.symcall`), not linked into its callers. Returns
     ``(n_assigned, n_predicted)``."""
-    res = np.empty(2, dtype=np.int64)
-    _reproject_call(A, v_cam, unit, c_fov, eps, out_row, f_px, cx_px, cy_px, width_px, height_px, res)
-    return res[0], res[1]
+    packed = _reproject_call(A, v_cam, unit, c_fov, eps, out_row, f_px, cx_px, cy_px, width_px, height_px)
+    return packed // _HIGH, packed % _HIGH
