@@ -15,6 +15,15 @@ instructions of K's optimised module; and ``est_s = linkers * llvm_s``, a rough 
 seconds K costs inside its callers (rough: re-optimising optimised IR is not the same work as the
 first time, and a caller's optimiser drops what it inlines and never calls). The total LLVM and
 compile CPU seconds of the whole run are printed first.
+
+What it led to (issue #25, symcall branch, commits 81cf085..11490c0, reverted): the four kernels on top
+of its list (``wahba_rows``, ``reproject_assign``, ``verify_pairwise``, ``sort_rows``; ~10 LLVM s
+estimated) compiled as ``numba.cfunc(cache=True)`` C functions bound to ``starid_*`` symbols at import
+and called through ``ExternalFunction`` shims. Same rows; the 14 plugins in one cold process -7 CPU s
+(-2 to -13 over four back-to-back pairs), but every cold ``import starid`` +5.5 CPU s (the C functions
+compile eagerly, ~1 s more than the kernels they wrap), so a one-plugin process got 3 CPU s slower
+and the two-process benchmark stayed at 55 s wall. Callers save ~5 s per process; the C functions cost
+~5 s per process.
 """
 
 from __future__ import annotations

@@ -12,8 +12,6 @@ Euclidean distance between two unit vectors, ``2 sin(theta / 2)`` (:func:`rad_to
 * :mod:`.verify` -- pairwise angular verification, identification by reprojection;
 * :mod:`.attitude` -- Wahba's problem;
 * :mod:`.lapack` -- the 3x3 SVD, determinants and products it needs, as direct BLAS / LAPACK calls;
-* :mod:`.symcall` -- ``wahba_rows``, ``reproject_assign``, ``verify_pairwise`` and ``sort_rows`` are compiled once as C
-  functions and called through registered symbols, not linked into (and optimised again inside) every caller;
 * :mod:`.order` -- brightest (or nearest) first, input-order free;
 * :mod:`.assign` -- the final step: with the attitude, assign every detection (``assign_all``), and
   the whole-image check of a hypothesis (``explained``).

@@ -3,11 +3,9 @@
 from __future__ import annotations
 
 import numpy as np
-from numba import carray, njit, types
-from numba.extending import overload
+from numba import njit
 
 from .lapack import TRANS, det3_lapack, gemm3, svd3
-from .symcall import export, require_c, require_dtype
 
 
 @njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
@@ -29,8 +27,8 @@ def identity3():
     return A
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # the exported C function calls it only
-def _wahba_rows_body(v, rows, unit):
+@njit(cache=True, no_cfunc_wrapper=True)
+def wahba_rows(v, rows, unit):
     """ICRS -> camera rotation from the stars with ``rows >= 0`` (Wahba's problem, equal weights).
 
     ``v[i]`` is the camera-frame unit vector of star ``i`` and ``unit[rows[i]]`` its catalog
@@ -86,60 +84,6 @@ def _wahba_rows_body(v, rows, unit):
         if change < 1e-14:
             break
     return X
-
-
-def _wahba_entry(v_p, rows_p, unit_p, n, m, out_p):
-    """The C function behind :func:`wahba_rows`: ``out = _wahba_rows_body(v, rows, unit)``; returns 0, or 1
-    when it raised (the SVD of a non-finite ``B``), which a C function cannot pass on."""
-    out = carray(out_p, (3, 3))
-    try:
-        A = _wahba_rows_body(carray(v_p, (n, 3)), carray(rows_p, n), carray(unit_p, (m, 3)))
-    except Exception:  # noqa: BLE001 -- raised again by wahba_rows
-        return 1
-    for a in range(3):
-        for b in range(3):
-            out[a, b] = A[a, b]
-    return 0
-
-
-def _wahba_sig(unit_dtype):
-    F8, I8 = types.float64, types.int64
-    return I8(types.CPointer(F8), types.CPointer(I8), types.CPointer(unit_dtype), I8, I8, types.CPointer(F8))
-
-
-#: the exported wahba_rows, per dtype of the catalogue vectors
-_WAHBA = {dt: export(f"starid_wahba_rows_{dt}", _wahba_sig(getattr(types, dt)), _wahba_entry)
-          for dt in ("float32", "float64")}
-
-
-def _wahba_call(v, rows, unit, out):
-    """Call the exported :func:`wahba_rows` for ``unit``'s dtype (kernels only); its status."""
-
-
-@overload(_wahba_call)
-def _wahba_call_impl(v, rows, unit, out):
-    require_c("wahba_rows", v, rows, unit, out)
-    require_dtype("wahba_rows", v, "float64")
-    require_dtype("wahba_rows", rows, "int64")
-    ext = _WAHBA[str(unit.dtype)]
-
-    def impl(v, rows, unit, out):
-        return ext(v.ctypes, rows.ctypes, unit.ctypes, v.shape[0], unit.shape[0], out.ctypes)
-    return impl
-
-
-@njit(cache=True, no_cfunc_wrapper=True)
-def wahba_rows(v, rows, unit):
-    """ICRS -> camera rotation from the stars with ``rows >= 0`` (Wahba's problem, equal weights).
-
-    ``v[i]`` is the camera-frame unit vector of star ``i`` and ``unit[rows[i]]`` its catalog (ICRS) unit
-    vector; the numba twin of :func:`starid.attitude.solve_wahba` (the method: ``_wahba_rows_body``).
-    Called through a registered symbol (:mod:`starid.kernels.symcall`), not linked into its callers.
-    """
-    out = np.empty((3, 3))
-    if _wahba_call(v, rows, unit, out) != 0:
-        raise np.linalg.LinAlgError("Array must not contain infs or NaNs.")
-    return out
 
 
 @njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only

@@ -7,11 +7,9 @@ these, so two detections with the same key are ordered the same way whatever ord
 from __future__ import annotations
 
 import numpy as np
-from numba import carray, njit, types
-from numba.extending import overload
+from numba import njit
 
 from .jit import inner as _inner
-from .symcall import export, require_c, require_dtype
 
 
 @njit(cache=True, no_cfunc_wrapper=True)
@@ -75,8 +73,8 @@ def stable_sort_by_key(rows, n, key):
         rows[a] = src[a]
 
 
-@_inner   # the exported C function calls it only
-def _sort_rows_body(rows, n, key, x_px, y_px):
+@njit(cache=True, no_cfunc_wrapper=True)
+def sort_rows(rows, n, key, x_px, y_px):
     """Sort ``rows[:n]`` in place by :func:`before` (stable): an insertion sort, after a stable
     merge sort by ``key`` alone when there are more than :data:`PRESORT_ROWS` of them."""
     if n > PRESORT_ROWS:
@@ -88,41 +86,6 @@ def _sort_rows_body(rows, n, key, x_px, y_px):
             rows[b + 1] = rows[b]
             b -= 1
         rows[b + 1] = r
-
-
-def _sort_rows_entry(rows_p, n_rows, n, key_p, n_key, x_p, y_p, n_xy):
-    """The C function behind :func:`sort_rows`."""
-    _sort_rows_body(carray(rows_p, n_rows), n, carray(key_p, n_key), carray(x_p, n_xy), carray(y_p, n_xy))
-
-
-_F8, _I8 = types.float64, types.int64
-#: the exported sort_rows (float64 keys and positions, writable or read-only: one C function)
-_SORT_ROWS = export("starid_sort_rows", types.void(types.CPointer(_I8), _I8, _I8, types.CPointer(_F8), _I8,
-                                                   types.CPointer(_F8), types.CPointer(_F8), _I8), _sort_rows_entry)
-
-
-def _sort_rows_call(rows, n, key, x_px, y_px):
-    """Call the exported :func:`sort_rows` (kernels only)."""
-
-
-@overload(_sort_rows_call)
-def _sort_rows_call_impl(rows, n, key, x_px, y_px):
-    require_c("sort_rows", rows, key, x_px, y_px)
-    require_dtype("sort_rows", rows, "int64")
-    for a in (key, x_px, y_px):
-        require_dtype("sort_rows", a, "float64")
-
-    def impl(rows, n, key, x_px, y_px):
-        _SORT_ROWS(rows.ctypes, rows.shape[0], np.int64(n), key.ctypes, key.shape[0], x_px.ctypes, y_px.ctypes,
-                   min(x_px.shape[0], y_px.shape[0]))
-    return impl
-
-
-@njit(cache=True, no_cfunc_wrapper=True)
-def sort_rows(rows, n, key, x_px, y_px):
-    """Sort ``rows[:n]`` in place by :func:`before` (stable; ``_sort_rows_body`` says how), called through
-    a registered symbol (:mod:`starid.kernels.symcall`), not linked into its callers."""
-    _sort_rows_call(rows, n, key, x_px, y_px)
 
 
 @njit(cache=True, no_cfunc_wrapper=True)

@@ -5,19 +5,13 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import carray, njit, types
-from numba.extending import overload
+from numba import njit
 
 from .geometry import chord_rows
-from .symcall import export, require_c
-from .symcall import require_dtype as _need
-
-_F8, _I8, _B1 = types.float64, types.int64, types.boolean
-_FLOATS = ("float32", "float64")
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # the exported C function calls it only
-def _verify_pairwise_body(v_cam, cand_row, cat_unit, tol_chord, min_support, min_fraction, active):
+@njit(cache=True, no_cfunc_wrapper=True)
+def verify_pairwise(v_cam, cand_row, cat_unit, tol_chord, min_support, min_fraction=0.0):
     """Pairwise angular-consistency verification (algorithm notes 1.5, geometric-voting style).
 
     ``cand_row[i]`` is the catalog row proposed for observed star ``i`` (-1 = none). Two
@@ -27,12 +21,10 @@ def _verify_pairwise_body(v_cam, cand_row, cat_unit, tol_chord, min_support, min
     the ``k - 1`` others (``min_fraction = 0.5``: a majority, so a small self-consistent cluster
     of wrong proposals loses to a larger true one; ``1.0``: every pair must agree). Among equally
     supported proposals the one with the larger sum of chord residuals goes first. Stars left
-    sharing a catalog row are dropped too. Writes the boolean mask of the accepted proposals to
-    ``active``.
+    sharing a catalog row are dropped too. Returns a boolean mask of the accepted proposals.
     """
     n = v_cam.shape[0]
-    for i in range(n):
-        active[i] = cand_row[i] >= 0
+    active = cand_row >= 0
     while True:
         worst = -1
         worst_support = 1 << 30
@@ -68,47 +60,6 @@ def _verify_pairwise_body(v_cam, cand_row, cat_unit, tol_chord, min_support, min
                 active[i] = False
                 active[j] = False
     return active
-
-
-def _verify_entry(v_p, cand_p, cat_p, n, m, tol_chord, min_support, min_fraction, out_p):
-    """The C function behind :func:`verify_pairwise`: ``out = _verify_pairwise_body(...)``."""
-    out = carray(out_p, n)
-    _verify_pairwise_body(carray(v_p, (n, 3)), carray(cand_p, n), carray(cat_p, (m, 3)), tol_chord, min_support,
-                          min_fraction, out)
-
-
-#: the exported verify_pairwise, per dtype of the catalogue vectors
-_VERIFY = {dt: export(f"starid_verify_pairwise_{dt}",
-                      types.void(types.CPointer(_F8), types.CPointer(_I8), types.CPointer(getattr(types, dt)), _I8,
-                                 _I8, _F8, _I8, _F8, types.CPointer(_B1)), _verify_entry)
-           for dt in _FLOATS}
-
-
-def _verify_call(v_cam, cand_row, cat_unit, tol_chord, min_support, min_fraction, out):
-    """Call the exported :func:`verify_pairwise` for ``cat_unit``'s dtype (kernels only)."""
-
-
-@overload(_verify_call)
-def _verify_call_impl(v_cam, cand_row, cat_unit, tol_chord, min_support, min_fraction, out):
-    require_c("verify_pairwise", v_cam, cand_row, cat_unit, out)
-    _need("verify_pairwise", v_cam, "float64")
-    _need("verify_pairwise", cand_row, "int64")
-    ext = _VERIFY[str(cat_unit.dtype)]
-
-    def impl(v_cam, cand_row, cat_unit, tol_chord, min_support, min_fraction, out):
-        ext(v_cam.ctypes, cand_row.ctypes, cat_unit.ctypes, v_cam.shape[0], cat_unit.shape[0], float(tol_chord),
-            np.int64(min_support), float(min_fraction), out.ctypes)
-    return impl
-
-
-@njit(cache=True, no_cfunc_wrapper=True)
-def verify_pairwise(v_cam, cand_row, cat_unit, tol_chord, min_support, min_fraction=0.0):
-    """Pairwise angular-consistency verification (``_verify_pairwise_body`` says how), called through a
-    registered symbol (:mod:`starid.kernels.symcall`), not linked into its callers. Returns a boolean mask
-    of the accepted proposals."""
-    out = np.empty(v_cam.shape[0], dtype=np.bool_)
-    _verify_call(v_cam, cand_row, cat_unit, tol_chord, min_support, min_fraction, out)
-    return out
 
 
 @njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
@@ -148,8 +99,8 @@ def keep_unique(n_match, out_row):
     return count
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # the exported C function calls it only
-def _reproject_assign_body(A, v_cam, unit, c_fov, eps, out_row, f_px, cx_px, cy_px, width_px, height_px):
+@njit(cache=True, no_cfunc_wrapper=True)
+def reproject_assign(A, v_cam, unit, c_fov, eps, out_row, f_px, cx_px, cy_px, width_px, height_px):
     """Identify observed stars from an attitude: each catalog star predicted at ``A r`` (notes 1.5).
 
     ``unit`` holds the catalog's unit vectors sorted by z; those within chord ``c_fov`` of the
@@ -193,50 +144,3 @@ def _reproject_assign_body(A, v_cam, unit, c_fov, eps, out_row, f_px, cx_px, cy_
                 if chord_rows(v_cam, i, b, np.int64(0)) <= eps:
                     n_match[i] += 2
     return keep_unique(n_match, out_row), n_predicted
-
-
-#: :func:`reproject_assign`'s two counts travel as one int64, ``n_assigned * _HIGH + n_predicted`` (both are
-#: counts of stars, far below 2**31)
-_HIGH = 1 << 32
-
-
-def _reproject_entry(a_p, v_p, unit_p, n, m, c_fov, eps, out_p, f_px, cx_px, cy_px, width_px, height_px):
-    """The C function behind :func:`reproject_assign`: ``_reproject_assign_body(...)``, its two counts packed."""
-    n_assigned, n_predicted = _reproject_assign_body(carray(a_p, (3, 3)), carray(v_p, (n, 3)), carray(unit_p, (m, 3)),
-                                                     c_fov, eps, carray(out_p, n), f_px, cx_px, cy_px, width_px,
-                                                     height_px)
-    return n_assigned * _HIGH + n_predicted
-
-
-#: the exported reproject_assign, per dtype of the catalogue vectors
-_REPROJECT = {dt: export(f"starid_reproject_assign_{dt}",
-                         _I8(types.CPointer(_F8), types.CPointer(_F8), types.CPointer(getattr(types, dt)), _I8, _I8,
-                             _F8, _F8, types.CPointer(_I8), _F8, _F8, _F8, _F8, _F8), _reproject_entry)
-              for dt in _FLOATS}
-
-
-def _reproject_call(A, v_cam, unit, c_fov, eps, out_row, f_px, cx_px, cy_px, width_px, height_px):
-    """Call the exported :func:`reproject_assign` for ``unit``'s dtype (kernels only): the packed counts."""
-
-
-@overload(_reproject_call)
-def _reproject_call_impl(A, v_cam, unit, c_fov, eps, out_row, f_px, cx_px, cy_px, width_px, height_px):
-    require_c("reproject_assign", A, v_cam, unit, out_row)
-    _need("reproject_assign", A, "float64")
-    _need("reproject_assign", v_cam, "float64")
-    _need("reproject_assign", out_row, "int64")
-    ext = _REPROJECT[str(unit.dtype)]
-
-    def impl(A, v_cam, unit, c_fov, eps, out_row, f_px, cx_px, cy_px, width_px, height_px):
-        return ext(A.ctypes, v_cam.ctypes, unit.ctypes, v_cam.shape[0], unit.shape[0], float(c_fov), float(eps),
-                   out_row.ctypes, float(f_px), float(cx_px), float(cy_px), float(width_px), float(height_px))
-    return impl
-
-
-@njit(cache=True, no_cfunc_wrapper=True)
-def reproject_assign(A, v_cam, unit, c_fov, eps, out_row, f_px, cx_px, cy_px, width_px, height_px):
-    """Identify observed stars from an attitude (``_reproject_assign_body`` says how), called through a
-    registered symbol (:mod:`starid.kernels.symcall`), not linked into its callers. Returns
-    ``(n_assigned, n_predicted)``."""
-    packed = _reproject_call(A, v_cam, unit, c_fov, eps, out_row, f_px, cx_px, cy_px, width_px, height_px)
-    return packed // _HIGH, packed % _HIGH
