@@ -15,10 +15,10 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
 from .attitude import wahba_rows
 from .geometry import backproject_px
+from .jit import kernel
 from .verify import reproject_assign
 
 
@@ -64,7 +64,7 @@ def deep_sky(catalog, mag_limit: float | None = None) -> DeepSky:
     return DeepSky(np.ascontiguousarray(unit32[order]), np.ascontiguousarray(catalog_hip[order], dtype=np.int64))
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def field_chord(frame):
     """Chord from the boresight to the farthest corner of the sensor."""
     corners = backproject_px(np.array([0.0, frame.width_px, 0.0, frame.width_px]),
@@ -76,7 +76,7 @@ def field_chord(frame):
     return c
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def assign_all(attitude, x_px, y_px, frame, deep, eps_chord, hip):
     """Assign every detection to the deep star ``attitude`` predicts within chord ``eps_chord`` of it.
 
@@ -118,7 +118,7 @@ def check_stars(catalog, guide_hip: np.ndarray, mag_limit: float) -> np.ndarray:
     return np.ascontiguousarray(unit[np.lexsort((unit[:, 1], unit[:, 0], unit[:, 2]))])
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def explained(attitude, v_cam, guide_unit, extra_unit, frame, c_fov, eps_chord, rows_guide, rows_extra):
     """Whole-image check: how many detections ``attitude`` explains.
 
@@ -142,7 +142,7 @@ def explained(attitude, v_cam, guide_unit, extra_unit, frame, c_fov, eps_chord, 
     return count, n_seen, n_predicted
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def refine_explained(v_cam, guide_unit, extra_unit, frame, c_fov, eps_chord, rows_guide, rows_extra):
     """The attitude (Wahba) from every detection :func:`explained` assigned, then :func:`explained`
     again with it (``rows_guide`` / ``rows_extra`` updated). Returns ``(attitude, n_explained,

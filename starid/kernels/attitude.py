@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from .jit import inner, kernel
 from .lapack import TRANS, det3_lapack, gemm3, svd3
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def _det3(M):
     """Determinant of a 3x3 matrix."""
     return (M[0, 0] * (M[1, 1] * M[2, 2] - M[1, 2] * M[2, 1])
@@ -16,7 +16,7 @@ def _det3(M):
             + M[0, 2] * (M[1, 0] * M[2, 1] - M[1, 1] * M[2, 0]))
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def identity3():
     """``np.eye(3)``, written out: numba's ``np.eye`` compiles its own overload (with ``min`` and its
     ``None`` handler, ~0.2 CPU s cold), which no kernel needs otherwise; the attitude of "no answer"."""
@@ -27,7 +27,7 @@ def identity3():
     return A
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def wahba_rows(v, rows, unit):
     """ICRS -> camera rotation from the stars with ``rows >= 0`` (Wahba's problem, equal weights).
 
@@ -86,7 +86,7 @@ def wahba_rows(v, rows, unit):
     return X
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def guide_rows_f64(rows, guide_unit, idx, cat):
     """Fill ``idx`` (row i or -1) and ``cat`` (float64 guide vectors) so that ``wahba_rows(v, idx, cat)``
     is ``wahba_rows(v, rows, guide_unit)``: the signature :func:`starid.kernels.refine_explained` compiles,

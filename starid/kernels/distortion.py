@@ -21,14 +21,15 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+
+from .jit import kernel
 
 #: Newton iterations at most, and the step (normalized units) at which they stop.
 MAX_ITER = 50
 TOL = 1e-14
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def distort_norm(x, y, k1, k2, p1, p2, k3):
     """OpenCV's forward model on one normalized point: ``(x_d, y_d)`` (module equations)."""
     r2 = x * x + y * y
@@ -38,7 +39,7 @@ def distort_norm(x, y, k1, k2, p1, p2, k3):
     return xd, yd
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def undistort_norm(xd, yd, k1, k2, p1, p2, k3):
     """Normalized pinhole coordinates ``(x, y)`` whose distorted image is ``(xd, yd)`` (Newton)."""
     x = xd
@@ -64,7 +65,7 @@ def undistort_norm(xd, yd, k1, k2, p1, p2, k3):
     return x, y
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def project_distorted(v_cam, f_px, cx_px, cy_px, dist):
     """Pixels ``(x_px, y_px)`` of camera-frame vectors ``(n, 3)`` (``vz > 0``) through the lens ``dist``."""
     n = v_cam.shape[0]
@@ -78,7 +79,7 @@ def project_distorted(v_cam, f_px, cx_px, cy_px, dist):
     return x_px, y_px
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def undistort_px(x_px, y_px, f_px, cx_px, cy_px, dist, cx_out_px, cy_out_px):
     """Distorted pixels to the pinhole pixels of the same focal length with principal point
     ``(cx_out_px, cy_out_px)`` (``u' = cx_out + f x``; the frame a plugin works in)."""
@@ -93,7 +94,7 @@ def undistort_px(x_px, y_px, f_px, cx_px, cy_px, dist, cx_out_px, cy_out_px):
     return xo, yo
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def backproject_distorted(x_px, y_px, f_px, cx_px, cy_px, dist):
     """Camera-frame unit vectors ``(n, 3)`` of distorted pixels (inverse of :func:`project_distorted`)."""
     n = x_px.shape[0]

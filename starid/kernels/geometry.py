@@ -9,10 +9,11 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+
+from .jit import inner, kernel
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def project_cam(v_cam, f_px, cx_px, cy_px):
     """Pinhole projection of camera-frame vectors ``(n, 3)``: ``x = cx + f vx/vz``, ``y = cy + f vy/vz``."""
     n = v_cam.shape[0]
@@ -24,7 +25,7 @@ def project_cam(v_cam, f_px, cx_px, cy_px):
     return x_px, y_px
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def backproject_px(x_px, y_px, f_px, cx_px, cy_px):
     """Camera-frame unit vectors ``(n, 3)`` of pixel positions; the exact inverse of ``project_cam``."""
     n = x_px.shape[0]
@@ -39,7 +40,7 @@ def backproject_px(x_px, y_px, f_px, cx_px, cy_px):
     return v_cam
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def chord(u, v):
     """Euclidean distance between two unit 3-vectors (``2 sin(theta/2)``)."""
     dx = u[0] - v[0]
@@ -48,7 +49,7 @@ def chord(u, v):
     return math.sqrt(dx * dx + dy * dy + dz * dz)
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def chord_rows(a, i, b, j):
     """Chord between row ``i`` of ``a`` and row ``j`` of ``b`` (unit vectors, float64 result).
 
@@ -61,14 +62,14 @@ def chord_rows(a, i, b, j):
     return math.sqrt(dx * dx + dy * dy + dz * dz)
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def triple_product(u, v, w):
     """``u . (v x w)`` of three 3-vectors; for unit vectors its sign is the triangle's handedness (chirality)."""
     return (u[0] * (v[1] * w[2] - v[2] * w[1]) + u[1] * (v[2] * w[0] - v[0] * w[2])
             + u[2] * (v[0] * w[1] - v[1] * w[0]))
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def angular_distance_rad(u, v):
     """Angle between two unit 3-vectors in radians, accurate at small angles (via the chord)."""
     c = chord(u, v)
@@ -77,7 +78,7 @@ def angular_distance_rad(u, v):
     return 2.0 * math.asin(0.5 * c)
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def chord_to_rad(c):
     """Convert a chord of unit vectors to the angle it subtends, in radians."""
     if c >= 2.0:
@@ -94,7 +95,7 @@ def rad_to_chord(theta_rad):
     return 2.0 * math.sin(0.5 * theta_rad)
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def triangle_sides(r1, r2, r3):
     """Chord sides of the planar triangle of three unit vectors (Zhou & Ye 2015, eq. 1).
 
@@ -103,7 +104,7 @@ def triangle_sides(r1, r2, r3):
     return chord(r1, r2), chord(r2, r3), chord(r1, r3)
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def pairwise_chords(vectors):
     """Symmetric ``(n, n)`` matrix of chords between unit vectors ``(n, 3)``."""
     n = vectors.shape[0]

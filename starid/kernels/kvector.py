@@ -6,7 +6,8 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
+
+from .jit import inner, kernel
 
 
 def kvector_build(sorted_values: np.ndarray) -> tuple[np.ndarray, float, float]:
@@ -32,7 +33,7 @@ def kvector_build(sorted_values: np.ndarray) -> tuple[np.ndarray, float, float]:
     return k, float(m), float(q)
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def kvector_ends(m, q, lo, hi):
     """The two k-vector positions ``(jb, jt)`` :func:`kvector_slice` reads for ``[lo, hi]``: a caller
     that prefetches ``k[jb - 1]`` and ``k[jt - 1]`` before :func:`kvector_rows` reads them (ptp's passes)
@@ -40,7 +41,7 @@ def kvector_ends(m, q, lo, hi):
     return int(math.floor((lo - q) / m)) - 1, int(math.ceil((hi - q) / m)) + 1
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def kvector_rows(k, n, jb, jt):
     """:func:`kvector_slice`'s ``[start, stop)`` from the positions of :func:`kvector_ends` (``n > 0``),
     as int64 whatever ``k``'s integer type."""
@@ -61,7 +62,7 @@ def kvector_rows(k, n, jb, jt):
     return start, stop
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def kvector_slice(k, m, q, n, lo, hi):
     """Index range ``[start, stop)`` of the ``n`` sorted keys that holds every key in ``[lo, hi]``,
     from the k-vector alone: the O(1) slice :func:`kvector_range` then trims
@@ -77,7 +78,7 @@ def kvector_slice(k, m, q, n, lo, hi):
     return kvector_rows(k, n, jb, jt)
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def kvector_trim(sorted_values, n, start, stop, lo, hi):
     """The slice ``[start, stop)`` of the ``n`` sorted values (a k-vector's slightly wide one) trimmed, or
     widened where float rounding put a line on the wrong side, to exactly the values in ``[lo, hi]``."""
@@ -94,7 +95,7 @@ def kvector_trim(sorted_values, n, start, stop, lo, hi):
     return start, stop
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def kvector_range(sorted_values, k, m, q, lo, hi):
     """Index range ``[start, stop)`` of ``sorted_values`` lying in ``[lo, hi]``.
 
@@ -133,7 +134,7 @@ def kvector_make(sorted_values: np.ndarray, values_dtype=np.float64, index_dtype
     return KVector(values, k.astype(index_dtype), m, q)
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def kvector_query(kv, lo, hi):
     """Index range ``[start, stop)`` of ``kv.values`` lying in ``[lo, hi]`` (see :func:`kvector_range`)."""
     return kvector_range(kv[0], kv[1], kv[2], kv[3], lo, hi)

@@ -25,6 +25,8 @@ import numpy as np
 from numba import njit, types
 from numba.extending import get_cython_function_address
 
+from .jit import inner
+
 _P = types.voidptr
 
 
@@ -73,7 +75,7 @@ def gemm3(transa, transb, k, a, b, c):
            ints[2:].ctypes)
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def dot3(x, y):
     """``np.dot(x, y)`` of two contiguous 3-vectors as numba computes it (``ddot``, unit strides)."""
     ints = np.empty(2, dtype=np.int32)
@@ -82,7 +84,7 @@ def dot3(x, y):
     return _ddot(ints[0:].ctypes, x.ctypes, ints[1:].ctypes, y.ctypes, ints[1:].ctypes)
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def svd3(B):
     """``(u, vt)`` with ``U, _, Vt = np.linalg.svd(B)`` being ``U = u.T``, ``Vt = vt.T``, exactly as
     numba computes them: ``B`` (C-ordered 3x3) copied to Fortran order, ``dgesdd`` with ``jobz='A'``
@@ -120,7 +122,7 @@ def svd3(B):
     return u, vt
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def det3_lapack(m):
     """``np.linalg.det(m.T)`` for a C-ordered 3x3 ``m`` (``m.T`` being the Fortran-ordered matrix
     :func:`svd3` returns as ``u`` or ``vt``), as numba computes it: ``dgetrf`` on a copy, the

@@ -7,12 +7,11 @@ these, so two detections with the same key are ordered the same way whatever ord
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
-from .jit import inner as _inner
+from .jit import inner, kernel
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def before(key, x_px, y_px, i, j):
     """True when detection ``i`` comes before ``j``: smaller ``key``, exact ties by x, then y."""
     if key[i] != key[j]:
@@ -27,13 +26,13 @@ def before(key, x_px, y_px, i, j):
 PRESORT_ROWS = 64
 
 
-@_inner
+@inner
 def _key_less(x, y):
     """numpy's sort order: ``x < y``, NaN after every number."""
     return x < y or (y != y and x == x)
 
 
-@_inner
+@inner
 def stable_sort_by_key(rows, n, key):
     """Stable sort of ``rows[:n]`` in place by ``key[rows]``, NaN last: the order ``np.argsort(key[rows[:n]],
     kind="mergesort")`` gives (a stable order is unique), by a bottom-up merge sort written out, not
@@ -73,7 +72,7 @@ def stable_sort_by_key(rows, n, key):
         rows[a] = src[a]
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def sort_rows(rows, n, key, x_px, y_px):
     """Sort ``rows[:n]`` in place by :func:`before` (stable): an insertion sort, after a stable
     merge sort by ``key`` alone when there are more than :data:`PRESORT_ROWS` of them."""
@@ -88,7 +87,7 @@ def sort_rows(rows, n, key, x_px, y_px):
         rows[b + 1] = r
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def order_by(key, x_px, y_px):
     """Indices of all detections in :func:`before` order."""
     order = np.arange(key.shape[0])
@@ -96,7 +95,7 @@ def order_by(key, x_px, y_px):
     return order
 
 
-@_inner
+@inner
 def search_left(a, v):
     """``np.searchsorted(a, v)`` (side left) of an ascending array, as a bisection written out: numba's
     searchsorted overload costs ~0.3 CPU s of a cold compile, again in every kernel that links it.
@@ -112,7 +111,7 @@ def search_left(a, v):
     return lo
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def sort_int_prefix(a, n):
     """Sort ``a[:n]`` (integers) ascending in place: the array ``np.sort`` gives (equal integers are
     indistinguishable), without compiling numpy's quicksort (~0.7 CPU s cold, and again in every
@@ -135,7 +134,7 @@ def sort_int_prefix(a, n):
         _sift_down(a, np.int64(0), end)   # np.int64: not a literal (one signature)
 
 
-@_inner
+@inner
 def _sift_down(a, root, end):
     """Heapsort's sift-down of ``a[root]`` within the max-heap ``a[:end]``."""
     v = a[root]

@@ -13,8 +13,8 @@ around ``identify`` (docs/performance.md, "Stop 38").
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from .jit import kernel
 from .lapack import NOTRANS, TRANS, det3_lapack, dot3, gemm3, svd3
 from .order import search_left, sort_int_prefix
 
@@ -22,7 +22,7 @@ from .order import search_left, sort_int_prefix
 IDS_OK, ID_NOT_IN_CATALOG, ID_TWICE = 0, 1, 2
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def check_ids(hip, catalog_hip):
     """``(code, id)``: ``(IDS_OK, 0)`` when every id is -1 or in the sorted ``catalog_hip`` and no id
     is given twice; ``(ID_NOT_IN_CATALOG, id)`` for the first (in star order) id that is neither;
@@ -56,7 +56,7 @@ def check_ids(hip, catalog_hip):
     return IDS_OK, 0
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def attitude_error_terms(hip, v_cam, catalog_hip, unit_icrs, attitude_true):
     """``(y, x)`` whose ``numpy.arctan2`` is the angle (rad) between the Wahba attitude of the identified
     stars (``hip != -1``, every id in the sorted ``catalog_hip``; rows of ``unit_icrs``) and

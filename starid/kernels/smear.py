@@ -19,10 +19,11 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+
+from .jit import kernel
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def _rotate(v, axis, angle_rad):
     """Rodrigues: ``v`` rotated by ``angle_rad`` about the unit ``axis`` (right-handed)."""
     c = math.cos(angle_rad)
@@ -37,7 +38,7 @@ def _rotate(v, axis, angle_rad):
     return out
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def rotate_all(v_cam, axis, angle_rad):
     """Every row of ``v_cam`` (n, 3) rotated by ``angle_rad`` about the unit ``axis`` (Rodrigues):
     the directions at one instant of the exposure, for projection through a distorted camera."""
@@ -48,7 +49,7 @@ def rotate_all(v_cam, axis, angle_rad):
     return out
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def streak_samples_px(v_cam, axis, sweep_rad, n_samples, f_px, cx_px, cy_px):
     """Offsets ``(n, n_samples)`` in x and y of each star at ``n_samples`` equally spaced times.
 
@@ -71,7 +72,7 @@ def streak_samples_px(v_cam, axis, sweep_rad, n_samples, f_px, cx_px, cy_px):
     return dx, dy
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def streak_px(v_cam, axis, sweep_rad, f_px, cx_px, cy_px):
     """Each star's streak: ``(centre_dx, centre_dy, length_dx, length_dy)`` in px.
 
@@ -100,7 +101,7 @@ def streak_px(v_cam, axis, sweep_rad, f_px, cx_px, cy_px):
     return cdx, cdy, ldx, ldy
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def smear_noise(z_x, z_y, length_dx, length_dy, psf_sigma_px):
     """Unit centroid-noise draws ``(z_x, z_y)`` stretched along each star's streak.
 

@@ -21,9 +21,9 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
 from .attitude import wahba_rows
+from .jit import inner, kernel
 from .kvector import KVector, kvector_query
 from .verify import reproject_assign
 
@@ -46,7 +46,7 @@ class TriangleIndex(NamedTuple):
     stars: np.ndarray
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def _solid_angle(ax, ay, az, bx, by, bz, cx, cy, cz):
     """Solid angle of the spherical triangle of three (not necessarily unit) direction vectors."""
     la = math.sqrt(ax * ax + ay * ay + az * az)
@@ -58,7 +58,7 @@ def _solid_angle(ax, ay, az, bx, by, bz, cx, cy, cz):
     return 2.0 * math.atan2(abs(trip), den)
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def _angle(ux, uy, uz, wx, wy, wz):
     """Angle between two (not necessarily unit) vectors (atan2 form, accurate at small angles)."""
     cx = uy * wz - uz * wy
@@ -67,7 +67,7 @@ def _angle(ux, uy, uz, wx, wy, wz):
     return math.atan2(math.sqrt(cx * cx + cy * cy + cz * cz), ux * wx + uy * wy + uz * wz)
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def tri_features(r1, r2, r3, kind, depth):
     """``(area, moment)`` of the triangle of unit vectors ``r1, r2, r3`` (see the module docstring)."""
     e1 = np.empty(3)  # r2 - r1, r3 - r1 as loops (array expressions compile a ufunc kernel each)
@@ -133,7 +133,7 @@ def tri_features(r1, r2, r3, kind, depth):
     return area, moment
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def tri_windows(r1, r2, r3, kind, depth, sigma_rad, beta):
     """``(area, moment, half_area, half_moment)``: features and their ``beta``-sigma half-widths.
 
@@ -183,7 +183,7 @@ def tri_windows(r1, r2, r3, kind, depth, sigma_rad, beta):
     return area, moment, beta * sigma_rad * math.sqrt(va), beta * sigma_rad * math.sqrt(vm)
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def _chord(u, i, w, j):
     d0 = u[i, 0] - w[j, 0]
     d1 = u[i, 1] - w[j, 1]
@@ -191,7 +191,7 @@ def _chord(u, i, w, j):
     return math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def scan_catalog(unit, nbr_ptr, nbr_idx, chord_max, kind, depth, min_area, fill, stars, area, moment):
     """Every guide-star triple (i < j < k) with all three chords <= ``chord_max`` and area >= ``min_area``.
 
@@ -234,7 +234,7 @@ def block_order(area: np.ndarray, moment: np.ndarray) -> np.ndarray:
     return by_area[within[within < n]]
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def _sorted3(x, y, z):
     if x > y:
         x, y = y, x
@@ -245,7 +245,7 @@ def _sorted3(x, y, z):
     return x, y, z
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def _sides_agree(unit, g0, g1, g2, sides, eps):
     """True when the ascending chords of catalog triangle (g0, g1, g2) are within ``eps`` of ``sides``.
 
@@ -258,7 +258,7 @@ def _sides_agree(unit, g0, g1, g2, sides, eps):
     return abs(x - sides[0]) <= eps and abs(y - sides[1]) <= eps and abs(z - sides[2]) <= eps
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def tri_query(index, a_lo, a_hi, m_lo, m_hi, max_hits, truncate, unit, sides, eps_side, out):
     """Triangles with area in ``[a_lo, a_hi]`` and moment in ``[m_lo, m_hi]``, written into ``out``
     (int64 positions in the block order); with ``eps_side > 0`` also with sorted chords (stars = rows of
@@ -307,13 +307,13 @@ def tri_query(index, a_lo, a_hi, m_lo, m_hi, max_hits, truncate, unit, sides, ep
 PERMS = np.array([[0, 1, 2], [0, 2, 1], [1, 0, 2], [1, 2, 0], [2, 0, 1], [2, 1, 0]], dtype=np.int64)
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def _triple(u, i, j, k):
     return (u[i, 0] * (u[j, 1] * u[k, 2] - u[j, 2] * u[k, 1]) + u[i, 1] * (u[j, 2] * u[k, 0] - u[j, 0] * u[k, 2])
             + u[i, 2] * (u[j, 0] * u[k, 1] - u[j, 1] * u[k, 0]))
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def trio_confirm(v_cam, trio, cat, guide_unit, eps, match_sides, c_fov, min_extra, confirm_fraction, cam, rows,
                  trial):
     """The direct-match test of image stars ``trio`` (3 rows of ``v_cam``) against catalog triangle ``cat``.
@@ -409,7 +409,7 @@ def build_triangle_index(unit: np.ndarray, chord_max: float, kind: int, depth: i
                          stars=np.ascontiguousarray(stars[order]))
 
 
-@njit(cache=True, no_cfunc_wrapper=True)   # spherical_triangle's testing.py calls it from Python
+@kernel   # spherical_triangle's testing.py calls it from Python
 def trio_query(v_cam, a, b, c, index, kind, depth, sigma_rad, beta, fixed_area, fixed_moment, chord_max,
                max_hits, truncate, unit, eps_side, out):
     """:func:`tri_query` for the image triangle of rows ``a, b, c`` of ``v_cam``: 0 when a side is longer

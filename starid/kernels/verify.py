@@ -5,12 +5,12 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
 from .geometry import chord_rows
+from .jit import inner, kernel
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def verify_pairwise(v_cam, cand_row, cat_unit, tol_chord, min_support, min_fraction=0.0):
     """Pairwise angular-consistency verification (algorithm notes 1.5, geometric-voting style).
 
@@ -62,7 +62,7 @@ def verify_pairwise(v_cam, cand_row, cat_unit, tol_chord, min_support, min_fract
     return active
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def z_bound(unit, z, upper):
     """First row of z-sorted unit vectors whose z is >= ``z`` (``upper``: > ``z``), by bisection."""
     lo = 0
@@ -76,7 +76,7 @@ def z_bound(unit, z, upper):
     return lo
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def z_band_rows(unit, z_centre, c_radius):
     """Rows ``[start, stop)`` of z-sorted unit vectors in the declination band that holds every
     vector within chord ``c_radius`` of a direction whose z component is ``z_centre``."""
@@ -87,7 +87,7 @@ def z_band_rows(unit, z_centre, c_radius):
     return z_bound(unit, z_lo, np.bool_(False)), z_bound(unit, z_hi, np.bool_(True))   # runtime bools: one signature
 
 
-@njit(cache=True, no_cpython_wrapper=True, no_cfunc_wrapper=True)   # kernels call it only
+@inner   # kernels call it only
 def keep_unique(n_match, out_row):
     """Keep the rows of stars matched exactly once (the others become -1); returns how many."""
     count = 0
@@ -99,7 +99,7 @@ def keep_unique(n_match, out_row):
     return count
 
 
-@njit(cache=True, no_cfunc_wrapper=True)
+@kernel
 def reproject_assign(A, v_cam, unit, c_fov, eps, out_row, f_px, cx_px, cy_px, width_px, height_px):
     """Identify observed stars from an attitude: each catalog star predicted at ``A r`` (notes 1.5).
 
