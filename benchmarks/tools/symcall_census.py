@@ -16,7 +16,7 @@ seconds K costs inside its callers (rough: re-optimising optimised IR is not the
 first time, and a caller's optimiser drops what it inlines and never calls). The total LLVM and
 compile CPU seconds of the whole run are printed first.
 
-What it led to (issue #25, symcall branch, commits 81cf085..11490c0, reverted): the four kernels on top
+What it led to (issue #25, symcall branch, commits 81cf085..49ec0b1, reverted): the four kernels on top
 of its list (``wahba_rows``, ``reproject_assign``, ``verify_pairwise``, ``sort_rows``; ~10 LLVM s
 estimated) compiled as ``numba.cfunc(cache=True)`` C functions bound to ``starid_*`` symbols at import
 and called through ``ExternalFunction`` shims. Same rows; the 14 plugins in one cold process -7 CPU s
