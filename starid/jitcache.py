@@ -9,10 +9,22 @@ macOS, ``%LOCALAPPDATA%`` on Windows). A ``NUMBA_CACHE_DIR`` the user set is nev
 ``@njit(cache=True)`` keeps compiled machine code in ``__pycache__/*.nbi`` and ``*.nbc`` beside
 each source file. A truncated or garbage cache file makes the kernel fail to load; starid then
 records the failure with the folder to clear instead of a bare unpickling error.
+
+When: numba keys a kernel's cached code on its own source file (path, modification time, size), but
+the code holds every callee it inlined or linked, from any file. In a checkout, an edit of a callee in
+another file (a core kernel in ``starid/kernels``, a plugin's helper module) left every caller in an
+unchanged file running the old callee from its cache, silently (issue #25, stop 44: a speed round
+timed stale code this way). :func:`install_locators` (run on import) adds to each key of a kernel in
+starid or in any package the fingerprint of the modules numba may compile there
+(:func:`tree_stamp`: those that import numba or a jit flag set) and of starid's own: an
+edit of any of them makes the kernels of that package, and of every package calling starid's kernels,
+compile again on first use. A regular install is rewritten whole by pip, so nothing changes there.
 """
 
 from __future__ import annotations
 
+import functools
+import hashlib
 import os
 import sys
 import traceback
@@ -60,7 +72,77 @@ def configure(package_dir: Path = PACKAGE_DIR, environ=os.environ) -> str:
     return folder
 
 
+#: what marks a module numba may compile code from (a kernel, an intrinsic, a flag set's user)
+_COMPILED_MARKS = (b"from numba", b"import numba", b"jit import")
+
+
+def package_root(py_file: str | Path) -> Path:
+    """The top-level package folder of ``py_file`` (its own folder when that is not a package)."""
+    return _root_of(os.path.dirname(os.path.abspath(py_file)))
+
+
+@functools.lru_cache(maxsize=256)
+def _root_of(folder_name: str) -> Path:
+    folder = Path(folder_name).resolve()
+    while (folder.parent / "__init__.py").exists():
+        folder = folder.parent
+    return folder
+
+
+@functools.lru_cache(maxsize=64)
+def tree_stamp(root: str) -> str:
+    """A fingerprint (path, modification time and size, as numba's own key) of every module under the folder
+    ``root`` that imports numba or a jit flag set, tests left out: the modules whose code a cached
+    kernel of that package can hold. Once per folder and process (numba reads a kernel's key when it is
+    decorated)."""
+    digest = hashlib.sha256()
+    base = Path(root)
+    for path in sorted(base.rglob("*.py")):
+        rel = path.relative_to(base)
+        if "__pycache__" in rel.parts or "tests" in rel.parts:
+            continue
+        try:
+            text = path.read_bytes()
+            st = path.stat()
+        except OSError:
+            continue
+        if any(mark in text for mark in _COMPILED_MARKS):
+            digest.update(f"{rel.as_posix()}\0{st.st_mtime_ns}\0{st.st_size}\n".encode())
+    return digest.hexdigest()[:16]
+
+
+def _with_tree_stamp(locator: type) -> type:
+    """numba's ``locator`` class with :func:`tree_stamp` of the kernel's package and of starid in its key."""
+
+    class Locator(locator):
+        def get_source_stamp(self):
+            return (super().get_source_stamp(), tree_stamp(str(package_root(self._py_file))),
+                    tree_stamp(str(PACKAGE_DIR)))
+
+    Locator.__name__ = Locator.__qualname__ = f"Starid{locator.__name__.lstrip('_')}"
+    return Locator
+
+
+def install_locators() -> None:
+    """Put :func:`_with_tree_stamp` versions of numba's source-file cache locators (a user-set cache folder,
+    beside the sources, the user-wide folder) in numba's list, once per process."""
+    from numba.core import caching
+
+    impl = getattr(caching, "CacheImpl", None) or caching._CacheImpl   # numba 0.60+ names it without the underscore
+    if getattr(impl, "_starid_tree_stamp", False):
+        return
+    wrapped = set()
+    for name in ("UserProvidedCacheLocator", "InTreeCacheLocator", "UserWideCacheLocator",
+                 "_UserProvidedCacheLocator", "_InTreeCacheLocator", "_UserWideCacheLocator"):
+        cls = getattr(caching, name, None)
+        if cls is not None:
+            wrapped.add(cls)
+    impl._locator_classes = [_with_tree_stamp(c) if c in wrapped else c for c in impl._locator_classes]
+    impl._starid_tree_stamp = True
+
+
 CACHE_DIR = configure()   # on import (``import starid`` imports this module first)
+install_locators()
 
 
 def is_cache_error(exc: BaseException) -> bool:
