@@ -20,11 +20,10 @@ import time
 
 import numpy as np
 from numba import njit
+from ptpspeed7_wrapper import setup  # benchmarks/tools
 from starid_algorithms.ptp import kernels as K
 
-from starid import SKIES, Camera, SimConfig, Simulator, load_hipparcos
 from starid.kernels import backproject_px, guide_rows_f64, reproject_assign, verify_pairwise, wahba_rows
-from starid.registry import available_algorithms, get_algorithm
 
 
 @njit(cache=True)
@@ -54,17 +53,7 @@ def post(unit, rows, guide_unit, tol_chord, min_fraction, c_fov, f_px, cx_px, cy
 
 
 def main(n: int, sky: str) -> None:
-    cat, cam = load_hipparcos(), Camera()
-    names = sorted(i.name for i in available_algorithms() if i.status == "ok")
-    ptp = get_algorithm("ptp")()
-    db = ptp.build(cat, cam)
-    rest = [(a, a.build(cat, cam)) for a in (get_algorithm(nm)() for nm in names if nm != "ptp")]
-    sim = Simulator(cat, cam, SimConfig(sigma_px=1.0, sigma_mag=0.5, mag_limit=6.0, min_stars=6, **SKIES[sky]),
-                    seed=0)
-    trials = sim.generate(n)
-    obs = [trials.observation(i, truth=False) for i in range(n)]
-    ptp.identify(db, obs[0])
-    tol, params, (narrow, wide), view = ptp.kept("kernel_call", (db, cam), lambda: None)
+    cam, ptp, db, rest, obs, (tol, params, (narrow, wide), view) = setup(n, sky)
     fr = view.frame
     tol_chord = tol.side_beta * math.sqrt(2.0) * tol.sigma_px / fr.f_px
     args = []

@@ -19,10 +19,8 @@ import sys
 import time
 
 import numpy as np
+from ptpspeed7_wrapper import setup  # benchmarks/tools
 from starid_algorithms.ptp import kernels as K
-
-from starid import SKIES, Camera, SimConfig, Simulator, load_hipparcos
-from starid.registry import available_algorithms, get_algorithm
 
 HUGE = 2 << 20
 
@@ -57,17 +55,7 @@ def code_bytes():
 
 
 def main(n: int, sky: str) -> None:
-    cat, cam = load_hipparcos(), Camera()
-    names = sorted(i.name for i in available_algorithms() if i.status == "ok")
-    ptp = get_algorithm("ptp")()
-    db = ptp.build(cat, cam)
-    rest = [(a, a.build(cat, cam)) for a in (get_algorithm(nm)() for nm in names if nm != "ptp")]
-    sim = Simulator(cat, cam, SimConfig(sigma_px=1.0, sigma_mag=0.5, mag_limit=6.0, min_stars=6, **SKIES[sky]),
-                    seed=0)
-    trials = sim.generate(n)
-    obs = [trials.observation(i, truth=False) for i in range(n)]
-    ptp.identify(db, obs[0])
-    _, params, (narrow, wide), _ = ptp.kept("kernel_call", (db, cam), lambda: None)
+    _, ptp, db, rest, obs, (_, params, (narrow, wide), _) = setup(n, sky)
     (h_narrow, h_wide), keep = huge_copy([narrow, wide])
     code = code_bytes()
     print(f"kernel module code {code.shape[0] // 1024} KB; tables {narrow.nbytes // 1024} + {wide.nbytes // 1024} KB")

@@ -52,21 +52,27 @@ def _noop_two(x_px, y_px, mag, params, narrow, wide):
     return out[:x_px.shape[0]], (np.int64(1), np.int64(2), np.int64(3), np.int64(4)), out[x_px.shape[0]:]
 
 
-def main(n: int, sky: str, seed: int) -> None:
+def setup(n: int, sky: str, seed: int = 0):
+    """What the ptpspeed7 tools share: ``(camera, ptp, its database, [(plugin, database)] of every other
+    registered plugin (by name), n of Table 6's images of ``sky``, ptp's kept kernel arguments (tolerances,
+    parameters, packed tables, view))``, ptp warmed up on the first image."""
     cat, cam = load_hipparcos(), Camera()
     names = sorted(i.name for i in available_algorithms() if i.status == "ok")
     ptp = get_algorithm("ptp")()
     db = ptp.build(cat, cam)
-    tetra = get_algorithm("tetra")()
-    tdb = tetra.build(cat, cam)
-    rest = [(a, a.build(cat, cam)) for a in (get_algorithm(nm)() for nm in names if nm not in ("ptp", "tetra"))]
-    rest.append((tetra, tdb))
+    rest = [(a, a.build(cat, cam)) for a in (get_algorithm(nm)() for nm in names if nm != "ptp")]
     sim = Simulator(cat, cam, SimConfig(sigma_px=1.0, sigma_mag=0.5, mag_limit=6.0, min_stars=6, **SKIES[sky]),
                     seed=seed)
     trials = sim.generate(n)
     obs = [trials.observation(i, truth=False) for i in range(n)]
     ptp.identify(db, obs[0])
-    tol, params, (narrow, wide), view = ptp.kept("kernel_call", (db, cam), lambda: None)
+    return cam, ptp, db, rest, obs, ptp.kept("kernel_call", (db, cam), lambda: None)
+
+
+def main(n: int, sky: str, seed: int) -> None:
+    cam, ptp, db, rest, obs, (tol, params, (narrow, wide), view) = setup(n, sky, seed)
+    tetra, tdb = next(pair for pair in rest if pair[0].name == "tetra")
+    rest = [pair for pair in rest if pair[0] is not tetra] + [(tetra, tdb)]   # tetra last: timed after the others
     kernel = K.identify_kernel
     names_w = K.WORK_NAMES
     state = {}
