@@ -14,13 +14,8 @@ this name stays for the commands quoted on docs/algorithms/ptp.md.
 
 from __future__ import annotations
 
-import sys
+import runpy
+from pathlib import Path
 
-from ptpspeed7_ab import main  # benchmarks/tools
-
-if __name__ == "__main__":
-    if len(sys.argv) not in (3, 4, 5):
-        sys.exit(__doc__)
-    sk = sys.argv[3] if len(sys.argv) >= 4 else "both"
-    main(int(sys.argv[1]), int(sys.argv[2]), ("paper", "real") if sk == "both" else (sk,),
-         sys.argv[4] if len(sys.argv) == 5 else None)
+if __name__ == "__main__":   # the same arguments and output (plus the paired difference)
+    runpy.run_path(str(Path(__file__).with_name("ptpspeed7_ab.py")), run_name="__main__")
