@@ -659,29 +659,6 @@ def reaches_budget(chars, g, v, most, tables, valid, at_most):
     return True
 
 
-@inner   # kernels call it only
-def order_by_count(chars, count_start, by_count):
-    """Guide rows ordered by their strings' character count, guide order within a count (counting sort).
-
-    Strings of ``c`` characters are ``by_count[count_start[c]:count_start[c+1]]``; ``count_start``
-    (int64, m + 2) is overwritten.
-    """
-    n_guide = chars.start.shape[0] - 1
-    for c in range(count_start.shape[0]):
-        count_start[c] = 0
-    for g in range(n_guide):
-        count_start[chars.start[g + 1] - chars.start[g] + 1] += 1
-    for c in range(1, count_start.shape[0]):
-        count_start[c] += count_start[c - 1]
-    for g in range(n_guide):
-        c = chars.start[g + 1] - chars.start[g]
-        by_count[count_start[c]] = g
-        count_start[c] += 1
-    for c in range(count_start.shape[0] - 1, 0, -1):
-        count_start[c] = count_start[c - 1]
-    count_start[0] = 0
-
-
 class ScanOrder(NamedTuple):
     """The database strings in the order of the scan, built once per database (:func:`scan_order`).
 

@@ -1,23 +1,22 @@
-"""Stage times inside the kernels of grid and lpt (issue #25 profile tables).
+"""Stage times inside grid's kernel (issue #25 profile tables).
 
 lpt_improved's kernel changed at stop 38 (its first pass without the SVD, ``assign_near``); its stages
-are in ``benchmarks/tools/lpispeed_profile.py``, and its copy here was removed.
-
-Its lpt copy (``lpt_kernel``) is the string scan as it was before the exact string tests (branch
-lptspeed2) and takes that kernel's arguments; since speed round 3 lpt's kernel takes the scan-ordered
-strings, so only grid is run here. lpt's current stages: ``lptspeed3_stages.py``.
+are in ``benchmarks/tools/lpispeed_profile.py``, and its copy here was removed. This tool's copy of
+lpt's kernel (the string scan before branch lptspeed2's exact string tests, which no longer ran
+against today's kernels) was removed at stop 45 with ``lpt.kernels.order_by_count``, which only it
+called; lpt's current stages: ``lptspeed3_stages.py``.
 
     python benchmarks/tools/lptspeed_stages.py 40 5
 
-Copies of the two ``identify_kernel`` bodies (same callees, same arguments) with the CPU cycle
+A copy of grid's ``identify_kernel`` body (same callees, same arguments) with the CPU cycle
 counter read between stages (``llvm.readcyclecounter``, converted to us against ``perf_counter``);
 Table 6's skies at 1 px / 0.5 Mv, seed 0, N images, the run of R with the smallest total kept per
-image; prints per sky and plugin the median (and mean) over images of: the kernel call from Python
+image; prints per sky the median (and mean) over images of: the kernel call from Python
 (perf_counter, dispatch included), then begin (back-projection, double mask, reference order),
 patterns (neighbours and image pattern), search (database comparison), verify (confirm of every
-candidate), select (grid: ranking the patterns whose credit reached min_score, and the reset;
+candidate), select (ranking the patterns whose credit reached min_score, and the reset;
 the copy assumes min_score > 0). Call minus the stages is numba's argument handling and the
-kernel's allocations. The copies must follow the kernels when those change.
+kernel's allocations. The copy must follow the kernel when it changes.
 """
 
 import math
@@ -29,7 +28,6 @@ from llvmlite import ir
 from numba import njit, types
 from numba.extending import intrinsic
 from starid_algorithms.grid import kernels as GK
-from starid_algorithms.lpt import kernels as LK
 from starid_algorithms.lpt_improved.planar import (
     acceptance_at,
     begin_identify,
@@ -137,122 +135,6 @@ def grid_kernel(x_px, y_px, params, patterns, cell_start, start, guide, orient, 
     return no_match(rows)
 
 
-@njit
-def lpt_kernel(x_px, y_px, params, char_sector, char_level, char_start, guides_unit, trace, st):
-    t0 = cycles()
-    sensor = LK.frame_at(params, np.int64(0))
-    acc = LK.acceptance_at(params, np.int64(5))
-    search = LK.search_at(params, np.int64(10))
-    chars = LK.Strings(char_sector, char_level, char_start)
-    n = x_px.shape[0]
-    rows, unit, usable, order = LK.begin_identify(x_px, y_px, sensor, search.double_px, trace)
-    m = search.n_sectors
-    n_guide = chars.start.shape[0] - 1
-    nbrs = np.empty(n, dtype=np.int64)
-    r_px = np.empty(n)
-    phi = np.empty(n)
-    unsolved = np.full(n, -2, dtype=np.int64)  # the roll-seeded attitudes come from no assignment
-    img = np.zeros(m, dtype=np.int64)
-    img_sector = np.empty(m, dtype=np.int64)
-    img_level = np.empty(m, dtype=np.int64)
-    img_phi = np.empty(m)
-    owner = np.empty(m, dtype=np.int64)
-    level_start = np.zeros(search.n_levels + 2, dtype=np.int64)
-    by_level = np.empty(m * (2 * search.level_tol + 1), dtype=np.int64)
-    mask = np.zeros(search.n_levels + 1, dtype=np.int64)
-    n_words = (m + 63) // 64
-    n_bits = 1
-    while (1 << n_bits) <= m:
-        n_bits += 1
-    sets = np.zeros((m + 1, n_words), dtype=np.int64)
-    planes = np.zeros((n_bits + 1, n_words), dtype=np.int64)
-    row = np.zeros(m, dtype=np.uint8)
-    n_best = search.n_candidates
-    best_item = np.empty(n_best, dtype=np.int64)  # guide row * m + shift
-    best_sc = np.empty(n_best, dtype=np.int64)
-    count_start = np.zeros(m + 2, dtype=np.int64)
-    by_count = np.empty(n_guide, dtype=np.int64)
-    ordered = False
-    t1 = cycles()
-    st[0] += t1 - t0
-    for t in range(min(search.max_refs, order.shape[0])):
-        t1 = cycles()
-        s = order[t]
-        k = LK.reference_pattern(unit, usable, x_px, y_px, s, search.cos_radius, sensor.f_px, nbrs, r_px, phi)
-        if k < 1:
-            continue
-        nz = LK.lpt_string(r_px, phi, k, search, img, owner)
-        if nz < 1:
-            continue
-        LK.count_work(trace, 0, 1)
-        q = 0
-        for j in range(m):
-            if img[j] != 0:
-                img_sector[q] = j
-                img_level[q] = img[j]
-                img_phi[q] = phi[owner[j]]
-                q += 1
-        LK.index_image(img_sector, img_level, nz, search, level_start, by_level, mask)
-        image = LK.ImageString(img_sector, img_level, nz, level_start, by_level, mask)
-        if not ordered:
-            LK.order_by_count(chars, count_start, by_count)
-            ordered = True
-        # Strings by length (character count), lengths from nz up, then from nz - 1 down: the image's own
-        # pattern is most likely among strings of about its length, and finding it first raises the
-        # bar for the rest. A database character matches at most 2 sector_tol + 1 image characters
-        # (one per sector), so a string of length c scores at most cap(c) = min(nz, (2 sector_tol + 1) c),
-        # and a whole length whose cap cannot reach the list is skipped. The order changes no result:
-        # equal ranks come only from strings of one length, which are scanned in guide order, so the
-        # list is the full scan's, ties included.
-        t2 = cycles()
-        st[1] += t2 - t1
-        spread = 2 * search.sector_tol + 1
-        first = min(nz, m)
-        found = np.int64(0)  # not a literal: one signature of keep_best
-        for step in range(m):
-            length = first + step if first + step <= m else m - step
-            lo = count_start[length]
-            hi = count_start[length + 1]
-            if lo == hi:
-                continue
-            cap = min(nz, spread * length)
-            need = search.min_score
-            if found == n_best:
-                need = LK.least_needed(best_sc[n_best - 1], length, search.min_score)
-            if need > cap:
-                continue
-            for i in range(lo, hi):
-                g = by_count[i]
-                if found == n_best:
-                    need = LK.least_needed(best_sc[n_best - 1], length, search.min_score)
-                    if need > cap:
-                        break
-                if LK.match_bound(chars, g, image) < need:
-                    continue
-                matched, sh = LK.shift_scores(chars, g, image, search, sets, planes)
-                LK.count_work(trace, 1, 1)
-                if matched < need:
-                    continue
-                found = LK.keep_best(best_sc, best_item, found, n_best, LK.rank_key(matched, length), g * m + sh)
-        t3 = cycles()
-        st[2] += t3 - t2
-        for c in range(found):
-            t3 = cycles()
-            g = best_item[c] // m
-            LK.dense_string(chars, g, row)
-            roll = LK.refined_roll(row, img_sector, img_level, img_phi, nz, best_item[c] % m, search)
-            A = LK.seed_attitude_roll(unit, s, guides_unit, g, roll)
-            ok, A = LK.confirm(unit, rows, A, guides_unit, sensor, acc, unsolved)
-            LK.count_work(trace, 2, 1)
-            st[3] += cycles() - t3
-            if ok:
-                trace[0] = s
-                trace[2] = g
-                trace[3] = (best_sc[c] + 1023) // 1024
-                return rows, A, True
-    return LK.no_match(rows)
-
-
 def calib():
     cyc()
     t0 = time.perf_counter()
@@ -277,7 +159,7 @@ def main(n, R):
         )
         tr = sim.generate(n)
         obs = [tr.observation(i, truth=False) for i in range(n)]
-        for name, kern in (("grid", grid_kernel),):   # lpt_kernel: the pre-lptspeed2 scan (see above)
+        for name, kern in (("grid", grid_kernel),):
             alg = get_algorithm(name)()
             db = alg.build(cat, cam)
             per = []
