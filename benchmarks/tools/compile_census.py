@@ -19,7 +19,7 @@ Run it on an empty cache, every plugin in one process (as ``symcall_census.py``)
   serves"), kernels and numpy / CPython implementations apart.
 
 Exclusive CPU seconds and the LLVM share come from numba's ``numba:compile`` and ``numba:llvm_lock``
-events (``symcall_census._Census``); the first plugin carries the core's kernels.
+events (``symcall_census.census_of``); the first plugin carries the core's kernels.
 """
 
 from __future__ import annotations
@@ -28,24 +28,13 @@ import json
 import sys
 from collections import defaultdict
 
-from compile_profile import prepare_listening, warmup_trials  # benchmarks/tools
-from symcall_census import _Census, _closure
+from symcall_census import _closure, census_of  # benchmarks/tools
 
 _OVERLOADS = ("np.", "cpython.", "numba.")
 
 
-def _census(names: list[str]) -> tuple[_Census, float]:
-    catalog, trials = warmup_trials()
-    census = _Census()
-    cpu_s = 0.0
-    for name in names:
-        _, c = prepare_listening(name, catalog, trials, census, ("numba:compile", "numba:llvm_lock"))
-        cpu_s += c
-    return census, cpu_s
-
-
 def callers(names: list[str], top: int = 40) -> None:
-    census, cpu_s = _census(names)
+    census, cpu_s = census_of(names)
     direct: dict = defaultdict(set)
     for lib in census.libs:
         for sub in getattr(lib, "_linking_libraries", ()):
@@ -69,7 +58,7 @@ def callers(names: list[str], top: int = 40) -> None:
 
 
 def signatures(names: list[str], top: int = 25) -> None:
-    census, cpu_s = _census(names)
+    census, cpu_s = census_of(names)
     by_name: dict = defaultdict(list)
     for info in census.libs.values():
         by_name[info["name"]].append(info)

@@ -105,13 +105,20 @@ def _insts(lib) -> int:
         return -1
 
 
-def main(names: list[str], top: int = 40, prefix: str = "") -> None:
+def census_of(names: list[str]) -> tuple[_Census, float]:
+    """``(census, cpu_s)``: the plugins ``names`` built and warmed up in this process in turn, numba's
+    compile and LLVM events recorded (also used by ``compile_census.py``)."""
     catalog, trials = warmup_trials()
     census = _Census()
     total_cpu = 0.0
     for name in names:
         _, cpu_s = prepare_listening(name, catalog, trials, census, ("numba:compile", "numba:llvm_lock"))
         total_cpu += cpu_s
+    return census, total_cpu
+
+
+def main(names: list[str], top: int = 40, prefix: str = "") -> None:
+    census, total_cpu = census_of(names)
     memo: dict = {}
     linkers: dict = defaultdict(int)
     for lib in census.libs:
