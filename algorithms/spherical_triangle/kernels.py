@@ -57,6 +57,26 @@ def _share_two(stars, p, q):
 WORK_NAMES = ("trios", "queries", "first_R", "first_named", "first_in_R", "to_r")
 
 
+@kernel
+def identified_hip(guide_hip, rows, work):
+    """What ``identify`` reports after a kernel: the catalog ids of ``rows`` (-1 stays -1, as ``hip_of``),
+    whether any star is identified, and ``work[5]`` (``to_r``) set to every query made (``work[1]``) when
+    none left one candidate. One compiled call for what cost ``hip_of`` and ``rows.max`` in Python."""
+    n = rows.shape[0]
+    hip = np.empty(n, dtype=np.int64)
+    found = False
+    for q in range(n):
+        r = rows[q]
+        if r >= 0:
+            hip[q] = guide_hip[r]
+            found = True
+        else:
+            hip[q] = -1
+    if work[5] == 0:
+        work[5] = work[1]
+    return hip, found
+
+
 @inner   # kernels call it only
 def first_query_check(work, rows, first_trio, first_cand, stars):
     """``work[3]`` / ``work[4]``: whether ``rows`` names the three stars of the first queried trio, and
