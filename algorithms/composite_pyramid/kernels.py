@@ -11,7 +11,7 @@ from typing import NamedTuple
 
 import numpy as np
 from starid_algorithms.pyramid.kernels import select_stars
-from starid_algorithms.spherical_triangle.kernels import WORK_NAMES, first_query_check
+from starid_algorithms.spherical_triangle.kernels import N_FRAME, WORK_NAMES, first_query_check, params_frame
 
 from starid.kernels import backproject_px, wahba_rows
 from starid.kernels.jit import inner, kernel
@@ -222,3 +222,20 @@ def fourth_star(stars, hits, counts, cat, buf):
     """:func:`_fourth_star` from Python (tests and tools); the kernels call that one, so this entry point
     is compiled only when Python calls it."""
     return _fourth_star(stars, hits, counts, cat, buf)
+
+
+@inner   # kernels call it only
+def params_com(p):
+    """The :class:`ComTol` of a ``packed_params`` array (spherical_triangle's kernels; the types of the
+    tuple made in Python: int64, float64, bool)."""
+    q = p[N_FRAME:]
+    return ComTol(np.int64(q[0]), np.int64(q[1]), q[2], q[3], q[4], q[5], q[6], np.int64(q[7]), q[8] != 0.0,
+                  np.int64(q[9]), q[10], q[11] != 0.0, q[12], q[13], np.int64(q[14]), q[15], np.int64(q[16]),
+                  q[17], np.int64(q[18]), q[19] != 0.0, np.int64(q[20]))
+
+
+@kernel
+def composite_packed(x_px, y_px, mag, index, guide_unit, params):
+    """:func:`composite_kernel` with its tolerances and camera frame as one ``packed_params`` array (what
+    ``CompositePyramid`` calls: the named tuples are rebuilt here, not unboxed by the dispatch)."""
+    return composite_kernel(x_px, y_px, mag, index, guide_unit, params_com(params), params_frame(params))

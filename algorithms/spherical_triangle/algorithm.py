@@ -13,13 +13,13 @@ from starid_algorithms.pyramid.algorithm import d_min_for
 
 from starid.camera import Camera
 from starid.catalog import Catalog
-from starid.kernels import Frame, camera_frame, rad_to_chord
+from starid.kernels import camera_frame, rad_to_chord
 from starid.kernels.triangles import SPHERICAL, TriangleIndex, guide_triangles
 from starid.observation import Observation
 from starid.params import check_flag, check_number, check_whole, param
 from starid.plugin import Algorithm, Database, Explanation, Identification
 
-from .kernels import WORK_NAMES, SphTol, identified_hip, spherical_kernel
+from .kernels import WORK_NAMES, SphTol, identified_hip, packed_params, spherical_packed
 
 #: centroid-noise floor of the windows (px): a noise-free world still gets a window
 SIGMA_FLOOR_PX = 1.0
@@ -248,16 +248,16 @@ class SphericalTriangle(Algorithm):
         return SphTol(kind=self.kind, depth=int(self.moment_depth), pivot=bool(self.pivot),
                       unique=bool(self.unique_candidate), **common_tolerances(self, camera, database))
 
-    def kernel_args(self, database: TriangleDatabase, camera: Camera) -> tuple[SphTol, Frame]:
-        """The kernel's tolerances and camera frame for one (database, camera), built once and kept by
-        identity (:meth:`~starid.plugin.Algorithm.kept`) rather than per image (some 7-9 us a call)."""
+    def kernel_args(self, database: TriangleDatabase, camera: Camera) -> np.ndarray:
+        """The kernel's tolerances and camera frame for one (database, camera) as one float64 array
+        (``packed_params``), built once and kept by identity (:meth:`~starid.plugin.Algorithm.kept`) rather
+        than per image (the tolerances and frame cost some 7-9 us a call, their unboxing some 5 us)."""
         return self.kept("kernel_args", (database, camera),
-                         lambda: (self.tolerances(camera, database), camera_frame(camera)))
+                         lambda: packed_params(self.tolerances(camera, database), camera_frame(camera)))
 
     def _run(self, database: TriangleDatabase, observation: Observation):
-        tol, frame = self.kernel_args(database, observation.camera)
-        return spherical_kernel(observation.x_px, observation.y_px, observation.mag, database.index,
-                                database.guide_unit, tol, frame)
+        return spherical_packed(observation.x_px, observation.y_px, observation.mag, database.index,
+                                database.guide_unit, self.kernel_args(database, observation.camera))
 
     def identify(self, database: TriangleDatabase, observation: Observation) -> Identification:
         rows, attitude, _, work = self._run(database, observation)
