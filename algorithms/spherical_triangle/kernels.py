@@ -102,9 +102,17 @@ def first_query_check(work, rows, first_trio, first_cand, stars):
             return
 
 
-@kernel
 def spherical_kernel(x_px, y_px, mag, index, guide_unit, tol, cam):
-    """Identify one image. Returns ``(rows, attitude, trio, work)``; ``work``: the counters
+    """:func:`spherical_packed` with the tolerances and camera frame as named tuples (tests,
+    tools; not compiled): packs them (``packed_params``) and calls it, the same results."""
+    return spherical_packed(x_px, y_px, mag, index, guide_unit, packed_params(tol, cam))
+
+
+@kernel
+def spherical_packed(x_px, y_px, mag, index, guide_unit, params):
+    """Identify one image; ``params``: the tolerances and camera frame as one float64 array
+    (``packed_params``, rebuilt here: numba's dispatch unboxes a named tuple field by field).
+    Returns ``(rows, attitude, trio, work)``; ``work``: the counters
     :data:`WORK_NAMES` -- image trios tried, (area, moment) queries made (pivots included), and the
     first query step's (the three brightest selected stars'): |R| (0 when the window was skipped),
     whether the identification names its stars, whether R holds the catalog triangle it names them as;
@@ -120,6 +128,8 @@ def spherical_kernel(x_px, y_px, mag, index, guide_unit, tol, cam):
     5. the direct-match test (``trio_confirm``) of each candidate; the trio is accepted when exactly
        one stands (``unique``: only with |R| = 1).
     """
+    tol = params_sph(params)
+    cam = params_frame(params)
     n = x_px.shape[0]
     rows = np.full(n, -1, dtype=np.int64)
     trio_out = np.full(3, -1, dtype=np.int64)
@@ -234,9 +244,3 @@ def params_sph(p):
                   np.int64(q[9]), q[10], q[11] != 0.0, q[12], q[13], np.int64(q[14]), q[15], np.int64(q[16]),
                   q[17], np.int64(q[18]), q[19] != 0.0, q[20] != 0.0)
 
-
-@kernel
-def spherical_packed(x_px, y_px, mag, index, guide_unit, params):
-    """:func:`spherical_kernel` with its tolerances and camera frame as one :func:`packed_params` array
-    (what ``SphericalTriangle`` calls: the named tuples are rebuilt here, not unboxed by the dispatch)."""
-    return spherical_kernel(x_px, y_px, mag, index, guide_unit, params_sph(params), params_frame(params))
