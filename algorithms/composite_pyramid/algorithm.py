@@ -6,16 +6,16 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import ClassVar
 
+import numpy as np
 from starid_algorithms.spherical_triangle.algorithm import (
     TriangleDatabase,
     build_triangle_database,
     check_triangle_params,
     common_tolerances,
     derive_triangle_params,
-    hip_of,
     triangle_explanation,
 )
-from starid_algorithms.spherical_triangle.kernels import WORK_NAMES
+from starid_algorithms.spherical_triangle.kernels import WORK_NAMES, identified_hip, packed_params
 
 from starid.camera import Camera
 from starid.catalog import Catalog
@@ -25,7 +25,7 @@ from starid.observation import Observation
 from starid.params import check_whole, param
 from starid.plugin import Algorithm, Explanation, Identification
 
-from .kernels import ComTol, composite_kernel
+from .kernels import ComTol, composite_packed
 
 #: Galvizo & Lim's reading (hoku at commit 0cb340e): fixed query sigmas 1e-9 on planar area and moment
 #: (their section V-B), SQL LIMIT 500, |R| = 1, one fourth star, the direct-match test without side check
@@ -119,16 +119,21 @@ class CompositePyramid(Algorithm):
         return ComTol(kind=PLANAR, depth=1, unique=bool(self.unique_candidate), fourth_tries=int(self.fourth_tries),
                       **common_tolerances(self, camera, database))
 
+    def kernel_args(self, database: TriangleDatabase, camera: Camera) -> np.ndarray:
+        """The kernel's tolerances and camera frame for one (database, camera) as one float64 array
+        (``packed_params``), built once and kept by identity (:meth:`~starid.plugin.Algorithm.kept`) rather
+        than per image (the tolerances and frame cost some 7-9 us a call, their unboxing some 5 us)."""
+        return self.kept("kernel_args", (database, camera),
+                         lambda: packed_params(self.tolerances(camera, database), camera_frame(camera)))
+
     def _run(self, database: TriangleDatabase, observation: Observation):
-        cam = observation.camera
-        return composite_kernel(observation.x_px, observation.y_px, observation.mag, database.index,
-                                database.guide_unit, self.tolerances(cam, database), camera_frame(cam))
+        return composite_packed(observation.x_px, observation.y_px, observation.mag, database.index,
+                                database.guide_unit, self.kernel_args(database, observation.camera))
 
     def identify(self, database: TriangleDatabase, observation: Observation) -> Identification:
         rows, attitude, _, work = self._run(database, observation)
-        work[5] = work[5] or work[1]  # to_r: every query made when none left one candidate
-        found = rows.max(initial=-1) >= 0
-        return Identification(hip_of(database, rows), attitude if found else None,
+        hip, found = identified_hip(database.guide_hip, rows, work)   # to_r: every query made when none left one
+        return Identification(hip, attitude if found else None,
                               counters=dict(zip(WORK_NAMES, work.tolist(), strict=True)))
 
     def explain(self, database: TriangleDatabase, observation: Observation) -> Explanation:

@@ -11,7 +11,13 @@ from typing import NamedTuple
 
 import numpy as np
 from starid_algorithms.pyramid.kernels import select_stars
-from starid_algorithms.spherical_triangle.kernels import WORK_NAMES, first_query_check
+from starid_algorithms.spherical_triangle.kernels import (
+    N_FRAME,
+    WORK_NAMES,
+    first_query_check,
+    packed_params,
+    params_frame,
+)
 
 from starid.kernels import backproject_px, wahba_rows
 from starid.kernels.jit import inner, kernel
@@ -100,9 +106,17 @@ def _fourth_star(stars, hits, counts, cat, buf):
     return found if n == 1 else -1
 
 
-@kernel
 def composite_kernel(x_px, y_px, mag, index, guide_unit, tol, cam):
-    """Identify one image. Returns ``(rows, attitude, stars4, work)`` (``stars4``: the trio and the
+    """:func:`composite_packed` with the tolerances and camera frame as named tuples (tests,
+    tools; not compiled): packs them (``packed_params``) and calls it, the same results."""
+    return composite_packed(x_px, y_px, mag, index, guide_unit, packed_params(tol, cam))
+
+
+@kernel
+def composite_packed(x_px, y_px, mag, index, guide_unit, params):
+    """Identify one image; ``params``: the tolerances and camera frame as one float64 array
+    (``packed_params``, rebuilt here: numba's dispatch unboxes a named tuple field by field).
+    Returns ``(rows, attitude, stars4, work)`` (``stars4``: the trio and the
     fourth star of the accepted identification, -1 when none; ``work``: the spherical triangle's
     counters ``WORK_NAMES`` -- trios tried, (area, moment) queries made (fourth-star queries included),
     and the first query step's (the three brightest selected stars') |R|, whether the identification
@@ -119,6 +133,8 @@ def composite_kernel(x_px, y_px, mag, index, guide_unit, tol, cam):
        one catalog star completes all three (:func:`fourth_star`). The trio is accepted when exactly one
        candidate passes both (the paper runs 5 before 4; the conjunction is the same, 4 is cheaper).
     """
+    tol = params_com(params)
+    cam = params_frame(params)
     n = x_px.shape[0]
     rows = np.full(n, -1, dtype=np.int64)
     out4 = np.full(4, -1, dtype=np.int64)
@@ -222,3 +238,14 @@ def fourth_star(stars, hits, counts, cat, buf):
     """:func:`_fourth_star` from Python (tests and tools); the kernels call that one, so this entry point
     is compiled only when Python calls it."""
     return _fourth_star(stars, hits, counts, cat, buf)
+
+
+@inner   # kernels call it only
+def params_com(p):
+    """The :class:`ComTol` of a ``packed_params`` array (spherical_triangle's kernels; the types of the
+    tuple made in Python: int64, float64, bool)."""
+    q = p[N_FRAME:]
+    return ComTol(np.int64(q[0]), np.int64(q[1]), q[2], q[3], q[4], q[5], q[6], np.int64(q[7]), q[8] != 0.0,
+                  np.int64(q[9]), q[10], q[11] != 0.0, q[12], q[13], np.int64(q[14]), q[15], np.int64(q[16]),
+                  q[17], np.int64(q[18]), q[19] != 0.0, np.int64(q[20]))
+

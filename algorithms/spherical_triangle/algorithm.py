@@ -19,7 +19,7 @@ from starid.observation import Observation
 from starid.params import check_flag, check_number, check_whole, param
 from starid.plugin import Algorithm, Database, Explanation, Identification
 
-from .kernels import WORK_NAMES, SphTol, spherical_kernel
+from .kernels import WORK_NAMES, SphTol, identified_hip, packed_params, spherical_packed
 
 #: centroid-noise floor of the windows (px): a noise-free world still gets a window
 SIGMA_FLOOR_PX = 1.0
@@ -248,16 +248,21 @@ class SphericalTriangle(Algorithm):
         return SphTol(kind=self.kind, depth=int(self.moment_depth), pivot=bool(self.pivot),
                       unique=bool(self.unique_candidate), **common_tolerances(self, camera, database))
 
+    def kernel_args(self, database: TriangleDatabase, camera: Camera) -> np.ndarray:
+        """The kernel's tolerances and camera frame for one (database, camera) as one float64 array
+        (``packed_params``), built once and kept by identity (:meth:`~starid.plugin.Algorithm.kept`) rather
+        than per image (the tolerances and frame cost some 7-9 us a call, their unboxing some 5 us)."""
+        return self.kept("kernel_args", (database, camera),
+                         lambda: packed_params(self.tolerances(camera, database), camera_frame(camera)))
+
     def _run(self, database: TriangleDatabase, observation: Observation):
-        cam = observation.camera
-        return spherical_kernel(observation.x_px, observation.y_px, observation.mag, database.index,
-                                database.guide_unit, self.tolerances(cam, database), camera_frame(cam))
+        return spherical_packed(observation.x_px, observation.y_px, observation.mag, database.index,
+                                database.guide_unit, self.kernel_args(database, observation.camera))
 
     def identify(self, database: TriangleDatabase, observation: Observation) -> Identification:
         rows, attitude, _, work = self._run(database, observation)
-        work[5] = work[5] or work[1]  # to_r: every query made when none left one candidate
-        found = rows.max(initial=-1) >= 0
-        return Identification(hip_of(database, rows), attitude if found else None,
+        hip, found = identified_hip(database.guide_hip, rows, work)   # to_r: every query made when none left one
+        return Identification(hip, attitude if found else None,
                               counters=dict(zip(WORK_NAMES, work.tolist(), strict=True)))
 
     def explain(self, database: TriangleDatabase, observation: Observation) -> Explanation:

@@ -11,8 +11,9 @@ from typing import NamedTuple
 import numpy as np
 from starid_algorithms.pyramid.kernels import select_stars
 
-from starid.kernels import backproject_px, wahba_rows
+from starid.kernels import Frame, backproject_px, wahba_rows
 from starid.kernels.jit import inner, kernel
+from starid.kernels.params import exact_float64
 from starid.kernels.triangles import trio_confirm, trio_query
 
 
@@ -57,6 +58,26 @@ def _share_two(stars, p, q):
 WORK_NAMES = ("trios", "queries", "first_R", "first_named", "first_in_R", "to_r")
 
 
+@kernel
+def identified_hip(guide_hip, rows, work):
+    """What ``identify`` reports after a kernel: the catalog ids of ``rows`` (-1 stays -1, as ``hip_of``),
+    whether any star is identified, and ``work[5]`` (``to_r``) set to every query made (``work[1]``) when
+    none left one candidate. One compiled call for what cost ``hip_of`` and ``rows.max`` in Python."""
+    n = rows.shape[0]
+    hip = np.empty(n, dtype=np.int64)
+    found = False
+    for q in range(n):
+        r = rows[q]
+        if r >= 0:
+            hip[q] = guide_hip[r]
+            found = True
+        else:
+            hip[q] = -1
+    if work[5] == 0:
+        work[5] = work[1]
+    return hip, found
+
+
 @inner   # kernels call it only
 def first_query_check(work, rows, first_trio, first_cand, stars):
     """``work[3]`` / ``work[4]``: whether ``rows`` names the three stars of the first queried trio, and
@@ -81,9 +102,17 @@ def first_query_check(work, rows, first_trio, first_cand, stars):
             return
 
 
-@kernel
 def spherical_kernel(x_px, y_px, mag, index, guide_unit, tol, cam):
-    """Identify one image. Returns ``(rows, attitude, trio, work)``; ``work``: the counters
+    """:func:`spherical_packed` with the tolerances and camera frame as named tuples (tests,
+    tools; not compiled): packs them (``packed_params``) and calls it, the same results."""
+    return spherical_packed(x_px, y_px, mag, index, guide_unit, packed_params(tol, cam))
+
+
+@kernel
+def spherical_packed(x_px, y_px, mag, index, guide_unit, params):
+    """Identify one image; ``params``: the tolerances and camera frame as one float64 array
+    (``packed_params``, rebuilt here: numba's dispatch unboxes a named tuple field by field).
+    Returns ``(rows, attitude, trio, work)``; ``work``: the counters
     :data:`WORK_NAMES` -- image trios tried, (area, moment) queries made (pivots included), and the
     first query step's (the three brightest selected stars'): |R| (0 when the window was skipped),
     whether the identification names its stars, whether R holds the catalog triangle it names them as;
@@ -99,6 +128,8 @@ def spherical_kernel(x_px, y_px, mag, index, guide_unit, tol, cam):
     5. the direct-match test (``trio_confirm``) of each candidate; the trio is accepted when exactly
        one stands (``unique``: only with |R| = 1).
     """
+    tol = params_sph(params)
+    cam = params_frame(params)
     n = x_px.shape[0]
     rows = np.full(n, -1, dtype=np.int64)
     trio_out = np.full(3, -1, dtype=np.int64)
@@ -183,3 +214,33 @@ def spherical_kernel(x_px, y_px, mag, index, guide_unit, tol, cam):
                 rows[:] = -1
                 trio_out[:] = -1
     return rows, np.zeros((3, 3)), trio_out, work
+
+
+#: values of the camera frame at the head of a :func:`packed_params` array
+N_FRAME = 5
+
+
+def packed_params(tol, frame: Frame) -> np.ndarray:
+    """``frame`` then ``tol`` (a :class:`SphTol`, or composite_pyramid's ``ComTol``) as one float64 array,
+    the argument of :func:`spherical_packed` / ``composite_packed``: numba's dispatch unboxes a named tuple
+    field by field, an array at once (about 5 us of every call for the two tuples, measured at stop 45).
+    Every value is exact in float64 (``exact_float64``); the kernels rebuild the same numbers, ints and
+    bools (:func:`params_frame`, :func:`params_sph`)."""
+    return exact_float64([*frame, *tol], "triangle kernels' parameters")
+
+
+@inner   # kernels call it only
+def params_frame(p):
+    """The :class:`~starid.kernels.Frame` of a :func:`packed_params` array."""
+    return Frame(p[0], p[1], p[2], p[3], p[4])
+
+
+@inner   # kernels call it only
+def params_sph(p):
+    """The :class:`SphTol` of a :func:`packed_params` array (the types of the tuple made in Python: int64,
+    float64, bool)."""
+    q = p[N_FRAME:]
+    return SphTol(np.int64(q[0]), np.int64(q[1]), q[2], q[3], q[4], q[5], q[6], np.int64(q[7]), q[8] != 0.0,
+                  np.int64(q[9]), q[10], q[11] != 0.0, q[12], q[13], np.int64(q[14]), q[15], np.int64(q[16]),
+                  q[17], np.int64(q[18]), q[19] != 0.0, q[20] != 0.0)
+
