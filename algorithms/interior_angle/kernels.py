@@ -14,11 +14,11 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from starid_algorithms.angle.kernels import _confirm_pattern
+from starid_algorithms.angle.kernels import _confirm_pattern, ids_attitude
 from starid_algorithms.pyramid.kernels import _neighbours_within, select_stars, triple
 
 from starid.kernels import backproject_px, chord_rows, kvector_query
-from starid.kernels.jit import inner, kernel
+from starid.kernels.jit import inline_inner, inner, kernel
 
 #: numba: float() of a float32 stays a float32; np.float64 casts (one signature for image and catalog)
 f64 = np.float64
@@ -219,12 +219,32 @@ def _remember(pat_star, pat_row, failed, n_failed):
     return n_failed + 1
 
 
-#: the work counters of :func:`interior_kernel`, in the order of its ``work`` array
+#: the work counters of :func:`_interior_image`, in the order of its ``work`` array
 WORK_NAMES = ("centres", "queries", "candidates", "confirms", "first_R", "first_named", "first_in_R")
 
 
 @kernel
+def identify_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_unit, guide_hip, tol, cam):
+    """:func:`_interior_image`, then what ``identify`` reports. Returns ``(rows, trio, work, hip, attitude, found)``.
+
+    ``hip``, ``attitude`` and ``found`` as angle's ``identify_kernel`` (:func:`ids_attitude`: the catalog
+    ids, and the attitude from every identified detection that the Python wrapper computed after the
+    kernel until stop 45). ``InteriorAngle.identify`` and ``explain`` call this one kernel.
+    """
+    rows, trio, work = _interior_image(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_unit, tol, cam)
+    hip, attitude, found = ids_attitude(x_px, y_px, cam, rows, guide_unit, guide_hip)
+    return rows, trio, work, hip, attitude, found
+
+
+@kernel
 def interior_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_unit, tol, cam):
+    """:func:`_interior_image` from Python (tests and tools); the plugin calls :func:`identify_kernel`, so
+    this entry point is compiled only when Python calls it."""
+    return _interior_image(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_unit, tol, cam)
+
+
+@inline_inner   # inlined into identify_kernel and interior_kernel
+def _interior_image(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_unit, tol, cam):
     """The interior-angle method on one image. Returns ``(rows, trio, work)``.
 
     ``work`` holds the counters :data:`WORK_NAMES`: central stars tried, trio queries made (one per
