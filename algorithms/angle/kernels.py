@@ -11,7 +11,7 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from starid_algorithms.pyramid.kernels import _adjacency, _hip, _neighbours_within, pair_windows, select_stars, triple
+from starid_algorithms.pyramid.kernels import _adjacency, _neighbours_within, pair_windows, select_stars, triple
 
 from starid.kernels import backproject_px, chord_rows, reproject_assign, wahba_rows
 from starid.kernels.jit import inline_inner, inner, kernel
@@ -138,53 +138,46 @@ def _confirm_pattern(v_cam, pat_star, pat_row, guide_unit, c_fov, eps, widen, ca
     return True
 
 
-#: the work counters of :func:`_angle_image`, in the order of its ``work`` array
+#: the work counters of :func:`identify_kernel`, in the order of its ``work`` array
 WORK_NAMES = ("pairs", "windows", "candidates", "tests", "confirms", "first_R", "first_named", "first_in_R", "to_r")
 
 
 @kernel
-def identify_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_unit, guide_hip, tol, cam):
-    """:func:`_angle_image`, then what ``identify`` reports. Returns ``(rows, pair, work, hip, attitude, found)``.
-
-    ``hip[s]`` is the catalog id of detection ``s`` (``guide_hip[rows[s]]``, -1 = none); ``found``
-    whether any detection is identified, and then ``attitude`` is the ICRS -> camera rotation of
-    every identified detection (``wahba_rows`` on ``backproject_px`` of all detections: the
-    arithmetic the Python wrapper did after the kernel until stop 45; zeros when nothing is found).
-    ``Angle.identify`` and ``explain`` call this one kernel (issue #25: the ids and the attitude
-    were three numba calls and numpy from Python, 7.6 us of 51 per image).
-    """
-    rows, pair, work = _angle_image(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_unit, tol, cam)
-    hip, attitude, found = ids_attitude(x_px, y_px, cam, rows, guide_unit, guide_hip)
-    return rows, pair, work, hip, attitude, found
+def angle_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_unit, tol, cam):
+    """:func:`identify_kernel`'s ``(rows, pair, work)`` from Python (tests and tools: the arguments
+    ``angle_kernel`` took before stop 45); the plugin calls :func:`identify_kernel`, so this entry
+    point is compiled only when Python calls it."""
+    no_hip = np.zeros(guide_unit.shape[0], dtype=np.int64)
+    rows, pair, work, _, _, _ = identify_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_unit,
+                                                no_hip, tol, cam)
+    return rows, pair, work
 
 
-@inline_inner   # inlined into the kernels that call it (identify_kernel and interior's)
+@inline_inner   # inlined into the kernels that call it (angle's and interior_angle's identify_kernel)
 def ids_attitude(x_px, y_px, cam, rows, guide_unit, guide_hip):
     """``(hip, attitude, found)`` of a kernel's ``rows``: catalog ids (-1 = none), whether any
     detection is identified, and then the attitude from all of them (``wahba_rows`` on the
-    back-projection of every detection; zeros when none is)."""
-    hip = _hip(rows, guide_hip)
+    back-projection of every detection, the arithmetic the Python wrappers ran after the kernel
+    until stop 45; zeros when none is)."""
+    hip = rows.copy()       # not pyramid's _hip: its np.full under inner's flags costs 0.14 CPU s cold
     found = False
     for s in range(rows.shape[0]):
         if rows[s] >= 0:
+            hip[s] = guide_hip[rows[s]]
             found = True
-            break
+        else:
+            hip[s] = -1
     if not found:
         return hip, np.zeros((3, 3)), False
     v = backproject_px(x_px, y_px, cam.f_px, cam.cx_px, cam.cy_px)
     return hip, wahba_rows(v, rows, guide_unit), True
 
 
+# The search's body is here, not in an inline function that this kernel and angle_kernel share: one more
+# level of inlining (numba IR) cost 0.45 CPU s of cold compile (2.71 against 2.24 s for the kernel itself).
 @kernel
-def angle_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_unit, tol, cam):
-    """:func:`_angle_image` from Python (tests and tools); the plugin calls :func:`identify_kernel`, so
-    this entry point is compiled only when Python calls it."""
-    return _angle_image(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_unit, tol, cam)
-
-
-@inline_inner   # inlined into identify_kernel and angle_kernel
-def _angle_image(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_unit, tol, cam):
-    """The angle method on one image. Returns ``(rows, pair, work)``.
+def identify_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_unit, guide_hip, tol, cam):
+    """The angle method on one image. Returns ``(rows, pair, work, hip, attitude, found)``.
 
     ``rows[s]`` is the guide row of detection ``s`` (-1 = none); ``pair`` the two detections of the
     accepted pairing (-1 when none); ``work`` the counters :data:`WORK_NAMES`: image pairs examined,
@@ -194,6 +187,9 @@ def _angle_image(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_un
     names both stars, and whether R holds the catalog pair it names them as; and ``to_r``, the image
     pairs (in the order of step 2) up to the first whose window holds exactly one catalog pair (all of
     them when none does): hoku's reduction step, its count of catalog accesses to obtain r.
+    ``hip``, ``attitude`` and ``found`` are :func:`ids_attitude`'s: what ``Angle.identify`` reports,
+    so that it and ``explain`` make one numba call (issue #25, stop 45: the ids and the attitude were
+    three numba calls and numpy from Python, 7.6 of 51 us per image).
 
     1. isolated detections, brightest first, at most ``tol.max_stars``;
     2. image pairs in hoku's order ``for i: for j > i``, at most ``tol.max_pairs``;
@@ -207,7 +203,8 @@ def _angle_image(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_un
     n = x_px.shape[0]
     work = np.zeros(len(WORK_NAMES), dtype=np.int64)
     if n < 2:
-        return np.full(n, -1, dtype=np.int64), np.full(2, -1, dtype=np.int64), work
+        rows = np.full(n, -1, dtype=np.int64)
+        return rows, np.full(2, -1, dtype=np.int64), work, rows.copy(), np.zeros((3, 3)), False
     v_cam = backproject_px(x_px, y_px, cam.f_px, cam.cx_px, cam.cy_px)
     sel = select_stars(x_px, y_px, mag, v_cam, tol.d_min, tol.max_stars)
     m = sel.shape[0]
@@ -226,7 +223,8 @@ def _angle_image(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_un
                 if (pairs[p, 0] == r0 and pairs[p, 1] == r1) or (pairs[p, 0] == r1 and pairs[p, 1] == r0):
                     work[7] = 1
                     break
-    return rows, pair, work
+    hip, attitude, found = ids_attitude(x_px, y_px, cam, rows, guide_unit, guide_hip)
+    return rows, pair, work, hip, attitude, found
 
 
 @inner   # kernels call it only
@@ -342,13 +340,12 @@ def _keep(store, n_store, tri, count):
     return store
 
 
-# inlined (numba IR) into _angle_image, its one caller (itself inlined into the entry kernels): one level
-# less whose module re-optimises and re-emits support, confirm_pattern and the core's Wahba and reprojection
-# (the plugin's kernels cold, core warm: 7.5-7.7 -> 7.0-7.2 CPU s). confirm_pattern inlined too (two call
-# sites) cost 0.8 s more.
+# inlined (numba IR) into identify_kernel, its one caller: one level less whose module re-optimises and re-emits
+# support, confirm_pattern and the core's Wahba and reprojection (the plugin's kernels cold, core warm:
+# 7.5-7.7 -> 7.0-7.2 CPU s). confirm_pattern inlined too (two call sites) cost 0.8 s more.
 @inline_inner
 def _search(v_cam, sel, start, stop, pairs, nbr, nbr_chord, nbr_start, guide_unit, tol, cam, work):
-    """Steps 2-5 of :func:`_angle_image`; returns ``(rows, pair)`` and adds to ``work``."""
+    """Steps 2-5 of :func:`identify_kernel`; returns ``(rows, pair)`` and adds to ``work``."""
     n = v_cam.shape[0]
     rows = np.full(n, -1, dtype=np.int64)
     pair = np.full(2, -1, dtype=np.int64)

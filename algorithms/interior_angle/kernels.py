@@ -18,7 +18,7 @@ from starid_algorithms.angle.kernels import _confirm_pattern, ids_attitude
 from starid_algorithms.pyramid.kernels import _neighbours_within, select_stars, triple
 
 from starid.kernels import backproject_px, chord_rows, kvector_query
-from starid.kernels.jit import inline_inner, inner, kernel
+from starid.kernels.jit import inner, kernel
 
 #: numba: float() of a float32 stays a float32; np.float64 casts (one signature for image and catalog)
 f64 = np.float64
@@ -219,39 +219,35 @@ def _remember(pat_star, pat_row, failed, n_failed):
     return n_failed + 1
 
 
-#: the work counters of :func:`_interior_image`, in the order of its ``work`` array
+#: the work counters of :func:`identify_kernel`, in the order of its ``work`` array
 WORK_NAMES = ("centres", "queries", "candidates", "confirms", "first_R", "first_named", "first_in_R")
 
 
 @kernel
-def identify_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_unit, guide_hip, tol, cam):
-    """:func:`_interior_image`, then what ``identify`` reports. Returns ``(rows, trio, work, hip, attitude, found)``.
-
-    ``hip``, ``attitude`` and ``found`` as angle's ``identify_kernel`` (:func:`ids_attitude`: the catalog
-    ids, and the attitude from every identified detection that the Python wrapper computed after the
-    kernel until stop 45). ``InteriorAngle.identify`` and ``explain`` call this one kernel.
-    """
-    rows, trio, work = _interior_image(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_unit, tol, cam)
-    hip, attitude, found = ids_attitude(x_px, y_px, cam, rows, guide_unit, guide_hip)
-    return rows, trio, work, hip, attitude, found
-
-
-@kernel
 def interior_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_unit, tol, cam):
-    """:func:`_interior_image` from Python (tests and tools); the plugin calls :func:`identify_kernel`, so
-    this entry point is compiled only when Python calls it."""
-    return _interior_image(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_unit, tol, cam)
+    """:func:`identify_kernel`'s ``(rows, trio, work)`` from Python (tests and tools: the arguments
+    ``interior_kernel`` took before stop 45); the plugin calls :func:`identify_kernel`, so this entry
+    point is compiled only when Python calls it."""
+    no_hip = np.zeros(guide_unit.shape[0], dtype=np.int64)
+    rows, trio, work, _, _, _ = identify_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_unit,
+                                                no_hip, tol, cam)
+    return rows, trio, work
 
 
-@inline_inner   # inlined into identify_kernel and interior_kernel
-def _interior_image(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_unit, tol, cam):
-    """The interior-angle method on one image. Returns ``(rows, trio, work)``.
+# The search's body is here, not in an inline function that this kernel and interior_kernel share: as in
+# angle's identify_kernel, one more level of inlining costs cold-compile CPU.
+@kernel
+def identify_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_unit, guide_hip, tol, cam):
+    """The interior-angle method on one image. Returns ``(rows, trio, work, hip, attitude, found)``.
 
     ``work`` holds the counters :data:`WORK_NAMES`: central stars tried, trio queries made (one per
     central star), catalog trios the queries returned (a query over ``tol.max_candidates`` counts
     ``max_candidates + 1``, an unusable window 0), attitude confirmations, and the first query
     step's (the brightest star as the centre): |R| (same caps), whether the identification names its
-    three stars, and whether R holds the catalog trio it names them as.
+    three stars, and whether R holds the catalog trio it names them as. ``hip``, ``attitude`` and
+    ``found`` are angle's :func:`~starid_algorithms.angle.kernels.ids_attitude`: the catalog ids, and
+    the attitude from every identified detection, that the Python wrapper computed after the kernel
+    until stop 45; ``InteriorAngle.identify`` and ``explain`` make this one numba call.
 
     1. isolated detections, brightest first, at most ``tol.max_stars``;
     2. each in turn is the central star (at most ``tol.max_centres``), with its two nearest
@@ -264,12 +260,12 @@ def _interior_image(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide
     trio = np.full(3, -1, dtype=np.int64)
     work = np.zeros(len(WORK_NAMES), dtype=np.int64)
     if n < 3:
-        return rows, trio, work
+        return rows, trio, work, rows.copy(), np.zeros((3, 3)), False
     v_cam = backproject_px(x_px, y_px, cam.f_px, cam.cx_px, cam.cy_px)
     sel = select_stars(x_px, y_px, mag, v_cam, tol.d_min, tol.max_stars)
     m = sel.shape[0]
     if m < 3:
-        return rows, trio, work
+        return rows, trio, work, rows.copy(), np.zeros((3, 3)), False
     out = np.empty((max(tol.max_candidates, 1), 3), dtype=np.int64)
     first = np.empty_like(out)
     first_star = np.full(3, -1, dtype=np.int64)
@@ -322,7 +318,7 @@ def _interior_image(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide
             break
     if not found:
         rows[:] = -1
-        return rows, trio, work
+        return rows, trio, work, rows.copy(), np.zeros((3, 3)), False
     if first_star[0] >= 0 and rows[first_star[0]] >= 0 and rows[first_star[1]] >= 0 and rows[first_star[2]] >= 0:
         work[5] = 1
         for t in range(min(work[4], first.shape[0])):
@@ -330,7 +326,8 @@ def _interior_image(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide
                     and first[t, 2] == rows[first_star[2]]:
                 work[6] = 1
                 break
-    return rows, trio, work
+    hip, attitude, found = ids_attitude(x_px, y_px, cam, rows, guide_unit, guide_hip)
+    return rows, trio, work, hip, attitude, found
 
 
 @kernel

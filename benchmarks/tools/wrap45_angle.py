@@ -7,9 +7,12 @@ called the search kernel, then took the catalog ids (``hip_of``) and the attitud
 ``wahba_rows`` from Python) after it. Now the two are kept per (database, camera) and one numba call
 (``identify_kernel``) returns the ids and the attitude too. This tool runs, on Table 6's images (1 px /
 0.5 Mv, seed 0, N per sky, the minimum of R per image, tetra's identify before each), the plugin's
-``identify`` and ``old``, that wrapper rebuilt here on the plugins' own search kernels (``angle_kernel``,
-``interior_kernel``: the bodies ``identify_kernel`` inlines), and asserts the same ``hip`` (and dtype),
-counters and attitude (bit for bit) on every repeat. Nothing here changes a plugin.
+``identify`` and ``old``, that wrapper rebuilt here on the plugins' ``angle_kernel`` / ``interior_kernel``
+(the search's rows, pair or trio and counters, from ``identify_kernel``), and asserts the same ``hip`` (and
+dtype), counters and attitude (bit for bit) on every repeat: the ids and the attitude computed in the kernel
+against the Python arithmetic they replace. Nothing here changes a plugin. ``old``'s times are not the
+pre-stop-45 plugin's (its kernel now computes the ids and the attitude too, and ``angle_kernel`` wraps
+``identify_kernel``): for before / after times run ``benchmarks/tools/min_time.py`` on the two commits.
 """
 
 from __future__ import annotations
