@@ -26,7 +26,7 @@ from starid.observation import Observation
 from starid.params import check_flag, check_number, check_whole, param
 from starid.plugin import Algorithm, Explanation, Identification
 
-from .kernels import WORK_NAMES, AngleTol, identify_kernel
+from .kernels import WORK_NAMES, AngleTol, identify_kernel, params_of
 
 #: the reading of Galvizo & Lim 2018 (arXiv 1808.08686, LaTeX at glennga/hoku commit
 #: 0cb340eca0e9af891acfa8a069776530b111c863): query sigma_theta = 1e-4 deg with the 3 sigma window,
@@ -159,19 +159,20 @@ class Angle(Algorithm):
         d_min_deg = self.derived(catalog, camera).d_min_deg
         return build_pair_database(catalog, camera, self.mag_limit, d_min_deg, self.max_pair_deg, self.name)
 
-    def _kernel_args(self, database: PairDatabase, camera: Camera) -> tuple[AngleTol, tuple]:
-        """The tolerances and the camera frame for one (database, camera), built once and kept
-        (:meth:`~starid.plugin.Algorithm.kept`) rather than for every image (issue #25: ~5.7 us a call)."""
-        return self.kept("kernel_args", (database, camera),
-                         lambda: (self.tolerances(camera, database), camera_frame(camera)))
+    def _kernel_params(self, database: PairDatabase, camera: Camera) -> np.ndarray:
+        """The camera frame and the tolerances as the kernel's float64 array (:func:`params_of`), built once
+        per (database, camera) and kept (:meth:`~starid.plugin.Algorithm.kept`) rather than for every image
+        (issue #25: ~5.7 us a call, and 2 us of numba's unboxing of the named tuples)."""
+        return self.kept("kernel_params", (database, camera),
+                         lambda: params_of(camera_frame(camera), self.tolerances(camera, database)))
 
     def _call(self, database: PairDatabase, observation: Observation):
         """:func:`~starid_algorithms.angle.kernels.identify_kernel` on one image: ``(rows, pair, work, hip,
         attitude, found)``."""
         db = database
-        tol, frame = self._kernel_args(db, observation.camera)
         return identify_kernel(observation.x_px, observation.y_px, observation.mag, db.kv, db.pairs, db.nbr,
-                               db.nbr_chord, db.nbr_start, db.guide_unit, db.guide_hip, tol, frame)
+                               db.nbr_chord, db.nbr_start, db.guide_unit, db.guide_hip,
+                               self._kernel_params(db, observation.camera))
 
     def _run(self, database: PairDatabase, observation: Observation):
         """The search's ``(rows, pair, work)`` (of :meth:`_call`)."""

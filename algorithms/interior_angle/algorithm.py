@@ -11,6 +11,7 @@ from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
+from starid_algorithms.angle.kernels import params_of
 from starid_algorithms.pyramid.algorithm import (
     D_MIN_MAX_DEG,
     SIGMA_FLOOR_PX,
@@ -147,19 +148,20 @@ class InteriorAngle(Algorithm):
         d_min_deg = self.derived(catalog, camera).d_min_deg
         return build_pair_database(catalog, camera, self.mag_limit, d_min_deg, self.max_pair_deg, self.name)
 
-    def _kernel_args(self, database: PairDatabase, camera: Camera) -> tuple[InteriorTol, tuple]:
-        """The tolerances and the camera frame for one (database, camera), built once and kept
-        (:meth:`~starid.plugin.Algorithm.kept`) rather than for every image (issue #25)."""
-        return self.kept("kernel_args", (database, camera),
-                         lambda: (self.tolerances(camera, database), camera_frame(camera)))
+    def _kernel_params(self, database: PairDatabase, camera: Camera) -> np.ndarray:
+        """The camera frame and the tolerances as the kernel's float64 array (angle's ``params_of``), built
+        once per (database, camera) and kept (:meth:`~starid.plugin.Algorithm.kept`) rather than for every
+        image (issue #25: the tolerances' Python, and numba's unboxing of the named tuples)."""
+        return self.kept("kernel_params", (database, camera),
+                         lambda: params_of(camera_frame(camera), self.tolerances(camera, database)))
 
     def _call(self, database: PairDatabase, observation: Observation):
         """:func:`~starid_algorithms.interior_angle.kernels.identify_kernel` on one image: ``(rows, trio, work, hip,
         attitude, found)``."""
         db = database
-        tol, frame = self._kernel_args(db, observation.camera)
         return identify_kernel(observation.x_px, observation.y_px, observation.mag, db.kv, db.pairs, db.nbr,
-                               db.nbr_chord, db.nbr_start, db.guide_unit, db.guide_hip, tol, frame)
+                               db.nbr_chord, db.nbr_start, db.guide_unit, db.guide_hip,
+                               self._kernel_params(db, observation.camera))
 
     def _run(self, database: PairDatabase, observation: Observation):
         """The search's ``(rows, trio, work)`` (of :meth:`_call`)."""
