@@ -13,8 +13,9 @@ from typing import NamedTuple
 import numpy as np
 from starid_algorithms.pyramid.kernels import _adjacency, _neighbours_within, pair_windows, select_stars, triple
 
-from starid.kernels import backproject_px, chord_rows, reproject_assign, wahba_rows
+from starid.kernels import Frame, backproject_px, chord_rows, reproject_assign, wahba_rows
 from starid.kernels.jit import inline_inner, inner, kernel
+from starid.kernels.params import exact_float64
 
 
 class AngleTol(NamedTuple):
@@ -55,6 +56,39 @@ class AngleTol(NamedTuple):
     min_extra: int
     max_triangles: int
     widen: float
+
+
+#: Slots of :func:`params_of`' array: the camera :class:`~starid.kernels.Frame` (its 5 numbers), then the
+#: tolerances' fields in their order (:class:`AngleTol`, or interior_angle's ``InteriorTol``).
+N_FRAME = 5
+#: Largest integer parameter the array holds (exact in float64); no count in a search comes near it.
+INT_CAP = 1 << 52
+
+
+def params_of(frame: Frame, tol: tuple) -> np.ndarray:
+    """``frame`` and ``tol`` (:class:`AngleTol` or interior_angle's ``InteriorTol``) as one float64 array, the
+    ``identify_kernel``s' argument: numba unboxes a named tuple field by field, an array at once (issue #25:
+    the 17-field tolerances and the frame took 3.6 us of dispatch, the array 1.6). Integers above
+    :data:`INT_CAP` are capped (iteration limits no search reaches); every value is exact in float64
+    (:func:`params_frame` and :func:`params_tol` rebuild the same numbers, ints and bools)."""
+    values = [min(v, INT_CAP) if isinstance(v, int) and not isinstance(v, bool) else v for v in tol]
+    return exact_float64([*frame, *values], "the kernel parameters")
+
+
+@inner   # kernels call it only
+def params_frame(p):
+    """The camera :class:`~starid.kernels.Frame` of :func:`params_of`' array."""
+    return Frame(p[0], p[1], p[2], p[3], p[4])
+
+
+@inner   # kernels call it only
+def params_tol(p):
+    """The :class:`AngleTol` of :func:`params_of`' array (the types of the named tuple from Python: float64,
+    int64, bool)."""
+    q = p[N_FRAME:]
+    return AngleTol(q[0], q[1], q[2], q[3], q[4], np.int64(q[5]), np.int64(q[6]), np.int64(q[7]), q[8] != 0.0,
+                    np.int64(q[9]), np.int64(q[10]), q[11] != 0.0, q[12] != 0.0, q[13], np.int64(q[14]),
+                    np.int64(q[15]), q[16])
 
 
 @inner   # kernels call it only
@@ -138,13 +172,58 @@ def _confirm_pattern(v_cam, pat_star, pat_row, guide_unit, c_fov, eps, widen, ca
     return True
 
 
-#: the work counters of :func:`angle_kernel`, in the order of its ``work`` array
+#: the work counters of :func:`identify_kernel`, in the order of its ``work`` array
 WORK_NAMES = ("pairs", "windows", "candidates", "tests", "confirms", "first_R", "first_named", "first_in_R", "to_r")
+
+
+@inner   # kernels call it only
+def _flag(b):
+    """A bool as params_of stores it (numba has no float(bool))."""
+    return 1.0 if b else 0.0
 
 
 @kernel
 def angle_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_unit, tol, cam):
-    """The angle method on one image. Returns ``(rows, pair, work)``.
+    """:func:`identify_kernel`'s ``(rows, pair, work)`` from Python (tests and tools: the arguments
+    ``angle_kernel`` took before stop 45); the plugin calls :func:`identify_kernel`, so this entry
+    point is compiled only when Python calls it."""
+    no_hip = np.zeros(guide_unit.shape[0], dtype=np.int64)
+    params = np.array([cam.f_px, cam.cx_px, cam.cy_px, cam.width_px, cam.height_px, tol.eps, tol.eps_match,
+                       tol.d_min, tol.c_max, tol.c_fov, float(tol.max_window), float(tol.max_stars),
+                       float(tol.max_pairs), _flag(tol.unique_window), float(tol.n_check), float(tol.min_support),
+                       _flag(tol.compare), _flag(tol.chirality), tol.confirm_fraction, float(tol.min_extra),
+                       float(tol.max_triangles), tol.widen])       # params_of's array
+    rows, pair, work, _, _, _ = identify_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_unit,
+                                                no_hip, params)
+    return rows, pair, work
+
+
+@inline_inner   # inlined into the kernels that call it (angle's and interior_angle's identify_kernel)
+def ids_attitude(x_px, y_px, cam, rows, guide_unit, guide_hip):
+    """``(hip, attitude, found)`` of a kernel's ``rows``: catalog ids (-1 = none), whether any
+    detection is identified, and then the attitude from all of them (``wahba_rows`` on the
+    back-projection of every detection, the arithmetic the Python wrappers ran after the kernel
+    until stop 45; zeros when none is)."""
+    hip = rows.copy()       # not pyramid's _hip: its np.full under inner's flags costs 0.14 CPU s cold
+    found = False
+    for s in range(rows.shape[0]):
+        if rows[s] >= 0:
+            hip[s] = guide_hip[rows[s]]
+            found = True
+        else:
+            hip[s] = -1
+    if not found:
+        return hip, np.zeros((3, 3)), False
+    v = backproject_px(x_px, y_px, cam.f_px, cam.cx_px, cam.cy_px)
+    return hip, wahba_rows(v, rows, guide_unit), True
+
+
+# The search's body is here, not in an inline function that this kernel and angle_kernel share: one more
+# level of inlining (numba IR) cost 0.45 CPU s of cold compile (2.71 against 2.24 s for the kernel itself).
+@kernel
+def identify_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_unit, guide_hip, params):
+    """The angle method on one image (``params``: :func:`params_of` the camera frame and the
+    :class:`AngleTol`). Returns ``(rows, pair, work, hip, attitude, found)``.
 
     ``rows[s]`` is the guide row of detection ``s`` (-1 = none); ``pair`` the two detections of the
     accepted pairing (-1 when none); ``work`` the counters :data:`WORK_NAMES`: image pairs examined,
@@ -154,6 +233,9 @@ def angle_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_un
     names both stars, and whether R holds the catalog pair it names them as; and ``to_r``, the image
     pairs (in the order of step 2) up to the first whose window holds exactly one catalog pair (all of
     them when none does): hoku's reduction step, its count of catalog accesses to obtain r.
+    ``hip``, ``attitude`` and ``found`` are :func:`ids_attitude`'s: what ``Angle.identify`` reports,
+    so that it and ``explain`` make one numba call (issue #25, stop 45: the ids and the attitude were
+    three numba calls and numpy from Python, 7.6 of 51 us per image).
 
     1. isolated detections, brightest first, at most ``tol.max_stars``;
     2. image pairs in hoku's order ``for i: for j > i``, at most ``tol.max_pairs``;
@@ -164,10 +246,13 @@ def angle_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_un
     5. a pairing with at least ``tol.min_support`` supporting stars goes through
        :func:`confirm_pattern`; the first that stands is the answer.
     """
+    tol = params_tol(params)
+    cam = params_frame(params)
     n = x_px.shape[0]
     work = np.zeros(len(WORK_NAMES), dtype=np.int64)
     if n < 2:
-        return np.full(n, -1, dtype=np.int64), np.full(2, -1, dtype=np.int64), work
+        rows = np.full(n, -1, dtype=np.int64)
+        return rows, np.full(2, -1, dtype=np.int64), work, rows.copy(), np.zeros((3, 3)), False
     v_cam = backproject_px(x_px, y_px, cam.f_px, cam.cx_px, cam.cy_px)
     sel = select_stars(x_px, y_px, mag, v_cam, tol.d_min, tol.max_stars)
     m = sel.shape[0]
@@ -186,7 +271,8 @@ def angle_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_un
                 if (pairs[p, 0] == r0 and pairs[p, 1] == r1) or (pairs[p, 0] == r1 and pairs[p, 1] == r0):
                     work[7] = 1
                     break
-    return rows, pair, work
+    hip, attitude, found = ids_attitude(x_px, y_px, cam, rows, guide_unit, guide_hip)
+    return rows, pair, work, hip, attitude, found
 
 
 @inner   # kernels call it only
@@ -302,12 +388,12 @@ def _keep(store, n_store, tri, count):
     return store
 
 
-# inlined (numba IR) into angle_kernel, its one caller: one level less whose module re-optimises and re-emits
+# inlined (numba IR) into identify_kernel, its one caller: one level less whose module re-optimises and re-emits
 # support, confirm_pattern and the core's Wahba and reprojection (the plugin's kernels cold, core warm:
 # 7.5-7.7 -> 7.0-7.2 CPU s). confirm_pattern inlined too (two call sites) cost 0.8 s more.
 @inline_inner
 def _search(v_cam, sel, start, stop, pairs, nbr, nbr_chord, nbr_start, guide_unit, tol, cam, work):
-    """Steps 2-5 of :func:`angle_kernel`; returns ``(rows, pair)`` and adds to ``work``."""
+    """Steps 2-5 of :func:`identify_kernel`; returns ``(rows, pair)`` and adds to ``work``."""
     n = v_cam.shape[0]
     rows = np.full(n, -1, dtype=np.int64)
     pair = np.full(2, -1, dtype=np.int64)

@@ -14,7 +14,7 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from starid_algorithms.angle.kernels import _confirm_pattern
+from starid_algorithms.angle.kernels import N_FRAME, _confirm_pattern, _flag, ids_attitude, params_frame
 from starid_algorithms.pyramid.kernels import _neighbours_within, select_stars, triple
 
 from starid.kernels import backproject_px, chord_rows, kvector_query
@@ -219,19 +219,50 @@ def _remember(pat_star, pat_row, failed, n_failed):
     return n_failed + 1
 
 
-#: the work counters of :func:`interior_kernel`, in the order of its ``work`` array
+@inner   # kernels call it only
+def params_tol(p):
+    """The :class:`InteriorTol` of angle's ``params_of`` array (the types of the named tuple from Python:
+    float64, int64, bool)."""
+    q = p[N_FRAME:]
+    return InteriorTol(q[0], q[1], q[2], q[3], q[4], q[5], q[6], np.int64(q[7]), np.int64(q[8]), np.int64(q[9]),
+                       q[10] != 0.0, q[11] != 0.0, q[12] != 0.0, np.int64(q[13]), q[14], np.int64(q[15]), q[16])
+
+
+#: the work counters of :func:`identify_kernel`, in the order of its ``work`` array
 WORK_NAMES = ("centres", "queries", "candidates", "confirms", "first_R", "first_named", "first_in_R")
 
 
 @kernel
 def interior_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_unit, tol, cam):
-    """The interior-angle method on one image. Returns ``(rows, trio, work)``.
+    """:func:`identify_kernel`'s ``(rows, trio, work)`` from Python (tests and tools: the arguments
+    ``interior_kernel`` took before stop 45); the plugin calls :func:`identify_kernel`, so this entry
+    point is compiled only when Python calls it."""
+    no_hip = np.zeros(guide_unit.shape[0], dtype=np.int64)
+    params = np.array([cam.f_px, cam.cx_px, cam.cy_px, cam.width_px, cam.height_px, tol.eps, tol.eps_phi,
+                       tol.phi_sigma, tol.phi_beta, tol.d_min, tol.c_max, tol.c_fov, float(tol.max_window),
+                       float(tol.max_stars), float(tol.max_centres), _flag(tol.unique), _flag(tol.ordered),
+                       _flag(tol.chirality), float(tol.max_candidates), tol.confirm_fraction, float(tol.min_extra),
+                       tol.widen])       # angle's params_of array
+    rows, trio, work, _, _, _ = identify_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_unit,
+                                                no_hip, params)
+    return rows, trio, work
+
+
+# The search's body is here, not in an inline function that this kernel and interior_kernel share: as in
+# angle's identify_kernel, one more level of inlining costs cold-compile CPU.
+@kernel
+def identify_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_unit, guide_hip, params):
+    """The interior-angle method on one image (``params``: angle's ``params_of`` the camera frame and the
+    :class:`InteriorTol`). Returns ``(rows, trio, work, hip, attitude, found)``.
 
     ``work`` holds the counters :data:`WORK_NAMES`: central stars tried, trio queries made (one per
     central star), catalog trios the queries returned (a query over ``tol.max_candidates`` counts
     ``max_candidates + 1``, an unusable window 0), attitude confirmations, and the first query
     step's (the brightest star as the centre): |R| (same caps), whether the identification names its
-    three stars, and whether R holds the catalog trio it names them as.
+    three stars, and whether R holds the catalog trio it names them as. ``hip``, ``attitude`` and
+    ``found`` are angle's :func:`~starid_algorithms.angle.kernels.ids_attitude`: the catalog ids, and
+    the attitude from every identified detection, that the Python wrapper computed after the kernel
+    until stop 45; ``InteriorAngle.identify`` and ``explain`` make this one numba call.
 
     1. isolated detections, brightest first, at most ``tol.max_stars``;
     2. each in turn is the central star (at most ``tol.max_centres``), with its two nearest
@@ -239,17 +270,19 @@ def interior_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide
     3. the query (:func:`trio_query`); ``tol.unique``: exactly one trio, else the next central star;
     4. each returned trio goes through ``confirm_pattern``; the first that stands is the answer.
     """
+    tol = params_tol(params)
+    cam = params_frame(params)
     n = x_px.shape[0]
     rows = np.full(n, -1, dtype=np.int64)
     trio = np.full(3, -1, dtype=np.int64)
     work = np.zeros(len(WORK_NAMES), dtype=np.int64)
     if n < 3:
-        return rows, trio, work
+        return rows, trio, work, rows.copy(), np.zeros((3, 3)), False
     v_cam = backproject_px(x_px, y_px, cam.f_px, cam.cx_px, cam.cy_px)
     sel = select_stars(x_px, y_px, mag, v_cam, tol.d_min, tol.max_stars)
     m = sel.shape[0]
     if m < 3:
-        return rows, trio, work
+        return rows, trio, work, rows.copy(), np.zeros((3, 3)), False
     out = np.empty((max(tol.max_candidates, 1), 3), dtype=np.int64)
     first = np.empty_like(out)
     first_star = np.full(3, -1, dtype=np.int64)
@@ -302,7 +335,7 @@ def interior_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide
             break
     if not found:
         rows[:] = -1
-        return rows, trio, work
+        return rows, trio, work, rows.copy(), np.zeros((3, 3)), False
     if first_star[0] >= 0 and rows[first_star[0]] >= 0 and rows[first_star[1]] >= 0 and rows[first_star[2]] >= 0:
         work[5] = 1
         for t in range(min(work[4], first.shape[0])):
@@ -310,7 +343,8 @@ def interior_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide
                     and first[t, 2] == rows[first_star[2]]:
                 work[6] = 1
                 break
-    return rows, trio, work
+    hip, attitude, found = ids_attitude(x_px, y_px, cam, rows, guide_unit, guide_hip)
+    return rows, trio, work, hip, attitude, found
 
 
 @kernel
