@@ -176,25 +176,12 @@ def _confirm_pattern(v_cam, pat_star, pat_row, guide_unit, c_fov, eps, widen, ca
 WORK_NAMES = ("pairs", "windows", "candidates", "tests", "confirms", "first_R", "first_named", "first_in_R", "to_r")
 
 
-@inner   # kernels call it only
-def _flag(b):
-    """A bool as params_of stores it (numba has no float(bool))."""
-    return 1.0 if b else 0.0
-
-
-@kernel
 def angle_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_unit, tol, cam):
-    """:func:`identify_kernel`'s ``(rows, pair, work)`` from Python (tests and tools: the arguments
-    ``angle_kernel`` took before stop 45); the plugin calls :func:`identify_kernel`, so this entry
-    point is compiled only when Python calls it."""
+    """:func:`identify_kernel`'s ``(rows, pair, work)`` from Python with the named tuples ``angle_kernel``
+    took before stop 45 (tests and tools): packs them as the plugin does (:func:`params_of`); not compiled."""
     no_hip = np.zeros(guide_unit.shape[0], dtype=np.int64)
-    params = np.array([cam.f_px, cam.cx_px, cam.cy_px, cam.width_px, cam.height_px, tol.eps, tol.eps_match,
-                       tol.d_min, tol.c_max, tol.c_fov, float(tol.max_window), float(tol.max_stars),
-                       float(tol.max_pairs), _flag(tol.unique_window), float(tol.n_check), float(tol.min_support),
-                       _flag(tol.compare), _flag(tol.chirality), tol.confirm_fraction, float(tol.min_extra),
-                       float(tol.max_triangles), tol.widen])       # params_of's array
     rows, pair, work, _, _, _ = identify_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_unit,
-                                                no_hip, params)
+                                                no_hip, params_of(cam, tol))
     return rows, pair, work
 
 

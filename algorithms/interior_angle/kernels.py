@@ -14,7 +14,7 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from starid_algorithms.angle.kernels import N_FRAME, _confirm_pattern, _flag, ids_attitude, params_frame
+from starid_algorithms.angle.kernels import N_FRAME, _confirm_pattern, ids_attitude, params_frame, params_of
 from starid_algorithms.pyramid.kernels import _neighbours_within, select_stars, triple
 
 from starid.kernels import backproject_px, chord_rows, kvector_query
@@ -232,19 +232,12 @@ def params_tol(p):
 WORK_NAMES = ("centres", "queries", "candidates", "confirms", "first_R", "first_named", "first_in_R")
 
 
-@kernel
 def interior_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_unit, tol, cam):
-    """:func:`identify_kernel`'s ``(rows, trio, work)`` from Python (tests and tools: the arguments
-    ``interior_kernel`` took before stop 45); the plugin calls :func:`identify_kernel`, so this entry
-    point is compiled only when Python calls it."""
+    """:func:`identify_kernel`'s ``(rows, trio, work)`` from Python with the named tuples ``interior_kernel``
+    took before stop 45 (tests and tools): packs them as the plugin does (angle's ``params_of``); not compiled."""
     no_hip = np.zeros(guide_unit.shape[0], dtype=np.int64)
-    params = np.array([cam.f_px, cam.cx_px, cam.cy_px, cam.width_px, cam.height_px, tol.eps, tol.eps_phi,
-                       tol.phi_sigma, tol.phi_beta, tol.d_min, tol.c_max, tol.c_fov, float(tol.max_window),
-                       float(tol.max_stars), float(tol.max_centres), _flag(tol.unique), _flag(tol.ordered),
-                       _flag(tol.chirality), float(tol.max_candidates), tol.confirm_fraction, float(tol.min_extra),
-                       tol.widen])       # angle's params_of array
     rows, trio, work, _, _, _ = identify_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_unit,
-                                                no_hip, params)
+                                                no_hip, params_of(cam, tol))
     return rows, trio, work
 
 
