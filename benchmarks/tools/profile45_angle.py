@@ -40,9 +40,8 @@ import sys
 import time
 
 import numpy as np
-from llvmlite import ir
-from numba import njit, types
-from numba.extending import intrinsic
+from cyclecounter import cycles, cycles_per_us  # benchmarks/tools
+from numba import njit
 from starid_algorithms.angle.kernels import (
     WORK_NAMES,
     _keep,
@@ -68,21 +67,6 @@ SLOTS = ("total", "set-up", "pair windows", "search allocations", "partner lists
 N_STAGES = 9
 #: cycle slots after the counts: the confirmations' parts
 SUB = (13, 14)
-
-
-@intrinsic
-def cycles(typingctx):
-    def codegen(context, builder, sig, args):
-        fnty = ir.FunctionType(ir.IntType(64), [])
-        fn = builder.module.declare_intrinsic("llvm.readcyclecounter", fnty=fnty)
-        return builder.call(fn, [])
-
-    return types.int64(), codegen
-
-
-@njit
-def cyc():
-    return cycles()
 
 
 @njit
@@ -347,16 +331,6 @@ def profiled(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide_unit, 
     return rows, pair, work
 
 
-def calib() -> float:
-    """Cycles per µs of ``llvm.readcyclecounter``, against ``perf_counter`` over 0.2 s."""
-    cyc()
-    t0 = time.perf_counter()
-    c0 = cyc()
-    time.sleep(0.2)
-    c1 = cyc()
-    t1 = time.perf_counter()
-    return (c1 - c0) / (t1 - t0) / 1e6
-
 
 def ident_parts(db, o, rows, work, timed):
     """The wrapper's tail after the kernel (``Angle.identify``'s statements), each piece timed into ``timed``."""
@@ -522,7 +496,7 @@ def report(sky, n, rounds, py_us, st_us, counters, named):
 
 def main(n: int, rounds: int) -> None:
     cat, cam = load_hipparcos(), Camera()
-    mhz = calib()
+    mhz = cycles_per_us()
     print(f"cycle counter: {mhz:.1f} cycles per µs")
     alg = get_algorithm("angle")()
     db = alg.build(cat, cam)

@@ -40,9 +40,8 @@ import sys
 import time
 
 import numpy as np
-from llvmlite import ir
-from numba import njit, types
-from numba.extending import intrinsic
+from cyclecounter import cycles, cycles_per_us  # benchmarks/tools
+from numba import njit
 from starid_algorithms.tetra.algorithm import _bundles
 from starid_algorithms.tetra.kernels import (
     EDGE_MASK,
@@ -63,21 +62,6 @@ from starid.registry import get_algorithm
 STAGES = ("set-up", "pattern edges", "key window", "hash search", "candidate check", "verification: Wahba",
           "verification: reprojection", "verification: test", "report: Wahba (refine)", "report: reprojection",
           "report: checks, ids")
-
-
-@intrinsic
-def cycles(typingctx):
-    def codegen(context, builder, sig, args):
-        fnty = ir.FunctionType(ir.IntType(64), [])
-        fn = builder.module.declare_intrinsic("llvm.readcyclecounter", fnty=fnty)
-        return builder.call(fn, [])
-
-    return types.int64(), codegen
-
-
-@njit
-def cyc():
-    return cycles()
 
 
 @njit
@@ -302,16 +286,6 @@ def read_cost(k):
     return cycles() - t0 + s * 0
 
 
-def calibrate() -> float:
-    """Cycle-counter ticks per µs, against ``perf_counter`` over 0.2 s."""
-    cyc()
-    t0 = time.perf_counter()
-    c0 = cyc()
-    time.sleep(0.2)
-    c1 = cyc()
-    t1 = time.perf_counter()
-    return (c1 - c0) / (t1 - t0) / 1e6
-
 
 def timed_min(f, args: tuple, repeats: int) -> float:
     """The least of ``repeats`` timed calls ``f(*args)``, µs."""
@@ -340,7 +314,7 @@ def show(label: str, cols: dict[str, np.ndarray], counters: dict[str, np.ndarray
 
 def main(n: int, repeats: int, skies: list[str]) -> None:
     cat, cam = load_hipparcos(), Camera()
-    mhz = calibrate()
+    mhz = cycles_per_us()
     reads = min(read_cost(1000) for _ in range(20)) / 1000.0
     print(f"cycle counter: {mhz:.1f} ticks/µs; one read ~{reads:.0f} ticks ({reads / mhz * 1e3:.1f} ns)")
     alg = get_algorithm("tetra")()

@@ -39,9 +39,8 @@ import sys
 import time
 
 import numpy as np
-from llvmlite import ir
-from numba import njit, types
-from numba.extending import intrinsic
+from cyclecounter import cycles, cycles_per_us  # benchmarks/tools
+from numba import njit
 from starid_algorithms.composite_pyramid import kernels as cpk
 from starid_algorithms.pyramid.kernels import select_stars
 from starid_algorithms.spherical_triangle import algorithm as sta
@@ -73,31 +72,6 @@ STAGES = ("setup: back-projection, select_stars, scratch", "trio windows (featur
 COUNTS = ("confirm_calls", "confirm_passed", "candidates", "skipped_queries", "fourth_tries", "area_hits",
           "blocks", "moment_hits", "side_pass")
 
-
-@intrinsic
-def cycles(typingctx):
-    def codegen(context, builder, sig, args):
-        fnty = ir.FunctionType(ir.IntType(64), [])
-        fn = builder.module.declare_intrinsic("llvm.readcyclecounter", fnty=fnty)
-        return builder.call(fn, [])
-
-    return types.int64(), codegen
-
-
-@njit
-def cyc():
-    return cycles()
-
-
-def calib():
-    """Cycles per us, against ``perf_counter``."""
-    cyc()
-    t0 = time.perf_counter()
-    c0 = cyc()
-    time.sleep(0.2)
-    c1 = cyc()
-    t1 = time.perf_counter()
-    return (c1 - c0) / (t1 - t0) / 1e6
 
 
 @njit
@@ -537,7 +511,7 @@ def make(name):
 
 def main(n, R, names):
     cat, cam = load_hipparcos(), Camera()
-    mhz = calib()
+    mhz = cycles_per_us()
     print(f"cycle counter: {mhz:.1f} cycles/us; N={n} R={R}")
     plugins = {name: make(name) for name in names}
     dbs = {name: alg.build(cat, cam) for name, alg in plugins.items()}
