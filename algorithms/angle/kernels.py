@@ -15,7 +15,7 @@ from starid_algorithms.pyramid.kernels import _adjacency, _neighbours_within, pa
 
 from starid.kernels import Frame, backproject_px, chord_rows, reproject_assign, wahba_rows
 from starid.kernels.jit import inline_inner, inner, kernel
-from starid.kernels.params import exact_float64
+from starid.kernels.params import FRAME_SIZE, exact_float64, frame_at
 
 
 class AngleTol(NamedTuple):
@@ -58,9 +58,9 @@ class AngleTol(NamedTuple):
     widen: float
 
 
-#: Slots of :func:`params_of`' array: the camera :class:`~starid.kernels.Frame` (its 5 numbers), then the
-#: tolerances' fields in their order (:class:`AngleTol`, or interior_angle's ``InteriorTol``).
-N_FRAME = 5
+#: Slots of :func:`params_of`' array: the camera :class:`~starid.kernels.Frame` (``FRAME_SIZE`` numbers, rebuilt by
+#: ``starid.kernels.params.frame_at``), then the tolerances' fields in their order (:class:`AngleTol`, or
+#: interior_angle's ``InteriorTol``).
 #: Largest integer parameter the array holds (exact in float64); no count in a search comes near it.
 INT_CAP = 1 << 52
 
@@ -70,22 +70,16 @@ def params_of(frame: Frame, tol: tuple) -> np.ndarray:
     ``identify_kernel``s' argument: numba unboxes a named tuple field by field, an array at once (issue #25:
     the 17-field tolerances and the frame took 3.6 us of dispatch, the array 1.6). Integers above
     :data:`INT_CAP` are capped (iteration limits no search reaches); every value is exact in float64
-    (:func:`params_frame` and :func:`params_tol` rebuild the same numbers, ints and bools)."""
+    (``frame_at`` and :func:`params_tol` rebuild the same numbers, ints and bools)."""
     values = [min(v, INT_CAP) if isinstance(v, int) and not isinstance(v, bool) else v for v in tol]
     return exact_float64([*frame, *values], "the kernel parameters")
-
-
-@inner   # kernels call it only
-def params_frame(p):
-    """The camera :class:`~starid.kernels.Frame` of :func:`params_of`' array."""
-    return Frame(p[0], p[1], p[2], p[3], p[4])
 
 
 @inner   # kernels call it only
 def params_tol(p):
     """The :class:`AngleTol` of :func:`params_of`' array (the types of the named tuple from Python: float64,
     int64, bool)."""
-    q = p[N_FRAME:]
+    q = p[FRAME_SIZE:]
     return AngleTol(q[0], q[1], q[2], q[3], q[4], np.int64(q[5]), np.int64(q[6]), np.int64(q[7]), q[8] != 0.0,
                     np.int64(q[9]), np.int64(q[10]), q[11] != 0.0, q[12] != 0.0, q[13], np.int64(q[14]),
                     np.int64(q[15]), q[16])
@@ -234,7 +228,7 @@ def identify_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide
        :func:`confirm_pattern`; the first that stands is the answer.
     """
     tol = params_tol(params)
-    cam = params_frame(params)
+    cam = frame_at(params, np.int64(0))
     n = x_px.shape[0]
     work = np.zeros(len(WORK_NAMES), dtype=np.int64)
     if n < 2:

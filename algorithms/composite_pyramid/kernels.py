@@ -11,17 +11,12 @@ from typing import NamedTuple
 
 import numpy as np
 from starid_algorithms.pyramid.kernels import select_stars
-from starid_algorithms.spherical_triangle.kernels import (
-    N_FRAME,
-    WORK_NAMES,
-    first_query_check,
-    packed_params,
-    params_frame,
-)
+from starid_algorithms.spherical_triangle.kernels import WORK_NAMES, first_query_check, packed_params
 
 from starid.kernels import backproject_px, wahba_rows
 from starid.kernels.jit import inner, kernel
 from starid.kernels.order import search_left, sort_int_prefix
+from starid.kernels.params import FRAME_SIZE, frame_at
 from starid.kernels.triangles import trio_confirm, trio_query
 
 
@@ -134,7 +129,7 @@ def composite_packed(x_px, y_px, mag, index, guide_unit, params):
        candidate passes both (the paper runs 5 before 4; the conjunction is the same, 4 is cheaper).
     """
     tol = params_com(params)
-    cam = params_frame(params)
+    cam = frame_at(params, np.int64(0))
     n = x_px.shape[0]
     rows = np.full(n, -1, dtype=np.int64)
     out4 = np.full(4, -1, dtype=np.int64)
@@ -244,7 +239,7 @@ def fourth_star(stars, hits, counts, cat, buf):
 def params_com(p):
     """The :class:`ComTol` of a ``packed_params`` array (spherical_triangle's kernels; the types of the
     tuple made in Python: int64, float64, bool)."""
-    q = p[N_FRAME:]
+    q = p[FRAME_SIZE:]
     return ComTol(np.int64(q[0]), np.int64(q[1]), q[2], q[3], q[4], q[5], q[6], np.int64(q[7]), q[8] != 0.0,
                   np.int64(q[9]), q[10], q[11] != 0.0, q[12], q[13], np.int64(q[14]), q[15], np.int64(q[16]),
                   q[17], np.int64(q[18]), q[19] != 0.0, np.int64(q[20]))

@@ -14,11 +14,12 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from starid_algorithms.angle.kernels import N_FRAME, _confirm_pattern, ids_attitude, params_frame, params_of
+from starid_algorithms.angle.kernels import _confirm_pattern, ids_attitude, params_of
 from starid_algorithms.pyramid.kernels import _neighbours_within, select_stars, triple
 
 from starid.kernels import backproject_px, chord_rows, kvector_query
 from starid.kernels.jit import inner, kernel
+from starid.kernels.params import FRAME_SIZE, frame_at
 
 #: numba: float() of a float32 stays a float32; np.float64 casts (one signature for image and catalog)
 f64 = np.float64
@@ -223,7 +224,7 @@ def _remember(pat_star, pat_row, failed, n_failed):
 def params_tol(p):
     """The :class:`InteriorTol` of angle's ``params_of`` array (the types of the named tuple from Python:
     float64, int64, bool)."""
-    q = p[N_FRAME:]
+    q = p[FRAME_SIZE:]
     return InteriorTol(q[0], q[1], q[2], q[3], q[4], q[5], q[6], np.int64(q[7]), np.int64(q[8]), np.int64(q[9]),
                        q[10] != 0.0, q[11] != 0.0, q[12] != 0.0, np.int64(q[13]), q[14], np.int64(q[15]), q[16])
 
@@ -264,7 +265,7 @@ def identify_kernel(x_px, y_px, mag, kv, pairs, nbr, nbr_chord, nbr_start, guide
     4. each returned trio goes through ``confirm_pattern``; the first that stands is the answer.
     """
     tol = params_tol(params)
-    cam = params_frame(params)
+    cam = frame_at(params, np.int64(0))
     n = x_px.shape[0]
     rows = np.full(n, -1, dtype=np.int64)
     trio = np.full(3, -1, dtype=np.int64)

@@ -40,7 +40,6 @@ from starid.camera import Camera
 from starid.catalog import Catalog
 from starid.errors import ConfigError
 from starid.kernels import (
-    Frame,
     backproject_px,
     camera_frame,
     chord_rows,
@@ -53,6 +52,7 @@ from starid.kernels import (
     z_band_rows,
 )
 from starid.kernels.jit import inline_kernel, inner, kernel
+from starid.kernels.params import frame_at  # noqa: F401 -- the kernels of grid, lpt and lpt_improved import it from here
 from starid.observation import Observation
 from starid.params import check_number, check_whole, param
 from starid.plugin import Algorithm, Explanation, Identification
@@ -172,12 +172,6 @@ def pack_params(*bundles) -> np.ndarray:
     float64 array is typed in C. The kernel rebuilds the bundles (:func:`frame_at`, :func:`acceptance_at`).
     """
     return np.array([v for b in bundles for v in b], dtype=np.float64)
-
-
-@kernel
-def frame_at(p, i):
-    """The :class:`starid.kernels.Frame` packed at ``p[i:i+5]`` by :func:`pack_params`."""
-    return Frame(p[i], p[i + 1], p[i + 2], p[i + 3], p[i + 4])
 
 
 @kernel

@@ -13,7 +13,7 @@ from starid_algorithms.pyramid.kernels import select_stars
 
 from starid.kernels import Frame, backproject_px, wahba_rows
 from starid.kernels.jit import inner, kernel
-from starid.kernels.params import exact_float64
+from starid.kernels.params import FRAME_SIZE, exact_float64, frame_at
 from starid.kernels.triangles import trio_confirm, trio_query
 
 
@@ -129,7 +129,7 @@ def spherical_packed(x_px, y_px, mag, index, guide_unit, params):
        one stands (``unique``: only with |R| = 1).
     """
     tol = params_sph(params)
-    cam = params_frame(params)
+    cam = frame_at(params, np.int64(0))
     n = x_px.shape[0]
     rows = np.full(n, -1, dtype=np.int64)
     trio_out = np.full(3, -1, dtype=np.int64)
@@ -216,30 +216,20 @@ def spherical_packed(x_px, y_px, mag, index, guide_unit, params):
     return rows, np.zeros((3, 3)), trio_out, work
 
 
-#: values of the camera frame at the head of a :func:`packed_params` array
-N_FRAME = 5
-
-
 def packed_params(tol, frame: Frame) -> np.ndarray:
     """``frame`` then ``tol`` (a :class:`SphTol`, or composite_pyramid's ``ComTol``) as one float64 array,
     the argument of :func:`spherical_packed` / ``composite_packed``: numba's dispatch unboxes a named tuple
     field by field, an array at once (about 5 us of every call for the two tuples, measured at stop 45).
     Every value is exact in float64 (``exact_float64``); the kernels rebuild the same numbers, ints and
-    bools (:func:`params_frame`, :func:`params_sph`)."""
+    bools (``starid.kernels.params.frame_at``, :func:`params_sph`)."""
     return exact_float64([*frame, *tol], "triangle kernels' parameters")
-
-
-@inner   # kernels call it only
-def params_frame(p):
-    """The :class:`~starid.kernels.Frame` of a :func:`packed_params` array."""
-    return Frame(p[0], p[1], p[2], p[3], p[4])
 
 
 @inner   # kernels call it only
 def params_sph(p):
     """The :class:`SphTol` of a :func:`packed_params` array (the types of the tuple made in Python: int64,
     float64, bool)."""
-    q = p[N_FRAME:]
+    q = p[FRAME_SIZE:]
     return SphTol(np.int64(q[0]), np.int64(q[1]), q[2], q[3], q[4], q[5], q[6], np.int64(q[7]), q[8] != 0.0,
                   np.int64(q[9]), q[10], q[11] != 0.0, q[12], q[13], np.int64(q[14]), q[15], np.int64(q[16]),
                   q[17], np.int64(q[18]), q[19] != 0.0, q[20] != 0.0)

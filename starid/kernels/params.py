@@ -15,6 +15,11 @@ from collections.abc import Iterable
 import numpy as np
 
 from ..errors import ConfigError
+from .assign import Frame
+from .jit import kernel
+
+#: how many values a camera :class:`~starid.kernels.Frame` takes in a parameter array (its fields, in order)
+FRAME_SIZE = 5
 
 
 def exact_float64(values: Iterable, what: str) -> np.ndarray:
@@ -32,3 +37,11 @@ def exact_float64(values: Iterable, what: str) -> np.ndarray:
         if isinstance(v, (int, np.integer)) and not isinstance(v, (bool, np.bool_)) and int(out[k]) != int(v):
             raise ConfigError(f"{what}: parameter {k} ({v!r}) is not exact in float64")
     return out
+
+
+@kernel
+def frame_at(p, i):
+    """The :class:`~starid.kernels.Frame` packed at ``p[i:i + FRAME_SIZE]`` (its fields in order), rebuilt
+    inside a kernel that takes its parameters as one array (call it with an ``np.int64`` offset: one
+    signature)."""
+    return Frame(p[i], p[i + 1], p[i + 2], p[i + 3], p[i + 4])

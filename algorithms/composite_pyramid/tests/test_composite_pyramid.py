@@ -133,12 +133,14 @@ def test_to_r_counts_trio_queries_in_mortari_order(catalog, camera, db):
 def test_packed_params_rebuild_the_tuples(algo, db, camera):
     """The kernel's one float64 argument rebuilds the tolerances and frame identify used to pass."""
     from starid_algorithms.composite_pyramid.kernels import params_com
-    from starid_algorithms.spherical_triangle.kernels import packed_params, params_frame
+    from starid_algorithms.spherical_triangle.kernels import packed_params
+
+    from starid.kernels.params import frame_at
 
     for reading in (algo, CompositePyramid(**GALVIZO2018)):
         tol, frame = reading.tolerances(camera, db), camera_frame(camera)
         p = packed_params(tol, frame)
-        assert params_frame.py_func(p) == frame and params_com.py_func(p) == tol
+        assert frame_at.py_func(p, 0) == frame and params_com.py_func(p) == tol
         for a, b in zip(params_com.py_func(p), tol, strict=True):
             assert isinstance(a, (bool, np.bool_)) == isinstance(b, bool)
         assert reading.kernel_args(db, camera) is reading.kernel_args(db, camera)    # kept, not rebuilt

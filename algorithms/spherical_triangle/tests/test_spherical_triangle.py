@@ -174,13 +174,14 @@ def test_to_r_counts_queries_to_the_first_single_candidate(catalog, camera, db):
 def test_packed_params_rebuild_the_tuples(algo, db, camera):
     """The kernel's one float64 argument rebuilds the tolerances and frame identify used to pass: the same
     values, and ints and flags of the same kinds (so the kernels see one signature)."""
-    from starid_algorithms.spherical_triangle.kernels import packed_params, params_frame, params_sph
+    from starid_algorithms.spherical_triangle.kernels import packed_params, params_sph
 
     from starid.kernels import camera_frame
+    from starid.kernels.params import frame_at
     for reading in (algo, SphericalTriangle(**GALVIZO2018)):
         tol, frame = reading.tolerances(camera, db), camera_frame(camera)
         p = packed_params(tol, frame)
-        assert params_frame.py_func(p) == frame and params_sph.py_func(p) == tol
+        assert frame_at.py_func(p, 0) == frame and params_sph.py_func(p) == tol
         for a, b in zip(params_sph.py_func(p), tol, strict=True):
             assert isinstance(a, (bool, np.bool_)) == isinstance(b, bool)
         assert reading.kernel_args(db, camera) is reading.kernel_args(db, camera)    # kept, not rebuilt
