@@ -15,7 +15,7 @@ from starid_algorithms.pyramid.kernels import _adjacency, _neighbours_within, pa
 
 from starid.kernels import Frame, backproject_px, chord_rows, reproject_assign, wahba_rows
 from starid.kernels.jit import inline_inner, inner, kernel
-from starid.kernels.params import FRAME_SIZE, exact_float64, frame_at
+from starid.kernels.params import FRAME_SIZE, frame_at, pack_with_frame
 
 
 class AngleTol(NamedTuple):
@@ -72,7 +72,7 @@ def params_of(frame: Frame, tol: tuple) -> np.ndarray:
     :data:`INT_CAP` are capped (iteration limits no search reaches); every value is exact in float64
     (``frame_at`` and :func:`params_tol` rebuild the same numbers, ints and bools)."""
     values = [min(v, INT_CAP) if isinstance(v, int) and not isinstance(v, bool) else v for v in tol]
-    return exact_float64([*frame, *values], "the kernel parameters")
+    return pack_with_frame(frame, values, "the kernel parameters")
 
 
 @inner   # kernels call it only

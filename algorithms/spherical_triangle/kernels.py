@@ -13,7 +13,7 @@ from starid_algorithms.pyramid.kernels import select_stars
 
 from starid.kernels import Frame, backproject_px, wahba_rows
 from starid.kernels.jit import inner, kernel
-from starid.kernels.params import FRAME_SIZE, exact_float64, frame_at
+from starid.kernels.params import FRAME_SIZE, frame_at, pack_with_frame
 from starid.kernels.triangles import trio_confirm, trio_query
 
 
@@ -220,9 +220,9 @@ def packed_params(tol, frame: Frame) -> np.ndarray:
     """``frame`` then ``tol`` (a :class:`SphTol`, or composite_pyramid's ``ComTol``) as one float64 array,
     the argument of :func:`spherical_packed` / ``composite_packed``: numba's dispatch unboxes a named tuple
     field by field, an array at once (about 5 us of every call for the two tuples, measured at stop 45).
-    Every value is exact in float64 (``exact_float64``); the kernels rebuild the same numbers, ints and
+    Every value is exact in float64 (``pack_with_frame``); the kernels rebuild the same numbers, ints and
     bools (``starid.kernels.params.frame_at``, :func:`params_sph`)."""
-    return exact_float64([*frame, *tol], "triangle kernels' parameters")
+    return pack_with_frame(frame, tol, "triangle kernels' parameters")
 
 
 @inner   # kernels call it only

@@ -39,6 +39,12 @@ def exact_float64(values: Iterable, what: str) -> np.ndarray:
     return out
 
 
+def pack_with_frame(frame: Frame, values: Iterable, what: str) -> np.ndarray:
+    """``frame``'s :data:`FRAME_SIZE` fields, then ``values``, as one float64 array (:func:`exact_float64`): the
+    layout whose frame :func:`frame_at` reads back at offset 0, the rest each kernel's own."""
+    return exact_float64([*frame, *values], what)
+
+
 @kernel
 def frame_at(p, i):
     """The :class:`~starid.kernels.Frame` packed at ``p[i:i + FRAME_SIZE]`` (its fields in order), rebuilt
