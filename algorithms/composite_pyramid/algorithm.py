@@ -6,8 +6,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import ClassVar
 
-import numpy as np
 from starid_algorithms.spherical_triangle.algorithm import (
+    PackedTriangleCalls,
     TriangleDatabase,
     build_triangle_database,
     check_triangle_params,
@@ -15,15 +15,13 @@ from starid_algorithms.spherical_triangle.algorithm import (
     derive_triangle_params,
     triangle_explanation,
 )
-from starid_algorithms.spherical_triangle.kernels import WORK_NAMES, identified_hip, packed_params
 
 from starid.camera import Camera
 from starid.catalog import Catalog
-from starid.kernels import camera_frame
 from starid.kernels.triangles import PLANAR
 from starid.observation import Observation
 from starid.params import check_whole, param
-from starid.plugin import Algorithm, Explanation, Identification
+from starid.plugin import Algorithm, Explanation
 
 from .kernels import ComTol, composite_packed
 
@@ -37,7 +35,7 @@ GALVIZO2018 = {"sigma_area": 1e-9, "sigma_moment": 1e-9, "max_hits": 500, "trunc
 
 
 @dataclass(frozen=True)
-class CompositePyramid(Algorithm):
+class CompositePyramid(PackedTriangleCalls, Algorithm):
     """Composite Pyramid: Mortari's trio order, planar-triangle (area, moment) features, a fourth-star test.
 
     Galvizo G., Lim L., "Empirical Analysis of Common Subgraph Isomorphism Approaches to the
@@ -74,6 +72,7 @@ class CompositePyramid(Algorithm):
     """
 
     name: ClassVar[str] = "composite_pyramid"
+    packed_kernel: ClassVar = composite_packed
     follows: ClassVar[dict] = {"sigma_px": "sigma_px"}
     query_only: ClassVar[tuple[str, ...]] = ('sigma_px',)   # only identify reads them (conformance 'query_only')
     published: ClassVar[dict] = GALVIZO2018
@@ -118,23 +117,6 @@ class CompositePyramid(Algorithm):
     def tolerances(self, camera: Camera, database) -> ComTol:
         return ComTol(kind=PLANAR, depth=1, unique=bool(self.unique_candidate), fourth_tries=int(self.fourth_tries),
                       **common_tolerances(self, camera, database))
-
-    def kernel_args(self, database: TriangleDatabase, camera: Camera) -> np.ndarray:
-        """The kernel's tolerances and camera frame for one (database, camera) as one float64 array
-        (``packed_params``), built once and kept by identity (:meth:`~starid.plugin.Algorithm.kept`) rather
-        than per image (the tolerances and frame cost some 7-9 us a call, their unboxing some 5 us)."""
-        return self.kept("kernel_args", (database, camera),
-                         lambda: packed_params(self.tolerances(camera, database), camera_frame(camera)))
-
-    def _run(self, database: TriangleDatabase, observation: Observation):
-        return composite_packed(observation.x_px, observation.y_px, observation.mag, database.index,
-                                database.guide_unit, self.kernel_args(database, observation.camera))
-
-    def identify(self, database: TriangleDatabase, observation: Observation) -> Identification:
-        rows, attitude, _, work = self._run(database, observation)
-        hip, found = identified_hip(database.guide_hip, rows, work)   # to_r: every query made when none left one
-        return Identification(hip, attitude if found else None,
-                              counters=dict(zip(WORK_NAMES, work.tolist(), strict=True)))
 
     def explain(self, database: TriangleDatabase, observation: Observation) -> Explanation:
         """The matched trio's triangle, the identified stars (the fourth star labelled)."""

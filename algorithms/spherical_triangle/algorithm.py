@@ -161,8 +161,34 @@ def common_tolerances(algo, camera: Camera, database) -> dict:
                 d_min=max(rad_to_chord(math.radians(database.d_min_deg)), eps), max_trios=int(algo.max_trios))
 
 
+class PackedTriangleCalls:
+    """``kernel_args``, ``_run`` and ``identify`` of a plugin whose kernel, :attr:`packed_kernel`, takes the stars,
+    the :class:`TriangleDatabase`'s index and guide vectors and :func:`packed_params` of the plugin's tolerances
+    and camera frame, and returns ``(rows, attitude, stars, work)``: spherical triangle's and composite
+    pyramid's (their classes name their kernel and define ``tolerances``)."""
+
+    packed_kernel: ClassVar   # a numba kernel: (x_px, y_px, mag, index, guide_unit, params) -> (rows, attitude, ...)
+
+    def kernel_args(self, database: TriangleDatabase, camera: Camera) -> np.ndarray:
+        """The kernel's tolerances and camera frame for one (database, camera) as one float64 array
+        (``packed_params``), built once and kept by identity (:meth:`~starid.plugin.Algorithm.kept`) rather
+        than per image (the tolerances and frame cost some 7-9 us a call, their unboxing some 5 us)."""
+        return self.kept("kernel_args", (database, camera),
+                         lambda: packed_params(self.tolerances(camera, database), camera_frame(camera)))
+
+    def _run(self, database: TriangleDatabase, observation: Observation):
+        return type(self).packed_kernel(observation.x_px, observation.y_px, observation.mag, database.index,
+                                        database.guide_unit, self.kernel_args(database, observation.camera))
+
+    def identify(self, database: TriangleDatabase, observation: Observation) -> Identification:
+        rows, attitude, _, work = self._run(database, observation)
+        hip, found = identified_hip(database.guide_hip, rows, work)   # to_r: every query made when none left one
+        return Identification(hip, attitude if found else None,
+                              counters=dict(zip(WORK_NAMES, work.tolist(), strict=True)))
+
+
 @dataclass(frozen=True)
-class SphericalTriangle(Algorithm):
+class SphericalTriangle(PackedTriangleCalls, Algorithm):
     """Spherical-triangle area + polar-moment identification (Cole & Crassidis, JSR 41(1):117-121, 2004).
 
     As Galvizo & Lim ran it ("Empirical Analysis of Common Subgraph Isomorphism Approaches to the
@@ -200,6 +226,7 @@ class SphericalTriangle(Algorithm):
     """
 
     name: ClassVar[str] = "spherical_triangle"
+    packed_kernel: ClassVar = spherical_packed
     follows: ClassVar[dict] = {"sigma_px": "sigma_px"}
     query_only: ClassVar[tuple[str, ...]] = ('sigma_px',)   # only identify reads them (conformance 'query_only')
     published: ClassVar[dict] = GALVIZO2018
@@ -247,23 +274,6 @@ class SphericalTriangle(Algorithm):
     def tolerances(self, camera: Camera, database) -> SphTol:
         return SphTol(kind=self.kind, depth=int(self.moment_depth), pivot=bool(self.pivot),
                       unique=bool(self.unique_candidate), **common_tolerances(self, camera, database))
-
-    def kernel_args(self, database: TriangleDatabase, camera: Camera) -> np.ndarray:
-        """The kernel's tolerances and camera frame for one (database, camera) as one float64 array
-        (``packed_params``), built once and kept by identity (:meth:`~starid.plugin.Algorithm.kept`) rather
-        than per image (the tolerances and frame cost some 7-9 us a call, their unboxing some 5 us)."""
-        return self.kept("kernel_args", (database, camera),
-                         lambda: packed_params(self.tolerances(camera, database), camera_frame(camera)))
-
-    def _run(self, database: TriangleDatabase, observation: Observation):
-        return spherical_packed(observation.x_px, observation.y_px, observation.mag, database.index,
-                                database.guide_unit, self.kernel_args(database, observation.camera))
-
-    def identify(self, database: TriangleDatabase, observation: Observation) -> Identification:
-        rows, attitude, _, work = self._run(database, observation)
-        hip, found = identified_hip(database.guide_hip, rows, work)   # to_r: every query made when none left one
-        return Identification(hip, attitude if found else None,
-                              counters=dict(zip(WORK_NAMES, work.tolist(), strict=True)))
 
     def explain(self, database: TriangleDatabase, observation: Observation) -> Explanation:
         """The matched trio's triangle and the identified stars."""
