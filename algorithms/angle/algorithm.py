@@ -39,8 +39,43 @@ GALVIZO2018 = {"sigma_query_deg": 1e-4, "sigma_overlay_deg": 1e-5, "unique_windo
                "max_window": 5000, "d_min_deg": 0.0, "confirm_fraction": 0.0, "min_extra": 0}
 
 
+class PairKernelCalls:
+    """``_kernel_params``, ``_call``, ``_run`` and ``identify`` of a plugin over pyramid's :class:`PairDatabase`
+    whose kernel, :attr:`pair_kernel`, takes the stars, the database's arrays and :func:`params_of` the camera
+    frame and the plugin's tolerances, and returns ``(rows, stars, work, hip, attitude, found)``: angle's and
+    interior angle's (their classes name their kernel and counters and define ``tolerances``)."""
+
+    pair_kernel: ClassVar   # a numba kernel (angle's or interior angle's ``identify_kernel``)
+    work_names: ClassVar[tuple[str, ...]]   # the names of ``work``'s slots, ``Identification.counters``' keys
+
+    def _kernel_params(self, database: PairDatabase, camera: Camera) -> np.ndarray:
+        """The camera frame and the tolerances as the kernel's float64 array (:func:`params_of`), built once
+        per (database, camera) and kept (:meth:`~starid.plugin.Algorithm.kept`) rather than for every image
+        (issue #25: ~5.7 us a call, and 2 us of numba's unboxing of the named tuples)."""
+        return self.kept("kernel_params", (database, camera),
+                         lambda: params_of(camera_frame(camera), self.tolerances(camera, database)))
+
+    def _call(self, database: PairDatabase, observation: Observation):
+        """:attr:`pair_kernel` on one image: ``(rows, stars, work, hip, attitude, found)``, ``stars`` the matched
+        pair (angle) or trio (interior angle)."""
+        db = database
+        return type(self).pair_kernel(observation.x_px, observation.y_px, observation.mag, db.kv, db.pairs, db.nbr,
+                                      db.nbr_chord, db.nbr_start, db.guide_unit, db.guide_hip,
+                                      self._kernel_params(db, observation.camera))
+
+    def _run(self, database: PairDatabase, observation: Observation):
+        """The search's ``(rows, stars, work)`` (of :meth:`_call`)."""
+        rows, stars, work, _, _, _ = self._call(database, observation)
+        return rows, stars, work
+
+    def identify(self, database: PairDatabase, observation: Observation) -> Identification:
+        _, _, work, hip, attitude, found = self._call(database, observation)
+        return Identification(hip, attitude if found else None,
+                              counters=dict(zip(self.work_names, work.tolist(), strict=True)))
+
+
 @dataclass(frozen=True)
-class Angle(Algorithm):
+class Angle(PairKernelCalls, Algorithm):
     """The angle method: one star pair matched by its angle, checked by a direct-match test.
 
     Galvizo G., Lim L., "Empirical Analysis of Common Subgraph Isomorphism Approaches to the
@@ -78,6 +113,8 @@ class Angle(Algorithm):
     """
 
     name: ClassVar[str] = "angle"
+    pair_kernel: ClassVar = identify_kernel
+    work_names: ClassVar[tuple[str, ...]] = WORK_NAMES
     follows: ClassVar[dict] = {"sigma_px": "sigma_px"}
     query_only: ClassVar[tuple[str, ...]] = ('sigma_px',)   # only identify reads them (conformance 'query_only')
     published: ClassVar[dict] = GALVIZO2018
@@ -158,31 +195,6 @@ class Angle(Algorithm):
     def build(self, catalog: Catalog, camera: Camera) -> PairDatabase:
         d_min_deg = self.derived(catalog, camera).d_min_deg
         return build_pair_database(catalog, camera, self.mag_limit, d_min_deg, self.max_pair_deg, self.name)
-
-    def _kernel_params(self, database: PairDatabase, camera: Camera) -> np.ndarray:
-        """The camera frame and the tolerances as the kernel's float64 array (:func:`params_of`), built once
-        per (database, camera) and kept (:meth:`~starid.plugin.Algorithm.kept`) rather than for every image
-        (issue #25: ~5.7 us a call, and 2 us of numba's unboxing of the named tuples)."""
-        return self.kept("kernel_params", (database, camera),
-                         lambda: params_of(camera_frame(camera), self.tolerances(camera, database)))
-
-    def _call(self, database: PairDatabase, observation: Observation):
-        """:func:`~starid_algorithms.angle.kernels.identify_kernel` on one image: ``(rows, pair, work, hip,
-        attitude, found)``."""
-        db = database
-        return identify_kernel(observation.x_px, observation.y_px, observation.mag, db.kv, db.pairs, db.nbr,
-                               db.nbr_chord, db.nbr_start, db.guide_unit, db.guide_hip,
-                               self._kernel_params(db, observation.camera))
-
-    def _run(self, database: PairDatabase, observation: Observation):
-        """The search's ``(rows, pair, work)`` (of :meth:`_call`)."""
-        rows, pair, work, _, _, _ = self._call(database, observation)
-        return rows, pair, work
-
-    def identify(self, database: PairDatabase, observation: Observation) -> Identification:
-        _, _, work, hip, attitude, found = self._call(database, observation)
-        return Identification(hip, attitude if found else None,
-                              counters=dict(zip(WORK_NAMES, work.tolist(), strict=True)))
 
     def explain(self, database: PairDatabase, observation: Observation) -> Explanation:
         """The matched pair as a bold segment, and every identified star labelled with its id."""

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
-from starid_algorithms.angle.kernels import params_of
+from starid_algorithms.angle.algorithm import PairKernelCalls
 from starid_algorithms.pyramid.algorithm import (
     D_MIN_MAX_DEG,
     SIGMA_FLOOR_PX,
@@ -23,10 +23,10 @@ from starid_algorithms.pyramid.algorithm import (
 
 from starid.camera import Camera
 from starid.catalog import Catalog
-from starid.kernels import camera_frame, rad_to_chord
+from starid.kernels import rad_to_chord
 from starid.observation import Observation
 from starid.params import check_flag, check_number, check_whole, param
-from starid.plugin import Algorithm, Explanation, Identification
+from starid.plugin import Algorithm, Explanation
 
 from .kernels import WORK_NAMES, InteriorTol, identify_kernel
 
@@ -40,7 +40,7 @@ GALVIZO2018 = {"sigma_query_deg": 1e-2, "sigma_phi_deg": 1e-2, "unique": True, "
 
 
 @dataclass(frozen=True)
-class InteriorAngle(Algorithm):
+class InteriorAngle(PairKernelCalls, Algorithm):
     """The interior-angle method: a central star, its two nearest neighbours, two angles and the angle between.
 
     Galvizo G., Lim L., "Empirical Analysis of Common Subgraph Isomorphism Approaches to the
@@ -72,6 +72,8 @@ class InteriorAngle(Algorithm):
     """
 
     name: ClassVar[str] = "interior_angle"
+    pair_kernel: ClassVar = identify_kernel
+    work_names: ClassVar[tuple[str, ...]] = WORK_NAMES
     follows: ClassVar[dict] = {"sigma_px": "sigma_px"}
     query_only: ClassVar[tuple[str, ...]] = ('sigma_px',)   # only identify reads them (conformance 'query_only')
     published: ClassVar[dict] = GALVIZO2018
@@ -147,31 +149,6 @@ class InteriorAngle(Algorithm):
     def build(self, catalog: Catalog, camera: Camera) -> PairDatabase:
         d_min_deg = self.derived(catalog, camera).d_min_deg
         return build_pair_database(catalog, camera, self.mag_limit, d_min_deg, self.max_pair_deg, self.name)
-
-    def _kernel_params(self, database: PairDatabase, camera: Camera) -> np.ndarray:
-        """The camera frame and the tolerances as the kernel's float64 array (angle's ``params_of``), built
-        once per (database, camera) and kept (:meth:`~starid.plugin.Algorithm.kept`) rather than for every
-        image (issue #25: the tolerances' Python, and numba's unboxing of the named tuples)."""
-        return self.kept("kernel_params", (database, camera),
-                         lambda: params_of(camera_frame(camera), self.tolerances(camera, database)))
-
-    def _call(self, database: PairDatabase, observation: Observation):
-        """:func:`~starid_algorithms.interior_angle.kernels.identify_kernel` on one image: ``(rows, trio, work, hip,
-        attitude, found)``."""
-        db = database
-        return identify_kernel(observation.x_px, observation.y_px, observation.mag, db.kv, db.pairs, db.nbr,
-                               db.nbr_chord, db.nbr_start, db.guide_unit, db.guide_hip,
-                               self._kernel_params(db, observation.camera))
-
-    def _run(self, database: PairDatabase, observation: Observation):
-        """The search's ``(rows, trio, work)`` (of :meth:`_call`)."""
-        rows, trio, work, _, _, _ = self._call(database, observation)
-        return rows, trio, work
-
-    def identify(self, database: PairDatabase, observation: Observation) -> Identification:
-        _, _, work, hip, attitude, found = self._call(database, observation)
-        return Identification(hip, attitude if found else None,
-                              counters=dict(zip(WORK_NAMES, work.tolist(), strict=True)))
 
     def explain(self, database: PairDatabase, observation: Observation) -> Explanation:
         """The central star's two edges (bold) and the trio's triangle, every identified star labelled."""
