@@ -18,7 +18,7 @@ import math
 
 import numpy as np
 
-from starid.kernels import backproject_px, chord_rows, wahba_rows
+from starid.kernels import backproject_px, chord_rows, merge_assigned, wahba_rows
 from starid.kernels.jit import inline_kernel, inner, kernel
 from starid.kernels.prefetch import prefetch
 
@@ -309,19 +309,7 @@ def _assign_all(attitude, v_all, deep_unit, deep_index, deep_hip, eps_chord, hip
     c_fov = field_chord_px(f_px, cx_px, cy_px, width_px, height_px) + eps_chord
     _reproject_assign(attitude, v_all, deep_unit, deep_index, c_fov, eps_chord, rows, ranges, f_px, cx_px, cy_px,
                       width_px, height_px)
-    out = np.full(n, -1, dtype=np.int64)
-    for i in range(n):
-        if rows[i] >= 0:
-            out[i] = deep_hip[rows[i]]
-    for i in range(n):
-        if out[i] < 0 and hip[i] >= 0:
-            taken = False
-            for j in range(n):
-                if out[j] == hip[i]:
-                    taken = True
-            if not taken:
-                out[i] = hip[i]
-        hip[i] = out[i]
+    merge_assigned(rows, deep_hip, hip)
 
 
 @inner

@@ -13,7 +13,8 @@ Euclidean distance between two unit vectors, ``2 sin(theta / 2)`` (:func:`rad_to
 * :mod:`.attitude` -- Wahba's problem;
 * :mod:`.lapack` -- the 3x3 SVD, determinants and products it needs, as direct BLAS / LAPACK calls;
 * :mod:`.order` -- brightest (or nearest) first, input-order free;
-* :mod:`.assign` -- the final step: with the attitude, assign every detection (``assign_all``), and
+* :mod:`.assign` -- the final step: with the attitude, assign every detection (``assign_all``, ending
+  with ``merge_assigned``), and
   the whole-image check of a hypothesis (``explained``).
 """
 
@@ -26,6 +27,7 @@ from .assign import (
                      deep_sky,
                      explained,
                      field_chord,
+                     merge_assigned,
                      refine_explained,
 )
 from .attitude import guide_rows_f64, identity3, wahba_rows
@@ -43,13 +45,13 @@ from .geometry import (
 )
 from .kvector import KVector, kvector_build, kvector_make, kvector_query, kvector_range, kvector_slice
 from .order import before, order_by, sort_rows
-from .verify import keep_unique, reproject_assign, verify_pairwise, z_band_rows, z_bound
+from .verify import keep_unique, predicted_on_sensor, reproject_assign, verify_pairwise, z_band_rows, z_bound
 
 __all__ = [
     "angular_distance_rad", "assign_all", "backproject_px", "before", "camera_frame", "check_stars", "chord",
     "chord_rows", "chord_to_rad", "deep_sky", "DeepSky", "explained", "field_chord", "Frame", "guide_rows_f64",
     "identity3", "keep_unique", "KVector", "kvector_build", "kvector_make", "kvector_query", "kvector_range",
-    "kvector_slice", "order_by", "pairwise_chords",
-    "project_cam", "rad_to_chord", "refine_explained", "reproject_assign", "sort_rows", "triangle_sides",
-    "triple_product", "verify_pairwise", "wahba_rows", "z_band_rows", "z_bound",
+    "kvector_slice", "merge_assigned", "order_by", "pairwise_chords", "predicted_on_sensor", "project_cam",
+    "rad_to_chord", "refine_explained", "reproject_assign", "sort_rows", "triangle_sides", "triple_product",
+    "verify_pairwise", "wahba_rows", "z_band_rows", "z_bound",
 ]

@@ -18,7 +18,7 @@ import numpy as np
 
 from .attitude import wahba_rows
 from .geometry import backproject_px
-from .jit import kernel
+from .jit import inner, kernel
 from .verify import reproject_assign
 
 
@@ -89,10 +89,20 @@ def assign_all(attitude, x_px, y_px, frame, deep, eps_chord, hip):
     rows = np.empty(n, dtype=np.int64)
     reproject_assign(attitude, v_all, deep.unit, field_chord(frame) + eps_chord, eps_chord, rows, frame.f_px,
                      frame.cx_px, frame.cy_px, frame.width_px, frame.height_px)
+    return merge_assigned(rows, deep.hip, hip)
+
+
+@inner   # kernels call it only
+def merge_assigned(rows, deep_hip, hip):
+    """``hip`` (int64, updated in place) merged with a reprojection's assignment: ``deep_hip[rows[i]]`` where
+    ``rows[i] >= 0``; a detection reprojection left unassigned keeps its id from ``hip`` unless that id went to
+    another detection. Returns how many detections have an id afterwards (:func:`assign_all`'s last step; a
+    plugin with its own reprojection, triangle voting's cone search, ends with it too)."""
+    n = rows.shape[0]
     out = np.full(n, -1, dtype=np.int64)
     for i in range(n):
         if rows[i] >= 0:
-            out[i] = deep.hip[rows[i]]
+            out[i] = deep_hip[rows[i]]
     count = 0
     for i in range(n):
         if out[i] < 0 and hip[i] >= 0:
