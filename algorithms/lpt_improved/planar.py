@@ -45,6 +45,7 @@ from starid.kernels import (
     chord_rows,
     identity3,
     keep_unique,
+    predicted_on_sensor,
     reproject_assign,
     sort_rows,
     verify_pairwise,
@@ -585,29 +586,6 @@ def assign_near(A, v_cam, unit, z_start, c_fov, eps, out_row, pair_i, pair_g, n_
             return settle_pairs(pi, pg, n_pairs, n_match, out_row)
         pi = np.empty(4 * pi.shape[0], dtype=np.int64)
         pg = np.empty(4 * pg.shape[0], dtype=np.int64)
-
-
-@inner   # kernels call it only
-def predicted_on_sensor(A, unit, c_fov, f_px, cx_px, cy_px, width_px, height_px):
-    """``reproject_assign``'s second count: guide rows of the cap whose prediction lands on the sensor
-    (the same loop and expressions)."""
-    bore = np.empty((1, 3))
-    for a in range(3):
-        bore[0, a] = A[2, a]
-    b = np.empty((1, 3))
-    n_predicted = 0
-    g_start, g_stop = z_band_rows(unit, bore[0, 2], c_fov)
-    for g in range(g_start, g_stop):
-        if chord_rows(unit, g, bore, np.int64(0)) > c_fov:
-            continue
-        for a in range(3):
-            b[0, a] = A[a, 0] * unit[g, 0] + A[a, 1] * unit[g, 1] + A[a, 2] * unit[g, 2]
-        if b[0, 2] > 0:
-            x = cx_px + f_px * b[0, 0] / b[0, 2]
-            y = cy_px + f_px * b[0, 1] / b[0, 2]
-            if 0 <= x < width_px and 0 <= y < height_px:
-                n_predicted += 1
-    return n_predicted
 
 
 @inner   # kernels call it only

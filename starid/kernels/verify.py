@@ -7,7 +7,7 @@ import math
 import numpy as np
 
 from .geometry import chord_rows
-from .jit import inner, kernel
+from .jit import inline_inner, inner, kernel
 
 
 @kernel
@@ -99,6 +99,39 @@ def keep_unique(n_match, out_row):
     return count
 
 
+@inline_inner   # inlined in numba IR: the same code in reproject_assign's loop as before it was shared
+def predict_on_sensor(A, unit, g, b, f_px, cx_px, cy_px, width_px, height_px):
+    """Predict guide star ``g``: ``b[0] = A unit[g]``, its direction in the camera frame; whether it lands on
+    the ``width_px`` x ``height_px`` sensor (in front of the camera, its pinhole projection inside). The
+    prediction step of :func:`reproject_assign` and :func:`predicted_on_sensor`."""
+    for a in range(3):
+        b[0, a] = A[a, 0] * unit[g, 0] + A[a, 1] * unit[g, 1] + A[a, 2] * unit[g, 2]
+    if b[0, 2] > 0:
+        x = cx_px + f_px * b[0, 0] / b[0, 2]
+        y = cy_px + f_px * b[0, 1] / b[0, 2]
+        return 0 <= x < width_px and 0 <= y < height_px
+    return False
+
+
+@inner   # kernels call it only
+def predicted_on_sensor(A, unit, c_fov, f_px, cx_px, cy_px, width_px, height_px):
+    """:func:`reproject_assign`'s second count alone: the guide rows of ``unit`` (sorted by z) within chord
+    ``c_fov`` of the boresight whose prediction lands on the sensor (for a plugin that assigns by its own
+    means and needs only the count: lpt_improved)."""
+    bore = np.empty((1, 3))  # boresight in ICRS: A^T (0, 0, 1)
+    for a in range(3):
+        bore[0, a] = A[2, a]
+    b = np.empty((1, 3))
+    n_predicted = 0
+    g_start, g_stop = z_band_rows(unit, bore[0, 2], c_fov)
+    for g in range(g_start, g_stop):
+        if chord_rows(unit, g, bore, np.int64(0)) > c_fov:
+            continue
+        if predict_on_sensor(A, unit, g, b, f_px, cx_px, cy_px, width_px, height_px):
+            n_predicted += 1
+    return n_predicted
+
+
 @kernel
 def reproject_assign(A, v_cam, unit, c_fov, eps, out_row, f_px, cx_px, cy_px, width_px, height_px):
     """Identify observed stars from an attitude: each catalog star predicted at ``A r`` (notes 1.5).
@@ -123,13 +156,8 @@ def reproject_assign(A, v_cam, unit, c_fov, eps, out_row, f_px, cx_px, cy_px, wi
     for g in range(g_start, g_stop):
         if chord_rows(unit, g, bore, np.int64(0)) > c_fov:
             continue
-        for a in range(3):
-            b[0, a] = A[a, 0] * unit[g, 0] + A[a, 1] * unit[g, 1] + A[a, 2] * unit[g, 2]
-        if b[0, 2] > 0:
-            x = cx_px + f_px * b[0, 0] / b[0, 2]
-            y = cy_px + f_px * b[0, 1] / b[0, 2]
-            if 0 <= x < width_px and 0 <= y < height_px:
-                n_predicted += 1
+        if predict_on_sensor(A, unit, g, b, f_px, cx_px, cy_px, width_px, height_px):
+            n_predicted += 1
         found = -1
         n_found = 0
         for i in range(n):
