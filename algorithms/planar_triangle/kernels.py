@@ -49,6 +49,9 @@ WORK_COUNTERS = ("subsets", "pivots", "candidates", "verifications", "image_tria
                  "first_in_R", "starts", "to_r")
 N_WORK = len(WORK_COUNTERS)
 CACHE_PER_TRIANGLE = 2048  # room for moment candidates per image triangle (on average) in the cache
+CACHE_MAX = 1 << 22  # at most this many cached candidates per image (32 MB, their hash tables 512 MB of address
+# space): an image of 20,000 triangles (the paper's reading with false stars) asked 344 MB + 5.5 GB, which a
+# worker's --memory-limit-gb (address space) refused; past it candidates are computed again, the same ones
 MEMO_DIM = 64  # first pivots (start triangle g0, second g1) with g0, g1 < MEMO_DIM are memoised per image
 MEMO_NODES = 1 << 15  # room for the memoised pivots' new finalists per image (full: no more memoising)
 #: a pivot of at most this many finalists into a triangle whose hash table is not built matches them
@@ -473,9 +476,9 @@ def _few_hash(cand, tri_stars, node_cat, layer_lo, layer_hi, mark):
 @inner
 def new_cache(img, n_guide):
     """An empty :class:`MomentCache` for the triangles of ``img`` (``gid`` 0..m-1), room for
-    CACHE_PER_TRIANGLE candidates per triangle on average; ``n_guide`` guide stars."""
+    CACHE_PER_TRIANGLE candidates per triangle on average, at most CACHE_MAX; ``n_guide`` guide stars."""
     m = img.tri.shape[0]
-    total = CACHE_PER_TRIANGLE * m
+    total = min(CACHE_PER_TRIANGLE * m, CACHE_MAX)
     # np.empty and loops, not np.zeros / np.full: each of those (per dtype) compiles np.empty and a fill
     # of its own, ~0.1 CPU s each on a cold cache
     done = np.empty(m, dtype=np.bool_)

@@ -468,3 +468,23 @@ def test_single_triangle_reading_without_subsets_answers(db, noise_free):
         assert np.all((hip == -1) | (hip == obs.truth_hip))
         found += int(np.any(hip >= 0))
     assert found >= 8
+
+
+def test_moment_cache_has_a_bound():
+    """The per-image candidate cache grows with the image's triangles up to ``CACHE_MAX`` candidates. The paper's
+    reading with false stars forms up to ~20,000 triangles: 2,048 candidates of room each asked 344 MB and 5.5 GB
+    of hash tables of address space per image, which a worker's ``--memory-limit-gb`` refused at its default
+    floor of 4 GB (1 of 150 real-sky images with 3 false stars ``crashed`` instead of ``no_result``; 4 at 3 GB),
+    so that reading's rows depended on the machine and the job count. The default reading's images (56
+    triangles at most) keep their room."""
+
+    def image(m):
+        z = np.zeros(m, dtype=np.int64)
+        return kernels.ImageTriangles(np.zeros((1, 3)), np.zeros((m, 3), dtype=np.int64), np.zeros(m), z, z, z)
+
+    big = kernels.new_cache.py_func(image(20_000), 10)
+    assert big.buf.shape[0] == kernels.CACHE_MAX
+    assert big.buf.nbytes + big.keys.nbytes <= 600e6
+    small = kernels.new_cache.py_func(image(56), 10)
+    assert small.buf.shape[0] == kernels.CACHE_PER_TRIANGLE * 56
+    assert small.keys.shape[0] == kernels.HASH_ROOM * small.buf.shape[0]
