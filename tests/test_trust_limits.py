@@ -53,6 +53,24 @@ def test_memory_without_bound_is_a_crashed_row(monkeypatch):
     assert len(good) == 3 and not good["status"].isin(FAILED).any()
 
 
+def test_an_images_memory_status_does_not_depend_on_what_ran_before_it_in_its_worker(monkeypatch):
+    # the limit is headroom over what the worker holds when a chunk starts (and again when its images start):
+    # a chunk that left 2 GB in the worker (as a database does) leaves the next plugin's 2 GB per image as
+    # possible as in a fresh worker, and 6 GB per image is beyond the limit in both
+    def run(gb, before=()):
+        variants = tuple(Variant.parse(v) for v in (*before, f"misbehaving[mode=need,every=1,gb={gb}]"))
+        exp = Experiment("headroom", (Study("s", variants),), trials=2, seed=3)
+        frame = run_experiment(exp, None, jobs=1, progress=False, memory_limit_gb=4.0)
+        return frame[frame["label"].str.contains("leave")], frame[frame["label"].str.contains("need")]
+
+    left, need = run(2.0, ("misbehaving[mode=leave,gb=2.0]",))
+    assert len(left) == 2 and not left["status"].isin(FAILED).any()         # it did leave its 2 GB
+    assert len(need) == 2 and not need["status"].isin(FAILED).any()
+    assert not run(2.0)[1]["status"].isin(FAILED).any()
+    assert (run(6.0)[1]["status"] == CRASHED).all()
+    assert (run(6.0, ("misbehaving[mode=leave,gb=2.0]",))[1]["status"] == CRASHED).all()
+
+
 @pytest.mark.parametrize("kwargs, flag", [({"build_time_limit_s": 0}, "--build-time-limit"),
                                           ({"build_time_limit_s": float("nan")}, "--build-time-limit"),
                                           ({"memory_limit_gb": -1}, "--memory-limit-gb")])

@@ -88,10 +88,12 @@ def add_limits(p: argparse.ArgumentParser, engine: bool = True) -> None:
                    help=f"seconds an algorithm may take to prepare (derived + build, then the warm-up identify that "
                         f"compiles its kernels) {where}; beyond, its images are recorded as 'timeout'")
     p.add_argument("--memory-limit-gb", type=float, default=None, metavar="GB",
-                   help="address-space limit per worker process (default: the machine's memory / --jobs); an "
-                        "image that exceeds it is recorded as 'crashed'" if engine else
-                        "address-space limit of the process each algorithm runs in (default: the machine's "
-                        "memory); exceeding it is that algorithm's 'crashed'")
+                   help="GB a worker's address space may grow by in a chunk's preparation and again in its "
+                        "images (default: the machine's memory / --jobs); an image that exceeds it is recorded as "
+                        "'crashed'" if engine else
+                        "GB the address space of the process each algorithm runs in may grow by while it "
+                        "prepares and again over its images (default: the machine's memory); exceeding it is "
+                        "that algorithm's 'crashed'")
 
 
 def add_out(p: argparse.ArgumentParser, what: str, required: bool = False) -> None:

@@ -50,8 +50,8 @@ DEFAULT_TIME_LIMIT_S = 10.0
 #: ``--build-time-limit``: seconds a worker may spend preparing a chunk (simulating its trials,
 #: ``derived`` + ``build``) before that algorithm's images become ``timeout`` rows
 BUILD_TIME_LIMIT_S = 600.0
-#: the ``--memory-limit-gb`` default is never below this (a worker's address space, not its resident
-#: memory: numba, threads and the inherited parent already reserve ~1 GB)
+#: the ``--memory-limit-gb`` default is never below this (address space, not resident memory: a plugin's
+#: first frames and threads reserve arenas it never touches)
 MIN_MEMORY_GB = 4.0
 
 
@@ -65,18 +65,41 @@ def fair_share_gb(jobs: int) -> float:
     return max(MIN_MEMORY_GB, round(total / 1e9 / max(jobs, 1), 1))
 
 
-_MEMORY = {"limit_gb": None}    # this worker's address-space limit (None: unlimited)
+_MEMORY = {"limit_gb": None}    # this process's --memory-limit-gb (None: unlimited)
+
+
+def address_space_gb() -> float:
+    """This process's address space (``VmSize``) in GB, 0.0 where ``/proc`` does not say (not Linux)."""
+    try:
+        with open("/proc/self/statm") as f:
+            pages = int(f.read().split()[0])
+        return pages * os.sysconf("SC_PAGE_SIZE") / 1e9
+    except (OSError, ValueError, IndexError):
+        return 0.0
 
 
 def _limit_memory(limit_gb: float | None) -> None:
-    """RLIMIT_AS of this (worker) process: an allocation beyond it fails (``MemoryError``) instead
-    of taking the machine down."""
+    """Hold this (worker) process to ``--memory-limit-gb``: an allocation beyond it fails (``MemoryError``)
+    instead of taking the machine down. The limit is headroom, set by :func:`memory_headroom`."""
     _MEMORY["limit_gb"] = limit_gb
+    memory_headroom()
+
+
+def memory_headroom() -> None:
+    """Cap this process's address space (RLIMIT_AS) at what it holds now plus ``--memory-limit-gb``.
+
+    Called when the process starts and again before each phase of plugin code (a chunk's preparation,
+    then its images), so that a phase may add the limit to the address space whatever the phases before
+    it left there: the databases and compiled code of earlier chunks in the same worker, the allocator's
+    reserved arenas (pyarrow's pool reserves 1 GiB on the first frame a worker builds). An image's status
+    is then the same whichever chunks ran before it in its worker, hence for any ``--jobs``. Where the
+    address space cannot be read (not Linux) the cap is the limit itself."""
+    limit_gb = _MEMORY["limit_gb"]
     if limit_gb is None or limit_gb == float("inf"):
         return
     import resource
 
-    limit = int(limit_gb * 1e9)
+    limit = int((address_space_gb() + limit_gb) * 1e9)
     _, hard = resource.getrlimit(resource.RLIMIT_AS)
     if hard != resource.RLIM_INFINITY:
         limit = min(limit, hard)
@@ -171,6 +194,7 @@ def _trials(task: Task, catalog: Catalog):
 
 def execute_task(task: Task, beat=None) -> pd.DataFrame:
     """The trial rows of one chunk. ``beat`` (a shared array) hears which image is running."""
+    memory_headroom()           # this chunk's preparation, beyond what earlier chunks left in this worker
     catalog = _catalog(task.catalog_path)
     sim, trials, image_stats = _trials(task, catalog)
     chunk = task.chunk
@@ -212,6 +236,7 @@ def execute_task(task: Task, beat=None) -> pd.DataFrame:
         algorithm, dist, dist_version = None, "", ""
     rule = SuccessRule(task.min_correct)
     rows = []
+    memory_headroom()           # the images' own headroom, whether this chunk built the database or not
     for i in range(len(trials)):
         if i in task.skip:
             status, error = task.skip[i]
@@ -500,8 +525,12 @@ class _Control:
 
     def __init__(self, conn):
         self._conn = conn
+        self._build = True
 
     def phase(self, name: str, build: bool = False) -> None:
+        if self._build and not build:       # the images' own memory headroom, as a chunk's in the engine
+            memory_headroom()
+        self._build = build
         self._conn.send(("phase", name, build))
 
     def emit(self, item) -> None:

@@ -142,7 +142,8 @@ def run_experiment(experiment: Experiment, out: str | Path | None = None, jobs: 
     With ``out`` the results folder (:mod:`.store`) keeps every chunk as it finishes, so an
     interrupted run resumes where it stopped; without it nothing is written. Both executors hold
     every call of plugin code to a limit: ``time_limit_s`` per image (and the warm-up image),
-    ``build_time_limit_s`` for ``derived``/``build``; ``memory_limit_gb`` per worker (None: the
+    ``build_time_limit_s`` for ``derived``/``build``; ``memory_limit_gb`` what a worker's address space may
+    add in a chunk's preparation and again in its images (:func:`.executors.memory_headroom`; None: the
     machine's memory / workers; on a Dask cluster given by ``scheduler``, each worker machine's memory /
     its cores).
     """

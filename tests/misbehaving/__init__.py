@@ -22,6 +22,10 @@ class Empty(Database):
     ids: np.ndarray
 
 
+#: what ``mode=leave`` builds keep alive in the process, as a worker keeps earlier chunks' databases
+_LEFT: list = []
+
+
 @dataclass(frozen=True)
 class Misbehaving(Algorithm):
     """Identifies nothing, then misbehaves as ``mode`` says (test double)."""
@@ -29,12 +33,15 @@ class Misbehaving(Algorithm):
     name: ClassVar[str] = "misbehaving"
     mode: str = "none"
     every: int = 3
+    gb: float = 0.0         # modes leave / need: GB of address space (reserved, never written to)
 
     def build(self, catalog, camera):
         if self.mode == "build_raises":
             raise RuntimeError("cannot build")
         if self.mode == "build_hang":
             time.sleep(3600)
+        if self.mode == "leave":    # what an earlier chunk leaves in its worker (a database, compiled code)
+            _LEFT.append(np.empty(int(self.gb * 1e9), dtype=np.uint8))
         return Empty(catalog.hip[:10].copy())
 
     def _hit(self, observation) -> bool:
@@ -50,6 +57,8 @@ class Misbehaving(Algorithm):
             os._exit(9)
         if self.mode == "alloc" and self._hit(observation):     # without bound: 64 GB, written to
             np.ones(8 * 10**9)
+        if self.mode == "need" and self._hit(observation):      # a bounded need, freed after the image
+            np.empty(int(self.gb * 1e9), dtype=np.uint8)
         if self.mode == "mutate":
             observation.x_px[:] = 0.0
         if self.mode == "cheat":
