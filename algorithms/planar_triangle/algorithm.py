@@ -32,6 +32,7 @@ from .kernels import (
     identify_rows,
     identify_subsets,
     moment_blocks,
+    moment_fence,
     scan_triangles,
 )
 
@@ -86,7 +87,9 @@ class PlanarTriangleDatabase(Database):
         Mortari k-vector.
     tri_moment: float32 (N,) polar moment ``J`` of the same triangles, sorted within each block of
         ``kernels.MOMENT_BLOCK`` consecutive triangles (the moment index); tri_moment_perm: uint8 (N,)
-        offset in its block of the triangle of each entry (:func:`moment_of` reads one triangle's).
+        offset in its block of the triangle of each entry (:func:`moment_of` reads one triangle's);
+        tri_moment_fence: float32 (blocks, 16) every 16th entry of each block (``kernels.moment_fence``),
+        where a block's search starts.
     guide_hip: int64 (n,) HIP of each guide star; guide_unit: float64 (n, 3) ICRS unit vectors.
     nbr_ptr: int32 (n + 1,), nbr_idx: uint16 -- guide-star neighbours within the sensor
         diagonal (read only by the distance extension).
@@ -102,6 +105,7 @@ class PlanarTriangleDatabase(Database):
     tri_area: KVector
     tri_moment: np.ndarray
     tri_moment_perm: np.ndarray
+    tri_moment_fence: np.ndarray
     guide_hip: np.ndarray
     guide_unit: np.ndarray
     nbr_ptr: np.ndarray
@@ -127,7 +131,8 @@ class PlanarTriangleDatabase(Database):
 
     def tables(self) -> Tables:
         """The arrays the kernels read, as one bundle."""
-        return Tables(self.tri_stars, self.tri_area, self.tri_moment, self.tri_moment_perm, self.guide_unit,
+        return Tables(self.tri_stars, self.tri_area, self.tri_moment, self.tri_moment_fence, self.tri_moment_perm,
+                      self.guide_unit,
                       self.nbr_ptr, self.nbr_idx, self.rules)
 
 
@@ -433,7 +438,8 @@ class PlanarTriangle(Algorithm):
         return PlanarTriangleDatabase(
             tri_stars=tri_stars,
             tri_area=kvector_make(area32[order], np.float32, np.int32),
-            tri_moment=moment_sorted, tri_moment_perm=moment_perm, guide_hip=guide.hip.astype(np.int64),
+            tri_moment=moment_sorted, tri_moment_perm=moment_perm, tri_moment_fence=moment_fence(moment_sorted),
+            guide_hip=guide.hip.astype(np.int64),
             guide_unit=unit, nbr_ptr=nptr.astype(np.int32), nbr_idx=nidx.astype(np.uint16), rules=rules,
             deep=deep, deep_v_mag=deep_v_mag(catalog, deep), mag_limit=mag_limit, fov_db_deg=fov_db_deg,
             min_area_deg2=min_area_deg2)

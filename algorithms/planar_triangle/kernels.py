@@ -21,16 +21,19 @@ from starid.kernels import (
     backproject_px,
     chord_rows,
     field_chord,
-    kvector_query,
     triple_product,
     verify_pairwise,
     wahba_rows,
     z_band_rows,
 )
 from starid.kernels.jit import inner, kernel
+from starid.kernels.kvector import kvector_ends, kvector_rows, kvector_trim
 from starid.kernels.order import search_left, sort_int_prefix
+from starid.kernels.prefetch import prefetch
 
 MOMENT_BLOCK = 256  # triangles per block of the moment index (offsets fit uint8)
+FENCE_STEP = 16  # moment-index entries per fence post: 16 float32, one 64-byte cache line of the index
+FENCE_POSTS = MOMENT_BLOCK // FENCE_STEP  # posts per block: 16 float32, one cache line of the fence
 HASH_ROOM = 16  # hash-table slots per cached candidate (3 pairs, table at most 3/8 full, power of two)
 EMPTY = np.uint64(0xFFFFFFFFFFFFFFFF)  # an empty hash slot (no star pair lo < hi < 65536 has this key)
 SHIFT = np.uint64(32)  # a slot is (star-pair key << 32) | candidate, one 8-byte read per probe
@@ -75,6 +78,7 @@ class Tables(NamedTuple):
     stars: np.ndarray  # uint16 (N, 3) guide rows of the triangle of each moment-index entry, ascending within a row
     area: KVector  # float32 areas, ascending, with their k-vector
     moment: np.ndarray  # float32 (N,) polar moments, sorted within each block of MOMENT_BLOCK triangles
+    fence: np.ndarray  # float32 (blocks, FENCE_POSTS) every FENCE_STEP-th entry of ``moment`` (moment_fence)
     moment_perm: np.ndarray  # uint8 (N,) triangle (offset in its block, area order) of each entry of ``moment``
     unit: np.ndarray  # float64 (n, 3) guide-star unit vectors, ICRS
     nbr_ptr: np.ndarray  # int32 (n + 1,) CSR neighbours within the sensor diagonal
@@ -313,37 +317,58 @@ def entry_triangles(moment_perm):
     return entry - entry % MOMENT_BLOCK + moment_perm
 
 
+def moment_fence(sorted_moment):
+    """The moment index's fence: float32 ``(blocks, FENCE_POSTS)``, post ``k`` of block ``b`` the entry
+    ``b * MOMENT_BLOCK + k * FENCE_STEP`` of ``sorted_moment`` (+inf where the last block ends first).
+    One cache line per block, the blocks' lines consecutive: :func:`_moment_filter` finds the stretch of
+    ``FENCE_STEP`` entries where a block's hits begin from it and reads one line of the index there."""
+    n = sorted_moment.shape[0]
+    blocks = -(-n // MOMENT_BLOCK)
+    padded = np.full(blocks * MOMENT_BLOCK, np.inf, dtype=np.float32)
+    padded[:n] = sorted_moment
+    return np.ascontiguousarray(padded.reshape(blocks, FENCE_POSTS, FENCE_STEP)[:, :, 0])
+
+
 @inner
-def _moment_filter(moment, moment_perm, start, stop, lo, hi):
+def _moment_filter(db, start, stop, lo, hi):
     """The catalog triangles in ``[start, stop)`` (area order) whose polar moment lies in
     ``[lo, hi]``, as their entries (positions) in the moment index, ascending: the triangle of entry
     ``p`` is ``p - p % MOMENT_BLOCK + moment_perm[p]`` in area order, its stars ``Tables.stars[p]``.
 
-    The same set as scanning the area hits, found with a binary search in each block of the
-    moment index that the area range touches (the area window holds ~20x more triangles than
-    the moment window). A block's hits are consecutive entries, so their stars are read from a
-    few cache lines (the stars are stored in the index's order).
+    The same set as scanning the area hits, found in each block of the moment index that the area
+    range touches (the area window holds ~20x more triangles than the moment window). A first pass
+    reads only the blocks' fence lines (:func:`moment_fence`, consecutive): each says which stretch of
+    ``FENCE_STEP`` entries holds the block's first entry >= ``lo``, and the lines of the index, of
+    ``moment_perm`` and of the stars there are asked for (``prefetch``) at once for every block. The
+    second scans each stretch to that entry (the one a binary search of the block finds, which read
+    ~5 dependent lines of the index where this reads one, already on its way) and on through the
+    block's hits, consecutive entries whose stars (stored in the index's order) the caller reads next.
     """
+    moment, fence, moment_perm, stars = db.moment, db.fence, db.moment_perm, db.stars
     out = np.empty(max(stop - start, 0), dtype=np.int64)
     m = 0
     if stop <= start:
         return out
     n = moment.shape[0]
-    for b in range(start // MOMENT_BLOCK, (stop - 1) // MOMENT_BLOCK + 1):
-        base = b * MOMENT_BLOCK
+    b0 = start // MOMENT_BLOCK
+    seek = np.empty((stop - 1) // MOMENT_BLOCK + 1 - b0, dtype=np.int64)
+    for q in range(seek.shape[0]):      # from the fence alone: where each block's scan starts; its lines asked for
+        below = 0          # posts < lo (the posts ascend; +inf never is)
+        for k in range(FENCE_POSTS):
+            below += fence[b0 + q, k] < lo
+        # the first entry >= lo is the block's first (no post below lo) or in ((below-1) * STEP, below * STEP]
+        seek[q] = (b0 + q) * MOMENT_BLOCK + max(below - 1, 0) * FENCE_STEP + (below > 0)
+        prefetch(moment, min(seek[q], n - 1))
+        prefetch(moment_perm, min(seek[q], n - 1))
+        prefetch(stars, min(seek[q], n - 1))
+        prefetch(stars, min(seek[q] + 10, n - 1))
+    for q in range(seek.shape[0]):
+        base = (b0 + q) * MOMENT_BLOCK
         end = min(base + MOMENT_BLOCK, n)
-        # first entry of the block >= lo (binary search; a slice and np.searchsorted per block cost
-        # two reference-count updates each)
-        pos = base
-        hi_pos = end
-        while pos < hi_pos:
-            mid = (pos + hi_pos) >> 1
-            if moment[mid] < lo:
-                pos = mid + 1
-            else:
-                hi_pos = mid
-        while pos > base and moment[pos - 1] >= lo:  # float32 vs float64 comparison at the edge
-            pos -= 1
+        pos = seek[q]
+        last = min(pos + FENCE_STEP - 1, end)    # a post >= lo (or the block's end) follows the stretch
+        while pos < last and moment[pos] < lo:
+            pos += 1
         while pos < end and moment[pos] <= hi:
             if moment[pos] >= lo:
                 t = base + np.int64(moment_perm[pos])
@@ -373,7 +398,7 @@ def _moment_list(t, img, db, tol, cache):
     _, moment, _ = triangle_features(r1, r2, r3)
     _, var_j = triangle_variances(r1, r2, r3, tol.sigma_rad)
     half = tol.beta * math.sqrt(var_j)
-    out = _moment_filter(db.moment, db.moment_perm, img.start[t], img.stop[t], moment - half, moment + half)
+    out = _moment_filter(db, img.start[t], img.stop[t], moment - half, moment + half)
     nc = out.shape[0]
     p = cache.fill[0]
     if p + nc <= cache.buf.shape[0]:
@@ -986,14 +1011,22 @@ def extend_by_distance(img_v, rows, db, tol_chord):
 def _image_triangles(img_v, db, tol):
     """Step 1: every image triangle within ``fov_rad`` and of area >= ``min_area``, looked up in
     the area-sorted catalog with the k-vector, ``[A - beta sA, A + beta sA]``; triangles with
-    more than ``climit`` hits are dropped (``MatchStarsWPlanarTris.m``)."""
+    more than ``climit`` hits are dropped (``MatchStarsWPlanarTris.m``).
+
+    In three passes over the triangles, the result of ``kvector_query`` for each: their windows and
+    k-vector positions (the two k entries asked for), then the k-vector's slices (the values at their
+    ends asked for), then the slices trimmed; so the ~50 triangles' reads of a database out of cache
+    overlap instead of waiting for each other."""
     n = img_v.shape[0]
     rules = db.rules
+    kv = db.area
+    nv = kv.values.shape[0]
     max_t = n * (n - 1) * (n - 2) // 6
     img_tri = np.empty((max_t, 3), dtype=np.int64)
     img_area = np.empty(max_t)
     img_start = np.empty(max_t, dtype=np.int64)
     img_stop = np.empty(max_t, dtype=np.int64)
+    window = np.empty((max_t, 2))
     m = 0
     for i in range(n):
         for j in range(i + 1, n):
@@ -1007,16 +1040,46 @@ def _image_triangles(img_v, db, tol):
                     continue
                 var_a, _ = triangle_variances(img_v[i], img_v[j], img_v[k], tol.sigma_rad)
                 half = tol.beta * math.sqrt(var_a)
-                start, stop = kvector_query(db.area, area - half, area + half)
-                if stop - start > tol.climit:
-                    continue
+                lo = area - half
+                hi = area + half
                 img_tri[m, 0] = i
                 img_tri[m, 1] = j
                 img_tri[m, 2] = k
                 img_area[m] = area
-                img_start[m] = start
-                img_stop[m] = stop
+                window[m, 0] = lo
+                window[m, 1] = hi
+                if nv == 0 or hi < lo:      # kvector_query's empty range
+                    img_start[m] = 0
+                    img_stop[m] = 0
+                else:
+                    jb, jt = kvector_ends(kv.m, kv.q, lo, hi)
+                    img_start[m] = jb
+                    img_stop[m] = jt
+                    prefetch(kv.k, min(max(jb - 1, 0), nv - 1))
+                    prefetch(kv.k, min(max(jt - 1, 0), nv - 1))
                 m += 1
+    for t in range(m):     # the k-vector's slices
+        if nv == 0 or window[t, 1] < window[t, 0]:
+            continue
+        start, stop = kvector_rows(kv.k, nv, img_start[t], img_stop[t])
+        img_start[t] = start
+        img_stop[t] = stop
+        prefetch(kv.values, min(max(start - 1, 0), nv - 1))
+        prefetch(kv.values, min(stop, nv - 1))
+    kept = 0
+    for t in range(m):     # trimmed to the values in the window; too many hits: dropped
+        start, stop = img_start[t], img_stop[t]
+        if not (nv == 0 or window[t, 1] < window[t, 0]):
+            start, stop = kvector_trim(kv.values, nv, start, stop, window[t, 0], window[t, 1])
+        if stop - start > tol.climit:
+            continue
+        for c in range(3):
+            img_tri[kept, c] = img_tri[t, c]
+        img_area[kept] = img_area[t]
+        img_start[kept] = start
+        img_stop[kept] = stop
+        kept += 1
+    m = kept
     gid = np.empty(m, dtype=np.int64)  # np.arange(m) (a loop: see new_cache)
     for t in range(m):
         gid[t] = t

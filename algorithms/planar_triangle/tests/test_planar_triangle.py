@@ -37,8 +37,8 @@ def triangle_variances(r1, r2, r3, sigma_rad):
 
 
 @njit
-def _moment_filter(moment, moment_perm, start, stop, lo, hi):
-    return kernels._moment_filter(moment, moment_perm, start, stop, lo, hi)
+def _moment_filter(tables, start, stop, lo, hi):
+    return kernels._moment_filter(tables, start, stop, lo, hi)
 
 
 @njit
@@ -132,6 +132,9 @@ def test_database_invariants(db, catalog):
     assert db.tri_moment.dtype == np.float32 and db.tri_area.k.dtype == np.int32
     assert db.tri_moment_perm.dtype == np.uint8
     n = db.tri_area.values.size
+    posts = db.tri_moment_fence.ravel()      # every 16th entry of the moment index, +inf past its end
+    assert db.tri_moment_fence.shape == (-(-n // 256), 16) and db.tri_moment_fence.dtype == np.float32
+    assert np.array_equal(posts[:-(-n // 16)], db.tri_moment[::16]) and np.isinf(posts[-(-n // 16):]).all()
     assert 500_000 < n < 5_000_000
     assert np.all(np.diff(db.tri_area.values) >= 0)
     s = db.stars_by_area().astype(np.int64)  # row t: triangle t of the area order
@@ -186,13 +189,18 @@ def test_moment_filter_matches_a_scan_of_the_area_hits(db):
     for base in range(0, n, MOMENT_BLOCK):
         block = db.tri_moment_perm[base:base + MOMENT_BLOCK].astype(np.int64)
         moment[base + block] = db.tri_moment[base:base + block.size]
+    assert n % MOMENT_BLOCK != 0    # the last block is partial: the fence's +inf posts are exercised
+    tables = db.tables()
     rng = np.random.default_rng(6)
-    for _ in range(40):
-        start = int(rng.integers(0, n - 20_000))
-        stop = start + int(rng.integers(0, 20_000))
+    for i in range(80):
+        start = int(rng.integers(0, n - 20_000)) if i % 4 else n - int(rng.integers(1, 3000))
+        stop = start + int(rng.integers(0, 20_000)) if i % 4 else n
         lo = float(moment[rng.integers(start, stop)]) if stop > start else 0.0
+        if i % 3 == 0:      # a window that starts exactly at a fence post (the post itself is a hit)
+            lo = float(db.tri_moment_fence[start // MOMENT_BLOCK, int(rng.integers(0, 16))])
+            lo = lo if np.isfinite(lo) else 0.0
         hi = lo * rng.uniform(1.0, 1.2)
-        entries = _moment_filter(db.tri_moment, db.tri_moment_perm, start, stop, lo, hi)
+        entries = _moment_filter(tables, start, stop, lo, hi)
         assert np.all(np.diff(entries) > 0)  # entries of the moment index, ascending
         got = np.sort(entry_triangles(db.tri_moment_perm)[entries])
         want = start + np.flatnonzero((moment[start:stop] >= lo) & (moment[start:stop] <= hi))
