@@ -132,8 +132,7 @@ class PlanarTriangleDatabase(Database):
     def tables(self) -> Tables:
         """The arrays the kernels read, as one bundle."""
         return Tables(self.tri_stars, self.tri_area, self.tri_moment, self.tri_moment_fence, self.tri_moment_perm,
-                      self.guide_unit,
-                      self.nbr_ptr, self.nbr_idx, self.rules)
+                      self.guide_unit, self.nbr_ptr, self.nbr_idx, self.rules)
 
 
 def _neighbour_csr(unit: np.ndarray, chord_max: float, symmetric: bool) -> tuple[np.ndarray, np.ndarray]:
