@@ -34,7 +34,7 @@ def atomic_write_text(path: str | Path, text: str) -> None:
     atomic_write_bytes(path, text.encode("utf-8"))
 
 
-#: a frame of at least this many rows is formatted as CSV by forked processes, each at least this many rows
+#: CSV rows per forked process at least: a frame of twice as many rows or more is formatted in slices
 PARALLEL_CSV_ROWS = 50_000
 _CSV_FRAME: dict = {}       # the frame the forked processes of frame_csv format slices of
 
