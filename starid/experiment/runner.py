@@ -13,6 +13,7 @@ import hashlib
 import importlib
 import json
 import sys
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -197,21 +198,54 @@ def _run(experiment, placements, chunks, keys, store, ex, catalog_path, progress
     return frame
 
 
+#: threads reading a results folder's chunk files
+READ_THREADS = 4
+
+
 def assemble(placements: list[Placement], experiment: Experiment, read) -> pd.DataFrame:
     """The chunks' rows in plan order, with study, point, grid values and settings as columns."""
     camera = experiment.make_camera()
-    frames = []
+    with ThreadPoolExecutor(READ_THREADS) as pool:     # Parquet decoding releases the GIL: 1.8 -> 1.3 s (#25)
+        frames = list(pool.map(read, [pl.chunk.key for pl in placements]))
+    lead, tail = [], []
     for pl in placements:
-        df = read(pl.chunk.key)
-        lead = {"study": pl.study, "point": pl.point, **{f"grid_{k}": v for k, v in pl.grid_values.items()}}
-        tail = {"seed": experiment.seed,
-                **{f"sim_{k}": v for k, v in SimConfig(**pl.chunk.settings).as_dict().items()},
-                **(camera if pl.chunk.camera is None else pl.chunk.camera).columns()}
-        frames.append(pd.concat([constant_columns(lead, df.index), df, constant_columns(tail, df.index)], axis=1))
-    out = keep_integers(pd.concat(frames, ignore_index=True), integer_columns(frames))   # 8, not 8.0 (#27)
+        lead.append({"study": pl.study, "point": pl.point, **{f"grid_{k}": v for k, v in pl.grid_values.items()}})
+        tail.append({"seed": experiment.seed,
+                     **{f"sim_{k}": v for k, v in SimConfig(**pl.chunk.settings).as_dict().items()},
+                     **(camera if pl.chunk.camera is None else pl.chunk.camera).columns()})
+    out = keep_integers(_with_constants(frames, lead, tail), integer_columns(frames))   # 8, not 8.0 (#27)
     # one block per dtype: the chunks' column-wise joins leave ~175 blocks, and an experiment's tables adding a
     # column to such a frame made pandas warn that it is highly fragmented
     return _uniform_types(out).copy()
+
+
+def _with_constants(frames: list[pd.DataFrame], lead: list[dict], tail: list[dict]) -> pd.DataFrame:
+    """Every chunk's rows between its ``lead`` and ``tail`` constant columns, the chunks one under the other.
+
+    The frame :func:`_join_each` makes (the columns in the order they first appear, each column's type what
+    concatenating the chunks' pieces gives), built as one concatenation of the chunks' own rows beside each
+    distinct set of constants once, repeated: Table 6's 560 chunks assemble in 4.1-4.6 s instead of 7.0-8.5."""
+    consts = [{**a, **b} for a, b in zip(lead, tail, strict=True)]
+    own = set().union(*(df.columns for df in frames)) if frames else set()
+    if not frames or any(len(df) == 0 for df in frames) or own & set().union(*consts):
+        return _join_each(frames, lead, tail)     # an empty chunk's pieces count otherwise; a clash of names
+    order = list(dict.fromkeys(col for df, a, b in zip(frames, lead, tail, strict=True)
+                               for col in (*a, *df.columns, *b)))
+    # chunks of one grid point share their constants: each distinct set once (typed, so 1, 1.0 and True differ)
+    distinct: dict = {}
+    which = [distinct.setdefault(tuple((k, type(v), repr(v)) for k, v in c.items()), (len(distinct), c))[0]
+             for c in consts]
+    one = pd.concat([constant_columns(c, pd.RangeIndex(1)) for _, c in distinct.values()], ignore_index=True)
+    rows = np.repeat(np.asarray(which, dtype=np.int64), [len(df) for df in frames])
+    body = pd.concat(frames, ignore_index=True)
+    return pd.concat([one.take(rows).reset_index(drop=True), body], axis=1)[order]
+
+
+def _join_each(frames: list[pd.DataFrame], lead: list[dict], tail: list[dict]) -> pd.DataFrame:
+    """Each chunk joined to its constant columns, the joined chunks concatenated (what
+    :func:`_with_constants` builds faster)."""
+    return pd.concat([pd.concat([constant_columns(a, df.index), df, constant_columns(b, df.index)], axis=1)
+                      for df, a, b in zip(frames, lead, tail, strict=True)], ignore_index=True)
 
 
 def _uniform_types(df: pd.DataFrame) -> pd.DataFrame:
