@@ -78,3 +78,25 @@ def test_an_images_memory_status_does_not_depend_on_what_ran_before_it_in_its_wo
 def test_bad_limits_are_refused(kwargs, flag):
     with pytest.raises(ConfigError, match=flag):
         LocalExecutor(1, **kwargs)
+
+
+@pytest.mark.skipif(address_space_gb() == 0.0, reason="no /proc/self/statm: the limit caps the whole address space")
+def test_memory_a_plugin_leaked_on_running_out_does_not_count_against_the_next_images(monkeypatch):
+    # images with an even number of stars leak 1.5 GB (as a numba kernel does when it raises MemoryError) and
+    # fail beyond the 4 GB limit; the others need 3 GB. Each image is judged on its own need: the odd ones pass
+    # however many leaks came before them, and the worker that leaked ends after its chunk.
+    monkeypatch.setattr(runner, "BLOCK", 10)
+    bad = "misbehaving[mode=leak,every=2,gb=3.0]"
+    exp = Experiment("leak", (Study("s", (Variant.parse(bad),)),), trials=20, seed=3)
+    frame = run_experiment(exp, None, jobs=1, progress=False, memory_limit_gb=4.0)
+    even = frame["n_stars"] % 2 == 0
+    first = frame.index[even][0]
+    assert even.sum() >= 3 and (~even[first:]).sum() >= 3          # leaks before several odd images
+    assert (frame.loc[even, "status"] == CRASHED).all()
+    assert frame.loc[even, "error"].str.startswith("memory limit of 4 GB per worker (--memory-limit-gb) exceeded: "
+                                                   "MemoryError").all()
+    assert not frame.loc[~even, "status"].isin(FAILED).any()
+    odd = frame[~even]
+    pids = odd.groupby(odd.index // 10)["n_pid"].unique()      # the worker of each chunk of 10 images
+    assert first < 10 and len(pids) == 2 and pids.map(len).eq(1).all()
+    assert pids.iloc[0][0] != pids.iloc[1][0]                   # the first chunk's worker leaked and ended

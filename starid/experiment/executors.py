@@ -65,7 +65,8 @@ def fair_share_gb(jobs: int) -> float:
     return max(MIN_MEMORY_GB, round(total / 1e9 / max(jobs, 1), 1))
 
 
-_MEMORY = {"limit_gb": None}    # this process's --memory-limit-gb (None: unlimited)
+#: this process's --memory-limit-gb (None: unlimited); ``retire``: a plugin ran out of it in this chunk
+_MEMORY = {"limit_gb": None, "retire": False}
 
 
 def address_space_gb() -> float:
@@ -118,6 +119,26 @@ def _memory_row(row: dict) -> dict:
     error = memory_error(row.get("error", ""), _MEMORY["limit_gb"])
     if error:
         row = {**row, "status": CRASHED, "error": error}
+    return row
+
+
+def _image_row(prepared, trials, i: int, catalog, rule) -> dict:
+    """Image ``i``'s trial row under the memory limit.
+
+    An image that runs out of the limit is ``crashed``, saying so, and the images after it get the limit again
+    as headroom over what the worker then holds: numba does not free what a compiled kernel allocated before it
+    raised ``MemoryError``, and without the reset those leaks added up until every later image (and the row's
+    own bookkeeping, and the chunk's frame) failed, a worker died, or the run ended. The worker then ends after
+    this chunk (``_MEMORY["retire"]``), taking the leaked memory with it."""
+    try:
+        row = _memory_row(trial_row(prepared, trials, i, catalog, rule))
+    except MemoryError as exc:      # not even the row's own bookkeeping fitted (the plugin's error was caught)
+        memory_headroom()
+        error = f"MemoryError: {exc}" if str(exc) else "MemoryError"
+        row = failed_row(trials, i, CRASHED, memory_error(error, _MEMORY["limit_gb"]) or error)
+    if row.get("status") == CRASHED and "MemoryError" in row.get("error", ""):
+        _MEMORY["retire"] = True
+        memory_headroom()
     return row
 
 
@@ -194,6 +215,7 @@ def _trials(task: Task, catalog: Catalog):
 
 def execute_task(task: Task, beat=None) -> pd.DataFrame:
     """The trial rows of one chunk. ``beat`` (a shared array) hears which image is running."""
+    _MEMORY["retire"] = False
     memory_headroom()           # this chunk's preparation, beyond what earlier chunks left in this worker
     catalog = _catalog(task.catalog_path)
     sim, trials, image_stats = _trials(task, catalog)
@@ -244,9 +266,11 @@ def execute_task(task: Task, beat=None) -> pd.DataFrame:
             continue
         if beat is not None:
             beat[2], beat[1] = time.monotonic(), float(i)
-        rows.append(_memory_row(trial_row(prepared, trials, i, catalog, rule)))
+        rows.append(_image_row(prepared, trials, i, catalog, rule))
     if beat is not None:
         beat[1] = _IDLE
+    if _MEMORY["retire"]:
+        memory_headroom()       # starid's own work on the rows is not short of what a plugin leaked
     df = rows_to_frame(prepared, rows)
     if image_stats is not None:     # what render -> extract did to each image
         df = df.merge(image_stats, on="trial", how="left")
@@ -315,9 +339,14 @@ def _worker_main(conn, beat, memory_limit_gb=None, parent_pid=None):
         if task is None:
             return
         try:
-            conn.send(("ok", task.index, execute_task(task, beat)))
+            frame = execute_task(task, beat)
         except Exception as exc:   # a harness bug, not a plugin's: report it, keep the worker
             conn.send(("fail", task.index, f"{type(exc).__name__}: {exc}"))
+            continue
+        if _MEMORY["retire"]:       # a plugin ran out of memory: end, with what numba leaked (_image_row)
+            conn.send(("last", task.index, frame))
+            return
+        conn.send(("ok", task.index, frame))
 
 
 class _Worker:
@@ -436,6 +465,9 @@ class LocalExecutor:
                             raise RuntimeError(f"starid internal error in a worker: {payload}")
                         task, w.task = w.task, None
                         on_result(task, payload)
+                        if kind == "last":      # it ended after this chunk (a plugin ran out of memory)
+                            w.stop()
+                            workers[workers.index(w)] = _Worker(ctx, self.memory_limit_gb)
                 for k, w in enumerate(workers):
                     if w.task is None:
                         continue

@@ -33,7 +33,7 @@ class Misbehaving(Algorithm):
     name: ClassVar[str] = "misbehaving"
     mode: str = "none"
     every: int = 3
-    gb: float = 0.0         # modes leave / need: GB of address space (reserved, never written to)
+    gb: float = 0.0         # modes leave / need / leak: GB of address space (reserved, never written to)
 
     def build(self, catalog, camera):
         if self.mode == "build_raises":
@@ -59,6 +59,12 @@ class Misbehaving(Algorithm):
             np.ones(8 * 10**9)
         if self.mode == "need" and self._hit(observation):      # a bounded need, freed after the image
             np.empty(int(self.gb * 1e9), dtype=np.uint8)
+        if self.mode == "leak":     # numba's way: a kernel that runs out of memory does not free what it had
+            if self._hit(observation):
+                _LEFT.append(np.empty(int(self.gb / 2 * 1e9), dtype=np.uint8))
+                np.empty(int(4 * self.gb * 1e9), dtype=np.uint8)
+            np.empty(int(self.gb * 1e9), dtype=np.uint8)
+            return Identification(np.full(n, -1, dtype=np.int64), counters={"pid": os.getpid()})
         if self.mode == "mutate":
             observation.x_px[:] = 0.0
         if self.mode == "cheat":
