@@ -154,3 +154,30 @@ def test_proper_motion_moves_groombridge_1830_by_its_motion_at_2030(catalog):
     a = Simulator(catalog, Camera(), SimConfig(), seed=0).draw(3)
     b = Simulator(catalog, Camera(), cfg, seed=0).draw(3)
     assert np.array_equal(a[0], b[0]) and not np.allclose(a[1], b[1], atol=1e-9)
+
+
+def test_image_columns_are_the_per_image_values_to_the_last_bit(catalog):
+    # the harness computes every image's trial, star counts and boresight once per trial set: the values each
+    # row had from _boresight and the image's own arrays, bit for bit, poles and false stars included
+    from starid.harness import _boresight, image_columns
+
+    trials = Simulator(catalog, Camera(), SimConfig(false_stars=2, sigma_mag=0.3), seed=5).generate(300)
+    cols = image_columns(trials)
+    assert cols is image_columns(trials)                    # once per set
+    for i in range(len(trials)):
+        obs = trials.observation(i)
+        want = {"trial": int(trials.trial[i]), "n_stars": len(obs), "n_true_stars": int((obs.truth_hip >= 0).sum()),
+                "n_redraws": int(trials.n_redraws[i]), **_boresight(trials.attitude[i])}
+        got = {k: v[i] for k, v in cols.items()}
+        assert got == want and all(type(got[k]) is type(want[k]) for k in want)
+    assert sum(cols["n_true_stars"]) < sum(cols["n_stars"])    # the false stars are not counted
+    from starid.harness import _boresights
+
+    rng = np.random.default_rng(1)
+    att = rng.normal(size=(2000, 3, 3))
+    att[:, 2] /= np.linalg.norm(att[:, 2], axis=1)[:, None]
+    att[:3, 2] = [[0.0, 0.0, 1.0], [0.0, 0.0, -1.0], [1e-300, -0.0, 1.0000000000000002]]   # poles, past 1
+    ra, dec = _boresights(att)
+    for k in range(len(att)):
+        b = _boresight(att[k])
+        assert (ra[k], dec[k]) == (b["boresight_ra_deg"], b["boresight_dec_deg"])

@@ -110,6 +110,22 @@ def attitude_error_terms(hip, v_cam, catalog_hip, unit_icrs, attitude_true):
     return 0.5 * np.sqrt(dot3(skew, skew)), 0.5 * (trace - 1.0)
 
 
+@kernel
+def score_terms(hip, truth, catalog_hip, v_cam, unit_icrs, attitude_true):
+    """``(n_identified, n_correct, y, x)`` of one image in one call: the ids that are not -1, those equal to
+    ``truth`` (:func:`starid.scoring.score_trial`'s counts) and :func:`attitude_error_terms`. ``hip`` has passed
+    :func:`check_ids`. The harness's row (``starid.harness.trial_row``) makes it its one compiled call."""
+    n_identified = 0
+    n_correct = 0
+    for i in range(hip.shape[0]):
+        if hip[i] != -1:
+            n_identified += 1
+            if hip[i] == truth[i]:
+                n_correct += 1
+    y, x = attitude_error_terms(hip, v_cam, catalog_hip, unit_icrs, attitude_true)
+    return n_identified, n_correct, y, x
+
+
 def attitude_error_rad(hip, v_cam, catalog_hip, unit_icrs, attitude_true) -> float:
     """:func:`attitude_error_terms`' angle: numpy's ``arctan2`` (numba's, libm's, differs from numpy's
     in the last bit for some angles), so the angle is :func:`starid.attitude.rotation_angle_rad`'s."""
