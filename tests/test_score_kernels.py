@@ -106,7 +106,7 @@ from numba.core.registry import CPUDispatcher
 import starid.kernels
 from starid import Camera, SimConfig, Simulator, load_hipparcos
 from starid.harness import prepare, trial_row
-from starid.kernels.score import attitude_error_terms, check_ids, score_terms
+from starid.kernels.score import check_ids, score_terms
 from starid.plugin import Identification
 from starid.scoring import SuccessRule
 
@@ -131,10 +131,10 @@ prepared = prepare(Named(), cat, trials.camera, trials.warmup)
 kernels = [v for info in pkgutil.walk_packages(starid.kernels.__path__, "starid.kernels.")
            for v in vars(importlib.import_module(info.name)).values() if isinstance(v, CPUDispatcher)]
 count = lambda: sum(len(k.signatures) for k in kernels)
-before = (len(attitude_error_terms.signatures), len(check_ids.signatures), len(score_terms.signatures))
+before = (len(check_ids.signatures), len(score_terms.signatures))
 n_before = count()
 row = trial_row(prepared, trials, 0, cat, SuccessRule())
-after = (len(attitude_error_terms.signatures), len(check_ids.signatures), len(score_terms.signatures))
+after = (len(check_ids.signatures), len(score_terms.signatures))
 print(before, after, count() - n_before, row["error"] == "" and row["attitude_err_arcsec"] > 0)
 """
 
@@ -147,4 +147,4 @@ def test_prepare_compiles_what_trial_row_calls():
     import sys
 
     out = subprocess.run([sys.executable, "-c", _PREPARE_THEN_ROW], capture_output=True, text=True, timeout=600)
-    assert out.stdout.strip() == "(1, 1, 1) (1, 1, 1) 0 True", out.stdout + out.stderr
+    assert out.stdout.strip() == "(1, 1) (1, 1) 0 True", out.stdout + out.stderr
