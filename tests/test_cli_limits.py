@@ -10,6 +10,7 @@ import pytest
 from misbehaving import Misbehaving, register_all, unregister_all
 
 from starid.cli import main
+from starid.experiment.executors import address_space_gb
 from starid.registry import register, unregister
 from starid.scoring import CRASHED, TIMEOUT
 
@@ -110,6 +111,19 @@ def test_identify_memory_without_bound_is_a_crashed_row(tmp_path, obs_csv):
     assert rows.loc[1, "status"] == CRASHED
     assert rows.loc[1, "error"].startswith("memory limit of 4 GB per worker (--memory-limit-gb) exceeded: MemoryError")
     assert (rows.drop(index=1)["status"] == "no_result").all()
+
+
+@pytest.mark.skipif(address_space_gb() == 0.0, reason="no /proc/self/statm: the limit caps the whole address space")
+def test_identify_memory_a_plugin_leaked_does_not_count_against_the_next_image(tmp_path, obs_csv):
+    # images of 4 and 6 centroids leak 1.5 GB and run out of the 4 GB limit; those of 3 and 5 need 3 GB: image 2
+    # (5 centroids) comes after a leak and passes, as it would alone
+    bad = "misbehaving[mode=leak,every=2,gb=3.0]"
+    frame = _identify(tmp_path, [bad, GOOD, str(obs_csv)], "--memory-limit-gb", "4")
+    rows = frame[frame["label"] == bad].set_index("trial")
+    assert (rows.loc[[1, 3], "status"] == CRASHED).all()
+    assert rows.loc[[1, 3], "error"].str.startswith("memory limit of 4 GB per worker (--memory-limit-gb) exceeded: "
+                                                    "MemoryError").all()
+    assert (rows.loc[[0, 2], "status"] == "no_result").all()
 
 
 def test_identify_image_file_that_hangs_is_its_timeout_row(tmp_path):
