@@ -10,7 +10,7 @@ import pandas as pd
 
 from ..catalog import load_csv, load_hipparcos
 from ..errors import ObservationError
-from ..experiment.executors import Limits, Outcome, call_per_item, memory_error, memory_headroom
+from ..experiment.executors import Limits, Outcome, after_memory_error, call_per_item, memory_error
 from ..harness import Prepared, prepare, rows_to_frame, timed_identify
 from ..io import read_numeric_csv, write_frames
 from ..observation import Observation
@@ -96,8 +96,7 @@ def _identify_one(variant, catalog, camera, trials, observations, has_truth, fov
                "attitude_err_arcsec": float("nan")}
         if error:
             row["status"] = ERROR
-        if "MemoryError" in error:      # what a kernel leaked on running out is not the next image's (_image_row)
-            memory_headroom()
+        after_memory_error(error)       # what a kernel leaked on running out is not the next image's
         control.emit((k, (row, hip)))
 
 

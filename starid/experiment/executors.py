@@ -136,10 +136,18 @@ def _image_row(prepared, trials, i: int, catalog, rule) -> dict:
         memory_headroom()
         error = f"MemoryError: {exc}" if str(exc) else "MemoryError"
         row = failed_row(trials, i, CRASHED, memory_error(error, _MEMORY["limit_gb"]) or error)
-    if row.get("status") == CRASHED and "MemoryError" in row.get("error", ""):
+    if after_memory_error(row.get("error", "")):
         _MEMORY["retire"] = True
-        memory_headroom()
     return row
+
+
+def after_memory_error(error: str) -> bool:
+    """After an image whose ``error`` is a ``MemoryError``: this process takes the limit again as headroom over
+    what it now holds (what a numba kernel leaked on running out is not the next image's), and says so."""
+    if "MemoryError" not in (error or ""):
+        return False
+    memory_headroom()
+    return True
 
 
 def overran_error(phase: str, limit_s: float, build: bool) -> str:
@@ -269,8 +277,6 @@ def execute_task(task: Task, beat=None) -> pd.DataFrame:
         rows.append(_image_row(prepared, trials, i, catalog, rule))
     if beat is not None:
         beat[1] = _IDLE
-    if _MEMORY["retire"]:
-        memory_headroom()       # starid's own work on the rows is not short of what a plugin leaked
     df = rows_to_frame(prepared, rows)
     if image_stats is not None:     # what render -> extract did to each image
         df = df.merge(image_stats, on="trial", how="left")
