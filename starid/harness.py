@@ -170,9 +170,9 @@ def _image_fields(trials: TrialSet, i: int) -> dict:
 
 def image_columns(trials: TrialSet) -> dict:
     """The columns every row has, for every image of ``trials`` at once, as lists of Python numbers (trial,
-    n_stars, n_true_stars, n_redraws, boresight_ra_deg, boresight_dec_deg: :func:`_boresight`'s values to the
-    last bit). Computed once per trial set (each algorithm of a chunk scores the same set): ~5 us of numpy
-    calls per row before (#25)."""
+    n_stars, n_true_stars, n_redraws, boresight_ra_deg, boresight_dec_deg: :func:`_boresights`, to the last bit
+    what numpy's scalar calls gave per image). Computed once per trial set (each algorithm of a chunk scores
+    the same set): ~5 us of numpy calls per row before (#25)."""
     cols = trials.__dict__.get("_image_columns")
     if cols is None:
         true = np.concatenate(([0], np.cumsum(trials.truth_hip >= 0)))
@@ -186,17 +186,10 @@ def image_columns(trials: TrialSet) -> dict:
 
 
 def _boresights(attitude: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`_boresight` of every attitude ``(t, 3, 3)``: right ascension and declination (deg)."""
+    """``boresight_ra_deg`` / ``boresight_dec_deg`` of every attitude ``(t, 3, 3)``: where the camera's z axis
+    (the attitude's third row, ICRS) points."""
     z = attitude[:, 2, :]
     return np.degrees(np.arctan2(z[:, 1], z[:, 0])) % 360.0, np.degrees(np.arcsin(np.clip(z[:, 2], -1.0, 1.0)))
-
-
-def _boresight(attitude: np.ndarray) -> dict:
-    """``boresight_ra_deg`` / ``boresight_dec_deg``: where the camera's z axis (the attitude's
-    third row, ICRS) points."""
-    z = attitude[2]
-    return {"boresight_ra_deg": float(np.degrees(np.arctan2(z[1], z[0])) % 360.0),
-            "boresight_dec_deg": float(np.degrees(np.arcsin(min(1.0, max(-1.0, z[2])))))}
 
 
 def constant_columns(values: dict, index: pd.Index) -> pd.DataFrame:
