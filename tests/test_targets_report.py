@@ -47,6 +47,7 @@ def test_ratios_are_per_run_then_the_median_over_runs(targets):
     assert r["paper"]["ptp"]["ratio"] == pytest.approx(1.9)
     assert r["paper"]["ptp"]["median_us"] == pytest.approx(45.0)
     assert r["paper"]["ptp"]["ratio_runs"] == [2.5, 1.5, 1.9]
+    assert targets._spread(r["paper"]["ptp"]["ratio_runs"]) == "1.50-2.50"
     assert r["paper"]["ptp"]["p95_to_median"] == pytest.approx(2.0)
     assert r["real"]["tetra"]["ratio"] == pytest.approx(1.0)
 
@@ -80,7 +81,7 @@ def test_verdicts_name_what_is_over_its_target(targets):
     bad = targets.verdicts(_report(targets, ptp_us=50.0, ptp_p95_us=250.0, cold_wall_s=41.0, lost=1))
     assert not _verdict(bad, "cold compile")["met"]
     ratio = _verdict(bad, "grid, lpt_improved, ptp, pvector, pyramid")   # the 2x group, named in sorted order
-    assert not ratio["met"] and "ptp paper 2.50x" in ratio["measured"] and "ptp real 2.50x" in ratio["measured"]
+    assert not ratio["met"] and "ptp paper 2.50x (2.50)" in ratio["measured"] and "ptp real 2.50x" in ratio["measured"]
     assert _verdict(bad, "geometric_voting, triangle_voting")["met"]   # at tetra's time
     p95 = _verdict(bad, "every p95")
     n = 2 * len(bad_report_names(targets))
@@ -100,7 +101,7 @@ def test_markdown_gives_every_target_and_the_per_image_table(targets):
     assert text.count("\n| ") >= len(report["verdicts"]) + 1 + 2 + 1   # targets, compile, per image, rows
     assert "| ptp | 50.0 | 2.50x | 5.00 | 55.0 | 2.50x | 5.00 |" in text
     assert "| tetra | 20.0 | 1.00x | 2.00 | 22.0 | 1.00x | 2.00 |" in text
-    assert "| ptp | 9.0 / 10.0 |" in text and "**35.0 s**" in text
+    assert "| ptp | 9.0 / 10.0 |" in text and "**35.0 s**" in text and "| CPU s per process | 10.0 |" in text
 
 
 def _results(folder: Path, status: list[str], extra: list[int]) -> Path:
@@ -128,3 +129,10 @@ def test_row_comparison_counts_lost_and_gained_images_and_differing_columns(targ
     assert summary["paper"] == {"missing": True}
     verdict = _verdict(targets.verdicts({"rows_compared": summary}), "no correct identification lost")
     assert not verdict["met"] and "missing: paper" in verdict["measured"]
+    # a new run with fewer rows loses nothing it can join, and is still not the same results
+    del summary["paper"]
+    summary["table6"].update(lost=0, gained=0, rows=(4, 3, 3))
+    verdict = _verdict(targets.verdicts({"rows_compared": summary}), "no correct identification lost")
+    assert not verdict["met"] and "rows not all joined: table6" in verdict["measured"]
+    summary["table6"]["rows"] = (4, 4, 4)
+    assert _verdict(targets.verdicts({"rows_compared": summary}), "no correct identification lost")["met"]

@@ -57,7 +57,7 @@ from starid.io import atomic_write_text  # noqa: E402
 
 SKIES = ("paper", "real")
 TABLE6_SIM = ["--pos-noise-px", "1", "--mag-noise", "0.5", "--mag-limit", "6", "--min-stars", "6"]
-#: the same-results set: folder name -> extra ``starid run`` arguments (``None``: not a ``starid run``)
+#: the same-results set's ``starid run`` folders: name -> the sky's arguments (Table 6's noise besides)
 ROW_SKIES = {"paper": ["--sky", "paper"], "real": ["--sky", "real"],
              "false3": ["--sky", "real", "--false-stars", "3"]}
 
@@ -206,6 +206,12 @@ def summarise_ratios(runs: list[dict]) -> dict:
     return out
 
 
+def _spread(values: list[float]) -> str:
+    """A list of runs' values as their range ("2.15-2.30"), or the one value."""
+    lo, hi = min(values), max(values)
+    return f"{lo:.2f}" if lo == hi else f"{lo:.2f}-{hi:.2f}"
+
+
 def verdicts(report: dict) -> list[dict]:
     """One line per target of the issue: what was measured and whether it is met."""
     lines = []
@@ -230,8 +236,8 @@ def verdicts(report: dict) -> list[dict]:
     if ratios:
         for limit in sorted(set(RATIO_TO_TETRA.values())):
             names = sorted(n for n, v in RATIO_TO_TETRA.items() if v == limit)
-            over = [f"{n} {sky} {ratios[sky][n]['ratio']:.2f}x" for n in names for sky in SKIES
-                    if n in ratios[sky] and ratios[sky][n]["ratio"] > limit]
+            over = [f"{n} {sky} {ratios[sky][n]['ratio']:.2f}x ({_spread(ratios[sky][n]['ratio_runs'])})"
+                    for n in names for sky in SKIES if n in ratios[sky] and ratios[sky][n]["ratio"] > limit]
             absent = [n for n in names if any(n not in ratios[sky] for sky in SKIES)]
             said = (["over: " + ", ".join(over)] if over else []) + (["not measured: " + ", ".join(absent)]
                                                                      if absent else [])
@@ -248,11 +254,13 @@ def verdicts(report: dict) -> list[dict]:
         lost = sum(r.get("lost", 0) for r in rows.values())
         differing = sum(len(r.get("differing", [])) for r in rows.values())
         missing = [k for k, r in rows.items() if r.get("missing")]
+        unjoined = [k for k, r in rows.items() if not r.get("missing") and len(set(r["rows"])) > 1]
         lines.append({"target": "no correct identification lost",
                       "measured": f"{lost} lost, {sum(r.get('gained', 0) for r in rows.values())} gained; "
                                   f"{differing} non-time columns differing over {len(rows)} folders"
-                                  + (f"; missing: {', '.join(missing)}" if missing else ""),
-                      "met": lost == 0 and not missing})
+                                  + (f"; missing: {', '.join(missing)}" if missing else "")
+                                  + (f"; rows not all joined: {', '.join(unjoined)}" if unjoined else ""),
+                      "met": lost == 0 and not missing and not unjoined})
     return lines
 
 
@@ -273,6 +281,9 @@ def markdown(report: dict) -> str:
             for p in c["plugins"]:
                 per.setdefault(p["plugin"], []).append(f"{p['compile_s']:.1f} / {p['cpu_s']:.1f}")
         text += [f"| {n} | " + " | ".join(v) + " |" for n, v in per.items()]
+        text += ["| CPU s per process | " + " | ".join(
+            " + ".join(f"{sum(p['cpu_s'] for p in c['plugins'] if p['process'] == k):.1f}"
+                       for k in sorted({p["process"] for p in c["plugins"]})) for c in cold) + " |"]
         text += ["| **wall, 2 processes** | " + " | ".join(f"**{c['wall_s']:.1f} s**" for c in cold) + " |"]
     ratios = report.get("ratios")
     if ratios:
