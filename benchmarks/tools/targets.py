@@ -8,11 +8,12 @@ some 10 minutes, 20 more with ``--rows``. One step after another, each in proces
 
 1. **First command** (unless ``--no-first-command``): ``git clone`` of HEAD (commit first: the clone
    does not see uncommitted edits), a new venv, ``pip install -e .``, ``starid table6``, no numba cache
-   anywhere (``benchmarks/test_compile.py``'s :func:`first_command`). Target 180 s.
-2. **Cold compile**, ``--cold-runs`` times: every registered plugin prepared by 2 processes sharing an
+   anywhere (``benchmarks/test_compile.py``'s :func:`first_command`). Target 180 s. Its results folder
+   is kept as ``DIR/rows/first_command`` (compared with ``--rows-against`` like the rest).
+2. **Cold compile**, ``--cold-runs`` times (0: not measured): every registered plugin prepared by 2 processes sharing an
    empty numba cache (``benchmarks/test_compile.py``'s :func:`cold_compile`); wall seconds, and each
    plugin's compile and CPU seconds. Target 40 s wall.
-3. **Per image**, ``--ratio-runs`` runs, each a new process timing every plugin image by image on Table
+3. **Per image**, ``--ratio-runs`` runs (0: not measured), each a new process timing every plugin image by image on Table
    6's 200 images of each sky, three rounds (``benchmarks/test_ratios.py``'s :func:`time_per_image`).
    Per plugin and sky: the median over the runs of its median, its ratio to tetra's median of the same
    run, and its p95 / median. Targets: ``RATIO_TO_TETRA`` and ``P95_TO_MEDIAN`` of that file.
@@ -36,6 +37,7 @@ import json
 import os
 import platform
 import resource
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -109,11 +111,15 @@ def machine() -> dict:
             "date_utc": time.strftime("%Y-%m-%d %H:%M", time.gmtime()), "load": _load()}
 
 
-def measure_first_command() -> dict:
+def measure_first_command(keep: Path) -> dict:
+    """The first command's times; its results folder (Table 6 at 10,000 trials) is kept as ``keep``."""
     with tempfile.TemporaryDirectory(prefix="starid-first-") as tmp:
         load = _load()
         wall_s, install_s = first_command(Path(tmp))
         written = (Path(tmp) / "out" / "table6.md").exists()
+        if written:
+            shutil.rmtree(keep, ignore_errors=True)
+            shutil.copytree(Path(tmp) / "out", keep)
     return {"wall_s": round(wall_s, 1), "install_s": round(install_s, 1), "load": load, "written": written}
 
 
@@ -313,8 +319,8 @@ def markdown(report: dict) -> str:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--out", required=True, type=Path, help="folder for targets.json, targets.md (and rows/)")
-    ap.add_argument("--ratio-runs", type=int, default=4)
-    ap.add_argument("--cold-runs", type=int, default=2)
+    ap.add_argument("--ratio-runs", type=int, default=4, help="per-image runs (0: none)")
+    ap.add_argument("--cold-runs", type=int, default=2, help="cold compiles (0: none)")
     ap.add_argument("--no-first-command", action="store_true")
     ap.add_argument("--no-zhou2015", action="store_true")
     ap.add_argument("--rows", action="store_true", help="run the same-results set into OUT/rows")
@@ -328,15 +334,17 @@ def main(argv: list[str] | None = None) -> int:
         _say("note: uncommitted changes; the first command clones HEAD without them")
     if not a.no_first_command:
         _say("first command")
-        report["first_command"] = measure_first_command()
-    _say(f"cold compile x {a.cold_runs}")
-    report["cold_compile"] = measure_cold(a.cold_runs)
+        report["first_command"] = measure_first_command(a.out / "rows" / "first_command")
+    if a.cold_runs > 0:
+        _say(f"cold compile x {a.cold_runs}")
+        report["cold_compile"] = measure_cold(a.cold_runs)
     if not a.no_zhou2015:
         _say("zhou2015 --trials 2000")
         report["zhou2015"] = measure_zhou2015(a.out / "zhou2015")
-    _say(f"per image x {a.ratio_runs}")
-    report["ratio_runs"] = measure_ratios(a.ratio_runs)
-    report["ratios"] = summarise_ratios(report["ratio_runs"])
+    if a.ratio_runs > 0:
+        _say(f"per image x {a.ratio_runs}")
+        report["ratio_runs"] = measure_ratios(a.ratio_runs)
+        report["ratios"] = summarise_ratios(report["ratio_runs"])
     if a.rows:
         report["rows"] = run_rows(a.out / "rows")
     if a.rows_against is not None:
