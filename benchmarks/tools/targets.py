@@ -13,8 +13,9 @@ some 10 minutes, 20 more with ``--rows``. One step after another, each in proces
 2. **Cold compile**, ``--cold-runs`` times (0: not measured): every registered plugin prepared by 2 processes sharing an
    empty numba cache (``benchmarks/test_compile.py``'s :func:`cold_compile`); wall seconds, and each
    plugin's compile and CPU seconds. Target 40 s wall.
-3. **Per image**, ``--ratio-runs`` runs (0: not measured), each a new process timing every plugin image by image on Table
-   6's 200 images of each sky, three rounds (``benchmarks/test_ratios.py``'s :func:`time_per_image`).
+3. **Per image**, ``--ratio-runs`` runs (0: not measured), each a new process timing every plugin image
+   by image on Table 6's 200 images of each sky, three rounds (``benchmarks/test_ratios.py``'s
+   :func:`time_per_image`).
    Per plugin and sky: the median over the runs of its median, its ratio to tetra's median of the same
    run, and its p95 / median. Targets: ``RATIO_TO_TETRA`` and ``P95_TO_MEDIAN`` of that file.
 4. **zhou2015** (unless ``--no-zhou2015``): ``starid reproduce zhou2015 --trials 2000`` with the numba
