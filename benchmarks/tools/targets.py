@@ -4,7 +4,7 @@
                                        [--no-zhou2015] [--rows] [--rows-against REF_DIR]
 
 Run it on an otherwise idle machine (the targets are the issue's, for its 2-core machine); it takes
-some 10 minutes, 20 more with ``--rows``. One step after another, each in processes of its own:
+some 10 minutes, 2 more with ``--rows``. One step after another, each in processes of its own:
 
 1. **First command** (unless ``--no-first-command``): ``git clone`` of HEAD (commit first: the clone
    does not see uncommitted edits), a new venv, ``pip install -e .``, ``starid table6``, no numba cache
