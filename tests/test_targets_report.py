@@ -58,7 +58,7 @@ def _report(targets, ptp_us, ptp_p95_us, cold_wall_s=35.0, lost=0, others=True):
     return {"machine": {"commit": "abc1234", "uncommitted_changes": False, "cpu": "cpu", "cores": 2,
                         "python": "3", "numpy": "2", "numba": "0", "llvm": "1", "date_utc": "now", "load": 0.5},
             "first_command": {"wall_s": 150.0, "install_s": 25.0, "load": 0.5, "written": True},
-            "cold_compile": [{"wall_s": cold_wall_s, "load": 0.5, "plugins": plugins}],
+            "cold_compile": [{"wall_s": cold_wall_s, "load": 0.5, "expected": 1, "plugins": plugins}],
             "zhou2015": {"wall_s": 200.0, "user_s": 300.0, "system_s": 10.0, "returncode": 0},
             "ratio_runs": runs, "ratios": targets.summarise_ratios(runs),
             "rows_compared": {"table6": {"rows": (10, 10, 10), "compared": 5, "differing": [], "only_before": [],
@@ -92,6 +92,14 @@ def test_verdicts_name_what_is_over_its_target(targets):
     assert not line["met"] and line["measured"] == "not measured: geometric_voting, triangle_voting"
     assert not _verdict(bad, "no correct identification lost")["met"]
     assert _verdict(bad, "first command")["met"] and _verdict(bad, "starid reproduce zhou2015")["met"]
+    # a cold compile that prepared fewer plugins than there are is not a target met, however fast
+    short = _report(targets, ptp_us=39.0, ptp_p95_us=80.0, cold_wall_s=20.0)
+    short["cold_compile"][0]["expected"] = 2
+    assert not _verdict(targets.verdicts(short), "cold compile")["met"]
+    # per-image runs that failed are a line of their own, not met
+    failed = {"ratio_runs": [{"error": "ValueError: broken plugin"}]}
+    line = _verdict(targets.verdicts(failed), "per image")
+    assert not line["met"] and line["measured"] == "not measured: ValueError: broken plugin"
 
 
 def test_markdown_gives_every_target_and_the_per_image_table(targets):
