@@ -15,20 +15,19 @@ import pytest
 TOOL = Path(__file__).resolve().parents[1] / "benchmarks" / "tools" / "targets.py"
 
 
-def targets_module():
-    if "module" not in _LOADED:
-        spec = importlib.util.spec_from_file_location("starid_targets_tool", TOOL)
-        _LOADED["module"] = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(_LOADED["module"])
-    return _LOADED["module"]
+def _load_tool():
+    spec = importlib.util.spec_from_file_location("starid_targets_tool", TOOL)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
 
-_LOADED: dict = {}
+TARGETS = _load_tool()
 
 
 @pytest.fixture(scope="module")
 def targets():
-    return targets_module()
+    return TARGETS
 
 
 def _run(tetra_us, ptp_us, ptp_p95_us, others=True):
@@ -36,7 +35,7 @@ def _run(tetra_us, ptp_us, ptp_p95_us, others=True):
     with a ratio target but ptp (``others``) at tetra's times."""
     sky = {"tetra": [tetra_us, 2 * tetra_us], "ptp": [ptp_us, ptp_p95_us]}
     if others:
-        sky.update({n: [tetra_us, 2 * tetra_us] for n in targets_module().RATIO_TO_TETRA if n != "ptp"})
+        sky.update({n: [tetra_us, 2 * tetra_us] for n in TARGETS.RATIO_TO_TETRA if n != "ptp"})
     return {"paper": sky, "real": {k: [v[0] * 1.1, v[1] * 1.1] for k, v in sky.items()}}
 
 

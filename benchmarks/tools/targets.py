@@ -188,8 +188,9 @@ def run_rows(folder: Path) -> dict:
     starid = [sys.executable, "-m", "starid"]
     runs = {"table6": starid + ["table6", "--trials", "300", "--jobs", "2"],
             "zhou200": starid + ["reproduce", "zhou2015", "--trials", "200"]}
+    names = readings()
     for name, sky in ROW_SKIES.items():
-        runs[name] = starid + ["run", *readings(), "--trials", "150", "--jobs", "2", *TABLE6_SIM, *sky]
+        runs[name] = starid + ["run", *names, "--trials", "150", "--jobs", "2", *TABLE6_SIM, *sky]
     done = {}
     for name, command in runs.items():
         _say(f"rows: {name}")
