@@ -219,7 +219,7 @@ def trial_row(prepared: Prepared, trials: TrialSet, i: int, catalog: Catalog, ru
         row["attitude_err_arcsec"] = float("nan")
     else:
         # score_trial's counts and attitude_error_arcsec(attitude_from_ids(...)) in one compiled call, to the last
-        # bit (numpy's arctan2 of its terms: starid.kernels.score.attitude_error_rad)
+        # bit (numpy's arctan2 of its terms: starid.kernels.score.attitude_error_terms)
         n_identified, n_correct, y, x = score_terms(hip, obs.truth_hip, catalog.hip, obs.unit_cam(), catalog.unit_icrs,
                                                     np.ascontiguousarray(trials.attitude[i]))
         row["n_identified"], row["n_correct"], row["n_wrong"] = n_identified, n_correct, n_identified - n_correct

@@ -6,9 +6,9 @@ import pytest
 
 from starid.attitude import random_attitude
 from starid.errors import PluginError
-from starid.kernels.score import ID_NOT_IN_CATALOG, ID_TWICE, IDS_OK, attitude_error_rad, check_ids
+from starid.kernels.score import ID_NOT_IN_CATALOG, ID_TWICE, IDS_OK, check_ids, score_terms
 from starid.plugin import Identification, check_identification
-from starid.scoring import attitude_error_arcsec, attitude_from_ids
+from starid.scoring import attitude_error_arcsec, attitude_from_ids, score_trial
 
 
 class _Cat:
@@ -90,9 +90,15 @@ def test_attitude_error_matches_the_numpy_solution_bit_for_bit(sky):
         if k % 7 == 0 and n >= 2:                                  # collinear: a degenerate B
             v[:] = v[0]
         v = np.ascontiguousarray(v / np.maximum(np.linalg.norm(v, axis=1), 1e-300)[:, None]).reshape(-1, 3)
+        truth_hip = np.where(rng.random(n) < 0.2, -1, np.where(rng.random(n) < 0.2, cat_hip[0], hip))
+        truth_hip.flags.writeable = False                          # as the trial set's truth ids
         ref = attitude_error_arcsec(attitude_from_ids(hip, v, cat), truth)
-        got = attitude_error_rad(hip, v, cat_hip, unit, truth) * (180.0 / np.pi * 3600.0)
+        # the harness's row: score_terms' counts and terms, numpy's arctan2 of the terms
+        n_identified, n_correct, y, x = score_terms(hip, truth_hip, cat_hip, v, unit, truth)
+        got = float(np.arctan2(y, x)) * (180.0 / np.pi * 3600.0)
         assert (np.isnan(ref) and np.isnan(got)) or ref == got, (k, ref, got)
+        scored = score_trial(hip, truth_hip)
+        assert (n_identified, n_correct) == (scored["n_identified"], scored["n_correct"]), k
         compared += not np.isnan(ref)
         flipped += not np.isnan(ref) and ref > 3600
     assert compared > 1_500 and flipped > 100

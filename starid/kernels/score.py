@@ -60,7 +60,9 @@ def check_ids(hip, catalog_hip):
 def attitude_error_terms(hip, v_cam, catalog_hip, unit_icrs, attitude_true):
     """``(y, x)`` whose ``numpy.arctan2`` is the angle (rad) between the Wahba attitude of the identified
     stars (``hip != -1``, every id in the sorted ``catalog_hip``; rows of ``unit_icrs``) and
-    ``attitude_true``; NaNs with fewer than two (:func:`attitude_error_rad`).
+    ``attitude_true``; NaNs with fewer than two. The caller takes numpy's ``arctan2`` of them: numba's (libm's)
+    differs from numpy's in the last bit for some angles, and numpy's is
+    :func:`starid.attitude.rotation_angle_rad`'s.
 
     :func:`starid.attitude.solve_wahba` (``B = b^T r``, ``A = U diag(1, 1, det U det V) V^T``) and
     :func:`starid.attitude.rotation_angle_rad` (atan2 of the skew part's norm and ``(tr R - 1) / 2``)."""
@@ -124,10 +126,3 @@ def score_terms(hip, truth, catalog_hip, v_cam, unit_icrs, attitude_true):
                 n_correct += 1
     y, x = attitude_error_terms(hip, v_cam, catalog_hip, unit_icrs, attitude_true)
     return n_identified, n_correct, y, x
-
-
-def attitude_error_rad(hip, v_cam, catalog_hip, unit_icrs, attitude_true) -> float:
-    """:func:`attitude_error_terms`' angle: numpy's ``arctan2`` (numba's, libm's, differs from numpy's
-    in the last bit for some angles), so the angle is :func:`starid.attitude.rotation_angle_rad`'s."""
-    y, x = attitude_error_terms(hip, v_cam, catalog_hip, unit_icrs, attitude_true)
-    return float(np.arctan2(y, x))
